@@ -1,0 +1,27 @@
+# Simulation-trained condition monitoring of gear drivetrains: measured data in, calibrated
+# exudyn model, simulated damage scenarios, features, hybrid training sets, classifiers, report.
+# Run: snakemake --cores all [--configfile config/<run>.yaml]. Stages and files: ARCHITECTURE.md.
+from condmon.config import load_schema, validate_config
+
+
+configfile: "config/config.yaml"
+
+
+# Every key is checked (and defaults filled) before any job is scheduled.
+validate_config(config, load_schema(workflow.source_path("config/schema.yaml")))
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/measured.smk"
+include: "workflow/rules/calibrate.smk"
+include: "workflow/rules/simulate.smk"
+include: "workflow/rules/features.smk"
+include: "workflow/rules/hybrid.smk"
+include: "workflow/rules/train.smk"
+include: "workflow/rules/report.smk"
+
+
+rule all:
+    input:
+        final_outputs(),
+    default_target: True

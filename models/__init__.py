@@ -1,0 +1,1 @@
+"""Multibody models and their physics: pure functions of parameters, returning signals."""

@@ -1,0 +1,180 @@
+"""Split tables: shares, nesting, disjointness, holdouts, determinism, errors."""
+import math
+
+import pandas as pd
+import pytest
+
+from condmon.hybrid import (SPLIT_COLUMNS, SplitError, make_splits, n_train_records,
+                            read_split_table, sorted_holdouts, write_split_table)
+
+HEALTH = ("healthy", "surface_fault", "missing_tooth")
+SPEEDS = (450.0, 775.0, 1100.0)
+PERCENTS = [0, 10, 25, 50, 75, 100]
+
+
+def make_records(n_per_stratum=10, lonely=True):
+    """n records per (health, speed) stratum; optionally one stratum with a single record."""
+    rows = [(f"{h}_{int(s)}_{i:02d}", h, s)
+            for h in HEALTH for s in SPEEDS for i in range(n_per_stratum)]
+    if lonely:
+        rows.append(("crack_775_00", "crack", 775.0))
+    return pd.DataFrame(rows, columns=["record_id", "health_state", "speed_rpm"])
+
+
+RECORDS = make_records()
+STRATUM = RECORDS.set_index("record_id")[["health_state", "speed_rpm"]].apply(tuple, axis=1)
+
+
+def train_sets(splits):
+    """{(percent, repeat, holdout): set of training record ids}."""
+    return {key: set(group.record_id[group.role == "train"])
+            for key, group in splits.groupby(["measured_percent", "repeat", "holdout"])}
+
+
+def test_columns_and_types():
+    splits = make_splits(RECORDS, "record_split", [0, 50], repeats=2, seed=1)
+    assert list(splits.columns) == SPLIT_COLUMNS
+    assert str(splits.measured_percent.dtype) == "int32"
+    assert str(splits.repeat.dtype) == "int32"
+    assert set(splits.protocol) == {"record_split"}
+    assert set(splits.holdout) == {""}
+    assert set(splits.role) <= {"train", "test"}
+
+
+def test_every_record_once_per_split_and_never_on_both_sides():
+    splits = make_splits(RECORDS, "record_split", PERCENTS, repeats=3, seed=7)
+    for _, group in splits.groupby(["measured_percent", "repeat", "holdout"]):
+        assert sorted(group.record_id) == sorted(RECORDS.record_id)
+        train = set(group.record_id[group.role == "train"])
+        test = set(group.record_id[group.role == "test"])
+        assert not train & test
+
+
+@pytest.mark.parametrize("min_test", [1, 2])
+def test_record_split_shares_per_stratum(min_test):
+    splits = make_splits(RECORDS, "record_split", PERCENTS, repeats=2, seed=3,
+                         min_test_records=min_test)
+    splits = splits.assign(stratum=splits.record_id.map(STRATUM))
+    for (percent, _, stratum), group in splits.groupby(["measured_percent", "repeat", "stratum"]):
+        n = len(group)
+        expected = max(0, min(math.floor(percent / 100 * n + 0.5), n - min_test))
+        assert (group.role == "train").sum() == expected, (percent, stratum)
+    at_100 = splits[(splits.measured_percent == 100) & (splits.repeat == 0)]
+    per_stratum_test = at_100[at_100.role == "test"].groupby("stratum").size()
+    assert (per_stratum_test[per_stratum_test.index != ("crack", 775.0)] == min_test).all()
+    assert per_stratum_test[("crack", 775.0)] == 1  # a single record always stays in test
+
+
+def test_n_train_records_rounds_half_up_and_caps():
+    assert n_train_records(10, 25, 1) == 3      # 2.5 -> 3
+    assert n_train_records(10, 24, 1) == 2      # 2.4 -> 2
+    assert n_train_records(10, 100, 1) == 9
+    assert n_train_records(10, 100, 0) == 10
+    assert n_train_records(1, 100, 1) == 0
+    assert n_train_records(1, 100, 3) == 0
+
+
+@pytest.mark.parametrize("protocol", ["record_split", "condition_holdout"])
+def test_training_sets_are_nested_across_percentages(protocol):
+    splits = make_splits(RECORDS, protocol, PERCENTS, repeats=3, seed=11)
+    sets = train_sets(splits)
+    for (percent, repeat, holdout), train in sets.items():
+        for higher in PERCENTS:
+            if higher > percent:
+                assert train <= sets[(higher, repeat, holdout)], (percent, higher, repeat)
+    assert all(not train for (p, _, _), train in sets.items() if p == 0)
+
+
+def test_condition_holdout_tests_a_whole_speed_and_never_trains_on_it():
+    splits = make_splits(RECORDS, "condition_holdout", PERCENTS, repeats=2, seed=5)
+    speed = splits.record_id.map(RECORDS.set_index("record_id").speed_rpm)
+    assert sorted_holdouts(splits.holdout) == ["speed_rpm=450", "speed_rpm=775", "speed_rpm=1100"]
+    for (percent, repeat, holdout), group in splits.assign(speed=speed).groupby(
+            ["measured_percent", "repeat", "holdout"]):
+        held_out = float(holdout.split("=")[1])
+        assert set(group.speed[group.role == "test"]) == {held_out}
+        assert (group.role[group.speed == held_out] == "test").all()
+        assert held_out not in set(group.speed[group.role == "train"])
+        others = group[group.speed != held_out]
+        assert set(others.role) <= {"train", "unused"}
+        if percent == 100:
+            assert (others.role == "train").all()  # nothing of the other speeds held back
+
+
+def test_same_seed_same_splits_other_seed_other_splits():
+    one = make_splits(RECORDS, "record_split", [50], repeats=2, seed=42)
+    again = make_splits(RECORDS.sample(frac=1, random_state=0), "record_split", [50],
+                        repeats=2, seed=42)  # input row order must not matter
+    pd.testing.assert_frame_equal(one, again)
+    other = make_splits(RECORDS, "record_split", [50], repeats=2, seed=43)
+    assert train_sets(one) != train_sets(other)
+    sets = train_sets(one)
+    assert sets[(50, 0, "")] != sets[(50, 1, "")]  # repeats differ
+
+
+def test_a_new_stratum_does_not_reshuffle_the_others():
+    extra = pd.DataFrame({"record_id": [f"aaa_{i}" for i in range(5)], "health_state": "aaa",
+                          "speed_rpm": 450.0})
+    before = train_sets(make_splits(RECORDS, "record_split", [50], repeats=1, seed=2))
+    after = train_sets(make_splits(pd.concat([RECORDS, extra]), "record_split", [50],
+                                   repeats=1, seed=2))
+    assert after[(50, 0, "")] - {f"aaa_{i}" for i in range(5)} == before[(50, 0, "")]
+
+
+def test_same_records_train_in_both_protocols():
+    split = train_sets(make_splits(RECORDS, "record_split", [50], repeats=1, seed=9))
+    holdout = train_sets(make_splits(RECORDS, "condition_holdout", [50], repeats=1, seed=9))
+    # The single-record stratum differs by design: record_split keeps it for testing,
+    # condition_holdout (tested on another speed) may train on it.
+    not_450 = {rid for rid in split[(50, 0, "")] if STRATUM[rid][1] != 450.0}
+    held_450 = holdout[(50, 0, "speed_rpm=450")]
+    assert held_450 - {"crack_775_00"} == not_450
+    assert "crack_775_00" in held_450
+
+
+def test_per_segment_rows_are_accepted():
+    per_segment = pd.concat([RECORDS, RECORDS, RECORDS])
+    pd.testing.assert_frame_equal(make_splits(per_segment, "record_split", [25], 1, 0),
+                                  make_splits(RECORDS, "record_split", [25], 1, 0))
+
+
+@pytest.mark.parametrize("percents, culprit", [
+    ([10, 101], "101"), ([-5], "-5"), ([12.5], "12.5"), (["fifty"], "fifty"),
+    ([10, 10], r"\[10\]"), ([], "empty")])
+def test_bad_percentages_are_named(percents, culprit):
+    with pytest.raises(SplitError, match=culprit):
+        make_splits(RECORDS, "record_split", percents, repeats=1, seed=0)
+
+
+def test_unknown_protocol_lists_the_allowed_ones():
+    with pytest.raises(SplitError, match=r"'segment_shuffle'.*record_split.*condition_holdout"):
+        make_splits(RECORDS, "segment_shuffle", [10], repeats=1, seed=0)
+
+
+def test_condition_holdout_needs_two_speeds():
+    one_speed = RECORDS[RECORDS.speed_rpm == 775.0]
+    with pytest.raises(SplitError, match=r"only speed_rpm \['775'\]"):
+        make_splits(one_speed, "condition_holdout", [10], repeats=1, seed=0)
+
+
+@pytest.mark.parametrize("kwargs, culprit", [
+    (dict(repeats=0), "repeats"), (dict(seed=-1), "seed"), (dict(min_test_records=-1), "min_test")])
+def test_bad_integers_are_named(kwargs, culprit):
+    settings = dict(repeats=1, seed=0, min_test_records=1)
+    settings.update(kwargs)
+    with pytest.raises(SplitError, match=culprit):
+        make_splits(RECORDS, "record_split", [10], **settings)
+
+
+def test_record_with_two_labels_is_named():
+    bad = pd.concat([RECORDS, pd.DataFrame([{"record_id": "healthy_450_00",
+                                             "health_state": "crack", "speed_rpm": 450.0}])])
+    with pytest.raises(SplitError, match="healthy_450_00"):
+        make_splits(bad, "record_split", [10], repeats=1, seed=0)
+
+
+def test_split_table_roundtrip(tmp_path):
+    splits = make_splits(RECORDS, "condition_holdout", [0, 50], repeats=2, seed=1)
+    path = tmp_path / "hybrid" / "condition_holdout.parquet"
+    write_split_table(splits, path)
+    pd.testing.assert_frame_equal(read_split_table(path), splits)

@@ -1,0 +1,169 @@
+"""The smoke pipeline end to end: outputs, MLflow, what an edit reruns, spectra, config errors.
+
+One smoke run (about two minutes on 2 cores) in a copy of the project serves every test here.
+"""
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from scipy.signal import find_peaks
+
+from condmon.signals import read_signal_table, to_arrays
+
+pytestmark = pytest.mark.pipeline
+ROOT = Path(__file__).resolve().parents[1]
+SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+
+
+def snakemake(workdir, *args, check=True):
+    result = subprocess.run(SNAKEMAKE + list(args), cwd=workdir, capture_output=True, text=True)
+    if check and result.returncode != 0:
+        raise AssertionError(f"snakemake {' '.join(args)} failed:\n{result.stdout[-3000:]}\n{result.stderr[-5000:]}")
+    return result
+
+
+def copy_project(target: Path) -> Path:
+    for name in ("Snakefile", "workflow", "config", "models"):
+        source = ROOT / name
+        if source.is_dir():
+            shutil.copytree(source, target / name, ignore=shutil.ignore_patterns("__pycache__"))
+        else:
+            shutil.copy(source, target / name)
+    return target
+
+
+@pytest.fixture(scope="session")
+def smoke(tmp_path_factory):
+    workdir = copy_project(tmp_path_factory.mktemp("smoke"))
+    snakemake(workdir, "--cores", "2", "--configfile", "config/smoke.yaml")
+    return workdir, workdir / "results" / "smoke"
+
+
+def planned_jobs(workdir, config: dict) -> dict:
+    """Job counts of a dry run with `config` (a modified smoke config)."""
+    path = workdir / "edited.yaml"
+    path.write_text(yaml.safe_dump(config))
+    out = snakemake(workdir, "-n", "--configfile", str(path)).stdout
+    if "Nothing to be done" in out:
+        return {}
+    table = out.split("Job stats:")[1].split("total")[0]
+    rows = [line.split() for line in table.strip().splitlines()[2:]]
+    return {name: int(count) for name, count in rows}
+
+
+def smoke_config():
+    return yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+
+
+def test_every_design_output_is_written(smoke):
+    _, results = smoke
+    for name in ("measured/signals.parquet", "calibration/params.json", "calibration/history.parquet",
+                 "calibration/convergence.png", "calibration/spectra.parquet", "features/measured.parquet",
+                 "features/simulated.parquet", "report/accuracy.csv", "report/summary.json",
+                 "report/mlflow_run.json", "report/plots/accuracy_vs_measured_percent.png",
+                 "report/plots/spectra_measured_vs_calibrated.png"):
+        assert (results / name).stat().st_size > 0, name
+    assert len(list((results / "simulated").rglob("*.parquet"))) == 6  # 3 states x 2 speeds x 1 batch
+    assert list((results / "report" / "plots").glob("confusion_*.png"))
+    calibration = json.loads((results / "calibration" / "params.json").read_text())
+    assert {"contact_law", "parameters", "cost", "evaluations"} <= set(calibration)
+    accuracy = pd.read_csv(results / "report" / "accuracy.csv")
+    assert list(accuracy.columns[:7]) == ["classifier", "protocol", "measured_percent", "repeat", "speed_rpm",
+                                          "accuracy", "macro_f1"]
+    assert set(accuracy["classifier"]) == {"svm", "knn"}
+    assert set(accuracy["protocol"]) == {"record_split", "condition_holdout"}
+    assert accuracy["accuracy"].between(0, 1).all()
+    measured = read_signal_table(results / "measured" / "signals.parquet")
+    assert set(measured["source"]) == {"virtual_bench"}  # synthetic data is never labelled measured
+
+
+def test_mlflow_has_one_parent_and_nested_runs(smoke):
+    from mlflow.tracking import MlflowClient
+    workdir, results = smoke
+    info = json.loads((results / "report" / "mlflow_run.json").read_text())
+    client = MlflowClient(tracking_uri=f"sqlite:///{workdir}/results/mlflow.db")
+    runs = client.search_runs([info["experiment_id"]])
+    children = [r for r in runs if r.data.tags.get("mlflow.parentRunId") == info["parent_run_id"]]
+    assert len(children) == info["n_nested_runs"] > 0
+    assert all("accuracy" in r.data.metrics for r in children)
+
+
+def test_editing_a_classifier_setting_reruns_only_training_and_report(smoke):
+    workdir, _ = smoke
+    config = smoke_config()
+    config["classifiers"]["svm"]["C"] = 2.5
+    jobs = planned_jobs(workdir, config)
+    assert set(jobs) == {"train", "track", "report", "all"}
+    assert jobs["train"] == len(config["hybrid"]["protocols"])  # the SVM's jobs only
+
+
+def test_editing_a_simulation_setting_reruns_simulation_and_downstream_not_calibration(smoke):
+    workdir, _ = smoke
+    config = smoke_config()
+    config["simulation"]["perturbation_sigma"] = 0.05
+    jobs = planned_jobs(workdir, config)
+    assert {"simulate", "features_simulated", "train", "track", "report"} <= set(jobs)
+    assert not {"calibrate", "measured", "virtual_bench", "features_measured", "hybrid"} & set(jobs)
+
+
+def mean_spectrum(results, health, speed, channel="A1_y"):
+    frames = [read_signal_table(p) for p in (results / "simulated" / health / f"{speed}rpm").glob("*.parquet")]
+    frame = pd.concat(frames, ignore_index=True)
+    _, arrays = to_arrays(frame, [channel])
+    x = arrays[:, 0].astype(float)
+    x = x - x.mean(axis=1, keepdims=True)
+    fs = frame["fs_hz"].iloc[0]
+    return np.fft.rfftfreq(x.shape[1], 1 / fs), np.abs(np.fft.rfft(x * np.hanning(x.shape[1]), axis=1)).mean(0)
+
+
+def test_healthy_spectrum_peaks_at_the_gear_mesh_frequency_and_harmonics(smoke):
+    _, results = smoke
+    freqs, amplitude = mean_spectrum(results, "healthy", 1100)
+    gmf = 1100 / 60 * 29
+    bin_width = freqs[1]
+    # Local maxima at least half a mesh frequency apart; the three largest sit on harmonics.
+    peaks, _ = find_peaks(amplitude, distance=int(gmf / 2 / bin_width))
+    top = freqs[peaks[np.argsort(amplitude[peaks])[-3:]]]
+    assert np.all(np.abs(top / gmf - np.round(top / gmf)) * gmf <= 1.5 * bin_width), top / gmf
+    assert freqs[np.argmax(amplitude)] == pytest.approx(round(freqs[np.argmax(amplitude)] / gmf) * gmf,
+                                                        abs=1.5 * bin_width)
+
+
+def test_missing_tooth_adds_sidebands_at_the_input_shaft_frequency(smoke):
+    _, results = smoke
+    freqs, healthy = mean_spectrum(results, "healthy", 1100)
+    _, missing = mean_spectrum(results, "missing_tooth", 1100)
+    shaft, gmf = 1100 / 60, 1100 / 60 * 29
+
+    def at(spectrum, f):
+        return spectrum[np.argmin(np.abs(freqs - f))]
+
+    sidebands = [gmf + k * shaft for k in (-3, -2, -1, 1, 2, 3)]
+    # Sidebands rise well above the healthy spectrum ...
+    assert np.median([at(missing, f) / at(healthy, f) for f in sidebands]) > 10
+    # ... and stand out of the missing-tooth spectrum between them (lines every shaft frequency).
+    between = [gmf + (k + 0.5) * shaft for k in (-3, -2, 1, 2)]
+    assert np.median([at(missing, f) for f in sidebands]) > 2 * np.median([at(missing, f) for f in between])
+
+
+@pytest.mark.parametrize("edit, key", [
+    (lambda c: c.update(unknown_setting=1), "unknown_setting"),
+    (lambda c: c["simulation"].update(samples_per_state="many"), "simulation.samples_per_state"),
+    (lambda c: c["calibration"].update(contact_laws=["flores", "hertz"]), "calibration.contact_laws"),
+    (lambda c: c["hybrid"].update(measured_percent=[0, 150]), "hybrid.measured_percent"),
+])
+def test_config_errors_stop_before_any_job_and_name_the_key(tmp_path, edit, key):
+    workdir = copy_project(tmp_path)
+    config = smoke_config()
+    edit(config)
+    (workdir / "bad.yaml").write_text(yaml.safe_dump(config))
+    result = snakemake(workdir, "--cores", "1", "--configfile", "bad.yaml", check=False)
+    assert result.returncode != 0
+    assert key in result.stderr + result.stdout
+    assert not (workdir / "results").exists()

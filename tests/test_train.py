@@ -1,0 +1,275 @@
+"""Classifier registry, run_protocol on synthetic features, outputs, and the three scripts."""
+import json
+import logging
+import runpy
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import joblib
+import numpy as np
+import pandas as pd
+import pytest
+from sklearn.neighbors import KNeighborsClassifier
+from sklearn.preprocessing import StandardScaler
+from sklearn.svm import SVC
+
+from condmon.classifiers import make_classifier
+from condmon.features import read_feature_table
+from condmon.hybrid import make_splits, read_split_table
+from condmon.signals import ID_COLUMNS, make_rows, write_signal_table
+from condmon.train import (METRIC_COLUMNS, PREDICTION_COLUMNS, model_filename, run_protocol,
+                           write_metrics, write_models)
+
+CLASSES = ("healthy", "surface_fault", "missing_tooth")
+SPEEDS = (450.0, 775.0)
+N_FEATURES = 12
+FEATURES = [f"f{i:02d}" for i in range(N_FEATURES)]
+SCRIPTS = Path(__file__).resolve().parents[1] / "workflow" / "scripts"
+
+
+def synthetic_features(source, n_records, n_segments, seed, separable=True):
+    """Features table: each class a well-separated cluster (or pure noise if not separable)."""
+    rng = np.random.default_rng(seed)
+    rows, values = [], []
+    for label_index, label in enumerate(CLASSES):
+        for speed in SPEEDS:
+            for r in range(n_records):
+                for segment in range(n_segments):
+                    rows.append({"record_id": f"{source}_{label}_{int(speed)}_{r:02d}",
+                                 "segment": segment, "source": source, "health_state": label,
+                                 "speed_rpm": speed, "load": 1.0, "fs_hz": 5120.0})
+                    centre = np.zeros(N_FEATURES)
+                    if separable:
+                        centre[label_index] = 8.0
+                    values.append(centre + rng.normal(size=N_FEATURES))
+    frame = pd.DataFrame(rows)
+    frame[FEATURES] = np.asarray(values, dtype=np.float32)
+    return frame
+
+
+SIMULATED = synthetic_features("simulated", n_records=4, n_segments=5, seed=1)
+MEASURED = synthetic_features("measured", n_records=6, n_segments=4, seed=2)
+
+
+def splits_for(measured, protocol="record_split", percents=(0, 50), repeats=2, seed=0):
+    return make_splits(measured[["record_id", "health_state", "speed_rpm"]], protocol,
+                       list(percents), repeats, seed)
+
+
+# -- classifiers -----------------------------------------------------------------------------
+def test_svm_is_scaled_rbf_with_study_defaults():
+    pipeline = make_classifier("svm", {}, seed=3)
+    scaler, svm = (step for _, step in pipeline.steps)
+    assert isinstance(scaler, StandardScaler) and isinstance(svm, SVC)
+    assert (svm.kernel, svm.C, svm.gamma, svm.random_state) == ("rbf", 1.2, "scale", 3)
+    assert make_classifier("svm", {"C": 10, "class_weight": "balanced"}).steps[1][1].C == 10
+
+
+def test_knn_parameters():
+    knn = make_classifier("knn", {"n_neighbors": 3, "weights": "distance"}).steps[1][1]
+    assert isinstance(knn, KNeighborsClassifier)
+    assert (knn.n_neighbors, knn.weights) == (3, "distance")
+
+
+def test_unknown_classifier_and_parameter_are_named():
+    with pytest.raises(ValueError, match=r"'cnn'.*knn.*svm"):
+        make_classifier("cnn", {})
+    with pytest.raises(ValueError, match=r"'gama'.*'svm'"):
+        make_classifier("svm", {"gama": 0.1})
+
+
+# -- run_protocol ----------------------------------------------------------------------------
+def test_separable_data_is_classified_perfectly_with_per_speed_rows():
+    splits = splits_for(MEASURED)
+    predictions, metrics, models = run_protocol("svm", {}, SIMULATED, MEASURED, splits,
+                                                FEATURES, seed=0)
+    assert list(metrics.columns) == METRIC_COLUMNS
+    assert list(predictions.columns) == PREDICTION_COLUMNS
+    assert (metrics.accuracy == 1.0).all() and (metrics.macro_f1 == 1.0).all()
+    assert set(models) == {(p, r, "") for p in (0, 50) for r in (0, 1)}
+    for (percent, repeat), group in metrics.groupby(["measured_percent", "repeat"]):
+        overall = group[group.speed_rpm.isna()]
+        per_speed = group[group.speed_rpm.notna()]
+        assert len(overall) == 1 and sorted(per_speed.speed_rpm) == list(SPEEDS)
+        assert per_speed.n_test.sum() == overall.n_test.iloc[0]
+        test_ids = set(splits.record_id[(splits.measured_percent == percent)
+                                        & (splits.repeat == repeat) & (splits.role == "test")])
+        n_test_segments = MEASURED.record_id.isin(test_ids).sum()
+        assert overall.n_test.iloc[0] == n_test_segments
+        assert overall.n_train_simulated.iloc[0] == len(SIMULATED)
+        assert overall.n_train_measured.iloc[0] == len(MEASURED) - n_test_segments
+        got = predictions[(predictions.measured_percent == percent)
+                          & (predictions.repeat == repeat)]
+        assert set(got.record_id) == test_ids and len(got) == n_test_segments
+    assert (metrics.n_train_measured[metrics.measured_percent == 0] == 0).all()
+    assert (metrics.n_train_measured[metrics.measured_percent == 50] > 0).all()
+
+
+def test_shuffled_labels_give_chance_accuracy():
+    rng = np.random.default_rng(5)
+    sim = synthetic_features("simulated", n_records=4, n_segments=5, seed=1)
+    meas = synthetic_features("measured", n_records=10, n_segments=4, seed=2)
+    for frame in (sim, meas):  # shuffle labels between records: features carry no label
+        records = frame.record_id.unique()
+        record_labels = frame.groupby("record_id").health_state.first()[records]
+        labels = dict(zip(records, rng.permutation(record_labels)))
+        frame["health_state"] = frame.record_id.map(labels)
+    _, metrics, _ = run_protocol("svm", {}, sim, meas, splits_for(meas, percents=[0], repeats=1),
+                                 FEATURES, seed=0)
+    overall = metrics[metrics.speed_rpm.isna()].accuracy.iloc[0]
+    assert abs(overall - 1 / 3) < 0.2
+
+
+def test_condition_holdout_evaluates_only_the_held_out_speed():
+    splits = splits_for(MEASURED, "condition_holdout", percents=[0, 100], repeats=1)
+    predictions, metrics, models = run_protocol("knn", {"n_neighbors": 3}, SIMULATED, MEASURED,
+                                                splits, FEATURES, seed=0)
+    assert set(models) == {(p, 0, h) for p in (0, 100)
+                           for h in ("speed_rpm=450", "speed_rpm=775")}
+    for holdout, group in metrics.groupby("holdout"):
+        held_out = float(holdout.split("=")[1])
+        assert sorted(group.speed_rpm.dropna().unique()) == [held_out]
+        assert set(predictions.speed_rpm[predictions.holdout == holdout]) == {held_out}
+    at_100 = metrics[(metrics.measured_percent == 100) & metrics.speed_rpm.isna()]
+    assert (at_100.n_train_measured == len(MEASURED) // 2).all()
+    # at 0 % the other speed's records are "unused": neither trained on nor tested
+    at_0 = metrics[(metrics.measured_percent == 0) & metrics.speed_rpm.isna()]
+    assert (at_0.n_train_measured == 0).all() and (at_0.n_test == len(MEASURED) // 2).all()
+    assert (metrics.accuracy == 1.0).all()
+
+
+def test_split_without_test_records_is_skipped_with_a_warning(caplog):
+    splits = splits_for(MEASURED, percents=[50], repeats=2)
+    splits.loc[splits.repeat == 1, "role"] = "train"
+    with caplog.at_level(logging.WARNING, logger="condmon.train"):
+        _, metrics, models = run_protocol("knn", {}, SIMULATED, MEASURED, splits, FEATURES, 0)
+    assert set(metrics.repeat) == {0} and set(models) == {(50, 0, "")}
+    assert "repeat=1" in caplog.text and "no test records" in caplog.text
+
+
+def test_unknown_record_and_missing_feature_are_named():
+    splits = splits_for(MEASURED, percents=[50], repeats=1)
+    bad = splits.copy()
+    bad.loc[0, "record_id"] = "ghost_record"
+    with pytest.raises(ValueError, match="ghost_record"):
+        run_protocol("svm", {}, SIMULATED, MEASURED, bad, FEATURES, 0)
+    with pytest.raises(ValueError, match=r"simulated features lack column\(s\) \['f99'\]"):
+        run_protocol("svm", {}, SIMULATED, MEASURED, splits, FEATURES + ["f99"], 0)
+
+
+def test_results_are_deterministic():
+    splits = splits_for(MEASURED, percents=[50], repeats=1)
+    first = run_protocol("svm", {}, SIMULATED, MEASURED, splits, FEATURES, seed=4)
+    second = run_protocol("svm", {}, SIMULATED, MEASURED, splits, FEATURES, seed=4)
+    pd.testing.assert_frame_equal(first[0], second[0])
+    pd.testing.assert_frame_equal(first[1].drop(columns="fit_seconds"),
+                                  second[1].drop(columns="fit_seconds"))
+
+
+def test_model_files_and_metrics_csv(tmp_path):
+    splits = splits_for(MEASURED, "condition_holdout", percents=[50], repeats=1)
+    _, metrics, models = run_protocol("knn", {}, SIMULATED, MEASURED, splits, FEATURES, 0)
+    entries = write_models(models, tmp_path / "models")
+    assert sorted(p.name for p in (tmp_path / "models").iterdir()) == [
+        "p050_r0_h0.joblib", "p050_r0_h1.joblib"]
+    assert entries[1] == {"file": "p050_r0_h1.joblib", "measured_percent": 50, "repeat": 0,
+                          "holdout": "speed_rpm=775", "holdout_index": 1}
+    model = joblib.load(tmp_path / "models" / "p050_r0_h1.joblib")
+    assert model.predict(MEASURED[FEATURES].to_numpy()[:1])[0] == "healthy"
+    assert model_filename(0, 3) == "p000_r3.joblib"
+    write_metrics(metrics, tmp_path / "metrics.csv")
+    lines = (tmp_path / "metrics.csv").read_text().splitlines()
+    assert lines[0] == ",".join(METRIC_COLUMNS)
+    assert lines[1].split(",")[5] == ""  # all-speeds row: empty speed_rpm
+
+
+# -- the Snakemake scripts, with a stand-in snakemake object --------------------------------
+class FakeSnakemake(SimpleNamespace):
+    """Enough of Snakemake's script object: rule, input, output, params, log."""
+
+
+def run_script(name, **attributes):
+    fake = FakeSnakemake(rule=name.removesuffix(".py"), **attributes)
+    runpy.run_path(str(SCRIPTS / name), init_globals={"snakemake": fake})
+
+
+@pytest.fixture
+def isolated_logging(monkeypatch):
+    """The scripts reconfigure logging and sys.excepthook; put both back afterwards."""
+    monkeypatch.setattr(sys, "excepthook", sys.excepthook)
+    root = logging.getLogger()
+    handlers, level = root.handlers[:], root.level
+    yield
+    for handler in root.handlers:
+        if handler not in handlers:
+            handler.close()
+    root.handlers[:], root.level = handlers, level
+    logging.captureWarnings(False)
+
+
+def write_signals(path, source, n_records, seed):
+    """Records carrying a class-specific tone (100/200/300 Hz) plus noise on both channels."""
+    rng = np.random.default_rng(seed)
+    fs, n = 1024.0, 2048
+    t = np.arange(n) / fs
+    rows = []
+    for k, label in enumerate(CLASSES):
+        for speed in SPEEDS:
+            for r in range(n_records):
+                tone = np.sin(2 * np.pi * 100 * (k + 1) * t)
+                channels = {"A1_x": tone + 0.05 * rng.normal(size=n),
+                            "A1_y": 0.5 * tone + 0.05 * rng.normal(size=n)}
+                rows += make_rows(f"{source}_{label}_{int(speed)}_{r}", source, label, speed,
+                                  1.0, fs, channels, segment_length=1024)
+    write_signal_table(rows, path)
+
+
+def test_scripts_run_end_to_end(tmp_path, isolated_logging):
+    spectrum = {"f_min_hz": 64, "f_max_hz": 320, "resolution_hz": 64, "scale": "log"}
+    channels = ["A1_x", "A1_y"]
+    (tmp_path / "logs").mkdir()  # Snakemake creates log directories before the job starts
+    write_signals(tmp_path / "sim_a.parquet", "simulated", 2, seed=1)
+    write_signals(tmp_path / "measured.parquet", "virtual_bench", 3, seed=2)
+    # a second simulated batch, so the features script concatenates several tables
+    write_signals(tmp_path / "sim_b.parquet", "simulated", 1, seed=3)
+    frame = pd.read_parquet(tmp_path / "sim_b.parquet")
+    frame["record_id"] = frame.record_id + "_b"
+    write_signal_table(frame, tmp_path / "sim_b.parquet")
+
+    for name, inputs in (("simulated", [tmp_path / "sim_a.parquet", tmp_path / "sim_b.parquet"]),
+                         ("measured", str(tmp_path / "measured.parquet"))):
+        run_script("features.py", input=SimpleNamespace(signals=inputs),
+                   output=SimpleNamespace(features=tmp_path / f"features/{name}.parquet"),
+                   params=SimpleNamespace(channels=channels, spectrum=spectrum),
+                   log=[str(tmp_path / f"logs/features_{name}.log")])
+    simulated, names = read_feature_table(tmp_path / "features/simulated.parquet")
+    assert len(simulated) == 3 * 2 * 3 * 2 and len(names) == 8
+    assert list(simulated.columns[:len(ID_COLUMNS)]) == ID_COLUMNS
+
+    run_script("hybrid.py", input=SimpleNamespace(features=tmp_path / "features/measured.parquet"),
+               output=SimpleNamespace(splits=tmp_path / "hybrid/record_split.parquet"),
+               params=SimpleNamespace(protocol="record_split", measured_percent=[0, 50],
+                                      repeats=2, seed=1, min_test_records=1),
+               log=[str(tmp_path / "logs/hybrid.log")])
+    assert len(read_split_table(tmp_path / "hybrid/record_split.parquet")) == 2 * 2 * 18
+
+    out = tmp_path / "train/svm/record_split"
+    run_script("train.py",
+               input=SimpleNamespace(simulated=tmp_path / "features/simulated.parquet",
+                                     measured=tmp_path / "features/measured.parquet",
+                                     splits=tmp_path / "hybrid/record_split.parquet"),
+               output=SimpleNamespace(predictions=out / "predictions.parquet",
+                                      metrics=out / "metrics.csv", models=out / "models",
+                                      info=out / "info.json"),
+               params=SimpleNamespace(classifier="svm", classifier_params={"C": 1.2}, seed=1),
+               log=[str(tmp_path / "logs/train.log")])
+    metrics = pd.read_csv(out / "metrics.csv")
+    assert (metrics.accuracy == 1.0).all() and len(metrics) == 4 * 3
+    assert sorted(p.name for p in (out / "models").iterdir()) == [
+        "p000_r0.joblib", "p000_r1.joblib", "p050_r0.joblib", "p050_r1.joblib"]
+    info = json.loads((out / "info.json").read_text())
+    assert info["labels"] == sorted(CLASSES) and info["n_features"] == 8
+    assert info["classifier_params"] == {"C": 1.2, "gamma": "scale", "class_weight": None}
+    assert "accuracy 1.000" in (tmp_path / "logs/train.log").read_text()
+    assert not list(out.glob(".*tmp*"))  # no temporary files left behind

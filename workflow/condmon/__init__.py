@@ -1,0 +1,1 @@
+"""Stage logic of the condition-monitoring pipeline, importable without Snakemake."""

@@ -1,0 +1,202 @@
+"""Calibration stage: CMA-ES tunes the gear model (parameters and contact law) so its healthy
+spectra match the measured healthy spectra.
+
+Cost (CFRP study, eq. 4): the normalised least-squares error between simulated and measured
+amplitude spectra, sum over frequency bins of (a_sim - a_meas)^2 / sum of a_meas^2, averaged
+over every (speed, channel). The helical study's eq. 14 (sum over locations of the Euclidean
+spectral distance) is the alternative `helical_eq14`.
+
+The contact law is categorical: `catcma` searches it jointly with the continuous parameters
+(CatCMA), `per_law` runs one CMA-ES per law and keeps the best.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import multiprocessing
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from cmaes import CMA, CatCMA
+
+from condmon.features import SpectrumFeatures
+from condmon.gear_model import build_parameters, simulation_settings
+from condmon.signals import to_arrays
+from models.gear_drivetrain import SimulationError, simulate
+
+log = logging.getLogger(__name__)
+COST_FUNCTIONS = ("cfrp_eq4", "helical_eq14")
+FAILED_COST = 1.0e3  # a diverged candidate is a bad candidate, not a crash of the search
+
+
+def spectrum_cost(simulated: np.ndarray, measured: np.ndarray, kind: str = "cfrp_eq4") -> float:
+    """Cost between spectra of shape (n_speeds, n_channels, n_bins)."""
+    if kind == "cfrp_eq4":
+        return float(np.mean(((simulated - measured) ** 2).sum(-1) / (measured ** 2).sum(-1)))
+    if kind == "helical_eq14":
+        return float(np.mean(np.sqrt(((simulated - measured) ** 2).sum(-1)).sum(-1)))
+    raise ValueError(f"unknown calibration cost {kind!r}; choose one of {list(COST_FUNCTIONS)}")
+
+
+def estimate_sensor_noise(measured: np.ndarray, simulated: np.ndarray, segment_length: int) -> float:
+    """RMS (m/s^2) of white sensor noise that explains the measured spectra above the model's.
+
+    The model has no measurement chain, so the power the measured RMS band spectra carry beyond
+    the calibrated model's is taken as noise; the median over all bands ignores the few bands
+    where the model itself is off. A Hann-windowed, amplitude-corrected spectrum of white noise
+    of RMS sigma has E|X_k|^2 = 6 sigma^2 / N per bin.
+    """
+    excess_power = np.median(np.maximum(measured ** 2 - simulated ** 2, 0.0))
+    return float(np.sqrt(excess_power * segment_length / 6.0))
+
+
+@dataclass
+class Bound:
+    name: str
+    low: float
+    high: float
+    log: bool
+
+    def to_unit(self, value: float) -> float:
+        if self.log:
+            return (math.log(value) - math.log(self.low)) / (math.log(self.high) - math.log(self.low))
+        return (value - self.low) / (self.high - self.low)
+
+    def from_unit(self, z: float) -> float:
+        z = min(max(z, 0.0), 1.0)
+        if self.log:
+            return math.exp(math.log(self.low) + z * (math.log(self.high) - math.log(self.low)))
+        return self.low + z * (self.high - self.low)
+
+
+def calibration_spectrum(spectrum: dict, resolution_hz: float) -> dict:
+    """The features' frequency range in coarser, energy-keeping (RMS) bands of linear amplitude:
+    eq. 4 compares amplitudes, and coarse RMS bands keep it robust to the small speed changes
+    of a real bench."""
+    return {**spectrum, "resolution_hz": resolution_hz, "scale": "linear", "band_statistic": "rms"}
+
+
+class SpectrumModel:
+    """Simulated mean healthy spectra at the calibration speeds for one parameter set."""
+
+    def __init__(self, model: dict, numerics: dict, speeds, channels, spectrum: dict, resolution_hz: float,
+                 sim_seconds: float, segment_seconds: float):
+        self.model, self.speeds, self.channels = model, list(speeds), list(channels)
+        self.settings = simulation_settings(numerics, duration=sim_seconds)
+        self.segment_length = int(round(segment_seconds * self.settings.output_rate))
+        self.spectrum = SpectrumFeatures(channels=self.channels, **calibration_spectrum(spectrum, resolution_hz))
+
+    def mean_spectra(self, signals_by_speed) -> np.ndarray:
+        out = []
+        for signals in signals_by_speed:
+            n_seg = len(signals[self.channels[0]]) // self.segment_length
+            stack = np.stack([[signals[c][k * self.segment_length:(k + 1) * self.segment_length]
+                               for c in self.channels] for k in range(n_seg)])
+            features = self.spectrum.transform(stack, self.settings.output_rate)
+            out.append(features.mean(0).reshape(len(self.channels), -1))
+        return np.stack(out)
+
+    def __call__(self, contact_law: str, values: dict) -> np.ndarray:
+        runs = []
+        for speed in self.speeds:
+            params = build_parameters(self.model, contact_law=contact_law, speed_rpm=float(speed),
+                                      health_state="healthy", **values)
+            runs.append(simulate(params, self.settings))
+        return self.mean_spectra(runs)
+
+
+def measured_spectra(frame: pd.DataFrame, speeds, channels, spectrum: dict, resolution_hz: float,
+                     fs_hz: float) -> np.ndarray:
+    """Mean amplitude spectra of the healthy measured segments per speed: (speeds, channels, bins)."""
+    transformer = SpectrumFeatures(channels=list(channels), **calibration_spectrum(spectrum, resolution_hz))
+    out = []
+    for speed in speeds:
+        rows = frame[(frame["health_state"] == "healthy") & (frame["speed_rpm"] == float(speed))]
+        if rows.empty:
+            raise ValueError(f"no healthy measured records at {speed} rpm to calibrate on")
+        _, arrays = to_arrays(rows, list(channels))
+        out.append(transformer.transform(arrays, fs_hz).mean(0).reshape(len(channels), -1))
+    return np.stack(out)
+
+
+# Worker state for the process pool (set once per process; fork copies it).
+_WORKER = {}
+
+
+def _init_worker(spectrum_model, target, cost_kind):
+    _WORKER.update(model=spectrum_model, target=target, cost=cost_kind)
+
+
+def _evaluate(task):
+    contact_law, values = task
+    start = time.perf_counter()
+    try:
+        cost = spectrum_cost(_WORKER["model"](contact_law, values), _WORKER["target"], _WORKER["cost"])
+        error = ""
+    except SimulationError as exc:
+        cost, error = FAILED_COST, str(exc)
+    return cost, error, time.perf_counter() - start
+
+
+class Calibrator:
+    """CMA-ES over the unit cube of the bounded parameters (log scale where configured)."""
+
+    def __init__(self, bounds: list[Bound], contact_laws, strategy="catcma", population=8,
+                 generations=10, sigma0=0.3, seed=1, processes=1, initial=None):
+        if strategy not in ("catcma", "per_law"):
+            raise ValueError(f"unknown calibration strategy {strategy!r}; choose catcma or per_law")
+        self.bounds, self.laws = bounds, list(contact_laws)
+        self.strategy, self.population, self.generations = strategy, population, generations
+        self.sigma0, self.seed, self.processes = sigma0, seed, processes
+        self.initial = initial or {}
+
+    def _values(self, z) -> dict:
+        return {b.name: b.from_unit(float(zi)) for b, zi in zip(self.bounds, z)}
+
+    def _mean0(self) -> np.ndarray:
+        return np.array([b.to_unit(self.initial[b.name]) if b.name in self.initial else 0.5
+                         for b in self.bounds])
+
+    def run(self, spectrum_model, target, cost_kind="cfrp_eq4"):
+        """Returns (best dict, history DataFrame)."""
+        history = []
+        unit_bounds = np.tile([0.0, 1.0], (len(self.bounds), 1))
+        ctx = multiprocessing.get_context("fork")
+        with ctx.Pool(self.processes, initializer=_init_worker,
+                      initargs=(spectrum_model, target, cost_kind)) as pool:
+            def evaluate(generation, candidates):
+                tasks = [(law, self._values(z)) for law, z in candidates]
+                results = pool.map(_evaluate, tasks)
+                for (law, values), (cost, error, seconds) in zip(tasks, results):
+                    history.append(dict(generation=generation, evaluation=len(history), contact_law=law,
+                                        cost=cost, seconds=seconds, error=error, **values))
+                return [r[0] for r in results]
+
+            if self.strategy == "catcma" and len(self.laws) > 1:
+                optimizer = CatCMA(mean=self._mean0(), sigma=self.sigma0, cat_num=np.array([len(self.laws)]),
+                                   bounds=unit_bounds, seed=self.seed, population_size=self.population)
+                for generation in range(self.generations):
+                    asked = [optimizer.ask() for _ in range(optimizer.population_size)]
+                    candidates = [(self.laws[int(np.argmax(c[0]))], x) for x, c in asked]
+                    costs = evaluate(generation, candidates)
+                    optimizer.tell([(a, cost) for a, cost in zip(asked, costs)])
+                    log.info("generation %d: best %.4g", generation, min(costs))
+            else:
+                for law_index, law in enumerate(self.laws):
+                    optimizer = CMA(mean=self._mean0(), sigma=self.sigma0, bounds=unit_bounds,
+                                    seed=self.seed + law_index, population_size=self.population)
+                    for generation in range(self.generations):
+                        asked = [optimizer.ask() for _ in range(optimizer.population_size)]
+                        costs = evaluate(generation, [(law, x) for x in asked])
+                        optimizer.tell(list(zip(asked, costs)))
+                        log.info("%s generation %d: best %.4g", law, generation, min(costs))
+        frame = pd.DataFrame(history)
+        best = frame.loc[frame["cost"].idxmin()]
+        if best["cost"] >= FAILED_COST:
+            raise SimulationError("calibration: every candidate simulation failed; first error: "
+                                  + frame["error"].iloc[0])
+        return {"contact_law": best["contact_law"], "cost": float(best["cost"]),
+                "parameters": {b.name: float(best[b.name]) for b in self.bounds},
+                "evaluations": len(frame)}, frame

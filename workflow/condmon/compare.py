@@ -1,0 +1,120 @@
+"""Compare pipeline invocations logged in MLflow (console script ``condmon-compare``).
+
+One row per parent run x classifier x protocol x measured percentage: mean accuracy and
+macro-F1 over repeats (held-out conditions of a repeat averaged first), the parent run's start
+time and config hash. Superseded invocations (see condmon.tracking) are left out unless
+``--include-superseded`` is given.
+
+    condmon-compare --tracking-uri sqlite:///results/mlflow.db --experiment default --percent 0
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+import pandas as pd
+
+from condmon.tracking import DEFAULT_TRACKING_URI, TrackingError, check_tracking_server, \
+    resolve_tracking_uri
+
+KEYS = ["classifier", "protocol", "measured_percent"]
+
+
+def parse_args(argv=None):
+    parser = argparse.ArgumentParser(prog="condmon-compare", description=__doc__.split("\n")[0])
+    parser.add_argument("--tracking-uri", default=DEFAULT_TRACKING_URI,
+                        help=f"MLflow tracking URI (default {DEFAULT_TRACKING_URI}; relative "
+                             "sqlite paths are relative to the working directory)")
+    parser.add_argument("--experiment", nargs="+", default=None,
+                        help="experiment (= pipeline run) names; default: all")
+    parser.add_argument("--percent", type=int, nargs="+", default=None,
+                        help="only these measured percentages")
+    parser.add_argument("--include-superseded", action="store_true",
+                        help="also show invocations replaced by a later one with the same config")
+    return parser.parse_args(argv)
+
+
+def _column(frame: pd.DataFrame, name: str) -> pd.Series:
+    """A search_runs column that may be absent when no run has that tag/param."""
+    return frame[name] if name in frame.columns else pd.Series(None, index=frame.index,
+                                                               dtype=object)
+
+
+def comparison_table(runs: pd.DataFrame, experiment_names: dict, percents=None,
+                     include_superseded: bool = False) -> pd.DataFrame:
+    """Aggregate the ``mlflow.search_runs`` frame of parents and nested runs into the table."""
+    columns = ["experiment", "parent_run_id", "started_utc", "config_hash", "superseded",
+               *KEYS, "n_repeats", "accuracy_mean", "macro_f1_mean"]
+    if runs.empty:
+        return pd.DataFrame(columns=columns)
+    parent_of = _column(runs, "tags.mlflow.parentRunId")
+    parents = runs[parent_of.isna() | (parent_of == "")]
+    parents = parents[_column(parents, "tags.config_hash").notna()]  # only pipeline parents
+    if not include_superseded:
+        parents = parents[_column(parents, "tags.superseded") != "true"]
+    parents = pd.DataFrame({
+        "parent_run_id": parents["run_id"],
+        "experiment": parents["experiment_id"].map(experiment_names),
+        "started_utc": parents["start_time"].dt.strftime("%Y-%m-%d %H:%M:%S"),
+        "config_hash": parents["tags.config_hash"],
+        "superseded": _column(parents, "tags.superseded").fillna("false")})
+    children = runs[parent_of.isin(parents["parent_run_id"])]
+    if children.empty:
+        return pd.DataFrame(columns=columns)
+    nested = pd.DataFrame({
+        "parent_run_id": children["tags.mlflow.parentRunId"],
+        "classifier": children["params.classifier"],
+        "protocol": children["params.protocol"],
+        "measured_percent": children["params.measured_percent"].astype(int),
+        "repeat": children["params.repeat"].astype(int),
+        "accuracy": children["metrics.accuracy"],
+        "macro_f1": children["metrics.macro_f1"]})
+    if percents:
+        nested = nested[nested["measured_percent"].isin(percents)]
+    per_repeat = nested.groupby(["parent_run_id", *KEYS, "repeat"], as_index=False)[
+        ["accuracy", "macro_f1"]].mean()
+    table = (per_repeat.groupby(["parent_run_id", *KEYS], as_index=False)
+             .agg(n_repeats=("repeat", "nunique"), accuracy_mean=("accuracy", "mean"),
+                  macro_f1_mean=("macro_f1", "mean")))
+    table = parents.merge(table, on="parent_run_id")
+    return table[columns].sort_values(["experiment", "started_utc", *KEYS]).reset_index(drop=True)
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    import mlflow
+
+    try:
+        uri = resolve_tracking_uri(args.tracking_uri)
+        check_tracking_server(uri)
+    except TrackingError as exc:
+        print(f"condmon-compare: {exc}", file=sys.stderr)
+        return 2
+    client = mlflow.MlflowClient(uri)
+    mlflow.set_tracking_uri(uri)
+    if args.experiment:
+        experiments = []
+        for name in args.experiment:
+            experiment = client.get_experiment_by_name(name)
+            if experiment is None:
+                print(f"condmon-compare: no experiment {name!r} at {uri}", file=sys.stderr)
+                return 2
+            experiments.append(experiment)
+    else:
+        experiments = client.search_experiments()
+    names = {e.experiment_id: e.name for e in experiments}
+    runs = (mlflow.search_runs(experiment_ids=list(names), output_format="pandas")
+            if names else pd.DataFrame())
+    table = comparison_table(runs, names, args.percent, args.include_superseded)
+    if table.empty:
+        print(f"no pipeline runs found at {uri}")
+        return 0
+    if not args.include_superseded:
+        table = table.drop(columns="superseded")
+    with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
+        print(table.to_string(index=False))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

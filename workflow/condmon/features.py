@@ -1,0 +1,266 @@
+"""Spectrum features: band-averaged amplitude spectra of every channel, concatenated.
+
+This is the input of the CFRP study's classifiers (eq. 5: FFT = [FFT_X, FFT_Y] per sensor).
+The features table is wide Parquet: the signal table's id columns, then one float32 column per
+feature; its file metadata lists the feature columns in order (see ARCHITECTURE.md).
+"""
+from __future__ import annotations
+
+import json
+import logging
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+from scipy.signal import get_window
+from sklearn.base import BaseEstimator, TransformerMixin
+
+from condmon.signals import (ID_COLUMNS, SCHEMA, config_hash, package_versions,
+                             read_signal_table, to_arrays, write_atomic)
+
+log = logging.getLogger(__name__)
+
+SCALES = ("linear", "log")
+LOG_FLOOR = 1e-6  # added before log10 so silent bands stay finite
+FEATURE_NAMES_KEY = b"condmon.feature_names"
+FEATURE_KIND_KEY = b"condmon.feature_kind"
+BAND_STATISTICS = ("mean", "rms")
+SPECTRUM_PARAMS = ("f_min_hz", "f_max_hz", "resolution_hz", "scale", "band_statistic")
+
+
+class FeatureTableError(ValueError):
+    """A features table (or the request to build one) breaks the contract."""
+
+
+def amplitude_spectrum(signal, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Single-sided amplitude spectrum of `signal` (along its last axis).
+
+    The mean is removed and a (periodic) Hann window applied; amplitudes are corrected for the
+    window's coherent gain, so a sine of amplitude A at a bin frequency gives A at that bin.
+    Returns (freqs_hz, amplitudes); works on one signal or a stack of them.
+    """
+    x = np.asarray(signal, dtype=np.float64)
+    if x.shape[-1] < 2:
+        raise ValueError(f"amplitude_spectrum needs at least 2 samples, got {x.shape[-1]}")
+    if not fs_hz > 0:
+        raise ValueError(f"fs_hz must be positive, got {fs_hz}")
+    n = x.shape[-1]
+    x = x - x.mean(axis=-1, keepdims=True)
+    window = get_window("hann", n)  # periodic: sums to exactly n/2
+    amplitudes = np.abs(np.fft.rfft(x * window, axis=-1)) * (2.0 / window.sum())
+    # DC and (even n) Nyquist have no mirror image in the two-sided spectrum: no factor 2.
+    amplitudes[..., 0] /= 2.0
+    if n % 2 == 0:
+        amplitudes[..., -1] /= 2.0
+    return np.fft.rfftfreq(n, d=1.0 / fs_hz), amplitudes
+
+
+class SpectrumFeatures(TransformerMixin, BaseEstimator):
+    """Band-averaged amplitude spectra of several channels, concatenated in channel order.
+
+    The band [f_min_hz, f_max_hz) is cut into bands `resolution_hz` wide; each feature is the mean
+    amplitude of the FFT bins inside one band (so the feature count does not depend on the segment
+    length). `band_statistic="rms"` takes the root mean square of the bins instead: it keeps a
+    band's energy when a line is smeared over several bins (a small speed fluctuation), which
+    the mean amplitude does not. `scale="log"` gives log10(amplitude + 1e-6). Stateless.
+    """
+
+    def __init__(self, channels=("A1_x", "A1_y"), f_min_hz: float = 0.0,
+                 f_max_hz: float = 1000.0, resolution_hz: float = 1.0, scale: str = "linear",
+                 band_statistic: str = "mean"):
+        self.channels = channels
+        self.f_min_hz = f_min_hz
+        self.f_max_hz = f_max_hz
+        self.resolution_hz = resolution_hz
+        self.scale = scale
+        self.band_statistic = band_statistic
+
+    # -- grid ------------------------------------------------------------------------------
+    def band_centres(self) -> np.ndarray:
+        """Centre frequency of every band, in Hz."""
+        self._check_params()
+        return self.f_min_hz + self.resolution_hz * (np.arange(self._n_bands()) + 0.5)
+
+    def feature_names(self, fs_hz: float, n_samples: int) -> list[str]:
+        """`fft_<channel>_<centre:07.1f>Hz` for every channel and band, in feature order."""
+        self._check_grid(fs_hz, n_samples)
+        centres = self.band_centres()
+        return [f"fft_{channel}_{centre:07.1f}Hz"
+                for channel in self.channels for centre in centres]
+
+    # -- sklearn API -----------------------------------------------------------------------
+    def fit(self, X=None, y=None, fs_hz: float | None = None):
+        self._check_params()
+        return self
+
+    def fit_transform(self, X, y=None, fs_hz: float | None = None) -> np.ndarray:
+        return self.fit(X).transform(X, fs_hz)
+
+    def transform(self, X, fs_hz: float) -> np.ndarray:
+        """(n_segments, n_channels, n_samples) -> (n_segments, n_channels * n_bands) float32."""
+        X = np.asarray(X)
+        if X.ndim != 3:
+            raise ValueError(f"expected an array (n_segments, n_channels, n_samples), "
+                             f"got shape {X.shape}")
+        if X.shape[1] != len(self.channels):
+            raise ValueError(f"array has {X.shape[1]} channels but SpectrumFeatures has "
+                             f"{len(self.channels)}: {list(self.channels)}")
+        n_samples = X.shape[2]
+        self._check_grid(fs_hz, n_samples)
+        freqs, amplitudes = amplitude_spectrum(X, fs_hz)
+        bands = self._band_means(freqs, amplitudes)  # (n_segments, n_channels, n_bands)
+        if self.scale == "log":
+            bands = np.log10(bands + LOG_FLOOR)
+        return bands.reshape(len(X), -1).astype(np.float32)
+
+    # -- helpers ---------------------------------------------------------------------------
+    def _n_bands(self) -> int:
+        return int(np.floor((self.f_max_hz - self.f_min_hz) / self.resolution_hz + 1e-9))
+
+    def _band_means(self, freqs: np.ndarray, amplitudes: np.ndarray) -> np.ndarray:
+        """Mean amplitude of the FFT bins in every band (bands along the last axis)."""
+        n_bands = self._n_bands()
+        # The small epsilon keeps a bin sitting exactly on a band edge in the upper band,
+        # whatever rounding the two float grids carry.
+        band_of_bin = np.floor((freqs - self.f_min_hz) / self.resolution_hz + 1e-9).astype(int)
+        inside = np.flatnonzero((band_of_bin >= 0) & (band_of_bin < n_bands))
+        band_of_bin = band_of_bin[inside]  # non-decreasing: each band is a contiguous run
+        starts = np.searchsorted(band_of_bin, np.arange(n_bands))
+        counts = np.diff(np.append(starts, len(band_of_bin)))
+        if (counts == 0).any():  # guarded by _check_grid; kept as a last line of defence
+            raise ValueError(f"bands without FFT bins at {self.band_centres()[counts == 0]} Hz")
+        if self.band_statistic == "rms":
+            return np.sqrt(np.add.reduceat(amplitudes[..., inside] ** 2, starts, axis=-1) / counts)
+        return np.add.reduceat(amplitudes[..., inside], starts, axis=-1) / counts
+
+    def _check_params(self) -> None:
+        if len(self.channels) == 0:
+            raise ValueError("SpectrumFeatures needs at least one channel")
+        if self.scale not in SCALES:
+            raise ValueError(f"unknown scale {self.scale!r}; choose one of {list(SCALES)}")
+        if self.band_statistic not in BAND_STATISTICS:
+            raise ValueError(f"unknown band_statistic {self.band_statistic!r}; "
+                             f"choose one of {list(BAND_STATISTICS)}")
+        if not self.resolution_hz > 0:
+            raise ValueError(f"resolution_hz must be positive, got {self.resolution_hz}")
+        if self.f_min_hz < 0 or self.f_max_hz <= self.f_min_hz:
+            raise ValueError(f"need 0 <= f_min_hz < f_max_hz, got f_min_hz={self.f_min_hz}, "
+                             f"f_max_hz={self.f_max_hz}")
+        span = (self.f_max_hz - self.f_min_hz) / self.resolution_hz
+        if abs(span - round(span)) > 1e-6:
+            raise ValueError(f"f_max_hz - f_min_hz = {self.f_max_hz - self.f_min_hz} Hz is not a "
+                             f"whole number of resolution_hz = {self.resolution_hz} Hz bands")
+
+    def _check_grid(self, fs_hz: float, n_samples: int) -> None:
+        self._check_params()
+        bin_width = fs_hz / n_samples
+        if self.resolution_hz < bin_width * (1 - 1e-9):
+            raise ValueError(f"resolution_hz={self.resolution_hz} is finer than the FFT bin width "
+                             f"fs/n = {fs_hz}/{n_samples} = {bin_width:g} Hz; use longer segments "
+                             f"or a coarser resolution")
+        if self.f_max_hz > fs_hz / 2 * (1 + 1e-12):
+            raise ValueError(f"f_max_hz={self.f_max_hz} is above the Nyquist frequency "
+                             f"{fs_hz / 2:g} Hz (fs_hz={fs_hz})")
+
+
+def spectrum_features_from_params(channels, spectrum_params: dict) -> SpectrumFeatures:
+    """A SpectrumFeatures from the config's `spectrum` section, rejecting unknown keys."""
+    unknown = sorted(set(spectrum_params) - set(SPECTRUM_PARAMS))
+    if unknown:
+        raise ValueError(f"unknown spectrum parameter(s) {unknown}; "
+                         f"allowed: {list(SPECTRUM_PARAMS)}")
+    missing = [key for key in SPECTRUM_PARAMS[:3] if key not in spectrum_params]
+    if missing:
+        raise ValueError(f"missing spectrum parameter(s) {missing}")
+    return SpectrumFeatures(channels=list(channels), **spectrum_params)
+
+
+def _single_sampling_rate(ids: pd.DataFrame, where: str = "signal table") -> float:
+    """The one fs_hz of all segments; an error naming the records of each rate otherwise."""
+    rates = ids.groupby("fs_hz")["record_id"].unique()
+    if len(rates) != 1:
+        detail = "; ".join(f"{fs:g} Hz: {sorted(map(str, recs))[:5]}"
+                           + (" ..." if len(recs) > 5 else "") for fs, recs in rates.items())
+        raise FeatureTableError(f"{where}: all segments must share one fs_hz, found {detail}")
+    return float(rates.index[0])
+
+
+def compute_feature_table(signal_frame: pd.DataFrame, channels,
+                          spectrum_params: dict) -> pd.DataFrame:
+    """Wide features table (id columns, then float32 features) of one signal table.
+
+    One row per (record_id, segment), sorted. The feature columns are the columns after the
+    ID_COLUMNS, in order (`feature_columns(frame)`).
+    """
+    extractor = spectrum_features_from_params(channels, spectrum_params)
+    present = set(signal_frame["channel"])
+    missing = [ch for ch in extractor.channels if ch not in present]
+    if missing:
+        raise FeatureTableError(f"channel(s) {missing} not in the signal table "
+                                f"(it has {sorted(present)})")
+    fs_hz = _single_sampling_rate(signal_frame)
+    ids, arrays = to_arrays(signal_frame, extractor.channels)
+    names = extractor.feature_names(fs_hz, arrays.shape[2])
+    values = pd.DataFrame(extractor.transform(arrays, fs_hz), columns=names)
+    return pd.concat([ids.reset_index(drop=True), values], axis=1)
+
+
+def compute_feature_table_from_files(paths, channels, spectrum_params: dict) -> pd.DataFrame:
+    """Features of several signal tables in one table (read one at a time to bound memory)."""
+    frames = []
+    for path in paths:
+        log.info("features of %s", path)
+        frames.append(compute_feature_table(read_signal_table(path), channels, spectrum_params))
+    if not frames:
+        raise FeatureTableError("no signal tables given")
+    frame = pd.concat(frames, ignore_index=True)
+    _single_sampling_rate(frame, where="signal tables " + ", ".join(map(str, paths)))
+    duplicated = frame.duplicated(["record_id", "segment"])
+    if duplicated.any():
+        first = frame.loc[duplicated].iloc[0]
+        raise FeatureTableError(f"record {first.record_id!r} segment {first.segment} appears in "
+                                "more than one signal table")
+    return frame.sort_values(["record_id", "segment"]).reset_index(drop=True)
+
+
+def feature_columns(frame: pd.DataFrame) -> list[str]:
+    """The feature columns of a wide features frame: everything that is not an id column."""
+    return [c for c in frame.columns if c not in ID_COLUMNS]
+
+
+def write_feature_table(frame: pd.DataFrame, feature_names, path,
+                        config: dict | None = None) -> None:
+    """Write a features table atomically; metadata lists the feature columns in order."""
+    feature_names = list(feature_names)
+    missing = [c for c in ID_COLUMNS + feature_names if c not in frame.columns]
+    if missing:
+        raise FeatureTableError(f"{path}: frame lacks column(s) {missing[:10]}")
+    id_fields = [SCHEMA.field(c) for c in ID_COLUMNS]
+    schema = pa.schema(id_fields + [pa.field(name, pa.float32()) for name in feature_names])
+    table = pa.Table.from_pandas(frame[ID_COLUMNS + feature_names], schema=schema,
+                                 preserve_index=False)
+    meta = {FEATURE_NAMES_KEY: json.dumps(feature_names).encode(),
+            FEATURE_KIND_KEY: b"spectrum",
+            b"condmon.config_hash": config_hash(config or {}).encode(),
+            b"condmon.package_versions": json.dumps(package_versions()).encode()}
+    write_atomic(table.replace_schema_metadata({**(table.schema.metadata or {}), **meta}), path)
+
+
+def read_feature_table(path) -> tuple[pd.DataFrame, list[str]]:
+    """Read a features table; returns (frame, feature names in order)."""
+    try:
+        table = pq.read_table(path)
+    except FileNotFoundError:
+        raise FeatureTableError(f"{path}: no such features table") from None
+    except Exception as exc:  # pyarrow raises several types for corrupt files
+        raise FeatureTableError(f"{path}: not a readable Parquet file ({exc})") from exc
+    meta = table.schema.metadata or {}
+    if FEATURE_NAMES_KEY not in meta:
+        raise FeatureTableError(f"{path}: no {FEATURE_NAMES_KEY.decode()} metadata; "
+                                "not a features table")
+    feature_names = json.loads(meta[FEATURE_NAMES_KEY])
+    missing = [c for c in ID_COLUMNS + feature_names if c not in table.column_names]
+    if missing:
+        raise FeatureTableError(f"{path}: missing column(s) {missing[:10]}")
+    return table.to_pandas(), feature_names

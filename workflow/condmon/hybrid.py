@@ -1,0 +1,238 @@
+"""Hybrid training sets: which measured records join the simulated ones in training.
+
+A split table lists, per (measured_percent, repeat, holdout), the role of every measured record
+(see ARCHITECTURE.md, "Split table"). Simulated records are not listed: they always train.
+
+Protocols
+- record_split: per stratum (health_state x speed_rpm) a share of whole records trains, the rest
+  tests; at least `min_test_records` per stratum stay in the test set.
+- condition_holdout: each speed in turn is held out whole as the test set; the training share is
+  drawn per stratum from the other speeds' records. Records of the other speeds that are not
+  drawn get the role "unused" (neither trained on nor tested), so every record still has a row.
+
+The record order within a stratum is a random permutation seeded by (seed, repeat, stratum) only,
+and the first n_train records of it train. So a higher percentage's training set contains the
+lower one's (nested shares), and both protocols draw the same records from a stratum.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import zlib
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from condmon.signals import write_atomic
+
+log = logging.getLogger(__name__)
+
+PROTOCOLS = ("record_split", "condition_holdout")
+ROLES = ("train", "test", "unused")
+SPLIT_SCHEMA = pa.schema([
+    ("protocol", pa.string()),
+    ("measured_percent", pa.int32()),
+    ("repeat", pa.int32()),
+    ("holdout", pa.string()),
+    ("record_id", pa.string()),
+    ("role", pa.string()),
+])
+SPLIT_COLUMNS = SPLIT_SCHEMA.names
+
+
+class SplitError(ValueError):
+    """A split request or split table breaks the contract."""
+
+
+def stable_int(text: str) -> int:
+    """A string's stable integer (crc32); Python's hash() is salted per process."""
+    return zlib.crc32(text.encode())
+
+
+def derive_seed(seed: int, *keys: int) -> int:
+    """A 32-bit seed from the config seed and stable integer keys (e.g. percent, repeat)."""
+    return int(np.random.SeedSequence([int(seed), *map(int, keys)]).generate_state(1)[0])
+
+
+def format_speed(speed_rpm: float) -> str:
+    """775.0 -> "775", 1797.5 -> "1797.5" (for holdout labels)."""
+    speed_rpm = float(speed_rpm)
+    return str(int(speed_rpm)) if speed_rpm.is_integer() else repr(speed_rpm)
+
+
+def holdout_label(speed_rpm: float) -> str:
+    return f"speed_rpm={format_speed(speed_rpm)}"
+
+
+def sorted_holdouts(holdouts) -> list[str]:
+    """Distinct holdout labels in a stable order: by held-out speed, "" (none) first.
+
+    The position in this list is the holdout index used in model file names.
+    """
+    def key(label: str):
+        _, _, value = label.partition("=")
+        try:
+            return (1, float(value), label)
+        except ValueError:
+            return (0 if label == "" else 2, 0.0, label)
+    return sorted(set(holdouts), key=key)
+
+
+def n_train_records(n_records: int, percent: float, min_test_records: int) -> int:
+    """floor(p/100 * n + 0.5), leaving at least `min_test_records` records (never below 0)."""
+    wanted = math.floor(percent / 100.0 * n_records + 0.5)
+    return max(0, min(wanted, n_records - min_test_records))
+
+
+def unique_records(records: pd.DataFrame) -> pd.DataFrame:
+    """One row per record_id (per-segment rows are fine); each record has one label and speed."""
+    missing = [c for c in ("record_id", "health_state", "speed_rpm") if c not in records.columns]
+    if missing:
+        raise SplitError(f"records lack column(s) {missing}")
+    records = records[["record_id", "health_state", "speed_rpm"]].drop_duplicates()
+    mixed = records["record_id"][records["record_id"].duplicated()]
+    if len(mixed):
+        raise SplitError(f"record(s) {sorted(set(mixed))[:5]} have several health_state or "
+                         "speed_rpm values")
+    if records.empty:
+        raise SplitError("no measured records to split")
+    records = records.astype({"record_id": str, "health_state": str, "speed_rpm": float})
+    return records.sort_values("record_id").reset_index(drop=True)
+
+
+def _check_arguments(protocol, measured_percent, repeats, seed, min_test_records) -> list[int]:
+    if protocol not in PROTOCOLS:
+        raise SplitError(f"unknown protocol {protocol!r}; choose one of {list(PROTOCOLS)}")
+    percents = []
+    for value in measured_percent:
+        try:
+            valid = not isinstance(value, bool) and float(value).is_integer() and 0 <= value <= 100
+        except (TypeError, ValueError):
+            valid = False
+        if not valid:
+            raise SplitError(f"measured_percent {value!r} is not a whole number in 0..100")
+        percents.append(int(value))
+    if not percents:
+        raise SplitError("measured_percent is empty")
+    duplicates = sorted({p for p in percents if percents.count(p) > 1})
+    if duplicates:
+        raise SplitError(f"measured_percent lists {duplicates} more than once")
+    for name, value, low in (("repeats", repeats, 1), ("seed", seed, 0),
+                             ("min_test_records", min_test_records, 0)):
+        if isinstance(value, bool) or int(value) != value or value < low:
+            raise SplitError(f"{name} must be an integer >= {low}, got {value!r}")
+    return sorted(percents)
+
+
+def stratum_orders(records: pd.DataFrame, seed: int, repeat: int) -> dict[tuple, list[str]]:
+    """Per stratum (health_state, speed_rpm): its record ids in this repeat's random order.
+
+    Seeded by (seed, repeat, stratum) only, so the order is the same at every percentage and
+    holdout, and adding a stratum does not reshuffle the others.
+    """
+    orders = {}
+    for (health, speed), group in records.groupby(["health_state", "speed_rpm"], sort=True):
+        ids = sorted(group["record_id"])  # start from a fixed order: input row order is irrelevant
+        rng = np.random.default_rng(
+            derive_seed(seed, repeat, stable_int(f"{health}|{format_speed(speed)}")))
+        orders[(health, speed)] = [ids[i] for i in rng.permutation(len(ids))]
+    return orders
+
+
+def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats: int, seed: int,
+                min_test_records: int = 1) -> pd.DataFrame:
+    """The split table for one protocol (columns SPLIT_COLUMNS, one row per record and split)."""
+    percents = _check_arguments(protocol, measured_percent, repeats, seed, min_test_records)
+    records = unique_records(records)
+    speeds = sorted(records["speed_rpm"].unique())
+    if protocol == "condition_holdout" and len(speeds) < 2:
+        raise SplitError(f"condition_holdout needs at least two speeds; the measured records "
+                         f"have only speed_rpm {[format_speed(s) for s in speeds]}")
+    sizes = records.groupby(["health_state", "speed_rpm"]).size()
+    small = sizes[sizes <= min_test_records]
+    if protocol == "record_split" and len(small):
+        log.warning("strata with <= min_test_records=%d records never train: %s",
+                    min_test_records, [(h, format_speed(s)) for h, s in small.index])
+
+    rows = []
+    for repeat in range(int(repeats)):
+        orders = stratum_orders(records, seed, repeat)
+        for percent in percents:
+            if protocol == "record_split":
+                rows += _record_split_rows(orders, percent, repeat, min_test_records)
+            else:
+                for speed in speeds:
+                    rows += _holdout_rows(orders, percent, repeat, speed)
+    splits = pd.DataFrame(rows, columns=SPLIT_COLUMNS[1:])
+    splits.insert(0, "protocol", protocol)
+    return _typed(splits)
+
+
+def _record_split_rows(orders, percent, repeat, min_test_records) -> list[tuple]:
+    rows = []
+    for ids in orders.values():
+        n_train = n_train_records(len(ids), percent, min_test_records)
+        rows += [(percent, repeat, "", rid, "train" if i < n_train else "test")
+                 for i, rid in enumerate(ids)]
+    return rows
+
+
+def _holdout_rows(orders, percent, repeat, held_out_speed) -> list[tuple]:
+    # The held-out speed supplies the whole test set, so no record of the other speeds needs
+    # to stay back for testing: at 100 % all of them train.
+    label = holdout_label(held_out_speed)
+    rows = []
+    for (_, speed), ids in orders.items():
+        if speed == held_out_speed:
+            rows += [(percent, repeat, label, rid, "test") for rid in ids]
+        else:
+            n_train = n_train_records(len(ids), percent, 0)
+            rows += [(percent, repeat, label, rid, "train" if i < n_train else "unused")
+                     for i, rid in enumerate(ids)]
+    return rows
+
+
+def _typed(splits: pd.DataFrame) -> pd.DataFrame:
+    order = {label: i for i, label in enumerate(sorted_holdouts(splits["holdout"]))}
+    splits = (splits.assign(_h=splits["holdout"].map(order))
+              .sort_values(["measured_percent", "repeat", "_h", "record_id"])
+              .drop(columns="_h").reset_index(drop=True))
+    return splits.astype({"protocol": str, "measured_percent": "int32", "repeat": "int32",
+                          "holdout": str, "record_id": str, "role": str})
+
+
+def validate_splits(splits: pd.DataFrame, where: str = "split table") -> None:
+    """Check columns, roles, one protocol, and one row per record per split."""
+    missing = [c for c in SPLIT_COLUMNS if c not in splits.columns]
+    if missing:
+        raise SplitError(f"{where}: missing column(s) {missing}")
+    bad_roles = sorted(set(splits["role"]) - set(ROLES))
+    if bad_roles:
+        raise SplitError(f"{where}: unknown role(s) {bad_roles}; allowed {list(ROLES)}")
+    protocols = sorted(set(splits["protocol"]))
+    if len(protocols) != 1:
+        raise SplitError(f"{where}: expected one protocol, found {protocols}")
+    dup = splits.duplicated(["measured_percent", "repeat", "holdout", "record_id"])
+    if dup.any():
+        first = splits.loc[dup].iloc[0]
+        raise SplitError(f"{where}: record {first.record_id!r} listed twice in split "
+                         f"(measured_percent={first.measured_percent}, repeat={first.repeat}, "
+                         f"holdout={first.holdout!r})")
+
+
+def write_split_table(splits: pd.DataFrame, path) -> None:
+    validate_splits(splits, str(path))
+    table = pa.Table.from_pandas(_typed(splits[SPLIT_COLUMNS]), schema=SPLIT_SCHEMA,
+                                 preserve_index=False)
+    write_atomic(table, path)
+
+
+def read_split_table(path) -> pd.DataFrame:
+    try:
+        splits = pq.read_table(path).to_pandas()
+    except FileNotFoundError:
+        raise SplitError(f"{path}: no such split table") from None
+    validate_splits(splits, str(path))
+    return splits

@@ -1,0 +1,251 @@
+"""Report figures. Each function takes plain tables and returns a matplotlib Figure.
+
+Every figure carries a footnote ``note`` naming the data source (e.g. "virtual bench
+(synthetic)") so a plot copied out of the report can never pass for real measurements.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # batch jobs have no display
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+ACCURACY_LABEL = "accuracy on held-out measured records"
+PERCENT_LABEL = "measured data in training set (%)"
+
+
+def _colours(names):
+    cycle = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    return {name: cycle[i % len(cycle)] for i, name in enumerate(names)}
+
+
+def _finish(fig, title: str, note: str, legend_from=None):
+    """Title, data-source footnote and, from axes ``legend_from``, one legend below the panels
+    (inside a panel it would hide bars or lines)."""
+    fig.suptitle(title, fontsize=13)
+    fig.text(0.01, 0.005, note, fontsize=9, color="0.3", ha="left", va="bottom")
+    bottom = 0.03
+    if legend_from is not None:
+        handles, labels = legend_from.get_legend_handles_labels()
+        fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 6), fontsize=9,
+                   bbox_to_anchor=(0.5, 0.03), frameon=False)
+        bottom = 0.03 + 0.35 / fig.get_figheight()  # inches of legend -> figure fraction
+    fig.tight_layout(rect=(0, bottom, 1, 1))
+    return fig
+
+
+def save_figure(fig, path) -> None:
+    """Save as PNG via a temporary file and rename, then release the figure."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        fig.savefig(tmp, format="png", dpi=110)
+        os.replace(tmp, path)
+    finally:
+        plt.close(fig)
+        if tmp.exists():
+            tmp.unlink()
+
+
+def accuracy_vs_measured_percent(per_repeat, chance: float, note: str):
+    """One panel per protocol, one line per classifier: mean over repeats, min-max band.
+
+    ``per_repeat``: columns classifier, protocol, measured_percent, repeat, accuracy.
+    """
+    protocols = sorted(per_repeat["protocol"].unique())
+    colours = _colours(sorted(per_repeat["classifier"].unique()))
+    fig, axes = plt.subplots(1, len(protocols), figsize=(5.5 * len(protocols), 4.5),
+                             sharey=True, squeeze=False)
+    for ax, protocol in zip(axes[0], protocols):
+        rows = per_repeat[per_repeat["protocol"] == protocol]
+        for classifier, group in rows.groupby("classifier"):
+            stats = group.groupby("measured_percent")["accuracy"].agg(["mean", "min", "max"])
+            ax.plot(stats.index, stats["mean"], marker="o", color=colours[classifier],
+                    label=classifier)
+            ax.fill_between(stats.index, stats["min"], stats["max"], alpha=0.2,
+                            color=colours[classifier], linewidth=0)
+        ax.axhline(chance, linestyle="--", color="0.4", label=f"chance ({chance:.2f})")
+        ax.set_title(protocol)
+        ax.set_xlabel(PERCENT_LABEL)
+        ax.set_ylim(0, 1.05)
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel(f"{ACCURACY_LABEL} (fraction)")
+    return _finish(fig, "Accuracy vs share of measured data in training\n"
+                        "(line: mean over repeats, band: min-max)", note, legend_from=axes[0, 0])
+
+
+def accuracy_per_speed(speed_rows, percents, chance: float, note: str):
+    """Grid protocol x chosen measured percentage; grouped bars per speed, one per classifier.
+
+    ``speed_rows``: metrics rows with a speed (columns classifier, protocol, measured_percent,
+    speed_rpm, accuracy). Bar = mean over evaluations, whisker = min-max.
+    """
+    if speed_rows.empty:
+        raise ValueError("accuracy per speed: the metrics have no per-speed rows "
+                         "(speed_rpm set); the train stage should write one per tested speed")
+    protocols = sorted(speed_rows["protocol"].unique())
+    classifiers = sorted(speed_rows["classifier"].unique())
+    colours = _colours(classifiers)
+    width = 0.8 / len(classifiers)
+    fig, axes = plt.subplots(len(protocols), len(percents),
+                             figsize=(4.8 * len(percents), 3.6 * len(protocols)),
+                             sharey=True, squeeze=False)
+    for i, protocol in enumerate(protocols):
+        for j, percent in enumerate(percents):
+            ax = axes[i, j]
+            rows = speed_rows[(speed_rows["protocol"] == protocol)
+                              & (speed_rows["measured_percent"] == percent)]
+            speeds = sorted(rows["speed_rpm"].unique())
+            x = np.arange(len(speeds))
+            for k, classifier in enumerate(classifiers):
+                stats = (rows[rows["classifier"] == classifier]
+                         .groupby("speed_rpm")["accuracy"].agg(["mean", "min", "max"])
+                         .reindex(speeds))
+                ax.bar(x + (k - (len(classifiers) - 1) / 2) * width, stats["mean"], width,
+                       # clip: the mean of equal values can differ from them by rounding
+                       yerr=np.clip([stats["mean"] - stats["min"], stats["max"] - stats["mean"]], 0, None),
+                       color=colours[classifier], label=classifier, capsize=2,
+                       error_kw={"elinewidth": 0.8})
+            ax.axhline(chance, linestyle="--", color="0.4", label="chance")
+            ax.set_xticks(x, [f"{s:g}" for s in speeds])
+            ax.set_title(f"{protocol}, {percent} % measured in training", fontsize=10)
+            ax.set_ylim(0, 1.05)
+            ax.grid(axis="y", alpha=0.3)
+            if i == len(protocols) - 1:
+                ax.set_xlabel("input shaft speed (rpm)")
+            if j == 0:
+                ax.set_ylabel("accuracy (fraction)")
+    return _finish(fig, "Accuracy per operating speed (bar: mean, whisker: min-max over "
+                        "repeats)", note, legend_from=axes[0, 0])
+
+
+def confusion_matrices(matrices: dict, labels, classifier: str, protocol: str,
+                       speed: str | None, note: str):
+    """One panel per measured percentage; ``matrices`` maps percent -> (counts, n_repeats).
+
+    Colour = row-normalised share (recall per true class); text = share and count.
+    """
+    n = len(labels)
+    size = max(3.2, 0.7 * n + 1.6)
+    width, height = size * len(matrices) + 1.8, size + 1.6
+    fig, axes = plt.subplots(1, len(matrices), figsize=(width, height), squeeze=False,
+                             sharey=True)
+    image = None
+    for ax, (percent, (counts, n_repeats)) in zip(axes[0], sorted(matrices.items())):
+        totals = counts.sum(axis=1, keepdims=True)
+        shares = np.where(totals > 0, counts / np.maximum(totals, 1), np.nan)
+        image = ax.imshow(shares, cmap="Blues", vmin=0, vmax=1)
+        for r in range(n):
+            if totals[r, 0] == 0:
+                continue  # class absent from this test set: leave the row blank
+            for c in range(n):
+                colour = "white" if shares[r, c] > 0.6 else "black"
+                ax.text(c, r, f"{shares[r, c]:.2f}\n({counts[r, c]})", ha="center",
+                        va="center", fontsize=8, color=colour)
+        ax.set_xticks(range(n), labels, rotation=35, ha="right", fontsize=8)
+        ax.set_yticks(range(n), labels, fontsize=8)
+        ax.set_xlabel("predicted state")
+        training = "simulation only" if percent == 0 else f"{percent} % measured"
+        ax.set_title(f"training: {training}\n{int(counts.sum())} test segments, "
+                     f"{n_repeats} repeat(s)", fontsize=9)
+    axes[0, 0].set_ylabel("true state")
+    where = "all speeds" if speed is None else f"{speed} rpm"
+    fig.suptitle(f"Confusion matrix: {classifier}, {protocol}, {where}", fontsize=12)
+    fig.text(0.01, 0.005, note + " | counts summed over repeats", fontsize=8, color="0.3")
+    # fixed margins in inches: title on top, footnote below, colour bar on the right
+    right = 1 - 1.3 / width
+    fig.tight_layout(rect=(0, 0.3 / height, right, 1 - 0.45 / height))
+    colour_axes = fig.add_axes((right + 0.15 / width, 0.25, 0.2 / width, 0.5))
+    fig.colorbar(image, cax=colour_axes, label="share of true class (row)")
+    return fig
+
+
+def confusion_matrix_small(counts, labels, title: str, note: str):
+    """A single, cheap confusion matrix (fixed margins, no layout pass) for per-run artifacts.
+
+    The tracking job draws one per nested run (hundreds), where the report's layout-managed
+    figure would cost about 0.3 s each.
+    """
+    n = len(labels)
+    size = max(3.5, 0.6 * n + 2.0)
+    fig = plt.figure(figsize=(size, size))
+    # margins in inches: 1.5 left for labels, 0.4 right, 1.4 below, 0.7 above for the title
+    ax = fig.add_axes((1.5 / size, 1.4 / size, (size - 1.9) / size, (size - 2.1) / size))
+    totals = counts.sum(axis=1, keepdims=True)
+    shares = np.where(totals > 0, counts / np.maximum(totals, 1), np.nan)
+    ax.imshow(shares, cmap="Blues", vmin=0, vmax=1, aspect="auto")
+    for r in range(n):
+        for c in range(n):
+            if totals[r, 0] > 0:
+                ax.text(c, r, f"{shares[r, c]:.2f}\n({counts[r, c]})", ha="center", va="center",
+                        fontsize=7, color="white" if shares[r, c] > 0.6 else "black")
+    ax.set_xticks(range(n), labels, rotation=35, ha="right", fontsize=7)
+    ax.set_yticks(range(n), labels, fontsize=7)
+    ax.set_xlabel("predicted state", fontsize=8)
+    ax.set_ylabel("true state", fontsize=8)
+    fig.suptitle(title, fontsize=9)
+    fig.text(0.01, 0.01, note, fontsize=6, color="0.3")
+    return fig
+
+
+def spectra_grid(spectra, note: str):
+    """Grid speed x channel: mean amplitude spectrum measured vs calibrated model, log axis."""
+    speeds = sorted(spectra["speed_rpm"].unique())
+    channels = sorted(spectra["channel"].unique())
+    fig, axes = plt.subplots(len(speeds), len(channels),
+                             figsize=(4.2 * len(channels), 2.8 * len(speeds) + 0.8),
+                             sharex=True, squeeze=False)
+    for i, speed in enumerate(speeds):
+        for j, channel in enumerate(channels):
+            ax = axes[i, j]
+            rows = (spectra[(spectra["speed_rpm"] == speed) & (spectra["channel"] == channel)]
+                    .sort_values("freq_hz"))
+            for column, label, style in (
+                    ("measured", "measured", {"color": "black", "lw": 1.0}),
+                    ("calibrated", "calibrated model", {"color": "tab:red", "lw": 1.0, "alpha": 0.8})):
+                # log axis: non-positive amplitudes cannot be drawn, leave gaps
+                values = rows[column].where(rows[column] > 0)
+                ax.plot(rows["freq_hz"], values, label=label, **style)
+            ax.set_yscale("log")
+            ax.set_title(f"{speed:g} rpm, {channel}", fontsize=9)
+            ax.grid(alpha=0.3, which="both", linewidth=0.4)
+            if i == len(speeds) - 1:
+                ax.set_xlabel("frequency (Hz)")
+            if j == 0:
+                ax.set_ylabel("amplitude (m/s²)")
+    axes[0, -1].legend(fontsize=8, loc="upper right")
+    return _finish(fig, "Mean amplitude spectra of healthy records: measured vs calibrated model",
+                   note)
+
+
+def calibration_convergence(history, chosen_law: str, note: str):
+    """Best cost so far against model evaluation, one colour per contact law.
+
+    Dots are single evaluations; non-finite costs (failed simulations) are left out.
+    """
+    laws = sorted(history["contact_law"].unique())
+    colours = _colours(laws)
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    costs = []
+    for law in laws:
+        rows = history[history["contact_law"] == law].sort_values("evaluation")
+        cost = rows["cost"].astype(float).where(np.isfinite(rows["cost"].astype(float)))
+        best = cost.cummin().ffill()  # a failed evaluation does not break the line
+        label = f"{law} (chosen)" if law == chosen_law else law
+        ax.scatter(rows["evaluation"], cost, s=6, alpha=0.25, color=colours[law])
+        ax.step(rows["evaluation"], best, where="post", color=colours[law], label=label,
+                linewidth=2 if law == chosen_law else 1.2)
+        costs.extend(cost.dropna().tolist())
+    positive = [c for c in costs if c > 0]
+    if positive and len(positive) == len(costs) and max(positive) / min(positive) > 20:
+        ax.set_yscale("log")
+    ax.set_xlabel("model evaluation (count)")
+    ax.set_ylabel("cost (best so far; dots: single evaluations)")
+    ax.grid(alpha=0.3)
+    ax.legend(title="contact law", fontsize=9)
+    return _finish(fig, "Calibration convergence", note)

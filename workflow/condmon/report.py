@@ -1,0 +1,371 @@
+"""The report stage: accuracy table, summary and plots from the train and calibration outputs.
+
+Reads only the files of the stage contracts (train/<classifier>/<protocol>/metrics.csv and
+predictions.parquet, calibration/params.json, spectra.parquet, history.parquet) and writes
+
+- ``accuracy.csv``: the concatenated metrics files, sorted; columns ``ACCURACY_COLUMNS``;
+- ``summary.json``: data source, calibration, per classifier x protocol x measured percentage the
+  mean and spread of accuracy over repeats, per-speed means, record counts, plot list;
+- ``plots/*.png``: see ``condmon.plots``.
+
+Aggregation over repeats: for ``condition_holdout`` one repeat has one evaluation per held-out
+condition; these are first averaged per repeat (every condition weighs the same), then mean,
+std, min and max are taken over repeats. Per-speed values are means over all evaluations that
+tested that speed.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from condmon import plots
+
+log = logging.getLogger(__name__)
+
+# accuracy.csv: the contract columns first, then the context of each evaluation.
+ACCURACY_COLUMNS = ["classifier", "protocol", "measured_percent", "repeat", "speed_rpm",
+                    "accuracy", "macro_f1", "holdout", "n_train_simulated",
+                    "n_train_measured", "n_test"]
+PREDICTION_COLUMNS = ["protocol", "measured_percent", "repeat", "holdout", "record_id",
+                      "segment", "speed_rpm", "true_label", "predicted_label"]
+SORT_KEYS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "speed_rpm"]
+
+# Data-source kinds that are not real measurements; anything labelled with them must say so.
+SYNTHETIC_SOURCES = {"virtual_bench": "virtual bench (synthetic)"}
+
+
+class ReportInputError(ValueError):
+    """A file the report reads breaks the stage contract."""
+
+
+# --------------------------------------------------------------------------- data source
+
+def is_synthetic(data_source: str) -> bool:
+    return data_source in SYNTHETIC_SOURCES
+
+
+def data_source_label(data_source: str) -> str:
+    """Short label for titles and footnotes, e.g. "virtual bench (synthetic)"."""
+    if is_synthetic(data_source):
+        return SYNTHETIC_SOURCES[data_source]
+    if data_source == "measured":
+        return "measured (test-bench recordings)"
+    return data_source
+
+
+def format_speed(speed_rpm) -> str:
+    """775.0 -> "775"; used in file names, metric names and JSON keys."""
+    return f"{float(speed_rpm):g}"
+
+
+# --------------------------------------------------------------------------- inputs
+
+def load_metrics(paths, extra_columns=()) -> pd.DataFrame:
+    """Concatenate train metrics.csv files into the accuracy table (columns ACCURACY_COLUMNS).
+
+    ``speed_rpm`` is NaN on the all-speeds rows; ``holdout`` is "" where nothing is held out.
+    ``extra_columns`` (e.g. "fit_seconds") are kept at the end where a file has them.
+    """
+    paths = [Path(p) for p in paths]
+    if not paths:
+        raise ReportInputError("no metrics.csv files given")
+    frames = []
+    for path in paths:
+        if not path.exists():
+            raise ReportInputError(f"{path}: no such metrics file")
+        frame = pd.read_csv(path, dtype={"classifier": str, "protocol": str, "holdout": str})
+        missing = [c for c in ACCURACY_COLUMNS if c not in frame.columns]
+        if missing:
+            raise ReportInputError(f"{path}: metrics file lacks columns {missing}")
+        if frame.empty:
+            raise ReportInputError(f"{path}: metrics file has no rows")
+        frames.append(frame[ACCURACY_COLUMNS + [c for c in extra_columns if c in frame.columns]])
+    table = pd.concat(frames, ignore_index=True)
+    table["holdout"] = table["holdout"].fillna("")
+    table["speed_rpm"] = pd.to_numeric(table["speed_rpm"], errors="coerce")
+    for column in ("measured_percent", "repeat", "n_train_simulated", "n_train_measured", "n_test"):
+        table[column] = table[column].astype(int)
+    duplicated = table.duplicated(SORT_KEYS)
+    if duplicated.any():
+        first = table.loc[duplicated].iloc[0]
+        raise ReportInputError(
+            f"metrics rows repeat for classifier {first.classifier!r} protocol {first.protocol!r} "
+            f"percent {first.measured_percent} repeat {first.repeat}; is a metrics file listed twice?")
+    # na_position="first": the all-speeds row leads its group.
+    return (table.sort_values(SORT_KEYS, na_position="first", kind="stable")
+            .reset_index(drop=True))
+
+
+def classifier_of(predictions_path: Path) -> str:
+    """The classifier of train/<classifier>/<protocol>/predictions.parquet (the file has no column)."""
+    return Path(predictions_path).parent.parent.name
+
+
+def load_predictions(paths) -> pd.DataFrame:
+    """Concatenate predictions.parquet files, adding a ``classifier`` column from the path."""
+    paths = [Path(p) for p in paths]
+    if not paths:
+        raise ReportInputError("no predictions.parquet files given")
+    frames = []
+    for path in paths:
+        if not path.exists():
+            raise ReportInputError(f"{path}: no such predictions file")
+        frame = pd.read_parquet(path)
+        missing = [c for c in PREDICTION_COLUMNS if c not in frame.columns]
+        if missing:
+            raise ReportInputError(f"{path}: predictions file lacks columns {missing}")
+        if "classifier" not in frame.columns:
+            frame.insert(0, "classifier", classifier_of(path))
+        protocols = set(frame["protocol"])
+        if protocols != {path.parent.name}:
+            raise ReportInputError(f"{path}: protocol column {sorted(protocols)} does not match "
+                                   f"the directory train/<classifier>/{path.parent.name}/")
+        frames.append(frame[["classifier"] + PREDICTION_COLUMNS])
+    table = pd.concat(frames, ignore_index=True)
+    table["holdout"] = table["holdout"].fillna("")
+    return table
+
+
+def load_calibration(params_path) -> dict:
+    """The calibration summary: contact law, cost, evaluations, parameters."""
+    params_path = Path(params_path)
+    try:
+        params = json.loads(params_path.read_text())
+    except FileNotFoundError:
+        raise ReportInputError(f"{params_path}: no such calibration file") from None
+    except json.JSONDecodeError as exc:
+        raise ReportInputError(f"{params_path}: not valid JSON ({exc})") from exc
+    missing = [k for k in ("contact_law", "parameters", "cost", "evaluations") if k not in params]
+    if missing:
+        raise ReportInputError(f"{params_path}: calibration file lacks keys {missing}")
+    return {"contact_law": params["contact_law"], "cost": params["cost"],
+            "evaluations": params["evaluations"], "parameters": params["parameters"]}
+
+
+def read_table(path, required: list[str], what: str) -> pd.DataFrame:
+    path = Path(path)
+    if not path.exists():
+        raise ReportInputError(f"{path}: no such {what} file")
+    frame = pd.read_parquet(path)
+    missing = [c for c in required if c not in frame.columns]
+    if missing:
+        raise ReportInputError(f"{path}: {what} file lacks columns {missing}")
+    return frame
+
+
+# --------------------------------------------------------------------------- aggregation
+
+def label_order(labels) -> list[str]:
+    """Class labels sorted, "healthy" first so confusion matrices read from the normal state."""
+    labels = sorted(set(labels))
+    return sorted(labels, key=lambda label: label != "healthy")
+
+
+def confusion_counts(true_labels, predicted_labels, labels) -> np.ndarray:
+    """Counts, rows = true label, columns = predicted label, in the order of ``labels``."""
+    index = {label: i for i, label in enumerate(labels)}
+    counts = np.zeros((len(labels), len(labels)), dtype=int)
+    for true, predicted in zip(true_labels, predicted_labels):
+        counts[index[true], index[predicted]] += 1
+    return counts
+
+
+def per_repeat_accuracy(accuracy: pd.DataFrame) -> pd.DataFrame:
+    """All-speeds accuracy and macro-F1 per (classifier, protocol, percent, repeat).
+
+    Held-out conditions of one repeat are averaged first (see module docstring).
+    """
+    all_speeds = accuracy[accuracy["speed_rpm"].isna()]
+    return (all_speeds
+            .groupby(["classifier", "protocol", "measured_percent", "repeat"], as_index=False)
+            .agg(accuracy=("accuracy", "mean"), macro_f1=("macro_f1", "mean"),
+                 n_test=("n_test", "sum")))
+
+
+def over_repeats(accuracy: pd.DataFrame) -> pd.DataFrame:
+    """Mean, sample std (NaN with one repeat), min and max over repeats, all speeds."""
+    per_repeat = per_repeat_accuracy(accuracy)
+    return (per_repeat
+            .groupby(["classifier", "protocol", "measured_percent"], as_index=False)
+            .agg(n_repeats=("repeat", "nunique"),
+                 accuracy_mean=("accuracy", "mean"), accuracy_std=("accuracy", "std"),
+                 accuracy_min=("accuracy", "min"), accuracy_max=("accuracy", "max"),
+                 macro_f1_mean=("macro_f1", "mean"), macro_f1_std=("macro_f1", "std"),
+                 n_test_segments=("n_test", "mean")))
+
+
+def per_speed(accuracy: pd.DataFrame) -> pd.DataFrame:
+    """Mean and std of accuracy per (classifier, protocol, percent, speed) over evaluations."""
+    speeds = accuracy[accuracy["speed_rpm"].notna()]
+    return (speeds
+            .groupby(["classifier", "protocol", "measured_percent", "speed_rpm"], as_index=False)
+            .agg(accuracy_mean=("accuracy", "mean"), accuracy_std=("accuracy", "std"),
+                 macro_f1_mean=("macro_f1", "mean"), n_evaluations=("accuracy", "size")))
+
+
+def _json_number(value):
+    """NaN -> None so summary.json stays valid JSON; numpy scalars -> Python."""
+    if value is None:
+        return None
+    value = float(value)
+    return None if not np.isfinite(value) else value
+
+
+def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: dict,
+              run_name: str, data_source: str, plot_names: list[str]) -> dict:
+    """The content of summary.json (see module docstring)."""
+    test_records = (predictions
+                    .groupby(["classifier", "protocol", "measured_percent", "repeat"])["record_id"]
+                    .nunique()
+                    .groupby(level=["classifier", "protocol", "measured_percent"]).mean())
+    speeds = per_speed(accuracy)
+    results = []
+    for row in over_repeats(accuracy).itertuples(index=False):
+        key = (row.classifier, row.protocol, row.measured_percent)
+        speed_rows = speeds[(speeds["classifier"] == row.classifier)
+                            & (speeds["protocol"] == row.protocol)
+                            & (speeds["measured_percent"] == row.measured_percent)]
+        results.append({
+            "classifier": row.classifier,
+            "protocol": row.protocol,
+            "measured_percent": int(row.measured_percent),
+            "n_repeats": int(row.n_repeats),
+            "accuracy_mean": _json_number(row.accuracy_mean),
+            "accuracy_std": _json_number(row.accuracy_std),
+            "accuracy_min": _json_number(row.accuracy_min),
+            "accuracy_max": _json_number(row.accuracy_max),
+            "macro_f1_mean": _json_number(row.macro_f1_mean),
+            "macro_f1_std": _json_number(row.macro_f1_std),
+            "accuracy_mean_per_speed": {format_speed(s.speed_rpm): _json_number(s.accuracy_mean)
+                                        for s in speed_rows.itertuples(index=False)},
+            "n_test_records_per_repeat": _json_number(test_records.get(key)),
+            "n_test_segments_per_repeat": _json_number(row.n_test_segments),
+        })
+    labels = label_order(predictions["true_label"])
+    return {
+        "run_name": run_name,
+        "data_source": {
+            "kind": data_source,
+            "synthetic": is_synthetic(data_source),
+            "label": data_source_label(data_source),
+            "note": ("synthetic data from the virtual bench, not real measurements; every "
+                     "number below is measured on it" if is_synthetic(data_source) else ""),
+        },
+        "calibration": calibration,
+        "labels": labels,
+        "chance_accuracy": 1.0 / len(labels),
+        "n_measured_records": int(predictions["record_id"].nunique()),
+        "n_evaluations": int(accuracy["speed_rpm"].isna().sum()),
+        "aggregation": ("accuracy_std is the sample std over repeats (null with one repeat); "
+                        "condition_holdout: held-out conditions are averaged within a repeat first"),
+        "results": results,
+        "plots": plot_names,
+    }
+
+
+# --------------------------------------------------------------------------- outputs
+
+def write_text_atomic(text: str, path) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def replace_directory(staging: Path, target: Path) -> None:
+    """Swap a fully written staging directory in for ``target`` (old plots must not linger)."""
+    if target.exists():
+        shutil.rmtree(target)
+    os.replace(staging, target)
+
+
+def confusion_percents(accuracy: pd.DataFrame, requested) -> list[int]:
+    """The requested measured percentages plus the largest one, checked against the data."""
+    available = sorted(int(p) for p in accuracy["measured_percent"].unique())
+    requested = [int(p) for p in requested]
+    unknown = [p for p in requested if p not in available]
+    if unknown:
+        raise ReportInputError(f"confusion_percent {unknown} not among the trained measured "
+                               f"percentages {available}")
+    return sorted(set(requested) | {available[-1]})
+
+
+def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: Path,
+               run_name: str, data_source: str, confusion_percent) -> list[str]:
+    """Write every report plot into ``plots_dir``; returns the file names."""
+    note = f"Data: {data_source_label(data_source)} | run {run_name}"
+    labels = label_order(predictions["true_label"])
+    chance = 1.0 / len(labels)
+    percents = confusion_percents(accuracy, confusion_percent)
+    names = []
+
+    def save(fig, name):
+        plots.save_figure(fig, plots_dir / name)
+        names.append(name)
+
+    save(plots.accuracy_vs_measured_percent(per_repeat_accuracy(accuracy), chance, note),
+         "accuracy_vs_measured_percent.png")
+    save(plots.accuracy_per_speed(accuracy[accuracy["speed_rpm"].notna()], percents, chance, note),
+         "accuracy_per_speed.png")
+    for (classifier, protocol), group in predictions.groupby(["classifier", "protocol"]):
+        speeds = [None] + sorted(group["speed_rpm"].unique())
+        for speed in speeds:
+            subset = group if speed is None else group[group["speed_rpm"] == speed]
+            matrices = {}
+            for percent in percents:
+                chosen = subset[subset["measured_percent"] == percent]
+                matrices[percent] = (confusion_counts(chosen["true_label"],
+                                                      chosen["predicted_label"], labels),
+                                     int(chosen["repeat"].nunique()))
+            speed_name = "all" if speed is None else f"{format_speed(speed)}rpm"
+            save(plots.confusion_matrices(matrices, labels, classifier, protocol,
+                                          None if speed is None else format_speed(speed), note),
+                 f"confusion_{classifier}_{protocol}_{speed_name}.png")
+    save(plots.spectra_grid(spectra, note), "spectra_measured_vs_calibrated.png")
+    save(plots.calibration_convergence(history, calibration["contact_law"], note),
+         "calibration_convergence.png")
+    return names
+
+
+def write_report(metrics_paths, predictions_paths, calibration_params, calibration_spectra,
+                 calibration_history, accuracy_path, summary_path, plots_dir, run_name: str,
+                 data_source: str, confusion_percent=(0,)) -> dict:
+    """Build the whole report; returns the summary dict. Every output is written atomically."""
+    accuracy = load_metrics(metrics_paths)
+    predictions = load_predictions(predictions_paths)
+    calibration = load_calibration(calibration_params)
+    spectra = read_table(calibration_spectra,
+                         ["speed_rpm", "channel", "freq_hz", "measured", "calibrated"],
+                         "calibration spectra")
+    history = read_table(calibration_history, ["evaluation", "contact_law", "cost"],
+                         "calibration history")
+    log.info("%d metrics rows from %d files, %d predictions", len(accuracy),
+             len(list(metrics_paths)), len(predictions))
+
+    plots_dir = Path(plots_dir)
+    staging = plots_dir.with_name(f".{plots_dir.name}.tmp{os.getpid()}")
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir(parents=True)
+    try:
+        plot_names = make_plots(accuracy, predictions, spectra, history, calibration, staging,
+                                run_name, data_source, confusion_percent)
+        summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names)
+        write_text_atomic(accuracy.to_csv(index=False), accuracy_path)
+        write_text_atomic(json.dumps(summary, indent=2) + "\n", summary_path)
+        replace_directory(staging, plots_dir)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    log.info("wrote %s, %s and %d plots in %s", accuracy_path, summary_path, len(plot_names),
+             plots_dir)
+    return summary

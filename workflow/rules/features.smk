@@ -1,0 +1,29 @@
+# Stage 4: features (FFT spectra of every channel, concatenated).
+
+
+rule features_measured:
+    input:
+        signals=[rules.measured.output[0]],
+    output:
+        features=f"{RESULTS}/features/measured.parquet",
+    params:
+        channels=config["features"]["channels"],
+        spectrum=config["features"]["spectrum"],
+    log:
+        f"{LOGS}/features_measured.log",
+    script:
+        "../scripts/features.py"
+
+
+rule features_simulated:
+    input:
+        signals=simulated_batches(),
+    output:
+        features=f"{RESULTS}/features/simulated.parquet",
+    params:
+        channels=config["features"]["channels"],
+        spectrum=config["features"]["spectrum"],
+    log:
+        f"{LOGS}/features_simulated.log",
+    script:
+        "../scripts/features.py"

@@ -1,0 +1,18 @@
+# Stage 5: hybrid training sets: which measured records train and which test, per protocol.
+
+
+rule hybrid:
+    input:
+        features=rules.features_measured.output.features,
+    output:
+        splits=f"{RESULTS}/hybrid/{{protocol}}.parquet",
+    params:
+        protocol=lambda wc: wc.protocol,
+        measured_percent=config["hybrid"]["measured_percent"],
+        repeats=config["hybrid"]["repeats"],
+        seed=config["hybrid"]["seed"],
+        min_test_records=config["hybrid"]["min_test_records"],
+    log:
+        f"{LOGS}/hybrid/{{protocol}}.log",
+    script:
+        "../scripts/hybrid.py"

@@ -1,0 +1,21 @@
+# Stage 6: classifiers trained on every hybrid set, evaluated on its held-out measured records.
+
+
+rule train:
+    input:
+        simulated=rules.features_simulated.output.features,
+        measured=rules.features_measured.output.features,
+        splits=rules.hybrid.output.splits,
+    output:
+        predictions=f"{RESULTS}/train/{{classifier}}/{{protocol}}/predictions.parquet",
+        metrics=f"{RESULTS}/train/{{classifier}}/{{protocol}}/metrics.csv",
+        models=directory(f"{RESULTS}/train/{{classifier}}/{{protocol}}/models"),
+        info=f"{RESULTS}/train/{{classifier}}/{{protocol}}/info.json",
+    params:
+        classifier=lambda wc: wc.classifier,
+        classifier_params=lambda wc: classifier_params(wc.classifier),
+        seed=config["hybrid"]["seed"],
+    log:
+        f"{LOGS}/train/{{classifier}}_{{protocol}}.log",
+    script:
+        "../scripts/train.py"

@@ -1,0 +1,20 @@
+"""Snakemake script: signal table(s) -> features table (band-averaged amplitude spectra).
+
+`snakemake` is injected by Snakemake's script directive.
+"""
+from condmon.features import compute_feature_table_from_files, feature_columns, write_feature_table
+from condmon.runlog import setup_logging
+
+log = setup_logging(snakemake)  # to snakemake.log[0]
+
+signal_paths = snakemake.input.signals
+signal_paths = [signal_paths] if isinstance(signal_paths, str) else list(signal_paths)
+channels = list(snakemake.params.channels)
+spectrum = dict(snakemake.params.spectrum)
+
+frame = compute_feature_table_from_files(signal_paths, channels, spectrum)
+names = feature_columns(frame)
+write_feature_table(frame, names, snakemake.output.features,
+                    config={"channels": channels, "spectrum": spectrum})
+log.info("wrote %d segments x %d features to %s", len(frame), len(names),
+         snakemake.output.features)

@@ -1,0 +1,21 @@
+"""Snakemake script: measured features -> split table of one protocol.
+
+`snakemake` is injected by Snakemake's script directive.
+"""
+from condmon.features import read_feature_table
+from condmon.hybrid import make_splits, write_split_table
+from condmon.runlog import setup_logging
+
+log = setup_logging(snakemake)  # to snakemake.log[0]
+params = snakemake.params
+
+measured, _ = read_feature_table(snakemake.input.features)
+splits = make_splits(measured[["record_id", "health_state", "speed_rpm"]],
+                     protocol=params.protocol,
+                     measured_percent=list(params.measured_percent),
+                     repeats=int(params.repeats),
+                     seed=int(params.seed),
+                     min_test_records=int(params.min_test_records))
+write_split_table(splits, snakemake.output.splits)
+log.info("%s: %d rows, %d records, roles %s", params.protocol, len(splits),
+         splits["record_id"].nunique(), splits["role"].value_counts().to_dict())

@@ -1,0 +1,24 @@
+"""Snakemake script: train metrics/predictions + calibration -> report/accuracy.csv,
+summary.json and plots/. The logic lives in condmon.report.
+
+`snakemake` is injected by Snakemake's script directive.
+"""
+from condmon.report import write_report
+from condmon.runlog import setup_logging
+
+log = setup_logging(snakemake)  # to snakemake.log[0]
+summary = write_report(
+    metrics_paths=list(snakemake.input.metrics),
+    predictions_paths=list(snakemake.input.predictions),
+    calibration_params=snakemake.input.calibration_params,
+    calibration_spectra=snakemake.input.calibration_spectra,
+    calibration_history=snakemake.input.calibration_history,
+    accuracy_path=snakemake.output.accuracy,
+    summary_path=snakemake.output.summary,
+    plots_dir=snakemake.output.plots,
+    run_name=snakemake.params.run_name,
+    data_source=snakemake.params.data_source,
+    confusion_percent=list(snakemake.params.get("confusion_percent", [0])),
+)
+log.info("report of run %s: %d result rows, %d plots", summary["run_name"],
+         len(summary["results"]), len(summary["plots"]))

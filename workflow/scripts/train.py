@@ -1,0 +1,34 @@
+"""Snakemake script: features + split table -> predictions, metrics, models, info.
+
+`snakemake` is injected by Snakemake's script directive.
+"""
+import time
+
+from condmon.features import read_feature_table
+from condmon.hybrid import read_split_table
+from condmon.runlog import setup_logging
+from condmon.train import (matching_feature_names, run_protocol, train_info, write_json,
+                           write_metrics, write_models, write_predictions)
+
+log = setup_logging(snakemake)  # to snakemake.log[0]
+start = time.perf_counter()
+name = snakemake.params.classifier
+params = dict(snakemake.params.classifier_params or {})
+seed = int(snakemake.params.seed)
+
+simulated, simulated_names = read_feature_table(snakemake.input.simulated)
+measured, measured_names = read_feature_table(snakemake.input.measured)
+feature_names = matching_feature_names(simulated_names, measured_names)
+splits = read_split_table(snakemake.input.splits)
+
+predictions, metrics, models = run_protocol(name, params, simulated, measured, splits,
+                                            feature_names, seed)
+
+out = snakemake.output
+write_predictions(predictions, out.predictions)
+write_metrics(metrics, out.metrics)
+model_files = write_models(models, out.models)
+labels = set(simulated["health_state"]) | set(measured["health_state"])
+write_json(train_info(name, params, seed, str(splits["protocol"].iloc[0]), labels, feature_names,
+                      metrics, model_files, time.perf_counter() - start), out.info)
+log.info("%d models, %d metric rows written", len(model_files), len(metrics))
