@@ -16,8 +16,9 @@ import pyarrow.parquet as pq
 from scipy.signal import get_window
 from sklearn.base import BaseEstimator, TransformerMixin
 
+from condmon.atomic import write_table
 from condmon.signals import (ID_COLUMNS, SCHEMA, config_hash, package_versions,
-                             read_signal_table, to_arrays, write_atomic)
+                             read_signal_table, to_arrays)
 
 log = logging.getLogger(__name__)
 
@@ -244,7 +245,7 @@ def write_feature_table(frame: pd.DataFrame, feature_names, path,
             FEATURE_KIND_KEY: b"spectrum",
             b"condmon.config_hash": config_hash(config or {}).encode(),
             b"condmon.package_versions": json.dumps(package_versions()).encode()}
-    write_atomic(table.replace_schema_metadata({**(table.schema.metadata or {}), **meta}), path)
+    write_table(table.replace_schema_metadata({**(table.schema.metadata or {}), **meta}), path)
 
 
 def read_feature_table(path) -> tuple[pd.DataFrame, list[str]]:

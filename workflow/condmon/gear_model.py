@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import dataclasses
-import zlib
 
 import numpy as np
 
@@ -30,16 +29,6 @@ def build_parameters(model: dict, **overrides) -> GearDrivetrainParameters:
 
 def simulation_settings(numerics: dict, duration: float) -> SimulationSettings:
     return SimulationSettings(duration=duration, **numerics)
-
-
-def stable_int(*parts) -> int:
-    """A process-independent integer from strings/numbers (Python's hash() is salted)."""
-    return zlib.crc32("|".join(str(p) for p in parts).encode())
-
-
-def job_rng(seed: int, *parts) -> np.random.Generator:
-    """Independent reproducible stream for one job, from the config seed and the job's wildcards."""
-    return np.random.default_rng(np.random.SeedSequence([int(seed), stable_int(*parts)]))
 
 
 def perturb(values: dict, names, sigma: float, rng: np.random.Generator) -> dict:

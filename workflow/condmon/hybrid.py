@@ -18,14 +18,14 @@ from __future__ import annotations
 
 import logging
 import math
-import zlib
 
 import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from condmon.signals import write_atomic
+from condmon.atomic import write_table
+from condmon.seeds import derive_seed, stable_int
 
 log = logging.getLogger(__name__)
 
@@ -44,16 +44,6 @@ SPLIT_COLUMNS = SPLIT_SCHEMA.names
 
 class SplitError(ValueError):
     """A split request or split table breaks the contract."""
-
-
-def stable_int(text: str) -> int:
-    """A string's stable integer (crc32); Python's hash() is salted per process."""
-    return zlib.crc32(text.encode())
-
-
-def derive_seed(seed: int, *keys: int) -> int:
-    """A 32-bit seed from the config seed and stable integer keys (e.g. percent, repeat)."""
-    return int(np.random.SeedSequence([int(seed), *map(int, keys)]).generate_state(1)[0])
 
 
 def format_speed(speed_rpm: float) -> str:
@@ -226,7 +216,7 @@ def write_split_table(splits: pd.DataFrame, path) -> None:
     validate_splits(splits, str(path))
     table = pa.Table.from_pandas(_typed(splits[SPLIT_COLUMNS]), schema=SPLIT_SCHEMA,
                                  preserve_index=False)
-    write_atomic(table, path)
+    write_table(table, path)
 
 
 def read_split_table(path) -> pd.DataFrame:

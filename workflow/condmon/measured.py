@@ -7,7 +7,8 @@ import time
 import numpy as np
 import pandas as pd
 
-from condmon.gear_model import build_parameters, job_rng, simulation_settings
+from condmon.gear_model import build_parameters, simulation_settings
+from condmon.seeds import job_rng
 from condmon.signals import SignalTableError, make_rows, read_signal_table
 from models.virtual_bench import bench_record
 

@@ -5,13 +5,13 @@ Every figure carries a footnote ``note`` naming the data source (e.g. "virtual b
 """
 from __future__ import annotations
 
-import os
-from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")  # batch jobs have no display
 import matplotlib.pyplot as plt  # noqa: E402
+
+from condmon.atomic import temporary_path  # noqa: E402
 import numpy as np  # noqa: E402
 
 ACCURACY_LABEL = "accuracy on held-out measured records"
@@ -40,16 +40,11 @@ def _finish(fig, title: str, note: str, legend_from=None):
 
 def save_figure(fig, path) -> None:
     """Save as PNG via a temporary file and rename, then release the figure."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
-        fig.savefig(tmp, format="png", dpi=110)
-        os.replace(tmp, path)
+        with temporary_path(path) as tmp:
+            fig.savefig(tmp, format="png", dpi=110)
     finally:
         plt.close(fig)
-        if tmp.exists():
-            tmp.unlink()
 
 
 def accuracy_vs_measured_percent(per_repeat, chance: float, note: str):

@@ -17,14 +17,14 @@ from __future__ import annotations
 
 import json
 import logging
-import os
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from condmon import plots
+from condmon.atomic import staging_directory, write_text
+from condmon.hybrid import format_speed
 
 log = logging.getLogger(__name__)
 
@@ -57,11 +57,6 @@ def data_source_label(data_source: str) -> str:
     if data_source == "measured":
         return "measured (test-bench recordings)"
     return data_source
-
-
-def format_speed(speed_rpm) -> str:
-    """775.0 -> "775"; used in file names, metric names and JSON keys."""
-    return f"{float(speed_rpm):g}"
 
 
 # --------------------------------------------------------------------------- inputs
@@ -271,25 +266,6 @@ def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: di
 
 # --------------------------------------------------------------------------- outputs
 
-def write_text_atomic(text: str, path) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
-def replace_directory(staging: Path, target: Path) -> None:
-    """Swap a fully written staging directory in for ``target`` (old plots must not linger)."""
-    if target.exists():
-        shutil.rmtree(target)
-    os.replace(staging, target)
-
-
 def confusion_percents(accuracy: pd.DataFrame, requested) -> list[int]:
     """The requested measured percentages plus the largest one, checked against the data."""
     available = sorted(int(p) for p in accuracy["measured_percent"].unique())
@@ -353,19 +329,12 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     log.info("%d metrics rows from %d files, %d predictions", len(accuracy),
              len(list(metrics_paths)), len(predictions))
 
-    plots_dir = Path(plots_dir)
-    staging = plots_dir.with_name(f".{plots_dir.name}.tmp{os.getpid()}")
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir(parents=True)
-    try:
+    with staging_directory(plots_dir) as staging:
         plot_names = make_plots(accuracy, predictions, spectra, history, calibration, staging,
                                 run_name, data_source, confusion_percent)
         summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names)
-        write_text_atomic(accuracy.to_csv(index=False), accuracy_path)
-        write_text_atomic(json.dumps(summary, indent=2) + "\n", summary_path)
-        replace_directory(staging, plots_dir)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
+        write_text(accuracy.to_csv(index=False), accuracy_path)
+        write_text(json.dumps(summary, indent=2) + "\n", summary_path)
     log.info("wrote %s, %s and %d plots in %s", accuracy_path, summary_path, len(plot_names),
              plots_dir)
     return summary

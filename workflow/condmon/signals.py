@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from importlib import metadata
 from pathlib import Path
 
@@ -16,6 +15,8 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+from condmon.atomic import write_table
 
 SOURCES = ("measured", "virtual_bench", "simulated")
 
@@ -90,20 +91,7 @@ def write_signal_table(rows, path, config: dict | None = None) -> None:
     meta = {b"condmon.config_hash": config_hash(config or {}).encode(),
             b"condmon.package_versions": json.dumps(package_versions()).encode()}
     table = table.replace_schema_metadata({**(table.schema.metadata or {}), **meta})
-    write_atomic(table, path)
-
-
-def write_atomic(table: pa.Table, path) -> None:
-    """Write a pyarrow table to `path` via a temporary file and rename."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
-        pq.write_table(table, tmp, compression="zstd")
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    write_table(table, path)
 
 
 def read_signal_table(path, allowed_sources=SOURCES) -> pd.DataFrame:
@@ -185,16 +173,3 @@ def to_arrays(frame: pd.DataFrame, channels) -> tuple[pd.DataFrame, np.ndarray]:
                 raise SignalTableError(f"record {rid!r} segment {seg}: no channel {ch!r}") from None
     return ids, out
 
-
-def write_frame(frame: pd.DataFrame, path) -> None:
-    """Write any DataFrame to Parquet atomically."""
-    write_atomic(pa.Table.from_pandas(frame, preserve_index=False), path)
-
-
-def write_atomic_json(data, path) -> None:
-    """Write JSON via a temporary file and rename."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(json.dumps(data, indent=2, sort_keys=True, default=float))
-    os.replace(tmp, path)

@@ -4,7 +4,8 @@ from __future__ import annotations
 import logging
 import time
 
-from condmon.gear_model import build_parameters, job_rng, perturb, simulation_settings
+from condmon.gear_model import build_parameters, perturb, simulation_settings
+from condmon.seeds import job_rng
 from condmon.signals import make_rows
 from models.gear_drivetrain import simulate
 

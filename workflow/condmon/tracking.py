@@ -45,7 +45,8 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from condmon import classifiers, plots, report
-from condmon.hybrid import sorted_holdouts
+from condmon.atomic import write_json
+from condmon.hybrid import format_speed, sorted_holdouts
 
 log = logging.getLogger(__name__)
 
@@ -269,7 +270,7 @@ def run_metrics(overall, speed_rows) -> dict[str, float]:
     if "fit_seconds" in overall and np.isfinite(overall["fit_seconds"]):
         values["fit_seconds"] = overall["fit_seconds"]
     for row in speed_rows.itertuples(index=False):
-        speed = report.format_speed(row.speed_rpm)
+        speed = format_speed(row.speed_rpm)
         values[f"accuracy_{speed}rpm"] = row.accuracy
         values[f"macro_f1_{speed}rpm"] = row.macro_f1
     return {name: float(value) for name, value in values.items()}
@@ -429,4 +430,4 @@ def log_evaluation(experiment_id: str, key: dict, overall, speed_rows, counts, l
 
 
 def write_run_info(info: dict, path) -> None:
-    report.write_text_atomic(json.dumps(info, indent=2) + "\n", path)
+    write_json(info, path)

@@ -9,8 +9,6 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import os
-import shutil
 import time
 from pathlib import Path
 
@@ -21,8 +19,10 @@ import pyarrow as pa
 from sklearn.metrics import accuracy_score, f1_score
 
 from condmon import classifiers
-from condmon.hybrid import derive_seed, sorted_holdouts, stable_int, validate_splits
-from condmon.signals import package_versions, write_atomic
+from condmon.atomic import staging_directory, write_table, write_text
+from condmon.hybrid import sorted_holdouts, validate_splits
+from condmon.seeds import derive_seed, stable_int
+from condmon.signals import package_versions
 
 log = logging.getLogger(__name__)
 
@@ -189,46 +189,25 @@ def write_models(models: dict, directory) -> list[dict]:
     order = {h: i for i, h in enumerate(sorted_holdouts(key[2] for key in models))}
     # Holdout indices count the real holdouts only; "" (nothing held out) gets no _h suffix.
     holdout_index = {h: i for i, h in enumerate(h for h in order if h)}
-    tmp = directory.with_name(f".{directory.name}.tmp{os.getpid()}")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
     entries = []
-    for percent, repeat, holdout in sorted(models, key=lambda k: (k[0], k[1], order[k[2]])):
-        index = holdout_index.get(holdout)  # None without a holdout
-        name = model_filename(percent, repeat, index)
-        joblib.dump(models[(percent, repeat, holdout)], tmp / name)
-        entries.append({"file": name, "measured_percent": percent, "repeat": repeat,
-                        "holdout": holdout, "holdout_index": index})
-    if directory.exists():
-        shutil.rmtree(directory)
-    os.replace(tmp, directory)
+    with staging_directory(directory) as tmp:
+        for percent, repeat, holdout in sorted(models, key=lambda k: (k[0], k[1], order[k[2]])):
+            index = holdout_index.get(holdout)  # None without a holdout
+            name = model_filename(percent, repeat, index)
+            joblib.dump(models[(percent, repeat, holdout)], tmp / name)
+            entries.append({"file": name, "measured_percent": percent, "repeat": repeat,
+                            "holdout": holdout, "holdout_index": index})
     return entries
 
 
-def _write_text_atomic(text: str, path) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
 def write_predictions(predictions: pd.DataFrame, path) -> None:
-    write_atomic(pa.Table.from_pandas(predictions[PREDICTION_COLUMNS], schema=PREDICTION_SCHEMA,
+    write_table(pa.Table.from_pandas(predictions[PREDICTION_COLUMNS], schema=PREDICTION_SCHEMA,
                                       preserve_index=False), path)
 
 
 def write_metrics(metrics: pd.DataFrame, path) -> None:
     """metrics.csv; speed_rpm is empty on the all-speeds rows."""
-    _write_text_atomic(metrics[METRIC_COLUMNS].to_csv(index=False), path)
-
-
-def write_json(data: dict, path) -> None:
-    _write_text_atomic(json.dumps(data, indent=2, sort_keys=True, default=str) + "\n", path)
+    write_text(metrics[METRIC_COLUMNS].to_csv(index=False), path)
 
 
 def train_info(classifier_name: str, params: dict | None, seed: int, protocol: str,

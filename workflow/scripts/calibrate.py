@@ -10,7 +10,8 @@ from condmon.gear_model import build_parameters
 from condmon.plots import calibration_convergence, save_figure
 from condmon.report import data_source_label
 from condmon.runlog import setup_logging
-from condmon.signals import read_signal_table, write_atomic_json, write_frame
+from condmon.atomic import write_frame, write_json
+from condmon.signals import read_signal_table
 from models.gear_drivetrain import operating_mesh_stiffness
 
 log = setup_logging(snakemake)
@@ -56,6 +57,6 @@ result = dict(best, nominal_cost=nominal_cost, sensor_noise=sensor_noise, operat
               strategy=cal["strategy"], cost_function=cal["cost"], speeds_rpm=speeds, seconds=round(time.perf_counter() - start, 1),
               seconds_per_evaluation=float(history["seconds"].mean()),
               failed_evaluations=int((history["error"] != "").sum()))
-write_atomic_json(result, snakemake.output.params)
+write_json(result, snakemake.output.params)
 log.info("best %s cost %.4g (nominal %.4g) after %d evaluations: %s; sensor noise %.3g m/s^2",
          best["contact_law"], best["cost"], nominal_cost, best["evaluations"], best["parameters"], sensor_noise)

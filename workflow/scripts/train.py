@@ -4,11 +4,12 @@
 """
 import time
 
+from condmon.atomic import write_json
 from condmon.features import read_feature_table
 from condmon.hybrid import read_split_table
 from condmon.runlog import setup_logging
-from condmon.train import (matching_feature_names, run_protocol, train_info, write_json,
-                           write_metrics, write_models, write_predictions)
+from condmon.train import (matching_feature_names, run_protocol, train_info, write_metrics, write_models,
+                           write_predictions)
 
 log = setup_logging(snakemake)  # to snakemake.log[0]
 start = time.perf_counter()
