@@ -34,6 +34,25 @@ def hysteresis_factor(law: str, restitution: float) -> float:
     return HYSTERESIS_FACTORS[law](restitution)
 
 
+def rebound_restitution(factor: float) -> float:
+    """Restitution a law of damping factor f = chi delta_dot(-) / K actually gives.
+
+    For a free impact m delta'' = -K delta^n (1 + f delta'/v), m w dw/(1 + f w/v) = -K delta^n d delta
+    integrates over the closed contact to f (1 + e) = ln((1 + f) / (1 - f e)) for the rebound
+    e = -delta'_end / v: independent of K, n, the mass and the impact speed, so each law's e(c_r)
+    is a property of its factor alone (1 - f e > 0: the force never needs clamping before
+    separation). Solved for L = ln(1 - f e) in L - exp(L) = ln(1 + f) - f - 1, robust for any f >= 0."""
+    if factor < 0.0:
+        raise ValueError(f"damping factor must be >= 0, got {factor}")
+    if factor == 0.0:
+        return 1.0
+    from scipy.optimize import brentq
+
+    right = math.log1p(factor) - factor - 1.0
+    log_y = brentq(lambda L: L - math.exp(L) - right, right - 1.0, 0.0, xtol=1e-15)
+    return -math.expm1(log_y) / factor
+
+
 def contact_force(deflection, deflection_rate, stiffness, exponent, damping_factor, approach_velocity):
     """Compressive contact force K d^n (1 + f d_dot / v-), zero when apart and never pulling."""
     if deflection <= 0.0:

@@ -12,8 +12,12 @@ nominal rotation, so everything time-dependent in the mesh is a function of time
 All linear parts live in one ObjectGenericODE2. The gear rotation coordinate is replaced by the
 mesh deflection along the line of action, so the whole nonlinear mesh is one scalar
 ObjectConnectorCoordinateSpringDamper whose user function sums the tooth-pair forces
-(see `MeshForce`). Sensors record housing accelerations above the output rate; the signals are
-low-pass filtered and decimated to the output rate (no aliasing) and checked finite.
+(Algorithm 1 of the helical-gear study). Two mesh stiffness models (`mesh_stiffness_model`):
+`potential_energy` (`TVMSMeshForce`: the pair stiffness over the mesh phase from the
+potential-energy method with helical slicing, `models/gear_mesh.py`, precomputed as tables) and
+`simple` (`MeshForce`: rectangular contact windows of equal pairs). Sensors record housing
+accelerations above the output rate; the signals are low-pass filtered and decimated to the output
+rate (no aliasing) and checked finite.
 """
 from __future__ import annotations
 
@@ -25,8 +29,10 @@ import numpy as np
 from scipy.signal import firwin, resample_poly
 
 from models.contact_laws import hysteresis_factor
+from models.gear_mesh import GearGeometry, GearMesh, ProfileDeviation, ToothDamage
 
-HEALTH_STATES = ("healthy", "surface_fault", "missing_tooth")
+HEALTH_STATES = ("healthy", "surface_fault", "missing_tooth", "chipped_tooth", "root_crack")
+MESH_STIFFNESS_MODELS = ("potential_energy", "simple")
 CHANNELS = ("A1_x", "A1_y", "A2_x", "A2_y")
 
 # Coordinate indices in the physical ordering.
@@ -39,48 +45,6 @@ SENSOR_HOUSINGS = {"A1": 0, "A2": 2}
 
 class SimulationError(RuntimeError):
     """A simulation diverged or produced non-finite output."""
-
-
-@dataclass
-class GearGeometry:
-    """Helical gear pair of the helical-gear study (Table 2); lengths in metres."""
-    teeth_pinion: int = 29
-    teeth_gear: int = 44
-    normal_module: float = 2.25e-3
-    pressure_angle_deg: float = 20.0
-    helix_angle_deg: float = 26.0
-    face_width: float = 0.020   # not given by the study: an assumption of this model
-    addendum_factor: float = 1.0
-
-    @property
-    def transverse_module(self) -> float:
-        return self.normal_module / math.cos(math.radians(self.helix_angle_deg))
-
-    @property
-    def transverse_pressure_angle(self) -> float:
-        return math.atan(math.tan(math.radians(self.pressure_angle_deg))
-                         / math.cos(math.radians(self.helix_angle_deg)))
-
-    def pitch_radius(self, teeth: int) -> float:
-        return teeth * self.transverse_module / 2.0
-
-    def base_radius(self, teeth: int) -> float:
-        return self.pitch_radius(teeth) * math.cos(self.transverse_pressure_angle)
-
-    @property
-    def base_pitch(self) -> float:
-        """Distance along the line of action from one tooth pair to the next."""
-        return math.pi * self.transverse_module * math.cos(self.transverse_pressure_angle)
-
-    @property
-    def contact_ratio(self) -> float:
-        """Transverse contact ratio of the standard (unshifted) pair."""
-        r1, r2 = self.pitch_radius(self.teeth_pinion), self.pitch_radius(self.teeth_gear)
-        rb1, rb2 = self.base_radius(self.teeth_pinion), self.base_radius(self.teeth_gear)
-        addendum = self.addendum_factor * self.normal_module
-        path = (math.sqrt((r1 + addendum) ** 2 - rb1 ** 2) + math.sqrt((r2 + addendum) ** 2 - rb2 ** 2)
-                - (r1 + r2) * math.sin(self.transverse_pressure_angle))
-        return path / self.base_pitch
 
 
 @dataclass
@@ -101,21 +65,38 @@ class GearDrivetrainParameters:
     coupling_stiffness: float = 2.0e3      # N m/rad, motor to pinion
     coupling_damping: float = 0.5          # N m s/rad
     # Gear mesh: F = K delta^n + chi delta^n delta_dot, per tooth pair.
+    mesh_stiffness_model: str = "potential_energy"  # or "simple" (rectangular windows)
+    helix_slices: int = 80                 # slices of the face width (potential_energy)
     contact_law: str = "lankarani_nikravesh"
     mesh_stiffness: float = 4.0e8          # mean mesh stiffness at 1 um deflection, N/m
     contact_exponent: float = 1.5
     restitution: float = 0.9
     approach_velocity: float = 0.02        # delta_dot(-) of a tooth engagement, m/s
     backlash: float = 1.0e-4               # along the line of action, m
-    transmission_error: float = 0.3e-6     # amplitude of the static TE at mesh frequency, m
+    # Static TE at mesh frequency: simple model, TE = amplitude sin(2 pi mesh phase);
+    # potential_energy, a sinusoidal profile deviation of every flank (one period per base pitch)
+    # whose amplitude gives this static TE once averaged over the contact lines (a helical pair
+    # filters a profile deviation by about |sinc(eps_beta)|), plus linear tip relief.
+    transmission_error: float = 0.3e-6     # amplitude, m
+    tip_relief: float = 0.0                # depth at both tips, from the HPSTC/LPSTC on, m
     # Load and speed.
     load_torque: float = 10.0              # on the output shaft, N m
     speed_rpm: float = 1100.0              # input shaft
     # Health.
     health_state: str = "healthy"
     faulty_tooth: int = 0                  # pinion tooth index of the damage
-    surface_fault_teeth: int = 3           # consecutive pinion teeth with reduced stiffness
-    surface_fault_stiffness_loss: float = 0.15
+    surface_fault_teeth: int = 3           # consecutive pinion teeth with a surface fault
+    surface_fault_stiffness_loss: float = 0.15  # simple: of the whole tooth; potential_energy: in the spall
+    # Spall (potential_energy): region of the flank in fractions of the active profile (0 = pinion
+    # root contact, 1 = tip) and of the face width, and its depth below the flank.
+    surface_fault_profile: tuple = (0.35, 0.65)
+    surface_fault_face: tuple = (0.25, 0.75)
+    surface_fault_depth: float = 2.0e-5
+    # Chipped tooth: flank lost above this profile fraction over `chip_face` of the face width.
+    chip_profile: float = 0.6
+    chip_face: tuple = (0.0, 0.5)
+    # Root crack: fraction of the root half thickness the crack cuts (through the face).
+    crack_depth: float = 0.5
     # Effects of a real bench that the calibrated model leaves out (zero in the model).
     speed_fluctuation: float = 0.0         # relative amplitude of a sinusoidal speed variation
     speed_fluctuation_hz: float = 2.0
@@ -130,30 +111,65 @@ class GearDrivetrainParameters:
 DEFLECTION_REF = 1.0e-6  # m; K = mesh stiffness at this deflection keeps K's unit N/m for any n
 
 
+def tooth_damage(p: GearDrivetrainParameters) -> ToothDamage | None:
+    """The health state of `p` as tooth geometry (None when healthy)."""
+    if p.health_state not in HEALTH_STATES:
+        raise ValueError(f"unknown health state {p.health_state!r}; choose one of {list(HEALTH_STATES)}")
+    tooth = p.faulty_tooth
+    if p.health_state == "healthy":
+        return None
+    if p.health_state == "missing_tooth":
+        return ToothDamage("missing", teeth=(tooth,))
+    if p.health_state == "surface_fault":
+        return ToothDamage("spall", teeth=tuple(tooth + k for k in range(p.surface_fault_teeth)),
+                           profile=tuple(p.surface_fault_profile), face=tuple(p.surface_fault_face),
+                           depth=p.surface_fault_depth, stiffness_loss=p.surface_fault_stiffness_loss)
+    if p.health_state == "chipped_tooth":
+        return ToothDamage("chip", teeth=(tooth,), profile=(p.chip_profile, 1.0), face=tuple(p.chip_face))
+    return ToothDamage("crack", teeth=(tooth,), crack_depth=p.crack_depth)
+
+
+def gear_mesh(p: GearDrivetrainParameters) -> GearMesh:
+    """The potential-energy TVMS tables of `p` (geometry, slices, profile deviations, damage)."""
+    return GearMesh(p.geometry, slices=p.helix_slices, damage=tooth_damage(p),
+                    profile_deviation=ProfileDeviation(tip_relief=p.tip_relief),
+                    transmission_error=p.transmission_error)
+
+
 class MeshForce:
     """Sum of the tooth-pair contact forces along the line of action, a function of
-    (time, mesh deflection, deflection rate).
+    (time, mesh deflection, deflection rate): the `simple` mesh stiffness model.
+
+    `MeshForce(p)` builds the model `p.mesh_stiffness_model` names (`TVMSMeshForce` for
+    `potential_energy`).
 
     Each tooth pair j is nominally in contact while the mesh phase (in mesh periods) is in
-    [j, j + contact ratio). Outside that window the pair still touches once the deflection
-    exceeds the gap of its tooth tip to the flank, which grows quadratically with the distance s
-    outside the window (g = s^2 / (2 rho)): this is the extended contact that catches the gears
-    when a tooth is missing, instead of free flight. Damaged pinion teeth scale their pair
-    stiffness. A back-flank contact closes the backlash.
+    [j, j + contact ratio), all pairs equally stiff. Outside that window the pair still touches once
+    the deflection exceeds the gap of its tooth tip to the flank, which grows quadratically with the
+    distance s outside the window (g = s^2 / (2 rho)): this is the extended contact that catches the
+    gears when a tooth is missing, instead of free flight. Damaged pinion teeth scale their pair
+    stiffness (a chipped tooth or root crack by the loss the potential-energy model gives for the
+    tooth's mean stiffness). A back-flank contact closes the backlash.
     """
 
-    def __init__(self, p: GearDrivetrainParameters):
+    def __new__(cls, p: GearDrivetrainParameters):
+        if p.mesh_stiffness_model not in MESH_STIFFNESS_MODELS:
+            raise ValueError(f"unknown mesh_stiffness_model {p.mesh_stiffness_model!r}; "
+                             f"choose one of {list(MESH_STIFFNESS_MODELS)}")
+        if cls is MeshForce and p.mesh_stiffness_model == "potential_energy":
+            cls = TVMSMeshForce
+        return super().__new__(cls)
+
+    def _common(self, p: GearDrivetrainParameters):
         g = p.geometry
         self.contact_ratio = g.contact_ratio
         self.mesh_frequency = p.speed_rpm / 60.0 * g.teeth_pinion
         self.shaft_frequency = p.speed_rpm / 60.0
         self.gear_frequency = self.shaft_frequency * g.teeth_pinion / g.teeth_gear
         self.base_pitch = g.base_pitch
-        self.tip_radius = g.base_radius(g.teeth_pinion)
+        self.tip_radius = g.base_radius(g.teeth_pinion)  # rho of the tip gap s^2 / (2 rho)
         self.teeth = g.teeth_pinion
         self.gear_ratio = g.teeth_pinion / g.teeth_gear
-        # Per pair K with delta in um-normalised form: F = K_ref * (delta/delta_ref)^n.
-        self.pair_force_ref = p.mesh_stiffness * DEFLECTION_REF / self.contact_ratio
         self.mean_force_ref = p.mesh_stiffness * DEFLECTION_REF
         self.exponent = p.contact_exponent
         self.hysteresis = hysteresis_factor(p.contact_law, p.restitution)
@@ -165,14 +181,23 @@ class MeshForce:
         self.fluct_w = 2 * math.pi * p.speed_fluctuation_hz
         self.runout = (p.runout_pinion, p.runout_gear)
         self.runout_phase = p.runout_phase
+        self.damage = tooth_damage(p)
+
+    def __init__(self, p: GearDrivetrainParameters):
+        self._common(p)
+        # Per pair K with delta in um-normalised form: F = K_ref * (delta/delta_ref)^n.
+        self.pair_force_ref = p.mesh_stiffness * DEFLECTION_REF / self.contact_ratio
         self.tooth_factor = np.ones(self.teeth)
         if p.health_state == "surface_fault":
             for k in range(p.surface_fault_teeth):
                 self.tooth_factor[(p.faulty_tooth + k) % self.teeth] = 1.0 - p.surface_fault_stiffness_loss
         elif p.health_state == "missing_tooth":
             self.tooth_factor[p.faulty_tooth % self.teeth] = 0.0
-        elif p.health_state != "healthy":
-            raise ValueError(f"unknown health state {p.health_state!r}; choose one of {list(HEALTH_STATES)}")
+        elif p.health_state in ("chipped_tooth", "root_crack"):
+            tvms = GearMesh(p.geometry, slices=p.helix_slices, damage=self.damage)
+            self.tooth_factor[p.faulty_tooth % self.teeth] = (
+                sum(grp.stiffness.sum() for grp in tvms.groups(p.faulty_tooth))
+                / sum(grp.stiffness.sum() for grp in tvms.healthy_groups))
         self.tooth_factor = self.tooth_factor.tolist()
 
     def phase(self, t):
@@ -260,6 +285,113 @@ class MeshForce:
             self.exponent - 1.0)
 
 
+class TVMSMeshForce(MeshForce):
+    """Algorithm 1 of the helical-gear study with the potential-energy TVMS (`potential_energy`).
+
+    Every tooth pair j (pinion tooth j mod z1) meshes while its phase u = phase - j is in
+    [0, eps_alpha + eps_beta); its contact groups (one per pair; a spall adds a second one, the
+    pit, `depth` below the flank) carry F = K(u) delta^n (1 + f(c_r) delta_dot / delta_dot(-)) with
+    K(u) from the precomputed table (linear interpolation on a uniform grid in pure Python; no
+    energy integral at run time) and delta = mesh deflection - profile deviation e(u) (static
+    transmission error). The tables are scaled so that the healthy mean mesh stiffness at 1 um is
+    `mesh_stiffness` (the calibrated quantity keeps its meaning; the potential-energy method sets
+    the shape over the mesh cycle, the load sharing and the damage). A pair whose stiffness does
+    not vanish at the edge of its window (spur gears) keeps the extended contact of the simple
+    model beyond it (tip gap s^2 / (2 rho)); a helical pair enters and leaves gradually, slice by
+    slice, so its neighbours carry the load over a missing tooth. The back flank closes the backlash
+    with the mean stiffness.
+    """
+
+    def __init__(self, p: GearDrivetrainParameters):
+        self._common(p)
+        self.te_amplitude = 0.0  # the static TE comes from the profile deviation tables
+        tvms = gear_mesh(p)
+        self.tvms = tvms
+        self.window = tvms.window
+        self.points_per_pitch = tvms.points_per_pitch
+        scale = p.mesh_stiffness * DEFLECTION_REF / tvms.mean_stiffness
+        edge = int(math.floor(self.window * self.points_per_pitch))
+
+        def compile_group(group):
+            k = (group.stiffness * scale).tolist()
+            e = group.deviation.tolist()
+            rows = [(k[i], k[i + 1] - k[i], e[i], e[i + 1] - e[i]) for i in range(len(k) - 1)]
+            return rows, (k[0], e[0], k[edge], e[edge])
+
+        compiled = {}
+        self.tooth_groups = []
+        for tooth in range(self.teeth):
+            groups = tvms.groups(tooth)
+            if id(groups) not in compiled:
+                compiled[id(groups)] = tuple(compile_group(g) for g in groups)
+            self.tooth_groups.append(compiled[id(groups)])
+        self.extended = any(edges[0] > 0 or edges[2] > 0
+                            for groups in self.tooth_groups for _, edges in groups)
+        healthy = tvms.healthy_groups[0]
+        self.mean_deviation = float((healthy.stiffness * healthy.deviation).sum() / healthy.stiffness.sum())
+
+    def __call__(self, t, deflection, rate):
+        phase, phase_rate = self.phase(t)
+        if self.runout[0] or self.runout[1]:
+            e, e_t = self.excitation(t, phase, phase_rate)  # run-out only
+            d, d_t = deflection - e, rate - e_t
+        else:
+            d, d_t = deflection, rate
+        starts = self.contact_start
+        back = -d - self.backlash
+        if back > 0.0:  # back flank contact closes the backlash
+            return -self._force("back", self.mean_force_ref, back, -d_t)
+        if "back" in starts:
+            del starts["back"]
+        window, ppp, pitch = self.window, self.points_per_pitch, self.base_pitch
+        ext = math.sqrt(2.0 * self.tip_radius * d) / pitch if (self.extended and d > 0.0) else 0.0
+        first = math.floor(phase - window - ext) + 1
+        if len(starts) > 16:  # forget contacts of pairs that have left the mesh
+            for key in [k for k in starts if k < 4 * first]:
+                del starts[key]
+        n, hyst, v_min, ref_inv = self.exponent, self.hysteresis, self.approach_velocity, 1.0 / DEFLECTION_REF
+        rho = self.tip_radius
+        total = 0.0
+        for j in range(first, math.floor(phase + ext) + 1):
+            u = phase - j
+            key = 4 * j
+            for rows, edges in self.tooth_groups[j % self.teeth]:
+                if 0.0 <= u < window:
+                    x = u * ppp
+                    i = int(x)
+                    k0, dk, e0, de = rows[i]
+                    k = k0 + (x - i) * dk
+                    gd = d - e0 - (x - i) * de
+                    gd_t = d_t - de * ppp * phase_rate
+                else:  # extended contact beyond the window: tip gap s^2 / (2 rho)
+                    if u < 0.0:
+                        s = -u * pitch
+                        k, e0 = edges[0], edges[1]
+                        gd, gd_t = d - e0 - s * s / (2 * rho), d_t + s * pitch * phase_rate / rho
+                    else:
+                        s = (u - window) * pitch
+                        k, e0 = edges[2], edges[3]
+                        gd, gd_t = d - e0 - s * s / (2 * rho), d_t - s * pitch * phase_rate / rho
+                if k <= 0.0 or gd <= 0.0:
+                    if key in starts:
+                        del starts[key]
+                    key += 1
+                    continue
+                # Contact law (Table 1): delta_dot(-) is the approach speed when this contact began,
+                # at least `approach_velocity` (see MeshForce._force).
+                v_minus = starts.get(key)
+                if v_minus is None:
+                    v_minus = starts[key] = gd_t if gd_t > v_min else v_min
+                force = k * (gd * ref_inv) ** n * (1.0 + hyst * gd_t / v_minus)
+                if force > 0.0:
+                    total += force
+                key += 1
+        return total
+
+    def static_deflection(self, force):
+        return super().static_deflection(force) + self.mean_deviation
+
+
 def operating_mesh_stiffness(p: GearDrivetrainParameters) -> float:
     """Linearised mean mesh stiffness (N/m) under the static load of `p`."""
     g = p.geometry
@@ -332,8 +464,12 @@ def decimation_filter(factor: int, passband: float = 0.8, attenuation_db: float 
     return firwin(numtaps, (1.0 + passband) / 2.0 / factor, window=("kaiser", beta))
 
 
-def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = SimulationSettings()):
-    """Run the model; return {channel: acceleration in m/s^2 at settings.output_rate}."""
+def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = SimulationSettings(),
+             diagnostics: dict | None = None):
+    """Run the model; return {channel: acceleration in m/s^2 at settings.output_rate}.
+
+    diagnostics: a dict to receive `time` and the mesh `deflection` (m, along the line of action,
+    at the sensor rate, settling included) and `mesh_calls` (calls of the mesh force function)."""
     import exudyn as exu  # imported here so the geometry helpers work without exudyn
 
     mesh = MeshForce(params)
@@ -368,14 +504,25 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
     ground_marker = mbs.AddMarker(exu.itemInterface.MarkerNodeCoordinate(nodeNumber=ground, coordinate=0))
     mesh_marker = mbs.AddMarker(exu.itemInterface.MarkerNodeCoordinate(nodeNumber=node, coordinate=GEAR_ROT))
 
+    calls = [0]
+
     def mesh_force(mbs_, t, item, displacement, velocity, k, d, offset):
         return mesh(t, displacement, velocity)
 
+    def counted_mesh_force(mbs_, t, item, displacement, velocity, k, d, offset):
+        calls[0] += 1
+        return mesh(t, displacement, velocity)
+
     mbs.AddObject(exu.itemInterface.ObjectConnectorCoordinateSpringDamper(
-        markerNumbers=[ground_marker, mesh_marker], springForceUserFunction=mesh_force))
+        markerNumbers=[ground_marker, mesh_marker],
+        springForceUserFunction=mesh_force if diagnostics is None else counted_mesh_force))
     sensor = mbs.AddSensor(exu.itemInterface.SensorNode(
         nodeNumber=node, storeInternal=True, writeToFile=False,
         outputVariableType=exu.OutputVariableType.Coordinates_tt))
+    if diagnostics is not None:
+        position_sensor = mbs.AddSensor(exu.itemInterface.SensorNode(
+            nodeNumber=node, storeInternal=True, writeToFile=False,
+            outputVariableType=exu.OutputVariableType.Coordinates))
     mbs.Assemble()
 
     sensor_rate = settings.output_rate * settings.oversampling
@@ -394,6 +541,9 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
 
     data = mbs.GetSensorStoredData(sensor)  # columns: time, 14 accelerations
     acc = data[:, 1:]
+    if diagnostics is not None:
+        positions = mbs.GetSensorStoredData(position_sensor)
+        diagnostics.update(time=positions[:, 0], deflection=positions[:, 1 + GEAR_ROT], mesh_calls=calls[0])
     deflection = mbs.GetNodeOutput(node, exu.OutputVariableType.Coordinates)[GEAR_ROT]
     if not np.isfinite(acc).all() or abs(deflection) > settings.max_deflection:
         raise SimulationError(

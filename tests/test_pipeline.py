@@ -167,3 +167,65 @@ def test_config_errors_stop_before_any_job_and_name_the_key(tmp_path, edit, key)
     assert result.returncode != 0
     assert key in result.stderr + result.stdout
     assert not (workdir / "results").exists()
+
+
+def sha256(path):
+    import hashlib
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def test_simulated_files_do_not_depend_on_the_core_count(smoke, tmp_path):
+    """The smoke run used 2 cores; the same config on 1 core gives byte-identical simulations."""
+    _, results = smoke
+    workdir = copy_project(tmp_path)
+    targets = sorted(p.relative_to(results.parent.parent) for p in (results / "simulated").rglob("*.parquet"))
+    snakemake(workdir, "--cores", "1", *map(str, targets), "--configfile", "config/smoke.yaml")
+    for target in targets:
+        assert sha256(workdir / target) == sha256(results.parent.parent / target), target
+
+
+def test_a_users_measured_table_replaces_the_virtual_bench(smoke, tmp_path):
+    _, results = smoke
+    workdir = copy_project(tmp_path)
+    bench = read_signal_table(results / "measured" / "signals.parquet")
+    bench["source"] = "measured"
+    bench["record_id"] = "rig-" + bench["record_id"]
+    from condmon.signals import write_signal_table
+    write_signal_table(bench, tmp_path / "rig.parquet")
+    target = "results/rig/measured/signals.parquet"
+    snakemake(workdir, "--cores", "1", target, "--configfile", "config/smoke.yaml", "--config",
+              f"measured_table={tmp_path / 'rig.parquet'}", "run_name=rig")
+    measured = read_signal_table(workdir / target)
+    assert set(measured["source"]) == {"measured"} and measured["record_id"].str.startswith("rig-").all()
+    assert not (workdir / "results" / "rig" / "measured" / "virtual_bench").exists()
+
+
+def run_until(workdir, marker: Path, timeout=600):
+    """Start the smoke run and SIGKILL it (with all its jobs) once `marker` exists."""
+    import os
+    import signal
+    import time
+    process = subprocess.Popen(SNAKEMAKE + ["--cores", "2", "--configfile", "config/smoke.yaml"], cwd=workdir,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + timeout
+    while not marker.exists():
+        assert process.poll() is None, "the run ended before reaching the point to kill it"
+        assert time.monotonic() < deadline, f"{marker} never appeared"
+        time.sleep(0.2)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.wait()
+    snakemake(workdir, "--unlock", "--cores", "1", "--configfile", "config/smoke.yaml")
+
+
+def test_a_run_killed_mid_simulation_and_mid_training_resumes_to_the_same_results(smoke, tmp_path):
+    _, results = smoke
+    workdir = copy_project(tmp_path)
+    killed = workdir / "results" / "smoke"
+    run_until(workdir, killed / "logs" / "simulate")
+    run_until(workdir, killed / "logs" / "train")
+    snakemake(workdir, "--cores", "2", "--rerun-incomplete", "--configfile", "config/smoke.yaml")
+    for path in sorted((results / "simulated").rglob("*.parquet")):
+        assert sha256(killed / path.relative_to(results)) == sha256(path)
+    columns = ["classifier", "protocol", "measured_percent", "repeat", "speed_rpm", "holdout", "accuracy", "macro_f1"]
+    resumed = pd.read_csv(killed / "report" / "accuracy.csv")[columns]
+    pd.testing.assert_frame_equal(resumed, pd.read_csv(results / "report" / "accuracy.csv")[columns])

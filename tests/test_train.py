@@ -73,8 +73,8 @@ def test_knn_parameters():
 
 
 def test_unknown_classifier_and_parameter_are_named():
-    with pytest.raises(ValueError, match=r"'cnn'.*knn.*svm"):
-        make_classifier("cnn", {})
+    with pytest.raises(ValueError, match=r"'forest'.*cnn.*knn.*svm"):
+        make_classifier("forest", {})
     with pytest.raises(ValueError, match=r"'gama'.*'svm'"):
         make_classifier("svm", {"gama": 0.1})
 

@@ -1,8 +1,11 @@
-"""Classifiers by name: each a sklearn Pipeline that standardises its inputs first.
+"""Classifiers by name: sklearn estimators that standardise their inputs first.
 
-The CFRP study's classifier is an RBF SVM (C=1.2, gamma="scale") on standardised FFT inputs.
-More classifiers (a CNN later) join by adding an entry to CLASSIFIERS or calling
-register_classifier: a builder taking (params, seed) and the parameter defaults.
+The CFRP study's classifier is an RBF SVM (C=1.2, gamma="scale") on standardised FFT inputs;
+SVM and KNN are Pipelines (StandardScaler + classifier). The helical-gear study's ensemble of
+1D-CNNs is ``condmon.cnn.CNNEnsembleClassifier``, which standardises inside (so its exported
+PyTorch model takes the same raw features). More classifiers join by adding an entry to
+CLASSIFIERS or calling register_classifier: a builder taking (params, seed) and the parameter
+defaults.
 """
 from __future__ import annotations
 
@@ -17,7 +20,7 @@ from sklearn.svm import SVC
 
 @dataclass(frozen=True)
 class ClassifierSpec:
-    build: Callable[[dict, int], Pipeline]  # (complete params, seed) -> unfitted pipeline
+    build: Callable[[dict, int], Pipeline]  # (complete params, seed) -> unfitted estimator
     defaults: dict                          # every accepted parameter with its default
 
 
@@ -34,9 +37,27 @@ def _knn(params: dict, seed: int) -> Pipeline:
     return Pipeline([("scale", StandardScaler()), ("knn", knn)])
 
 
+def _cnn(params: dict, seed: int):
+    # imported here: PyTorch costs a second or two and memory that SVM/KNN jobs do not need
+    from condmon.cnn import CNNEnsembleClassifier
+
+    return CNNEnsembleClassifier(**params, random_state=seed)
+
+
+# The helical-gear study's training (10 members, 25 epochs, Adam at 0.002, cross-entropy) on a
+# network small enough for CPU training: about 0.6 s per member on ~300 spectra of 4 x 1000
+# bands (see config/README.md for the measurements behind these choices).
+CNN_DEFAULTS = {"members": 10, "epochs": 25, "batch_size": 64, "learning_rate": 0.002,
+                "conv_channels": [4, 8], "kernel_size": 7, "pool_size": 4, "input_pool": 2,
+                "dense_units": [16], "dropout": 0.3, "batch_norm": True,
+                "standardize": "channel", "validation_fraction": 0.2, "patience": 5,
+                "input_channels": "auto", "device": "auto", "threads": 1}
+
+
 CLASSIFIERS: dict[str, ClassifierSpec] = {
     "svm": ClassifierSpec(_svm, {"C": 1.2, "gamma": "scale", "class_weight": None}),
     "knn": ClassifierSpec(_knn, {"n_neighbors": 5, "weights": "uniform"}),
+    "cnn": ClassifierSpec(_cnn, CNN_DEFAULTS),
 }
 
 
@@ -60,6 +81,7 @@ def classifier_params(name: str, params: dict | None = None) -> dict:
 
 
 def make_classifier(name: str, params: dict | None = None, seed: int = 0) -> Pipeline:
-    """An unfitted Pipeline (StandardScaler + classifier) for the named classifier."""
+    """An unfitted estimator for the named classifier (Pipeline StandardScaler + classifier,
+    or the CNN ensemble, which standardises inside)."""
     complete = classifier_params(name, params)  # raises for unknown names and parameters
     return CLASSIFIERS[name].build(complete, int(seed))

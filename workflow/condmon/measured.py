@@ -40,8 +40,9 @@ def virtual_bench_rows(model: dict, bench: dict, health_states, speeds_rpm, nume
     return rows
 
 
-def read_user_table(path, health_states, channels, fs_hz: float) -> pd.DataFrame:
-    """A user's measured signal table, checked against the run's labels, channels and rate."""
+def read_user_table(path, health_states, channels, fs_hz: float, segment_seconds: float) -> pd.DataFrame:
+    """A user's measured signal table, checked against the run's labels, channels, sampling rate
+    and segment length (simulated segments have that length; features must compare alike)."""
     frame = read_signal_table(path, allowed_sources=("measured",))
     unknown = sorted(set(frame["health_state"]) - set(health_states))
     if unknown:
@@ -54,6 +55,11 @@ def read_user_table(path, health_states, channels, fs_hz: float) -> pd.DataFrame
     if rates != [float(fs_hz)]:
         raise SignalTableError(f"{path}: sampling rate {rates} Hz differs from the config's "
                                f"output_rate_hz {fs_hz} Hz")
+    samples = int(round(segment_seconds * fs_hz))
+    lengths = sorted({len(s) for s in frame["signal"]})
+    if lengths != [samples]:
+        raise SignalTableError(f"{path}: segments have {lengths} samples; rig.segment_seconds = "
+                               f"{segment_seconds} s at {fs_hz} Hz needs {samples}: cut the records to that length")
     for record_id, rows in frame.groupby("record_id"):
         for channel, signals in rows.groupby("channel"):
             if max(float(np.ptp(s)) for s in signals["signal"]) == 0.0:

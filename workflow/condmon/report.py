@@ -34,6 +34,8 @@ ACCURACY_COLUMNS = ["classifier", "protocol", "measured_percent", "repeat", "spe
                     "n_train_measured", "n_test"]
 PREDICTION_COLUMNS = ["protocol", "measured_percent", "repeat", "holdout", "record_id",
                       "segment", "speed_rpm", "true_label", "predicted_label"]
+# optional: the CNN ensemble's member spread per prediction (NaN for the other classifiers)
+OPTIONAL_PREDICTION_COLUMNS = ["uncertainty"]
 SORT_KEYS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "speed_rpm"]
 
 # Data-source kinds that are not real measurements; anything labelled with them must say so.
@@ -103,7 +105,8 @@ def classifier_of(predictions_path: Path) -> str:
 
 
 def load_predictions(paths) -> pd.DataFrame:
-    """Concatenate predictions.parquet files, adding a ``classifier`` column from the path."""
+    """Concatenate predictions.parquet files, adding a ``classifier`` column from the path;
+    optional columns (``uncertainty``) are NaN where a file lacks them."""
     paths = [Path(p) for p in paths]
     if not paths:
         raise ReportInputError("no predictions.parquet files given")
@@ -121,7 +124,10 @@ def load_predictions(paths) -> pd.DataFrame:
         if protocols != {path.parent.name}:
             raise ReportInputError(f"{path}: protocol column {sorted(protocols)} does not match "
                                    f"the directory train/<classifier>/{path.parent.name}/")
-        frames.append(frame[["classifier"] + PREDICTION_COLUMNS])
+        for column in OPTIONAL_PREDICTION_COLUMNS:
+            if column not in frame.columns:
+                frame[column] = np.nan
+        frames.append(frame[["classifier"] + PREDICTION_COLUMNS + OPTIONAL_PREDICTION_COLUMNS])
     table = pd.concat(frames, ignore_index=True)
     table["holdout"] = table["holdout"].fillna("")
     return table
@@ -295,11 +301,15 @@ def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: 
     save(plots.accuracy_per_speed(accuracy[accuracy["speed_rpm"].notna()], percents, chance, note),
          "accuracy_per_speed.png")
     for (classifier, protocol), group in predictions.groupby(["classifier", "protocol"]):
+        # a classifier may train on fewer percentages (classifiers.cnn.measured_percent): show
+        # the chosen ones it has, and its own largest
+        own = sorted(int(p) for p in group["measured_percent"].unique())
+        own_percents = sorted({p for p in percents if p in own} | {own[-1]})
         speeds = [None] + sorted(group["speed_rpm"].unique())
         for speed in speeds:
             subset = group if speed is None else group[group["speed_rpm"] == speed]
             matrices = {}
-            for percent in percents:
+            for percent in own_percents:
                 chosen = subset[subset["measured_percent"] == percent]
                 matrices[percent] = (confusion_counts(chosen["true_label"],
                                                       chosen["predicted_label"], labels),
@@ -314,9 +324,21 @@ def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: 
     return names
 
 
+def simulation_summary(report_paths) -> dict:
+    """Samples, failures (with their parameters) and cost of the simulation jobs."""
+    reports = [json.loads(Path(p).read_text()) for p in report_paths]
+    wall = [s for r in reports for s in r["wall_seconds"]]
+    simulated = sum(r["simulated_seconds_per_sample"] * r["samples"] for r in reports)
+    return {"samples": sum(r["samples"] for r in reports),
+            "failed": sum(len(r["failures"]) for r in reports),
+            "failures": [f for r in reports for f in r["failures"]],
+            "wall_seconds_per_sample": float(np.mean(wall)) if wall else None,
+            "wall_seconds_per_simulated_second": sum(wall) / simulated if simulated else None}
+
+
 def write_report(metrics_paths, predictions_paths, calibration_params, calibration_spectra,
                  calibration_history, accuracy_path, summary_path, plots_dir, run_name: str,
-                 data_source: str, confusion_percent=(0,)) -> dict:
+                 data_source: str, confusion_percent=(0,), simulation_reports=()) -> dict:
     """Build the whole report; returns the summary dict. Every output is written atomically."""
     accuracy = load_metrics(metrics_paths)
     predictions = load_predictions(predictions_paths)
@@ -333,6 +355,7 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
         plot_names = make_plots(accuracy, predictions, spectra, history, calibration, staging,
                                 run_name, data_source, confusion_percent)
         summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names)
+        summary["simulation"] = simulation_summary(simulation_reports)
         write_text(accuracy.to_csv(index=False), accuracy_path)
         write_text(json.dumps(summary, indent=2) + "\n", summary_path)
     log.info("wrote %s, %s and %d plots in %s", accuracy_path, summary_path, len(plot_names),

@@ -13,7 +13,14 @@ file. Layout in the store:
   repeat, holdout, training and test sizes), metrics (``accuracy``, ``macro_f1``,
   ``accuracy_<speed>rpm``, ``macro_f1_<speed>rpm``, ``fit_seconds``), artifacts
   ``confusion_matrix.csv`` and ``.png``, and the fitted pipeline as an MLflow sklearn model with a
-  signature inferred from two rows of the measured feature table.
+  signature inferred from two rows of the measured feature table;
+- for the CNN ensemble additionally: its training curves from ``models/history.parquet``
+  (written by the train job) as metrics with step = epoch, per member
+  (``member<k>_train_loss``, ``member<k>_val_loss``, ``..._train_accuracy``,
+  ``..._val_accuracy``) and as the mean over the members that ran that epoch (``train_loss``,
+  ...); ``epochs_run_mean`` and ``uncertainty_mean`` (mean member spread of the test
+  predictions); the ensemble as an MLflow PyTorch model (standardisation folded in: raw
+  features in, mean class probabilities out, columns named in ``model_classes.json``).
 
 Rerun semantics: every run is created with tag ``superseded=false``. After a new invocation has
 logged everything, the earlier runs of the same experiment with the same ``config_hash`` tag
@@ -239,11 +246,11 @@ def skops_types_to_trust(model) -> list[str]:
 
 
 @functools.cache
-def pip_requirements() -> tuple[str, ...]:
+def pip_requirements(extra: tuple[str, ...] = ()) -> tuple[str, ...]:
     """Pinned requirements for logged models; given explicitly because MLflow's inference
-    runs a subprocess per model (about 4-5 s each)."""
+    runs a subprocess per model (about 4-5 s each). ``extra``: e.g. ("torch",) for the CNN."""
     pins = []
-    for name in ("mlflow", "scikit-learn", "numpy", "scipy", "pandas", "skops"):
+    for name in ("mlflow", "scikit-learn", "numpy", "scipy", "pandas", "skops", *extra):
         try:
             pins.append(f"{name}=={metadata.version(name)}")
         except metadata.PackageNotFoundError:
@@ -274,6 +281,50 @@ def run_metrics(overall, speed_rows) -> dict[str, float]:
         values[f"accuracy_{speed}rpm"] = row.accuracy
         values[f"macro_f1_{speed}rpm"] = row.macro_f1
     return {name: float(value) for name, value in values.items()}
+
+
+HISTORY_FILE = "history.parquet"  # in train/<classifier>/<protocol>/models/ (CNN only)
+CURVES = ("train_loss", "train_accuracy", "val_loss", "val_accuracy")
+
+
+def read_histories(directories: dict) -> dict:
+    """(classifier, protocol, percent, repeat, holdout) -> per member/epoch training history,
+    from the models directories that have a history file (classifiers trained by epochs)."""
+    histories = {}
+    for (clf, protocol), directory in directories.items():
+        path = Path(directory) / HISTORY_FILE
+        if not path.exists():
+            continue
+        frame = pq.read_table(path).to_pandas()
+        missing = [c for c in ("measured_percent", "repeat", "holdout", "member", "epoch", *CURVES)
+                   if c not in frame.columns]
+        if missing:
+            raise TrackingError(f"{path}: training history lacks columns {missing}")
+        frame["holdout"] = frame["holdout"].fillna("")
+        for (percent, repeat, holdout), rows in frame.groupby(
+                ["measured_percent", "repeat", "holdout"]):
+            histories[(clf, protocol, int(percent), int(repeat), holdout)] = rows
+    return histories
+
+
+def curve_metrics(history, timestamp_ms: int) -> list:
+    """MLflow Metric entities for the training curves: per member and the mean over the members
+    that ran an epoch, step = epoch (NaN values, e.g. without a validation split, are left out)."""
+    from mlflow.entities import Metric
+
+    metrics = []
+    for row in history.itertuples(index=False):
+        for name in CURVES:
+            value = float(getattr(row, name))
+            if np.isfinite(value):
+                metrics.append(Metric(f"member{int(row.member)}_{name}", value, timestamp_ms,
+                                      int(row.epoch)))
+    means = history.groupby("epoch")[list(CURVES)].mean()
+    for epoch, row in means.iterrows():
+        for name in CURVES:
+            if np.isfinite(row[name]):
+                metrics.append(Metric(name, float(row[name]), timestamp_ms, int(epoch)))
+    return metrics
 
 
 def confusion_csv(counts, labels) -> str:
@@ -331,6 +382,7 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
             raise TrackingError(f"no model directory given for classifier {clf!r} protocol "
                                 f"{protocol!r} (given: {sorted(map(str, directories.values()))})")
         files[(clf, protocol)] = model_files(directories[(clf, protocol)], rows["holdout"])
+    histories = read_histories(directories)
     features = feature_example(features_measured)
     if features_simulated is not None and not Path(features_simulated).exists():
         raise TrackingError(f"{features_simulated}: no such features table")
@@ -369,7 +421,9 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
                                         f"no model file for {key}")
             seconds = log_evaluation(experiment_id, key, overall, speed_rows, counts, labels,
                                      classifier_params[key["classifier"]], config_hash,
-                                     data_source, model_path, features)
+                                     data_source, model_path, features,
+                                     history=histories.get(tuple(key[k] for k in keys)),
+                                     uncertainty=chosen.get("uncertainty"))
             if seconds is not None:
                 model_seconds.append(seconds)
         mlflow.set_tag("n_nested_runs", str(len(runs)))
@@ -388,8 +442,13 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
 
 def log_evaluation(experiment_id: str, key: dict, overall, speed_rows, counts, labels,
                    classifier_params: dict | None, config_hash: str, data_source: str,
-                   model_path: Path | None, features) -> float | None:
-    """One nested run under the active parent; returns the seconds spent logging the model."""
+                   model_path: Path | None, features, history=None,
+                   uncertainty=None) -> float | None:
+    """One nested run under the active parent; returns the seconds spent logging the model.
+
+    ``history``: per member/epoch training curves (CNN); ``uncertainty``: the per-prediction
+    member spread of the test predictions (NaN for classifiers without one).
+    """
     import joblib
     import mlflow
     import mlflow.sklearn
@@ -407,9 +466,19 @@ def log_evaluation(experiment_id: str, key: dict, overall, speed_rows, counts, l
               "n_train_simulated": overall["n_train_simulated"],
               "n_train_measured": overall["n_train_measured"], "n_test": overall["n_test"],
               **flatten_params(effective_classifier_params(clf, classifier_params), "classifier")}
-    with mlflow.start_run(experiment_id=experiment_id, run_name=name, nested=True, tags=tags):
+    with mlflow.start_run(experiment_id=experiment_id, run_name=name, nested=True,
+                          tags=tags) as run:
         mlflow.log_params(params)
-        mlflow.log_metrics(run_metrics(overall, speed_rows))
+        values = run_metrics(overall, speed_rows)
+        if uncertainty is not None and np.isfinite(uncertainty.to_numpy(float)).any():
+            values["uncertainty_mean"] = float(np.nanmean(uncertainty.to_numpy(float)))
+        if history is not None and len(history):
+            values["epochs_run_mean"] = float(history.groupby("member")["epoch"].max().mean())
+            curves = curve_metrics(history, int(time.time() * 1000))
+            client = mlflow.MlflowClient()
+            for start in range(0, len(curves), 1000):  # MLflow's limit per batch
+                client.log_batch(run.info.run_id, metrics=curves[start:start + 1000])
+        mlflow.log_metrics(values)
         mlflow.log_text(confusion_csv(counts, labels), "confusion_matrix.csv")
         figure = plots.confusion_matrix_small(
             counts, labels, f"Confusion matrix (share of true class, count)\n{name}",
@@ -421,12 +490,33 @@ def log_evaluation(experiment_id: str, key: dict, overall, speed_rows, counts, l
         started = time.perf_counter()
         model = joblib.load(model_path)
         example = model_input_example(model, features)
+        if hasattr(model, "to_torch_module"):
+            log_torch_model(model, example)
+            return time.perf_counter() - started
         mlflow.sklearn.log_model(
             model, name="model", input_example=example,
             signature=infer_signature(example, model.predict(example)),
             pip_requirements=list(pip_requirements()),
             skops_trusted_types=skops_types_to_trust(model))
         return time.perf_counter() - started
+
+
+def log_torch_model(model, example) -> None:
+    """The CNN ensemble as an MLflow PyTorch model: float32 features (N, F) in, mean class
+    probabilities (N, K) out; the class of each column goes to ``model_classes.json``."""
+    import mlflow
+    import mlflow.pytorch
+    import torch
+    from mlflow.models import infer_signature
+
+    module = model.to_torch_module()
+    example = np.array(example, dtype=np.float32)  # a writable copy: torch wants one
+    with torch.no_grad():
+        probabilities = module(torch.from_numpy(example)).numpy()
+    mlflow.pytorch.log_model(module, name="model", input_example=example,
+                             signature=infer_signature(example, probabilities),
+                             pip_requirements=list(pip_requirements(("torch",))))
+    mlflow.log_dict({"classes": module.classes}, "model_classes.json")
 
 
 def write_run_info(info: dict, path) -> None:

@@ -3,10 +3,18 @@
 One fit per (measured_percent, repeat, holdout) of a split table: training is every simulated
 segment plus the measured segments of records with role "train"; the test set is the measured
 segments of records with role "test". Labels are the health_state strings.
+
+A classifier may train on a subset of the split table (``measured_percent``, ``repeats``: the
+CNN, whose fits cost far more than an SVM's). Estimators whose ``fit`` accepts
+``feature_names`` / ``groups`` get the feature names and the record ids; those with
+``predict_with_uncertainty`` (the CNN ensemble) fill the optional ``uncertainty`` column of the
+predictions, and those with a ``history_`` (per member and epoch) have it written to
+``models/history.parquet`` for the tracking job.
 """
 from __future__ import annotations
 
 import hashlib
+import inspect
 import json
 import logging
 import time
@@ -19,7 +27,7 @@ import pyarrow as pa
 from sklearn.metrics import accuracy_score, f1_score
 
 from condmon import classifiers
-from condmon.atomic import staging_directory, write_table, write_text
+from condmon.atomic import staging_directory, write_frame, write_table, write_text
 from condmon.hybrid import sorted_holdouts, validate_splits
 from condmon.seeds import derive_seed, stable_int
 from condmon.signals import package_versions
@@ -36,12 +44,15 @@ PREDICTION_SCHEMA = pa.schema([
     ("speed_rpm", pa.float64()),
     ("true_label", pa.string()),
     ("predicted_label", pa.string()),
+    # optional: spread of an ensemble's members for the predicted class; null for SVM/KNN
+    ("uncertainty", pa.float64()),
 ])
 PREDICTION_COLUMNS = PREDICTION_SCHEMA.names
 METRIC_COLUMNS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "speed_rpm",
                   "accuracy", "macro_f1", "n_train_simulated", "n_train_measured", "n_test",
                   "fit_seconds"]
 REQUIRED_COLUMNS = ["record_id", "segment", "health_state", "speed_rpm"]
+HISTORY_FILE = "history.parquet"  # in models/, beside the model files
 
 
 def evaluation_metrics(y_true, y_pred) -> dict:
@@ -86,17 +97,50 @@ def _split_keys(splits: pd.DataFrame) -> list[tuple[int, int, str]]:
     return sorted(keys, key=lambda k: (k[0], k[1], holdout_order[k[2]]))
 
 
+def select_splits(splits: pd.DataFrame, classifier_name: str, measured_percent=None,
+                  repeats=None) -> pd.DataFrame:
+    """The rows of the split table a classifier trains on: the listed measured percentages
+    (None = all) and repeats 0..repeats-1 (None = all). Errors name the config key."""
+    key = f"classifiers.{classifier_name}"
+    if measured_percent is not None:
+        available = sorted(int(p) for p in splits["measured_percent"].unique())
+        wanted = sorted({int(p) for p in measured_percent})
+        missing = [p for p in wanted if p not in available]
+        if missing or not wanted:
+            raise ValueError(f"{key}.measured_percent: {missing or wanted} not among the split "
+                             f"table's measured percentages {available} (hybrid.measured_percent)")
+        splits = splits[splits["measured_percent"].isin(wanted)]
+    if repeats is not None:
+        available = int(splits["repeat"].max()) + 1
+        if not 1 <= int(repeats) <= available:
+            raise ValueError(f"{key}.repeats: {repeats} but the split table has {available} "
+                             "repeat(s) (hybrid.repeats); choose 1.." + str(available))
+        splits = splits[splits["repeat"] < int(repeats)]
+    return splits
+
+
+def _fit_kwargs(model, feature_names, groups) -> dict:
+    """Extra fit() arguments the estimator takes: feature names (the CNN finds its sensor
+    channels in them) and record ids (its validation split keeps records whole)."""
+    accepted = inspect.signature(model.fit).parameters
+    extra = {"feature_names": list(feature_names), "groups": groups}
+    return {name: value for name, value in extra.items() if name in accepted}
+
+
 def run_protocol(classifier_name: str, classifier_params: dict | None,
                  simulated_features: pd.DataFrame, measured_features: pd.DataFrame,
-                 splits: pd.DataFrame, feature_names, seed: int):
+                 splits: pd.DataFrame, feature_names, seed: int, measured_percent=None,
+                 repeats=None):
     """Fit and evaluate one classifier on every split of a split table.
 
+    ``measured_percent``/``repeats`` restrict the splits (see select_splits).
     Returns (predictions, metrics, models): predictions and metrics per the train contract, and
-    the fitted pipelines keyed by (measured_percent, repeat, holdout).
+    the fitted estimators keyed by (measured_percent, repeat, holdout).
     """
     feature_names = list(feature_names)
     classifiers.make_classifier(classifier_name, classifier_params, seed)  # fail early if bad
     validate_splits(splits)
+    splits = select_splits(splits, classifier_name, measured_percent, repeats)
     _check_columns(simulated_features, feature_names, "simulated")
     _check_columns(measured_features, feature_names, "measured")
     protocol = str(splits["protocol"].iloc[0])
@@ -116,6 +160,7 @@ def run_protocol(classifier_name: str, classifier_params: dict | None,
     y_meas = measured_features["health_state"].astype(str).to_numpy()
     meas_records = measured_features["record_id"].astype(str)
     meas_speed = measured_features["speed_rpm"].to_numpy(float)
+    sim_records = simulated_features["record_id"].astype(str).to_numpy()
 
     holdout_index = {h: i for i, h in enumerate(sorted_holdouts(splits["holdout"]))}
     predictions, metrics, models = [], [], {}
@@ -130,6 +175,7 @@ def run_protocol(classifier_name: str, classifier_params: dict | None,
             continue
         x_train = np.concatenate([x_sim, x_meas[train]])
         y_train = np.concatenate([y_sim, y_meas[train]])
+        groups = np.concatenate([sim_records, meas_records.to_numpy()[train]])
         if len(set(y_train)) < 2:
             raise ValueError(f"{where}: training data has only class(es) {sorted(set(y_train))}; "
                              "a classifier needs at least two")
@@ -137,9 +183,13 @@ def run_protocol(classifier_name: str, classifier_params: dict | None,
         fit_seed = derive_seed(seed, stable_int(protocol), percent, repeat, holdout_index[holdout])
         model = classifiers.make_classifier(classifier_name, classifier_params, fit_seed)
         start = time.perf_counter()
-        model.fit(x_train, y_train)
+        model.fit(x_train, y_train, **_fit_kwargs(model, feature_names, groups))
         fit_seconds = time.perf_counter() - start
-        y_pred = model.predict(x_meas[test]).astype(str)
+        if hasattr(model, "predict_with_uncertainty"):
+            y_pred, uncertainty = model.predict_with_uncertainty(x_meas[test])
+            y_pred = y_pred.astype(str)
+        else:
+            y_pred, uncertainty = model.predict(x_meas[test]).astype(str), np.nan
         y_true = y_meas[test]
         models[(percent, repeat, holdout)] = model
 
@@ -148,7 +198,7 @@ def run_protocol(classifier_name: str, classifier_params: dict | None,
             "protocol": protocol, "measured_percent": percent, "repeat": repeat,
             "holdout": holdout, "record_id": test_rows["record_id"].astype(str).to_numpy(),
             "segment": test_rows["segment"].to_numpy(), "speed_rpm": meas_speed[test],
-            "true_label": y_true, "predicted_label": y_pred}))
+            "true_label": y_true, "predicted_label": y_pred, "uncertainty": uncertainty}))
 
         common = {"classifier": classifier_name, "protocol": protocol,
                   "measured_percent": percent, "repeat": repeat, "holdout": holdout,
@@ -168,7 +218,8 @@ def run_protocol(classifier_name: str, classifier_params: dict | None,
     predictions = (pd.concat(predictions, ignore_index=True) if predictions
                    else pd.DataFrame(columns=PREDICTION_COLUMNS))
     predictions = predictions.astype({"measured_percent": "int32", "repeat": "int32",
-                                      "segment": "int32", "speed_rpm": float})
+                                      "segment": "int32", "speed_rpm": float,
+                                      "uncertainty": float})
     metrics = pd.DataFrame(metrics, columns=METRIC_COLUMNS)
     return predictions[PREDICTION_COLUMNS], metrics, models
 
@@ -180,10 +231,31 @@ def model_filename(percent: int, repeat: int, holdout_index: int | None = None) 
     return f"p{percent:03d}_r{repeat}{suffix}.joblib"
 
 
-def write_models(models: dict, directory) -> list[dict]:
-    """Dump every fitted model into `directory` (built aside, then renamed into place).
+def training_history(models: dict) -> pd.DataFrame:
+    """Per-epoch curves of the models that have them (``history_``: the CNN members), keyed by
+    measured_percent, repeat and holdout; empty for SVM/KNN."""
+    frames = []
+    for (percent, repeat, holdout), model in models.items():
+        history = getattr(model, "history_", None)
+        if history:
+            frame = pd.DataFrame(history)
+            frame.insert(0, "holdout", holdout)
+            frame.insert(0, "repeat", repeat)
+            frame.insert(0, "measured_percent", percent)
+            frames.append(frame)
+    if not frames:
+        return pd.DataFrame()
+    history = pd.concat(frames, ignore_index=True)
+    return history.astype({"measured_percent": "int32", "repeat": "int32", "member": "int32",
+                           "epoch": "int32"})
 
-    Returns one entry per file: file name, measured_percent, repeat, holdout, holdout_index.
+
+def write_models(models: dict, directory) -> list[dict]:
+    """Dump every fitted model into `directory` (built aside, then renamed into place), plus
+    ``history.parquet`` (per member and epoch) if the models have a training history.
+
+    Returns one entry per file: file name, measured_percent, repeat, holdout, holdout_index
+    (and, for the CNN ensemble, its members' epochs run and best epochs).
     """
     directory = Path(directory)
     order = {h: i for i, h in enumerate(sorted_holdouts(key[2] for key in models))}
@@ -194,9 +266,16 @@ def write_models(models: dict, directory) -> list[dict]:
         for percent, repeat, holdout in sorted(models, key=lambda k: (k[0], k[1], order[k[2]])):
             index = holdout_index.get(holdout)  # None without a holdout
             name = model_filename(percent, repeat, index)
-            joblib.dump(models[(percent, repeat, holdout)], tmp / name)
-            entries.append({"file": name, "measured_percent": percent, "repeat": repeat,
-                            "holdout": holdout, "holdout_index": index})
+            model = models[(percent, repeat, holdout)]
+            joblib.dump(model, tmp / name)
+            entry = {"file": name, "measured_percent": percent, "repeat": repeat,
+                     "holdout": holdout, "holdout_index": index}
+            if hasattr(model, "member_info_"):
+                entry["members"] = model.member_info_
+            entries.append(entry)
+        history = training_history(models)
+        if not history.empty:
+            write_frame(history, tmp / HISTORY_FILE)
     return entries
 
 
@@ -212,9 +291,13 @@ def write_metrics(metrics: pd.DataFrame, path) -> None:
 
 def train_info(classifier_name: str, params: dict | None, seed: int, protocol: str,
                labels, feature_names, metrics: pd.DataFrame, model_files: list[dict],
-               total_seconds: float) -> dict:
+               total_seconds: float, selection: dict | None = None,
+               peak_memory_mb: float | None = None) -> dict:
     """Contents of info.json: what was trained, on which features, and how long it took."""
     names_json = json.dumps(list(feature_names))
+    versions = package_versions()
+    if classifier_name == "cnn":
+        versions.update(package_versions(("torch",)))
     return {
         "classifier": classifier_name,
         "classifier_params": classifiers.classifier_params(classifier_name, params),
@@ -224,8 +307,10 @@ def train_info(classifier_name: str, params: dict | None, seed: int, protocol: s
         "n_features": len(feature_names),
         "feature_names_sha256": hashlib.sha256(names_json.encode()).hexdigest(),
         "models": model_files,
+        "selection": {k: v for k, v in (selection or {}).items() if v is not None},
         "timings": {"total_seconds": round(total_seconds, 3),
                     "fit_seconds_sum": round(float(metrics.drop_duplicates(
                         ["measured_percent", "repeat", "holdout"])["fit_seconds"].sum()), 3)},
-        "package_versions": package_versions(),
+        "peak_memory_mb": None if peak_memory_mb is None else round(peak_memory_mb, 1),
+        "package_versions": versions,
     }

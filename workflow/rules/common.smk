@@ -43,8 +43,9 @@ def batch_samples(batch):
     return min(sim["samples_per_job"], sim["samples_per_state"] - int(batch) * sim["samples_per_job"])
 
 
-def simulated_batches():
-    return expand(f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.parquet",
+def simulated_batches(extension="parquet"):
+    """Every simulation job's signal table (or its .json report)."""
+    return expand(f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.{extension}",
                   health=HEALTH_STATES, speed=SPEEDS, batch=[f"{b:03d}" for b in range(N_BATCHES)])
 
 
@@ -53,8 +54,33 @@ def train_outputs(name):
                   classifier=CLASSIFIERS, protocol=PROTOCOLS)
 
 
+# Keys of a classifier section that choose what it trains on, not how it is built: the CNN may
+# train on fewer measured percentages and repeats than hybrid lists (its fits are costly).
+SELECTION_KEYS = ("enabled", "measured_percent", "repeats")
+
+
 def classifier_params(name):
-    return {k: v for k, v in config["classifiers"][name].items() if k != "enabled"}
+    return {k: v for k, v in config["classifiers"][name].items() if k not in SELECTION_KEYS}
+
+
+def classifier_selection(name):
+    """measured_percent / repeats of classifiers.<name> (None = all of hybrid's), checked here
+    so a bad subset fails before any job runs."""
+    section = config["classifiers"][name]
+    selection = {"measured_percent": section.get("measured_percent"),
+                 "repeats": section.get("repeats")}
+    percents = selection["measured_percent"]
+    if percents is not None and not set(percents) <= set(config["hybrid"]["measured_percent"]):
+        raise ValueError(f"classifiers.{name}.measured_percent: {sorted(set(percents))} must be "
+                         f"among hybrid.measured_percent {config['hybrid']['measured_percent']}")
+    if selection["repeats"] is not None and selection["repeats"] > config["hybrid"]["repeats"]:
+        raise ValueError(f"classifiers.{name}.repeats: {selection['repeats']} is more than "
+                         f"hybrid.repeats ({config['hybrid']['repeats']})")
+    return {key: value for key, value in selection.items() if value is not None}
+
+
+for _name in CLASSIFIERS:
+    classifier_selection(_name)
 
 
 def data_source():

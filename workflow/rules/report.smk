@@ -29,6 +29,7 @@ rule report:
         calibration_params=rules.calibrate.output.params,
         calibration_spectra=rules.calibrate.output.spectra,
         calibration_history=rules.calibrate.output.history,
+        simulation_reports=simulated_batches("json"),
     output:
         accuracy=f"{RESULTS}/report/accuracy.csv",
         summary=f"{RESULTS}/report/summary.json",

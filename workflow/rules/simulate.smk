@@ -5,7 +5,8 @@ rule simulate:
     input:
         calibration=rules.calibrate.output.params,
     output:
-        f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.parquet",
+        signals=f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.parquet",
+        report=f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.json",
     params:
         model=config["model"],
         numerics=NUMERICS,

@@ -14,7 +14,10 @@ rule train:
     params:
         classifier=lambda wc: wc.classifier,
         classifier_params=lambda wc: classifier_params(wc.classifier),
+        selection=lambda wc: classifier_selection(wc.classifier),
         seed=config["hybrid"]["seed"],
+    # the CNN's intra-op threads (classifiers.cnn.threads), so Snakemake reserves the cores
+    threads: lambda wc: config["classifiers"][wc.classifier].get("threads", 1)
     log:
         f"{LOGS}/train/{{classifier}}_{{protocol}}.log",
     script:

@@ -8,7 +8,7 @@ from condmon.signals import read_signal_table, write_signal_table
 log = setup_logging(snakemake)
 p = snakemake.params
 if p.source == "measured":
-    frame = read_user_table(snakemake.input[0], p.health_states, p.channels, p.output_rate_hz)
+    frame = read_user_table(snakemake.input[0], p.health_states, p.channels, p.output_rate_hz, p.segment_seconds)
 else:
     frame = pd.concat([read_signal_table(path, allowed_sources=("virtual_bench",)) for path in snakemake.input],
                       ignore_index=True)

@@ -19,6 +19,7 @@ summary = write_report(
     run_name=snakemake.params.run_name,
     data_source=snakemake.params.data_source,
     confusion_percent=list(snakemake.params.get("confusion_percent", [0])),
+    simulation_reports=list(snakemake.input.simulation_reports),
 )
 log.info("report of run %s: %d result rows, %d plots", summary["run_name"],
          len(summary["results"]), len(summary["plots"]))

@@ -1,6 +1,7 @@
 """One simulation job: a batch of perturbed model runs for one health state and speed."""
 import json
 
+from condmon.atomic import write_json
 from condmon.runlog import setup_logging
 from condmon.signals import write_signal_table
 from condmon.simulate import simulate_batch
@@ -10,10 +11,11 @@ p = snakemake.params
 with open(snakemake.input.calibration) as handle:
     calibrated = json.load(handle)
 sim = p.simulation
-rows = simulate_batch(
+rows, report = simulate_batch(
     p.model, calibrated, snakemake.wildcards.health, float(snakemake.wildcards.speed), int(snakemake.wildcards.batch),
     samples=p.samples, perturbation={"sigma": sim["perturbation_sigma"], "parameters": list(calibrated["parameters"])},
     numerics=p.numerics, segment_seconds=p.segment_seconds, segments_per_sample=sim["segments_per_sample"],
-    seed=sim["seed"])
-write_signal_table(rows, snakemake.output[0], config=dict(p.items()))
-log.info("wrote %d rows", len(rows))
+    seed=sim["seed"], max_failed_share=sim["max_failed_share"])
+write_signal_table(rows, snakemake.output.signals, config=dict(p.items()))
+write_json(report, snakemake.output.report)
+log.info("wrote %d rows; %d of %d samples failed", len(rows), len(report["failures"]), report["samples"])

@@ -2,6 +2,7 @@
 
 `snakemake` is injected by Snakemake's script directive.
 """
+import resource
 import time
 
 from condmon.atomic import write_json
@@ -16,6 +17,8 @@ start = time.perf_counter()
 name = snakemake.params.classifier
 params = dict(snakemake.params.classifier_params or {})
 seed = int(snakemake.params.seed)
+# optional per-classifier subset of the split table (classifiers.<name>.measured_percent/repeats)
+selection = dict(getattr(snakemake.params, "selection", None) or {})
 
 simulated, simulated_names = read_feature_table(snakemake.input.simulated)
 measured, measured_names = read_feature_table(snakemake.input.measured)
@@ -23,13 +26,18 @@ feature_names = matching_feature_names(simulated_names, measured_names)
 splits = read_split_table(snakemake.input.splits)
 
 predictions, metrics, models = run_protocol(name, params, simulated, measured, splits,
-                                            feature_names, seed)
+                                            feature_names, seed,
+                                            measured_percent=selection.get("measured_percent"),
+                                            repeats=selection.get("repeats"))
 
 out = snakemake.output
 write_predictions(predictions, out.predictions)
 write_metrics(metrics, out.metrics)
 model_files = write_models(models, out.models)
 labels = set(simulated["health_state"]) | set(measured["health_state"])
+peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # Linux: KiB
 write_json(train_info(name, params, seed, str(splits["protocol"].iloc[0]), labels, feature_names,
-                      metrics, model_files, time.perf_counter() - start), out.info)
-log.info("%d models, %d metric rows written", len(model_files), len(metrics))
+                      metrics, model_files, time.perf_counter() - start, selection=selection,
+                      peak_memory_mb=peak_mb), out.info)
+log.info("%d models, %d metric rows written; %.1f s, peak memory %.0f MB", len(model_files),
+         len(metrics), time.perf_counter() - start, peak_mb)

@@ -1,0 +1,246 @@
+"""CWRU ingestion: catalogue, labels, errors on synthetic files, and the real shared files."""
+import logging
+
+import numpy as np
+import pandas as pd
+import pytest
+import scipy.io
+
+from conftest import ROOT
+from condmon.cwru import (CWRU_TABLE, G, CwruError, cwru_rows, health_label, read_cwru_file,
+                          read_manifest, task_labels, write_cwru_signal_table)
+from condmon.signals import read_signal_table
+
+CWRU_DIR = (ROOT / ".." / "shared" / "data" / "cwru").resolve()
+needs_data = pytest.mark.skipif(not CWRU_DIR.is_dir(),
+                                reason=f"CWRU data folder {CWRU_DIR} not present")
+
+
+def write_mat(path, number, n=10_000, rpm=1796, channels=("DE", "FE"), extra=None, seed=0):
+    """A small file in the CWRU layout (values in g)."""
+    rng = np.random.default_rng(seed)
+    variables = {f"X{number:03d}_{ch}_time": rng.normal(0, 0.1, (n, 1)) for ch in channels}
+    if rpm is not None:
+        variables[f"X{number:03d}RPM"] = np.array([[rpm]], dtype=np.uint16)
+    variables.update(extra or {})
+    scipy.io.savemat(path, variables)
+    return variables
+
+
+# -- catalogue and labels --------------------------------------------------------------------
+@needs_data
+def test_builtin_table_covers_the_shared_index():
+    index = read_manifest(CWRU_DIR / "index.csv")
+    table = CWRU_TABLE.set_index("cwru_number")
+    for row in index.itertuples():
+        ours = table.loc[row.cwru_number]
+        assert (ours.fault, ours.or_position, ours.load_hp, ours.fs_hz, ours.rpm, ours.sha256) == \
+            (row.fault, row.or_position, row.load_hp, row.fs_hz, row.rpm, row.sha256)
+        assert ours.diameter_in == pytest.approx(row.diameter_in)
+
+
+def test_catalogue_is_consistent():
+    assert CWRU_TABLE["cwru_number"].is_unique
+    assert set(CWRU_TABLE["fs_hz"]) == {12000.0, 48000.0}
+    assert (CWRU_TABLE.loc[CWRU_TABLE["fault"] == "normal", "fs_hz"] == 48000).all()
+    assert CWRU_TABLE.groupby(["fault", "or_position", "diameter_in"]).size().eq(4).all()
+
+
+@pytest.mark.parametrize("task,fault,diameter,label", [
+    ("location", "normal", 0.0, "normal"),
+    ("location", "outer_race", 0.014, "outer_race"),
+    ("location", "ball", 0.028, "ball"),
+    ("severity", "outer_race", 0.007, "outer_race_0.007in"),
+    ("severity", "normal", 0.0, "normal"),
+    ("severity", "inner_race", 0.007, None),
+    ("ten_class", "ball", 0.021, "ball_0.021in"),
+    ("ten_class", "inner_race", 0.028, None),
+    ("ten_class", "normal", 0.0, "normal"),
+])
+def test_health_label(task, fault, diameter, label):
+    assert health_label(task, fault, diameter) == label
+
+
+def test_task_labels_and_unknown_task():
+    assert task_labels("severity") == ["outer_race_0.007in", "outer_race_0.014in",
+                                       "outer_race_0.021in", "normal"]
+    assert len(task_labels("ten_class")) == 10
+    for row in CWRU_TABLE.itertuples():
+        for task in ("location", "severity", "ten_class"):
+            label = health_label(task, row.fault, row.diameter_in)
+            assert label is None or label in task_labels(task)
+    with pytest.raises(ValueError, match="unknown task"):
+        health_label("size", "ball", 0.007)
+
+
+# -- synthetic files -------------------------------------------------------------------------
+def test_reads_channels_in_si_units_and_the_stored_speed(tmp_path):
+    variables = write_mat(tmp_path / "130.mat", 130, rpm=1801)
+    record = read_cwru_file(tmp_path / "130.mat", channels=("DE", "FE"))
+    assert record.number == 130 and record.fs_hz == 12000.0
+    assert record.speed_rpm == 1801.0 and record.speed_from_file
+    assert record.signals["DE"] == pytest.approx(variables["X130_DE_time"].ravel() * G)
+    assert record.signals["FE"] == pytest.approx(variables["X130_FE_time"].ravel() * G)
+
+
+def test_selects_variables_by_the_file_number(tmp_path):
+    # 99.mat of the original set also holds a stray copy of record 98's variables
+    own = write_mat(tmp_path / "99.mat", 99, seed=1,
+                    extra={"X098_DE_time": np.full((10_000, 1), 7.0),
+                           "X098RPM": np.array([[1234]], dtype=np.uint16)})
+    record = read_cwru_file(tmp_path / "99.mat")
+    assert record.signals["DE"] == pytest.approx(own["X099_DE_time"].ravel() * G)
+    assert record.speed_rpm == 1796.0 and record.fs_hz == 48000.0
+
+
+def test_a_file_holding_only_another_record_is_an_error(tmp_path):
+    write_mat(tmp_path / "130.mat", 131)
+    with pytest.raises(CwruError, match=r"130\.mat.*no X130_DE_time.*\[131\]"):
+        read_cwru_file(tmp_path / "130.mat")
+
+
+def test_missing_speed_falls_back_to_the_table_with_a_warning(tmp_path, caplog):
+    write_mat(tmp_path / "131.mat", 131, rpm=None)
+    with caplog.at_level(logging.WARNING, logger="condmon.cwru"):
+        record = read_cwru_file(tmp_path / "131.mat")
+    assert record.speed_rpm == 1773.0 and not record.speed_from_file
+    assert "X131RPM" in caplog.text and "131.mat" in caplog.text
+
+
+@pytest.mark.parametrize("content,match", [
+    (b"cwru_number,file\n130,130.mat\n", "not a CWRU record: not a MATLAB"),
+    (b"MATLAB 5.0 MAT-file, truncated", "not a readable MATLAB file"),
+])
+def test_not_a_matlab_file(tmp_path, content, match):
+    (tmp_path / "130.mat").write_bytes(content)
+    with pytest.raises(CwruError, match=match) as err:
+        read_cwru_file(tmp_path / "130.mat")
+    assert "130.mat" in str(err.value)
+
+
+def test_errors_name_the_file(tmp_path):
+    scipy.io.savemat(tmp_path / "130.mat", {"vibration": np.zeros((100, 1))})
+    with pytest.raises(CwruError, match=r"130\.mat: not a CWRU record: no X<n>_DE_time"):
+        read_cwru_file(tmp_path / "130.mat")
+
+    write_mat(tmp_path / "131.mat", 131, channels=("DE",))
+    with pytest.raises(CwruError, match=r"131\.mat: channel FE missing \(no variable X131_FE_time"):
+        read_cwru_file(tmp_path / "131.mat", channels=("DE", "FE"))
+
+    bad = np.random.default_rng(0).normal(size=(10_000, 1))
+    bad[500] = np.nan
+    write_mat(tmp_path / "197.mat", 197, extra={"X197_DE_time": bad})
+    with pytest.raises(CwruError, match=r"197\.mat: X197_DE_time has 1 non-finite.*index 500"):
+        read_cwru_file(tmp_path / "197.mat")
+
+    write_mat(tmp_path / "4321.mat", 4321)
+    with pytest.raises(CwruError, match=r"4321\.mat: file number 4321 is not in the CWRU table"):
+        read_cwru_file(tmp_path / "4321.mat")
+
+
+def test_short_record_is_an_error(tmp_path):
+    write_mat(tmp_path / "130.mat", 130, n=3000)
+    with pytest.raises(CwruError, match=r"130\.mat: 3000 samples .* shorter than one segment"):
+        cwru_rows(tmp_path, manifest=None)
+
+
+def test_folder_to_rows_resamples_segments_and_reports_left_out_files(tmp_path, caplog):
+    write_mat(tmp_path / "97.mat", 97, n=48_000, seed=2)   # 48 kHz baseline: 1 s
+    write_mat(tmp_path / "130.mat", 130, n=12_500, seed=3)
+    write_mat(tmp_path / "105.mat", 105, n=12_500, seed=4)
+    (tmp_path / "118.mat").write_bytes(b"left out unread: ball is not a severity class")
+    (tmp_path / "notes.txt").write_text("not a record")
+    with caplog.at_level(logging.WARNING, logger="condmon.cwru"):
+        ingest = cwru_rows(tmp_path, task="severity", segment_length=2048, manifest=None)
+    # these synthetic files are not the originals: a sha256 warning, not an error
+    assert "sha256" in caplog.text
+    assert list(ingest.records["record_id"]) == ["cwru-97", "cwru-130"]
+    assert list(ingest.records["health_state"]) == ["normal", "outer_race_0.007in"]
+    assert list(ingest.records["n_samples"]) == [12_000, 12_500]
+    assert list(ingest.records["n_segments"]) == [5, 6]
+    assert not ingest.records["sha256_ok"].any()
+    assert list(ingest.excluded["file"]) == ["105.mat", "118.mat"]
+    assert ingest.excluded.loc[0, "fault"] == "inner_race"
+    frame = pd.DataFrame(ingest.rows)
+    assert set(frame["source"]) == {"measured"} and set(frame["channel"]) == {"DE"}
+    assert set(frame["fs_hz"]) == {12000.0}
+    assert {len(s) for s in frame["signal"]} == {2048}
+    assert frame.groupby("record_id")["load"].first().to_dict() == {"cwru-97": 0.0,
+                                                                     "cwru-130": 0.0}
+
+
+def test_manifest_extends_and_overrides(tmp_path):
+    write_mat(tmp_path / "OR007_1_5000.mat", 5000, n=9000)
+    write_mat(tmp_path / "130.mat", 130, n=9000)
+    manifest = tmp_path / "mine.csv"
+    pd.DataFrame([
+        dict(cwru_number=5000, file="OR007_1_5000.mat", fault="ball", or_position="",
+             diameter_in=0.014, load_hp=2, rpm=1750, fs_hz=12000, de_samples="", sha256=""),
+        dict(cwru_number=130, file="130.mat", fault="inner_race", or_position="",
+             diameter_in=0.021, load_hp=3, rpm=1730, fs_hz=12000, de_samples="", sha256=""),
+    ]).to_csv(manifest, index=False)
+    ingest = cwru_rows(tmp_path, task="ten_class", manifest=manifest, segment_length=4096,
+                       channels=("DE", "FE"))
+    records = ingest.records.set_index("record_id")
+    assert records.loc["cwru-5000", "health_state"] == "ball_0.014in"
+    assert records.loc["cwru-5000", "load_hp"] == 2.0
+    assert records.loc["cwru-130", "health_state"] == "inner_race_0.021in"
+    assert records["sha256_ok"].isna().all()  # no sha256 listed: not checked
+    frame = pd.DataFrame(ingest.rows)
+    assert set(frame["channel"]) == {"DE", "FE"} and len(frame) == 2 * 2 * 2
+    with pytest.raises(CwruError, match="unknown fault"):
+        pd.DataFrame([dict(cwru_number=1, fault="cage", diameter_in=0, load_hp=0,
+                           fs_hz=12000)]).to_csv(manifest, index=False)
+        read_manifest(manifest)
+
+
+# -- the real shared files -------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def real_location():
+    if not CWRU_DIR.is_dir():
+        pytest.skip(f"CWRU data folder {CWRU_DIR} not present")
+    return cwru_rows(CWRU_DIR, task="location")
+
+
+def test_real_files_ingest(real_location):
+    records = real_location.records.set_index("record_id")
+    assert len(records) == 19 and real_location.excluded.empty
+    assert records["sha256_ok"].all() and records["speed_from_file"].all()
+    assert records.loc["cwru-97", "n_samples"] == -(-243938 // 4)  # 48 kHz resampled by 1/4
+    assert records.loc["cwru-97", "speed_rpm"] == 1796.0
+    assert records.loc["cwru-131", "speed_rpm"] == 1773.0
+    assert records.loc["cwru-131", "load_hp"] == 1.0
+    assert (records.loc[records["fs_original_hz"] == 12000, "n_segments"] == 29).all()
+    assert records.loc["cwru-97", "n_segments"] == 14
+    assert records["health_state"].value_counts().to_dict() == {
+        "inner_race": 6, "ball": 6, "outer_race": 6, "normal": 1}
+
+
+def test_real_records_match_the_readme_levels(real_location):
+    """Whole-record RMS and kurtosis of the drive-end signal against the data README."""
+    frame = pd.DataFrame(real_location.rows)
+    stats = {}
+    for rid, rows in frame.groupby("record_id"):
+        x = np.concatenate(rows.sort_values("segment")["signal"].to_list()).astype(float) / G
+        x = x - x.mean()
+        stats[rid] = (np.sqrt(np.mean(x ** 2)), np.mean(x ** 4) / np.mean(x ** 2) ** 2)
+    assert stats["cwru-97"][0] == pytest.approx(0.072, rel=0.03)  # survives the resampling
+    assert stats["cwru-131"][0] == pytest.approx(0.58, rel=0.05)
+    assert stats["cwru-198"][0] == pytest.approx(0.095, rel=0.05)
+    assert stats["cwru-235"][0] == pytest.approx(0.56, rel=0.05)
+    for rid, (low, high) in {"cwru-130": (7.3, 8.2), "cwru-131": (7.3, 8.2),
+                             "cwru-197": (2.8, 3.9), "cwru-198": (2.8, 3.9),
+                             "cwru-234": (19.5, 24.0), "cwru-235": (19.5, 24.0)}.items():
+        assert low < stats[rid][1] < high, (rid, stats[rid])
+
+
+@needs_data
+def test_real_severity_table_round_trip(tmp_path):
+    ingest = write_cwru_signal_table(CWRU_DIR, tmp_path / "signals.parquet", task="severity",
+                                     files=["97.mat", "130.mat", "105.mat"],
+                                     config={"task": "severity"})
+    assert list(ingest.excluded["cwru_number"]) == [105]
+    table = read_signal_table(tmp_path / "signals.parquet", allowed_sources=("measured",))
+    assert sorted(table["record_id"].unique()) == ["cwru-130", "cwru-97"]
+    assert set(table["health_state"]) == {"normal", "outer_race_0.007in"}
+    assert table["signal"].map(len).eq(4096).all()

@@ -1,0 +1,108 @@
+"""Sequential backward selection as a Pipeline step: it finds informative features and its choice
+comes from the training data of each fit only."""
+import numpy as np
+import pandas as pd
+import pytest
+from sklearn.base import clone
+from sklearn.exceptions import NotFittedError
+from sklearn.model_selection import cross_validate
+from sklearn.neighbors import KNeighborsClassifier
+from sklearn.pipeline import Pipeline
+from sklearn.preprocessing import StandardScaler
+
+from condmon.selection import SequentialBackwardSelector
+
+
+def blobs(informative, n_per_class=40, n_features=8, n_classes=3, seed=0, scale=None):
+    """Classes separated along the `informative` columns only; the others are noise."""
+    rng = np.random.default_rng(seed)
+    y = np.repeat(np.arange(n_classes), n_per_class)
+    X = rng.normal(size=(len(y), n_features))
+    centres = rng.normal(0, 3, size=(n_classes, len(informative)))
+    X[:, informative] += centres[y]
+    if scale is not None:
+        X = X * scale
+    return X, y
+
+
+def pipeline(**kwargs):
+    kwargs.setdefault("cv", 3)  # short test runs
+    return Pipeline([("scale", StandardScaler()),
+                     ("sbs", SequentialBackwardSelector(**kwargs)),
+                     ("knn", KNeighborsClassifier(n_neighbors=5))])
+
+
+def test_selects_the_informative_features_inside_a_pipeline():
+    # noise features get large units: a selector scoring unscaled distances would be misled
+    scale = np.array([1, 1, 1, 1000, 1000, 1, 1000, 1.0])
+    X, y = blobs([1, 4, 6], scale=scale)
+    pipe = pipeline().fit(X, y)
+    assert list(np.flatnonzero(pipe.named_steps["sbs"].get_support())) == [1, 4, 6]
+    assert pipe.score(*blobs([1, 4, 6], seed=0, scale=scale)) > 0.9
+    # standalone, with feature names
+    names = [f"f{i}" for i in range(8)]
+    selector = SequentialBackwardSelector(n_features=3).fit(pd.DataFrame(X, columns=names), y)
+    assert list(selector.get_feature_names_out()) == ["f1", "f4", "f6"]
+    assert selector.transform(pd.DataFrame(X, columns=names)).shape == (len(y), 3)
+
+
+def test_choice_depends_on_the_training_data_only():
+    # Two halves of the data (think: two sets of records) whose informative features differ.
+    Xa, ya = blobs([0, 1, 2], seed=1)
+    Xb, yb = blobs([5, 6, 7], seed=2)
+    X, y = np.vstack([Xa, Xb]), np.concatenate([ya, yb])
+    half = np.arange(len(X)) < len(Xa)
+    folds = [(np.flatnonzero(half), np.flatnonzero(~half)),
+             (np.flatnonzero(~half), np.flatnonzero(half))]
+    result = cross_validate(pipeline(), X, y, cv=folds, return_estimator=True)
+    chosen = [list(np.flatnonzero(est.named_steps["sbs"].get_support()))
+              for est in result["estimator"]]
+    assert chosen == [[0, 1, 2], [5, 6, 7]]  # each fold picks what its training half says
+    # selected inside the pipeline, the test half cannot help: chance-level accuracy there
+    assert max(result["test_score"]) < 0.6
+
+    # the fitted choice does not move whatever the test data are
+    pipe = pipeline().fit(Xa, ya)
+    before = pipe.named_steps["sbs"].get_support().copy()
+    pipe.predict(Xb)
+    pipe.predict(np.random.default_rng(3).normal(size=Xb.shape) * 1e6)
+    assert (pipe.named_steps["sbs"].get_support() == before).all()
+
+
+def test_selection_only_ever_fits_on_training_rows():
+    seen = []
+
+    class Spy(KNeighborsClassifier):
+        def fit(self, X, y):
+            seen.append(len(X))
+            return super().fit(X, y)
+
+    X, y = blobs([0, 3, 4], seed=4)
+    train = np.arange(len(X)) % 4 != 0
+    pipe = pipeline(estimator=Spy(n_neighbors=5), cv=3)
+    pipe.fit(X[train], y[train])
+    assert seen and max(seen) < train.sum()  # CV folds of the training rows only
+    assert list(np.flatnonzero(pipe.named_steps["sbs"].get_support())) == [0, 3, 4]
+
+
+def test_groups_keep_records_together():
+    X, y = blobs([2, 3, 7], n_per_class=30, seed=5)
+    groups = np.arange(len(X)) // 10  # 9 "records" of 10 segments, one class each
+    pipe = pipeline(cv=3).fit(X, y, sbs__groups=groups)
+    sbs = pipe.named_steps["sbs"]
+    assert list(np.flatnonzero(sbs.get_support())) == [2, 3, 7]
+    for train, test in sbs.selector_.cv:
+        assert not set(groups[train]) & set(groups[test])
+
+
+def test_parameters_and_errors():
+    X, y = blobs([0, 1], n_features=4, seed=6)
+    selector = SequentialBackwardSelector(n_features=2, cv=4)
+    assert clone(selector).get_params()["n_features"] == 2
+    assert selector.fit(X, y).transform(X).shape == (len(y), 2)
+    with pytest.raises(ValueError, match="smaller than the number of input features"):
+        SequentialBackwardSelector(n_features=4).fit(X, y)
+    with pytest.raises(ValueError, match="positive integer"):
+        SequentialBackwardSelector(n_features=0).fit(X, y)
+    with pytest.raises(NotFittedError):
+        SequentialBackwardSelector().transform(X)  # not fitted

@@ -1,0 +1,97 @@
+"""Sequential backward selection (SBS) of features, as a step inside a training Pipeline.
+
+The bearing study reduces its 15 indicators to the 3 that best separate the operating modes by
+SBS. Selecting on the whole data set and then splitting would let the test segments choose the
+features (selection leakage); as a Pipeline step the selection is refitted on the training data
+of every fit, and `transform` only applies the stored choice.
+
+`SequentialBackwardSelector` wraps `sklearn.feature_selection.SequentialFeatureSelector`
+(direction="backward"): starting from all features it removes, one at a time, the feature whose
+removal keeps the cross-validated score of `estimator` highest, until `n_features` remain.
+"""
+from __future__ import annotations
+
+import numpy as np
+from sklearn.base import BaseEstimator, clone
+from sklearn.feature_selection import SelectorMixin, SequentialFeatureSelector
+from sklearn.model_selection import GroupKFold, StratifiedKFold
+from sklearn.neighbors import KNeighborsClassifier
+from sklearn.pipeline import make_pipeline
+from sklearn.preprocessing import StandardScaler
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+
+def default_estimator():
+    """Standardised 5-nearest-neighbours: one of the study's classifiers, fast, scale-aware
+    (the selection must not prefer features just because their unit makes them large)."""
+    return make_pipeline(StandardScaler(), KNeighborsClassifier(n_neighbors=5))
+
+
+class SequentialBackwardSelector(SelectorMixin, BaseEstimator):
+    """Backward sequential feature selection to `n_features` features (default 3, as the study).
+
+    Parameters
+    - n_features: number of features kept.
+    - estimator: scored on the candidate subsets (default `default_estimator()`); cloned.
+    - cv: number of folds (int) or a CV splitter. With an int, folds are `StratifiedKFold`
+      (shuffled with `random_state`), or `GroupKFold` when `fit` gets `groups` (pass the record
+      ids: segments of one record are not independent, so folds must not cut through records).
+      In a Pipeline: `pipe.fit(X, y, <step name>__groups=record_ids)`.
+    - scoring: sklearn scoring name (default "accuracy"); n_jobs: for the CV evaluations.
+
+    Fitted attributes: `support_` (boolean mask), `selector_` (the fitted
+    SequentialFeatureSelector), `n_features_in_`, `feature_names_in_` (if X was a DataFrame).
+    `get_feature_names_out()` names the kept features.
+    """
+
+    def __init__(self, n_features: int = 3, estimator=None, cv=5, scoring="accuracy",
+                 n_jobs=None, random_state=0):
+        self.n_features = n_features
+        self.estimator = estimator
+        self.cv = cv
+        self.scoring = scoring
+        self.n_jobs = n_jobs
+        self.random_state = random_state
+
+    def fit(self, X, y, groups=None):
+        X, y = validate_data(self, X, y, ensure_min_features=2)
+        n_in = X.shape[1]
+        if not (isinstance(self.n_features, (int, np.integer)) and 1 <= self.n_features):
+            raise ValueError(f"n_features must be a positive integer, got {self.n_features!r}")
+        if self.n_features >= n_in:
+            raise ValueError(f"n_features={self.n_features} must be smaller than the number of "
+                             f"input features ({n_in})")
+        estimator = default_estimator() if self.estimator is None else clone(self.estimator)
+        selector = SequentialFeatureSelector(estimator, n_features_to_select=int(self.n_features),
+                                             direction="backward", scoring=self.scoring,
+                                             cv=self._splits(X, y, groups), n_jobs=self.n_jobs)
+        selector.fit(X, y)
+        self.selector_ = selector
+        self.support_ = selector.get_support()
+        return self
+
+    def _splits(self, X, y, groups):
+        if not isinstance(self.cv, (int, np.integer)):
+            if groups is None:
+                return self.cv
+            return list(self.cv.split(X, y, groups))
+        if groups is not None:
+            n_groups = len(np.unique(groups))
+            if n_groups < 2:
+                raise ValueError("groups: need at least 2 groups for cross-validation")
+            return list(GroupKFold(n_splits=min(int(self.cv), n_groups)).split(X, y, groups))
+        _, counts = np.unique(y, return_counts=True)
+        n_splits = int(min(self.cv, counts.min()))
+        if n_splits < 2:
+            raise ValueError("every class needs at least 2 samples for cross-validation")
+        return list(StratifiedKFold(n_splits=n_splits, shuffle=True,
+                                    random_state=self.random_state).split(X, y))
+
+    def _get_support_mask(self):
+        check_is_fitted(self, "support_")
+        return self.support_
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.target_tags.required = True
+        return tags
