@@ -83,6 +83,14 @@ for _name in CLASSIFIERS:
     classifier_selection(_name)
 
 
+def measured_inputs(wildcards):
+    """The user's measured table, or every virtual-bench part."""
+    if config["measured_table"] is not None:
+        return [config["measured_table"]]
+    return expand(f"{RESULTS}/measured/virtual_bench/{{health}}_{{speed}}rpm.parquet",
+                  health=HEALTH_STATES, speed=SPEEDS)
+
+
 def data_source():
     return "virtual_bench" if config["measured_table"] is None else "measured"
 

@@ -15,12 +15,6 @@ rule virtual_bench:
         "../scripts/virtual_bench.py"
 
 
-def measured_inputs(wildcards):
-    if config["measured_table"] is not None:
-        return [config["measured_table"]]
-    return expand(rules.virtual_bench.output[0], health=HEALTH_STATES, speed=SPEEDS)
-
-
 rule measured:
     input:
         measured_inputs,
