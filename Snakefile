@@ -4,7 +4,12 @@
 from condmon.config import load_schema, validate_config
 
 
-configfile: "config/config.yaml"
+# The default run's config, unless the command line names one: a --configfile then replaces it
+# whole (keys it lacks take the schema's defaults). Merging would leak the default run's keys into
+# another run, e.g. the gear model's calibration bounds into a bearing-rig run.
+if not workflow.config_settings.configfiles:
+
+    configfile: "config/config.yaml"
 
 
 # Every key is checked (and defaults filled) before any job is scheduled.

@@ -1,8 +1,10 @@
 """The virtual bench: a synthetic stand-in for a measured rig.
 
-It runs the gear drivetrain model at hidden "true" parameters and adds what the calibrated model
-leaves out: a slow speed fluctuation, shaft run-out and sensor noise. Its records are synthetic
-and are always labelled `virtual_bench`, never `measured`.
+It runs the gear drivetrain model at hidden "true" parameters (with the high-fidelity
+potential-energy mesh by default: `true_params.mesh_stiffness_model`, whichever mesh the calibrated
+model uses) and adds what the calibrated model leaves out: a slow speed fluctuation, shaft run-out
+and sensor noise. Its records are synthetic and are always labelled `virtual_bench`, never
+`measured`.
 """
 from __future__ import annotations
 

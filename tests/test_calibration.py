@@ -5,7 +5,7 @@ import pytest
 import yaml
 
 from condmon.calibrate import (Bound, Calibrator, SpectrumModel, estimate_sensor_noise, measured_spectra,
-                               spectrum_cost)
+                               spectrum_cost, with_sensor_noise)
 from condmon.config import load_schema, validate_config
 from condmon.gear_model import build_parameters
 from condmon.measured import virtual_bench_rows
@@ -31,56 +31,119 @@ def test_log_bounds_round_trip_and_clip():
     assert bound.from_unit(1.7) == pytest.approx(1e9)
 
 
+MESH_MODELS = ("potential_energy", "simple")
+
+
 @pytest.fixture(scope="module")
 def bench():
-    """Healthy virtual-bench records at two speeds, default bench effects (noise, speed
-    fluctuation, run-out), and the pieces calibration needs."""
+    """Healthy virtual-bench records at two speeds, default bench effects (the potential-energy
+    mesh, noise, speed fluctuation, run-out), and the pieces calibration needs: a spectrum model
+    per mesh stiffness model."""
     config = validate_config(yaml.safe_load((ROOT / "config" / "config.yaml").read_text()),
                              load_schema(ROOT / "config" / "schema.yaml"))
+    assert config["virtual_bench"]["true_parameters"]["mesh_stiffness_model"] == "potential_energy"
     numerics = dict(config["numerics"], output_rate=config["rig"]["output_rate_hz"])
     speeds, channels = [450.0, 1100.0], config["features"]["channels"]
     bench = dict(config["virtual_bench"], records_per_state=1, record_seconds=2.0)
     frame = pd.DataFrame(virtual_bench_rows(config["model"], bench, ["healthy"], speeds, numerics, 0.5))
     spectrum, resolution = config["features"]["spectrum"], config["calibration"]["resolution_hz"]
     target = measured_spectra(frame, speeds, channels, spectrum, resolution, 5120.0)
-    model = SpectrumModel(config["model"], numerics, speeds, channels, spectrum, resolution, 0.5, 0.5)
-    return config, target, model
+    models = {m: SpectrumModel(dict(config["model"], mesh_stiffness_model=m), numerics, speeds, channels,
+                               spectrum, resolution, 0.5, 0.5) for m in MESH_MODELS}
+    return config, target, models
 
 
-def test_calibration_recovers_the_hidden_mesh_stiffness(bench):
-    """The virtual bench hides mesh stiffness 5.5e8 N/m at exponent 1.3 (nominal 4.0e8, 1.5).
-    K and n trade off at one load, so the check is on the mesh stiffness under the operating load
-    (dF/d delta, 5.63e8 N/m at the truth, 4.73e8 nominal): CMA-ES over K, n and the bushing
-    stiffness (a nuisance here: +/-25 % changes the cost by under 5 %), with the true contact
-    law, finds it within 5 % in 48 evaluations despite the bench's noise, speed fluctuation and
-    run-out."""
-    config, target, model = bench
-    true = config["virtual_bench"]["true_parameters"]
+def true_values(config):
+    """The bench's hidden parameters without its mesh model and law: (law, values)."""
+    true = dict(config["virtual_bench"]["true_parameters"])
+    true.pop("mesh_stiffness_model")
+    return true.pop("contact_law"), true
+
+
+def nominal_values(config, names):
+    return {name: config["model"][name] for name in names}
+
+
+def test_the_true_parameters_explain_the_bench_up_to_its_sensor_noise(bench):
+    """The model at the hidden truth, with the bench's white sensor noise added to its spectra
+    (`with_sensor_noise`), reproduces the bench's spectra; without it the noise floor dominates
+    the cost, and the nominal model stays far off either way. This is what makes a cost of ~0.3
+    at the truth (noise-free model vs noisy bench) the right answer and not a model error."""
+    config, target, models = bench
+    model, noise = models["potential_energy"], config["virtual_bench"]["sensor_noise"]
+    law, values = true_values(config)
+    truth = model(law, values)
+    nominal = model(config["model"]["contact_law"], nominal_values(config, values))
+
+    def noisy(spectra):
+        return with_sensor_noise(spectra, noise, model.segment_length)
+
+    costs = dict(truth=spectrum_cost(truth, target), truth_noisy=spectrum_cost(noisy(truth), target),
+                 nominal=spectrum_cost(nominal, target), nominal_noisy=spectrum_cost(noisy(nominal), target))
+    print(costs)
+    # measured: truth 0.28 without, 0.008 with the noise; nominal 0.29 and 0.017
+    assert costs["truth_noisy"] < 0.02  # what is left: speed fluctuation, run-out, noise variance
+    assert costs["truth_noisy"] < 0.1 * costs["truth"]
+    assert costs["nominal_noisy"] > 1.5 * costs["truth_noisy"]
+
+
+@pytest.mark.parametrize("mesh_model", MESH_MODELS)
+def test_calibration_recovers_the_hidden_mesh_stiffness(bench, mesh_model):
+    """The virtual bench hides mesh stiffness 5.5e8 N/m at exponent 1.3 (nominal 4.0e8, 1.5) behind
+    the potential-energy mesh. K and n trade off at one load, so the check is on the mesh stiffness
+    under the operating load (dF/d delta; potential-energy mesh: 5.74e8 N/m at the truth, 4.8e8
+    nominal): CMA-ES over K, n and the bushing stiffness (a nuisance here), with the true contact
+    law, 48 evaluations, despite the bench's noise, speed fluctuation and run-out.
+
+    The cost compares the noise-free model with the noisy bench, so even the truth scores 0.28
+    (nominal 0.29), dominated by the sensor noise; the honest yardsticks are therefore the truth's
+    own cost and the cost once the bench's noise is added to the model's spectra (truth 0.008,
+    nominal 0.017). Measured: the potential-energy calibration reaches 0.287 (0.0094 with the
+    noise) and an operating stiffness 5 % above the truth. The simple mesh cannot explain this
+    bench: its rectangular stiffness windows excite the mesh harmonics far more than the helical
+    pair's smooth TVMS, so its calibration drives K to the upper bound (operating stiffness twice
+    the truth) and still ends at a cost of 1.8 (nominal 17); only its gain over nominal is checked."""
+    config, target, models = bench
+    model, noise = models[mesh_model], config["virtual_bench"]["sensor_noise"]
+    law, true = true_values(config)
     bounds = [Bound("mesh_stiffness", 1e8, 1.5e9, True), Bound("contact_exponent", 1.0, 2.2, False),
               Bound("bushing_stiffness", 5e7, 8e8, True)]
-    calibrator = Calibrator(bounds, [true["contact_law"]], strategy="per_law", population=6, generations=8,
-                            sigma0=0.3, seed=3, processes=2,
-                            initial={b.name: config["model"][b.name] for b in bounds})
+    calibrator = Calibrator(bounds, [law], strategy="per_law", population=6, generations=8,
+                            sigma0=0.3, seed=3, processes=2, initial=nominal_values(config, [b.name for b in bounds]))
     best, history = calibrator.run(model, target)
-    nominal = spectrum_cost(model(config["model"]["contact_law"],
-                                  {b.name: config["model"][b.name] for b in bounds}), target)
+    nominal_spectra = model(config["model"]["contact_law"], nominal_values(config, [b.name for b in bounds]))
+    best_spectra = model(law, best["parameters"])
+    truth_spectra = models["potential_energy"](law, true)
+
+    def noisy_cost(spectra):
+        return spectrum_cost(with_sensor_noise(spectra, noise, model.segment_length), target)
+
+    nominal, truth = spectrum_cost(nominal_spectra, target), spectrum_cost(truth_spectra, target)
 
     def stiffness(values):
-        return operating_mesh_stiffness(build_parameters(config["model"], **values))
+        return operating_mesh_stiffness(build_parameters(config["model"], mesh_stiffness_model=mesh_model,
+                                                         **values))
 
     found = stiffness(best["parameters"])
-    truth = stiffness({k: true[k] for k in ("mesh_stiffness", "contact_exponent")})
-    print(f"calibrated {best}, nominal cost {nominal:.4g}, operating mesh stiffness {found:.4g} "
-          f"(truth {truth:.4g})")
-    assert best["cost"] < 0.7 * nominal
-    assert found == pytest.approx(truth, rel=0.05)
+    expected = stiffness({k: true[k] for k in ("mesh_stiffness", "contact_exponent")})
+    print(f"{mesh_model}: calibrated {best}, nominal cost {nominal:.4g}, truth's cost {truth:.4g}; with "
+          f"the bench noise: best {noisy_cost(best_spectra):.4g}, nominal {noisy_cost(nominal_spectra):.4g}, "
+          f"truth {noisy_cost(truth_spectra):.4g}; operating mesh stiffness {found:.4g} (truth {expected:.4g})")
     assert len(history) == 48 and (history["error"] == "").all()
+    assert best["cost"] < nominal
+    if mesh_model == "potential_energy":  # the bench's own model: about as good as the truth
+        assert best["cost"] < 1.03 * truth
+        assert noisy_cost(best_spectra) < 1.5 * noisy_cost(truth_spectra)
+        assert noisy_cost(best_spectra) < 0.7 * noisy_cost(nominal_spectra)
+        assert found == pytest.approx(expected, rel=0.08)  # nominal: 16 % below
+    else:
+        assert best["cost"] < 0.2 * nominal
 
 
 def test_sensor_noise_estimate_is_close_to_the_bench_noise(bench):
-    config, target, model = bench
-    true = dict(config["virtual_bench"]["true_parameters"])
-    law = true.pop("contact_law")
+    config, target, models = bench
+    model = models["potential_energy"]
+    law, true = true_values(config)
     simulated = model(law, true)
     estimate = estimate_sensor_noise(target, simulated, model.segment_length)
     assert estimate == pytest.approx(config["virtual_bench"]["sensor_noise"], rel=0.2)

@@ -1,5 +1,6 @@
 """CWRU ingestion: catalogue, labels, errors on synthetic files, and the real shared files."""
 import logging
+import re
 
 import numpy as np
 import pandas as pd
@@ -244,3 +245,129 @@ def test_real_severity_table_round_trip(tmp_path):
     assert sorted(table["record_id"].unique()) == ["cwru-130", "cwru-97"]
     assert set(table["health_state"]) == {"normal", "outer_race_0.007in"}
     assert table["signal"].map(len).eq(4096).all()
+
+
+# -- bad records among the real files: stop names the file and reason, skip lists it --------
+def bad_copy(folder, case):
+    """`folder` with a good 131.mat (a link to the shared file) and a bad 130.mat made from the
+    shared original; returns the channels to request."""
+    folder.mkdir()
+    (folder / "131.mat").symlink_to(CWRU_DIR / "131.mat")
+    bad = folder / "130.mat"
+    variables = {k: v for k, v in scipy.io.loadmat(CWRU_DIR / "130.mat").items() if not k.startswith("__")}
+    de = variables["X130_DE_time"]
+    if case == "missing file":
+        return ("DE",)
+    if case == "unreadable":
+        bad.mkdir()  # root reads any file: a folder by that name cannot be read as one
+        return ("DE",)
+    if case == "truncated":
+        bad.write_bytes((CWRU_DIR / "130.mat").read_bytes()[:1_000_000])
+        return ("DE",)
+    if case == "missing channel":
+        del variables["X130_FE_time"]
+    elif case in ("nan", "inf"):
+        de[12_345] = np.nan if case == "nan" else -np.inf
+    elif case == "dead sensor":
+        variables["X130_DE_time"] = np.zeros_like(de)
+    elif case == "length differs from the table":
+        variables["X130_DE_time"] = de[:100_000]
+    elif case == "stored rate differs from the table":
+        variables["X130_fs"] = np.array([[48000.0]])
+    elif case == "shorter than one segment":  # consistent with its manifest row, but too short
+        variables = {k: v[:3000] if v.shape[0] > 1 else v for k, v in variables.items()}
+    scipy.io.savemat(bad, variables)
+    return ("DE", "FE")
+
+
+BAD_CASES = {
+    "missing file": r"no such file",
+    "unreadable": r"cannot read \(.*Is a directory",
+    "truncated": r"not a readable MATLAB file, truncated or corrupt",
+    "missing channel": r"channel FE missing \(no variable X130_FE_time\)",
+    "nan": r"X130_DE_time has 1 non-finite samples \(NaN or inf\), first at index 12345",
+    "inf": r"X130_DE_time has 1 non-finite samples \(NaN or inf\), first at index 12345",
+    "dead sensor": r"X130_DE_time is constant \(0 g in all 121991 samples\): dead sensor",
+    "length differs from the table": r"X130_DE_time has 100000 samples but the table lists de_samples = 121991",
+    "stored rate differs from the table": r"sampling rate 48000 Hz stored in X130_fs differs from the table's fs_hz 12000 Hz",
+    "shorter than one segment": r"3000 samples at 12000 Hz, shorter than one segment \(4096\)",
+}
+
+
+def manifest_for(folder, case):
+    """The shared index.csv, except that a record cut short on purpose lists its new length."""
+    if case != "shorter than one segment":
+        return CWRU_DIR / "index.csv"
+    index = pd.read_csv(CWRU_DIR / "index.csv")
+    index.loc[index["cwru_number"] == 130, "de_samples"] = 3000
+    index.to_csv(folder / "manifest.csv", index=False)
+    return folder / "manifest.csv"
+
+
+@needs_data
+@pytest.mark.parametrize("case", BAD_CASES)
+def test_a_bad_file_stops_ingestion_naming_file_and_reason(tmp_path, case):
+    folder = tmp_path / "cwru"
+    channels = bad_copy(folder, case)
+    with pytest.raises(CwruError) as error:
+        cwru_rows(folder, channels=channels, manifest=manifest_for(tmp_path, case),
+                  files=["130.mat", "131.mat"])
+    assert str(error.value).startswith(f"{folder / '130.mat'}: ")
+    assert re.search(BAD_CASES[case], str(error.value)), str(error.value)
+
+
+@needs_data
+@pytest.mark.parametrize("case", BAD_CASES)
+def test_a_bad_file_is_skipped_and_listed_with_its_reason(tmp_path, case, caplog):
+    folder = tmp_path / "cwru"
+    channels = bad_copy(folder, case)
+    with caplog.at_level(logging.WARNING, logger="condmon.cwru"):
+        ingest = write_cwru_signal_table(folder, tmp_path / "signals.parquet", channels=channels,
+                                         manifest=manifest_for(tmp_path, case),
+                                         files=["130.mat", "131.mat"], on_bad_record="skip")
+    assert list(ingest.records["record_id"]) == ["cwru-131"]
+    assert set(read_signal_table(tmp_path / "signals.parquet")["record_id"]) == {"cwru-131"}
+    excluded = ingest.excluded
+    assert list(excluded["file"]) == ["130.mat"] and excluded["bad_record"].all()
+    assert excluded.loc[0, "cwru_number"] == 130 and excluded.loc[0, "fault"] == "outer_race"
+    assert re.search(BAD_CASES[case], excluded.loc[0, "reason"]), excluded.loc[0, "reason"]
+    assert "130.mat" in caplog.text and "skipped" in caplog.text
+
+
+@needs_data
+def test_a_file_listed_in_the_manifest_but_absent_is_a_missing_file(tmp_path):
+    folder = tmp_path / "cwru"
+    folder.mkdir()
+    (folder / "131.mat").symlink_to(CWRU_DIR / "131.mat")
+    index = pd.read_csv(CWRU_DIR / "index.csv")
+    index[index["cwru_number"].isin([130, 131, 105])].to_csv(folder / "index.csv", index=False)
+    manifest = folder / "index.csv"
+    with pytest.raises(CwruError, match=r"130\.mat: no such file"):
+        cwru_rows(folder, task="severity", manifest=manifest)  # 105 is not a severity class
+    ingest = cwru_rows(folder, task="severity", manifest=manifest, on_bad_record="skip")
+    assert list(ingest.records["record_id"]) == ["cwru-131"]
+    excluded = ingest.excluded.set_index("file")
+    assert excluded.loc["130.mat", "reason"] == "no such file" and excluded.loc["130.mat", "bad_record"]
+    assert not excluded.loc["105.mat", "bad_record"]
+    # the folder's own index.csv (manifest "auto") describes a download, it does not list a duty
+    assert list(cwru_rows(folder, task="severity").records["record_id"]) == ["cwru-131"]
+
+
+def test_skip_with_no_usable_file_left_is_an_error(tmp_path):
+    write_mat(tmp_path / "130.mat", 130, n=3000)
+    (tmp_path / "131.mat").write_bytes(b"MATLAB 5.0 MAT-file, truncated")
+    with pytest.raises(CwruError, match=r"no usable record left; 2 bad file\(s\) skipped: "
+                                        r"130\.mat: 3000 samples.*; 131\.mat: not a readable MATLAB"):
+        cwru_rows(tmp_path, manifest=None, on_bad_record="skip")
+    with pytest.raises(ValueError, match="on_bad_record"):
+        cwru_rows(tmp_path, manifest=None, on_bad_record="ignore")
+
+
+def test_a_file_without_a_number_is_listed_when_skipped(tmp_path):
+    write_mat(tmp_path / "130.mat", 130, n=9000)
+    scipy.io.savemat(tmp_path / "notes.mat", {"vibration": np.zeros((100, 1))})
+    ingest = cwru_rows(tmp_path, manifest=None, on_bad_record="skip")
+    assert list(ingest.records["record_id"]) == ["cwru-130"]
+    row = ingest.excluded.iloc[0]
+    assert row["file"] == "notes.mat" and pd.isna(row["cwru_number"]) and row["bad_record"]
+    assert row["reason"].startswith("not a CWRU record: no X<n>_DE_time")

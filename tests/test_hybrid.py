@@ -178,3 +178,52 @@ def test_split_table_roundtrip(tmp_path):
     path = tmp_path / "hybrid" / "condition_holdout.parquet"
     write_split_table(splits, path)
     pd.testing.assert_frame_equal(read_split_table(path), splits)
+
+
+# -- protocols of the bearing study: segment_share, unseen_fault, load as the condition --------
+def bearing_segments():
+    """Two loads x (normal, inner_race, outer_race), one record each, 10 segments per record."""
+    rows = [(f"{h}-{load}", seg, h, 1797.0 - 25 * load + (h == "normal"), float(load))
+            for h in ("normal", "inner_race", "outer_race") for load in (0, 1) for seg in range(10)]
+    return pd.DataFrame(rows, columns=["record_id", "segment", "health_state", "speed_rpm", "load"])
+
+
+def test_segment_share_splits_segments_per_class():
+    segments = bearing_segments()
+    splits = make_splits(segments, "segment_share", [0, 30, 100], repeats=2, seed=4)
+    assert list(splits.columns) == SPLIT_COLUMNS and (splits.segment >= 0).all()
+    per_class = splits.merge(segments[["record_id", "segment", "health_state"]])
+    for (percent, _, health), group in per_class.groupby(["measured_percent", "repeat",
+                                                          "health_state"]):
+        assert len(group) == 20  # every segment of the class once
+        n_train = (group.role == "train").sum()
+        assert n_train == min(math.floor(percent / 100 * 20 + 0.5), 19)  # one segment tests
+    train = train_sets(splits.assign(record_id=splits.record_id + "#" + splits.segment.astype(str)))
+    assert train[(30, 0, "")] <= train[(100, 0, "")]  # nested shares
+    assert train[(30, 0, "")] != train[(30, 1, "")]   # repeats draw differently
+
+
+def test_unseen_fault_trains_only_measured_classes():
+    records = pd.DataFrame([(f"{h}-{i}", h, 1797.0) for h in ("normal", "ball", "inner_race")
+                            for i in range(4)], columns=["record_id", "health_state", "speed_rpm"])
+    splits = make_splits(records, "unseen_fault", [0, 50, 100], repeats=1, seed=0,
+                         measured_classes=["normal"])
+    health = splits.record_id.str.split("-").str[0]
+    assert set(splits.role) <= {"train", "test"}
+    assert (splits.role[health != "normal"] == "test").all()
+    trained = splits[splits.role == "train"].groupby("measured_percent").size()
+    assert trained.get(0, 0) == 0 and trained[50] == 2 and trained[100] == 4
+    with pytest.raises(SplitError, match="measured_classes"):
+        make_splits(records, "unseen_fault", [0], repeats=1, seed=0)
+
+
+def test_condition_holdout_by_load():
+    segments = bearing_segments()
+    splits = make_splits(segments, "condition_holdout", [100], repeats=1, seed=0, condition="load")
+    assert sorted(set(splits.holdout)) == ["load=0", "load=1"]
+    held = splits[splits.holdout == "load=1"]
+    assert set(held.record_id[held.role == "test"]) == {"normal-1", "inner_race-1", "outer_race-1"}
+    assert set(held.record_id[held.role == "train"]) == {"normal-0", "inner_race-0", "outer_race-0"}
+    # per-record speeds differ within a load: strata by load keep one stratum per class and load
+    split = make_splits(segments, "record_split", [0], repeats=1, seed=0, condition="load")
+    assert (split.role == "test").all() and split.record_id.nunique() == 6

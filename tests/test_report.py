@@ -82,8 +82,8 @@ def test_plots_exist_are_listed_and_are_real_images(built_report):
                 "spectra_measured_vs_calibrated.png", "calibration_convergence.png",
                 "confusion_knn_record_split_all.png", "confusion_logreg_condition_holdout_600rpm.png"}
     assert expected <= set(plots)
-    # classifiers x protocols x (all + 2 speeds) confusion figures, 4 others
-    assert len(plots) == 2 * 2 * 3 + 4
+    # classifiers x protocols x (all + 2 speeds) confusion figures, 5 others
+    assert len(plots) == 2 * 2 * 3 + 5
     for name in plots:
         data = (out / "plots" / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n", name
@@ -101,6 +101,46 @@ def test_unknown_confusion_percent_names_the_available_ones(train_outputs, tmp_p
     assert not (tmp_path / "a.csv").exists() and not (tmp_path / "plots").exists()
 
 
+def test_one_calibration_per_mesh_stiffness_model(train_outputs, tmp_path):
+    """Calibrations of both mesh stiffness models: the first one (the simulation's) is the
+    summary's calibration, each is listed with its costs, and the spectra plot shows both."""
+    _, paths = train_outputs
+    files = {}
+    for model, cost in (("potential_energy", 0.21), ("simple", 0.25)):
+        folder = tmp_path / "calibration" / model
+        folder.mkdir(parents=True)
+        params = json.loads(paths["calibration_params"].read_text())
+        params.update(cost=cost, nominal_cost=0.3, seconds=12.5, mesh_stiffness_model=model)
+        (folder / "params.json").write_text(json.dumps(params))
+        spectra = pd.read_parquet(paths["calibration_spectra"])
+        spectra["calibrated"] *= 1.0 if model == "simple" else 0.9
+        spectra.to_parquet(folder / "spectra.parquet")
+        files[model] = folder
+    out = tmp_path / "report"
+    summary = report.write_report(
+        paths["metrics"], paths["predictions"],
+        {m: f / "params.json" for m, f in files.items()},
+        {m: f / "spectra.parquet" for m, f in files.items()},
+        {m: paths["calibration_history"] for m in files},
+        out / "accuracy.csv", out / "summary.json", out / "plots", "demo", "virtual_bench")
+    assert summary["calibration"]["mesh_stiffness_model"] == "potential_energy"
+    assert summary["calibration"]["cost"] == 0.21
+    by_model = summary["calibration_by_mesh_stiffness_model"]
+    assert list(by_model) == ["potential_energy", "simple"]
+    assert by_model["simple"]["cost"] == 0.25 and by_model["simple"]["nominal_cost"] == 0.3
+    assert by_model["simple"]["seconds"] == 12.5 and by_model["simple"]["evaluations"] == 40
+    assert {"spectra_measured_vs_calibrated.png", "spectra_measured_vs_calibrated_simple.png",
+            "spectra_measured_vs_calibrated_potential_energy.png", "calibration_convergence_simple.png",
+            "calibration_convergence_potential_energy.png"} <= set(summary["plots"])
+    assert "calibration_convergence.png" not in summary["plots"]
+    with pytest.raises(report.ReportInputError, match="same mesh stiffness models"):
+        report.write_report(paths["metrics"], paths["predictions"],
+                            {m: f / "params.json" for m, f in files.items()},
+                            {"simple": files["simple"] / "spectra.parquet"},
+                            {m: paths["calibration_history"] for m in files},
+                            tmp_path / "a.csv", tmp_path / "s.json", tmp_path / "p", "demo", "virtual_bench")
+
+
 def test_metrics_file_missing_a_column_is_named(tmp_path):
     bad = tmp_path / "train/knn/record_split/metrics.csv"
     bad.parent.mkdir(parents=True)
@@ -112,3 +152,49 @@ def test_metrics_file_missing_a_column_is_named(tmp_path):
 def test_source_labels_never_call_synthetic_data_real():
     assert report.data_source_label("virtual_bench") == "virtual bench (synthetic)"
     assert report.is_synthetic("virtual_bench") and not report.is_synthetic("measured")
+
+
+def test_simulation_gain_recall_and_protocol_labels(train_outputs, tmp_path):
+    _, paths = train_outputs
+    # a measured-only baseline 0.25 below the hybrid accuracy, for the knn files only
+    baselines = []
+    for path in paths["metrics"]:
+        frame = pd.read_csv(path)
+        target = tmp_path / path.parent.parent.name / path.parent.name / "measured_only.csv"
+        target.parent.mkdir(parents=True, exist_ok=True)
+        if frame["classifier"].iloc[0] == "knn":
+            frame = frame.assign(accuracy=frame["accuracy"] - 0.25, n_train_simulated=0)
+        else:
+            frame = frame.iloc[:0]  # baseline off: an empty file
+        frame.to_csv(target, index=False)
+        baselines.append(target)
+    records = tmp_path / "records.csv"
+    pd.DataFrame({"record_id": ["a", ""], "file": ["1.mat", "2.mat"], "status": ["kept", "left out"],
+                  "reason": ["", "class not in task 'severity'"]}).to_csv(records, index=False)
+    summary = report.write_report(
+        paths["metrics"], paths["predictions"], paths["calibration_params"],
+        paths["calibration_spectra"], paths["calibration_history"], tmp_path / "a.csv",
+        tmp_path / "s.json", tmp_path / "plots", "demo", "virtual_bench", confusion_percent=[0],
+        baseline_paths=baselines, measured_records=records,
+        record_recall_path=tmp_path / "recall_per_record.csv")
+    per_record = pd.read_csv(tmp_path / "recall_per_record.csv")
+    assert {"record_id", "true_label", "recall", "n_test", "most_predicted"} <= set(per_record.columns)
+    assert per_record.recall.between(0, 1).all()
+    knn = [r for r in summary["results"] if r["classifier"] == "knn"]
+    assert all(r["simulation_gain"] == pytest.approx(0.25) for r in knn)
+    assert all(r["measured_only_accuracy_mean"] == pytest.approx(r["accuracy_mean"] - 0.25)
+               for r in knn)
+    assert all(r["simulation_gain"] is None for r in summary["results"] if r["classifier"] != "knn")
+    assert "simulation_gain.png" in summary["plots"] and "recall_per_class.png" in summary["plots"]
+    assert summary["measured_records"] == {"kept": 1, "left_out": [
+        {"file": "2.mat", "record_id": "", "reason": "class not in task 'severity'"}]}
+    # recall per class: from the predictions, pooled over repeats
+    predictions = pd.concat(pd.read_parquet(p) for p in paths["predictions"]
+                            if "record_split" in str(p) and "/knn/" in str(p))
+    chosen = predictions[(predictions.measured_percent == 0)]
+    label = sorted(chosen.true_label.unique())[0]
+    expected = (chosen[chosen.true_label == label].predicted_label == label).mean()
+    row = next(r for r in knn if r["protocol"] == "record_split" and r["measured_percent"] == 0)
+    assert row["recall_per_class"][label] == pytest.approx(expected)
+    assert "LEAKY" in report.PROTOCOL_LABELS["segment_share"]
+    assert set(summary["protocols"]) == {"record_split", "condition_holdout"}

@@ -106,3 +106,19 @@ def test_parameters_and_errors():
         SequentialBackwardSelector(n_features=0).fit(X, y)
     with pytest.raises(NotFittedError):
         SequentialBackwardSelector().transform(X)  # not fitted
+
+
+def test_select_then_classify_names_its_features_and_predicts_on_them():
+    from sklearn.svm import SVC
+
+    from condmon.selection import SelectThenClassify
+
+    X, y = blobs([1, 4, 6])
+    names = [f"f{i}" for i in range(8)]
+    model = SelectThenClassify(SequentialBackwardSelector(n_features=3, cv=3), SVC())
+    model.fit(X, y, groups=None, feature_names=names)
+    assert sorted(model.selected_features_) == ["f1", "f4", "f6"]
+    shuffled = X.copy()
+    shuffled[:, [0, 2, 3, 5, 7]] = 0.0  # dropped columns cannot matter
+    assert (model.predict(shuffled) == model.predict(X)).all()
+    assert (model.predict(X) == y).mean() > 0.9

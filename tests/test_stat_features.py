@@ -261,3 +261,31 @@ def test_study_features_on_real_data_match_the_readme(cwru_features):
     # the high-pass removes the records' DC offsets (0.03-0.23 m/s^2 = 0.003-0.023 g): what is
     # left of a segment mean is slow content the filter attenuates, below 0.01 m/s^2
     assert frame["mean"].abs().max() < 0.01
+
+
+def test_statistical_feature_table_keeps_names_logs_and_prefixes_channels():
+    from condmon.features import FeatureTableError
+    from condmon.signals import make_rows
+    from condmon.stat_features import statistical_feature_table
+
+    rng = np.random.default_rng(0)
+    fs, n = 12000.0, 4096
+    rows = []
+    for rec, speed in (("a", 1797.0), ("b", 1772.0)):
+        rows += make_rows(rec, "measured", "normal", speed, 0.0, fs,
+                          {"DE": rng.normal(size=2 * n), "FE": 3 * rng.normal(size=2 * n)},
+                          segment_length=n)
+    frame = pd.DataFrame(rows)
+    params = {"names": ["rms", "kurtosis", "env_ratio_bpfo"], "log_names": ["kurtosis"]}
+    table = statistical_feature_table(frame, ["DE", "FE"], params)
+    features = [c for c in table.columns if c.startswith(("DE_", "FE_"))]
+    assert features == ["DE_rms", "DE_log_kurtosis", "DE_env_ratio_bpfo",
+                        "FE_rms", "FE_log_kurtosis", "FE_env_ratio_bpfo"]
+    assert len(table) == 4 and list(table.record_id) == ["a", "a", "b", "b"]
+    assert table["FE_rms"].mean() == pytest.approx(3 * table["DE_rms"].mean(), rel=0.1)
+    # Gaussian noise: kurtosis 3, so its log is log(3)
+    assert table["DE_log_kurtosis"].to_numpy() == pytest.approx(np.log(3.0), abs=0.15)
+    with pytest.raises(FeatureTableError, match=r"unknown feature\(s\) \['loudness'\]"):
+        statistical_feature_table(frame, ["DE"], {"names": ["rms", "loudness"]})
+    with pytest.raises(FeatureTableError, match="BA"):
+        statistical_feature_table(frame, ["BA"], {})

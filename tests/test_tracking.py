@@ -1,5 +1,6 @@
 """MLflow tracking against a temporary SQLite store: structure, values, reruns, compare."""
 import json
+import os
 import time
 
 import mlflow
@@ -157,3 +158,102 @@ def test_relative_sqlite_uri_is_relative_to_the_working_directory(tmp_path):
     uri = tracking.resolve_tracking_uri("sqlite:///results/mlflow.db", workdir=tmp_path)
     assert uri == f"sqlite:///{tmp_path.resolve()}/results/mlflow.db"
     assert (tmp_path / "results").is_dir()
+
+
+# --------------------------------------------------------------------------- server down
+def closed_port() -> int:
+    """A local port nothing listens on (bound, then released)."""
+    import socket
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@pytest.fixture
+def http_server():
+    """Start a local HTTP server answering every GET with the given status; yields its URI."""
+    import http.server
+    import threading
+    servers = []
+
+    def start(status):
+        class Handler(http.server.BaseHTTPRequestHandler):
+            def do_GET(self):
+                self.send_response(status)
+                self.end_headers()
+                self.wfile.write(b"OK")
+
+            def log_message(self, *args):
+                pass
+        server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        threading.Thread(target=server.serve_forever, kwargs=dict(poll_interval=0.05), daemon=True).start()
+        servers.append(server)
+        return f"http://127.0.0.1:{server.server_address[1]}"
+    yield start
+    for server in servers:
+        server.shutdown()
+        server.server_close()
+
+
+@pytest.mark.parametrize("status, reachable", [(200, True), (401, True), (502, False), (503, False)])
+def test_probe_accepts_any_answer_but_a_gateway_error(http_server, status, reachable):
+    uri = http_server(status)
+    if reachable:
+        tracking.check_tracking_server(uri, timeout_s=2)
+    else:
+        with pytest.raises(tracking.TrackingError, match=rf"{uri} is unreachable \(HTTP {status}"):
+            tracking.check_tracking_server(uri, timeout_s=2)
+
+
+def test_a_server_that_accepts_but_never_answers_fails_after_the_probe_timeout():
+    import socket
+    with socket.socket() as sock:  # listens (the kernel completes connections) but never replies
+        sock.bind(("127.0.0.1", 0))
+        sock.listen(4)
+        uri = f"http://127.0.0.1:{sock.getsockname()[1]}"
+        started = time.perf_counter()
+        with pytest.raises(tracking.TrackingError, match=rf"{uri} is unreachable \(.*timed out"):
+            tracking.check_tracking_server(uri, timeout_s=1)
+        assert time.perf_counter() - started < 5
+
+
+TRACK_RUNNER = """
+import json, sys, types
+class Section(dict):
+    __getattr__ = dict.__getitem__
+args = json.loads(sys.argv[1])
+snakemake = types.SimpleNamespace(params=Section(args["params"]), input=Section(args["input"]),
+                                  output=Section(args["output"]), log=[args["log"]], rule="track")
+exec(compile(open(args["script"]).read(), args["script"], "exec"),
+     {"snakemake": snakemake, "__name__": "__main__"})
+"""
+
+
+def test_track_script_fails_in_seconds_naming_a_dead_server(tmp_path):
+    """workflow/scripts/track.py as the `track` rule runs it (a fresh Python, `snakemake`
+    injected), against a tracking URI on a closed port."""
+    import subprocess
+    import sys
+    from conftest import ROOT
+    uri = f"http://127.0.0.1:{closed_port()}"
+    paths = fake.build(tmp_path / "demo")
+    args = dict(script=str(ROOT / "workflow" / "scripts" / "track.py"), log=str(tmp_path / "track.log"),
+                params=dict(tracking_uri=uri, run_name="demo", config_hash="h", data_source="virtual_bench",
+                            classifier_params=fake.CLASSIFIERS),
+                input=dict(metrics=list(map(str, paths["metrics"])),
+                           predictions=list(map(str, paths["predictions"])),
+                           models=list(map(str, paths["models"])),
+                           features_measured=str(paths["features_measured"]),
+                           features_simulated=str(paths["features_simulated"])),
+                output=dict(run_info=str(tmp_path / "mlflow_run.json")))
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_HTTP_REQUEST")}
+    started = time.perf_counter()
+    result = subprocess.run([sys.executable, "-c", TRACK_RUNNER, json.dumps(args)], cwd=tmp_path, env=env,
+                            capture_output=True, text=True, timeout=120)
+    elapsed = time.perf_counter() - started
+    log = (tmp_path / "track.log").read_text()
+    assert result.returncode == 1, result.stderr[-2000:]
+    assert f"MLflow tracking server {uri} is unreachable" in log, log
+    assert "Traceback" not in log  # a plain message, not a stack
+    assert not (tmp_path / "mlflow_run.json").exists()
+    assert elapsed < 30, elapsed  # imports included; MLflow's own retries would take minutes

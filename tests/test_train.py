@@ -52,9 +52,9 @@ SIMULATED = synthetic_features("simulated", n_records=4, n_segments=5, seed=1)
 MEASURED = synthetic_features("measured", n_records=6, n_segments=4, seed=2)
 
 
-def splits_for(measured, protocol="record_split", percents=(0, 50), repeats=2, seed=0):
-    return make_splits(measured[["record_id", "health_state", "speed_rpm"]], protocol,
-                       list(percents), repeats, seed)
+def splits_for(measured, protocol="record_split", percents=(0, 50), repeats=2, seed=0, **kwargs):
+    return make_splits(measured[["record_id", "segment", "health_state", "speed_rpm"]], protocol,
+                       list(percents), repeats, seed, **kwargs)
 
 
 # -- classifiers -----------------------------------------------------------------------------
@@ -261,11 +261,17 @@ def test_scripts_run_end_to_end(tmp_path, isolated_logging):
                                      splits=tmp_path / "hybrid/record_split.parquet"),
                output=SimpleNamespace(predictions=out / "predictions.parquet",
                                       metrics=out / "metrics.csv", models=out / "models",
-                                      info=out / "info.json"),
-               params=SimpleNamespace(classifier="svm", classifier_params={"C": 1.2}, seed=1),
+                                      info=out / "info.json",
+                                      measured_only=out / "measured_only.csv"),
+               params=SimpleNamespace(classifier="svm", classifier_params={"C": 1.2}, seed=1,
+                                      feature_selection={"n_features": None},
+                                      measured_only_baseline=True),
                log=[str(tmp_path / "logs/train.log")])
     metrics = pd.read_csv(out / "metrics.csv")
     assert (metrics.accuracy == 1.0).all() and len(metrics) == 4 * 3
+    # the baseline: nothing measured trains at 0 %, so only the 50 % splits have one
+    baseline = pd.read_csv(out / "measured_only.csv")
+    assert set(baseline.measured_percent) == {50} and (baseline.n_train_simulated == 0).all()
     assert sorted(p.name for p in (out / "models").iterdir()) == [
         "p000_r0.joblib", "p000_r1.joblib", "p050_r0.joblib", "p050_r1.joblib"]
     info = json.loads((out / "info.json").read_text())
@@ -273,3 +279,42 @@ def test_scripts_run_end_to_end(tmp_path, isolated_logging):
     assert info["classifier_params"] == {"C": 1.2, "gamma": "scale", "class_weight": None}
     assert "accuracy 1.000" in (tmp_path / "logs/train.log").read_text()
     assert not list(out.glob(".*tmp*"))  # no temporary files left behind
+
+
+# -- segment_share, unseen_fault, selection inside the fit, measured-only baseline ---------------
+def test_segment_share_trains_and_tests_single_segments():
+    splits = splits_for(MEASURED, "segment_share", percents=(50,), repeats=1)
+    predictions, metrics, _ = run_protocol("knn", {}, SIMULATED, MEASURED, splits, FEATURES, seed=0)
+    n_segments = len(MEASURED)
+    assert metrics.iloc[0].n_train_measured + metrics.iloc[0].n_test == n_segments
+    tested = set(zip(predictions.record_id, predictions.segment))
+    trained = splits[splits.role == "train"]
+    assert not tested & set(zip(trained.record_id, trained.segment))
+    # segments of one record on both sides: that is what makes the protocol leaky
+    assert set(predictions.record_id) & set(trained.record_id)
+
+
+def test_unseen_fault_measured_only_baseline_predicts_the_one_class_it_saw():
+    splits = splits_for(MEASURED, "unseen_fault", percents=(0, 50), repeats=1,
+                        measured_classes=["healthy"])
+    _, metrics, _ = run_protocol("svm", {}, SIMULATED, MEASURED, splits, FEATURES, seed=0)
+    _, baseline, models = run_protocol("svm", {}, None, MEASURED, splits, FEATURES, seed=0)
+    assert set(baseline.measured_percent) == {50}  # nothing measured trains at 0 %
+    overall = baseline[baseline.speed_rpm.isna()].iloc[0]
+    n_healthy_test = ((MEASURED.health_state == "healthy").sum() - overall.n_train_measured)
+    assert overall.accuracy == pytest.approx(n_healthy_test / overall.n_test)
+    assert list(models[(50, 0, "")].predict(MEASURED[FEATURES].to_numpy())) == ["healthy"] * len(MEASURED)
+    assert (metrics[metrics.speed_rpm.isna()].accuracy == 1.0).all()
+
+
+def test_backward_selection_inside_each_fit_keeps_the_informative_features(tmp_path):
+    splits = splits_for(MEASURED, percents=(0,), repeats=1)
+    _, metrics, models = run_protocol("svm", {}, SIMULATED, MEASURED, splits, FEATURES, seed=0,
+                                      feature_selection={"n_features": 3, "cv": 3})
+    model = models[(0, 0, "")]
+    # two of the three class-bearing columns already separate three classes
+    assert len(model.selected_features_) == 3
+    assert len(set(model.selected_features_) & set(FEATURES[:3])) >= 2
+    assert (metrics.accuracy == 1.0).all()
+    entries = write_models(models, tmp_path / "models")
+    assert entries[0]["selected_features"] == model.selected_features_

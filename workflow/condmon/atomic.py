@@ -15,9 +15,15 @@ import pyarrow.parquet as pq
 
 @contextmanager
 def temporary_path(path):
-    """Yield a temporary path beside `path`; renamed to `path` when the block succeeds."""
+    """Yield a temporary path beside `path`; renamed to `path` when the block succeeds.
+
+    Temporary files of earlier attempts at `path` (a job killed by SIGKILL cannot clean up)
+    are removed first; they are hidden and never named like an output."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    for stale in path.parent.glob(f".{path.name}.tmp*"):
+        if stale.is_file():
+            stale.unlink(missing_ok=True)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
         yield tmp

@@ -27,7 +27,7 @@ from condmon.signals import to_arrays
 from models.gear_drivetrain import SimulationError, simulate
 
 log = logging.getLogger(__name__)
-COST_FUNCTIONS = ("cfrp_eq4", "helical_eq14")
+COST_FUNCTIONS = ("cfrp_eq4", "helical_eq14", "features_eq6")
 FAILED_COST = 1.0e3  # a diverged candidate is a bad candidate, not a crash of the search
 
 
@@ -37,6 +37,10 @@ def spectrum_cost(simulated: np.ndarray, measured: np.ndarray, kind: str = "cfrp
         return float(np.mean(((simulated - measured) ** 2).sum(-1) / (measured ** 2).sum(-1)))
     if kind == "helical_eq14":
         return float(np.mean(np.sqrt(((simulated - measured) ** 2).sum(-1)).sum(-1)))
+    if kind == "features_eq6":
+        # the bearing study's eq. 6 on feature vectors (not spectra), each feature relative to
+        # its measured value so that features of different units weigh alike
+        return float(np.mean((((simulated - measured) / np.abs(measured)) ** 2).sum(-1)))
     raise ValueError(f"unknown calibration cost {kind!r}; choose one of {list(COST_FUNCTIONS)}")
 
 
@@ -50,6 +54,13 @@ def estimate_sensor_noise(measured: np.ndarray, simulated: np.ndarray, segment_l
     """
     excess_power = np.median(np.maximum(measured ** 2 - simulated ** 2, 0.0))
     return float(np.sqrt(excess_power * segment_length / 6.0))
+
+
+def with_sensor_noise(spectra: np.ndarray, sensor_noise: float, segment_length: int) -> np.ndarray:
+    """The expected RMS band spectra of a model's signals plus white sensor noise of RMS
+    `sensor_noise`: powers add, and the noise puts 6 sigma^2 / N in every bin (see
+    `estimate_sensor_noise`). What a noise-free model's spectra look like once measured."""
+    return np.sqrt(spectra ** 2 + 6.0 * sensor_noise ** 2 / segment_length)
 
 
 @dataclass

@@ -83,6 +83,20 @@ def cross_field_problems(config: dict) -> list[str]:
             problems.append(f"calibration.parameters.{name}: a log-scaled bound needs low > 0")
         if name == "restitution" and not (0 < bound["low"] and bound["high"] <= 1):
             problems.append("calibration.parameters.restitution: bounds must lie in (0, 1]")
+    if config["system"] == "bearing":
+        problems += _bearing_problems(config)
+    else:
+        problems += _gear_problems(config)
+    if not any(c["enabled"] for c in config["classifiers"].values()):
+        problems.append("classifiers: enable at least one classifier")
+    return problems
+
+
+def _gear_problems(config: dict) -> list[str]:
+    problems = []
+    if set(config["features"]["channels"]) - {"A1_x", "A1_y", "A2_x", "A2_y"}:
+        problems.append(f"features.channels: {config['features']['channels']}: the gear rig has "
+                        "channels A1_x, A1_y, A2_x, A2_y")
     nyquist = config["rig"]["output_rate_hz"] / 2
     spectrum = config["features"]["spectrum"]
     if spectrum["f_max_hz"] > nyquist:
@@ -111,8 +125,53 @@ def cross_field_problems(config: dict) -> list[str]:
         problems.append("calibration.sim_seconds: shorter than rig.segment_seconds")
     if "condition_holdout" in config["hybrid"]["protocols"] and len(config["rig"]["speeds_rpm"]) < 2:
         problems.append("hybrid.protocols: condition_holdout needs at least two rig.speeds_rpm")
+    gear_names = set(config["model"]) - {"geometry"}
+    wrong = sorted(set(config["calibration"]["parameters"]) - gear_names)
+    if wrong:
+        problems.append(f"calibration.parameters: {wrong} are not gear model parameters")
+    if config["calibration"]["cost"] == "features_eq6":
+        problems.append("calibration.cost: features_eq6 is the bearing rig's cost; the gear model "
+                        "uses cfrp_eq4 or helical_eq14")
     if "healthy" not in config["rig"]["health_states"]:
         problems.append("rig.health_states: must contain 'healthy' (calibration uses healthy records)")
-    if not any(c["enabled"] for c in config["classifiers"].values()):
-        problems.append("classifiers: enable at least one classifier")
+    return problems
+
+
+def _bearing_problems(config: dict) -> list[str]:
+    from condmon.cwru import task_labels
+
+    problems = []
+    cwru, features = config["cwru"], config["features"]
+    folder = Path(config["measured_dir"])
+    if not folder.is_dir():
+        problems.append(f"measured_dir: {folder} is not a folder (point it at your CWRU .mat files "
+                        "with --config measured_dir=PATH)")
+    extra = sorted(set(features["channels"]) - set(cwru["channels"]))
+    if extra:
+        problems.append(f"features.channels: {extra} not among the ingested cwru.channels "
+                        f"{cwru['channels']}")
+    low, high = features["statistical"]["band_hz"]
+    if not 0 < low < high < cwru["fs_hz"] / 2:
+        problems.append(f"features.statistical.band_hz: {[low, high]} must satisfy 0 < low < high < "
+                        f"cwru.fs_hz / 2 = {cwru['fs_hz'] / 2:g}")
+    if features["kind"] == "spectrum" and features["spectrum"]["f_max_hz"] > cwru["fs_hz"] / 2:
+        problems.append("features.spectrum.f_max_hz: above the Nyquist frequency of cwru.fs_hz")
+    labels = task_labels(cwru["task"])
+    unknown = sorted(set(config["hybrid"]["measured_classes"]) - set(labels))
+    if "unseen_fault" in config["hybrid"]["protocols"] and unknown:
+        problems.append(f"hybrid.measured_classes: {unknown} are not classes of cwru.task "
+                        f"{cwru['task']!r} ({labels})")
+    names = features["statistical"]["names"]
+    n_features = features["selection"]["n_features"]
+    if n_features is not None and names is not None and n_features >= len(names) * len(features["channels"]):
+        problems.append(f"features.selection.n_features: {n_features} must be below the number of "
+                        f"candidate features ({len(names) * len(features['channels'])})")
+    model_names = set(config["bearing"]["model"])
+    wrong = sorted(set(config["calibration"]["parameters"]) - model_names)
+    if wrong:
+        problems.append(f"calibration.parameters: {wrong} are not parameters of the bearing rig "
+                        f"(bearing.model: {sorted(model_names)})")
+    if config["hybrid"]["condition"] == "speed_rpm" and "condition_holdout" in config["hybrid"]["protocols"]:
+        problems.append("hybrid.condition: CWRU records of one load differ by a few rpm; hold out "
+                        "loads (condition: load)")
     return problems

@@ -46,6 +46,9 @@ FAULTS = ("normal", "inner_race", "ball", "outer_race")
 MANIFEST_COLUMNS = ("cwru_number", "file", "fault", "or_position", "diameter_in", "load_hp",
                     "rpm", "fs_hz", "de_samples", "sha256")
 NOMINAL_RPM = {0: 1797.0, 1: 1772.0, 2: 1750.0, 3: 1730.0}  # data centre's nominal speed per HP
+ON_BAD_RECORD = ("stop", "skip")  # what cwru_rows does with a bad file
+EXCLUDED_COLUMNS = ["file", "cwru_number", "fault", "or_position", "diameter_in", "load_hp",
+                    "reason", "bad_record"]
 
 
 class CwruError(ValueError):
@@ -246,7 +249,7 @@ def _loadmat(path: Path, data: bytes) -> dict:
         raise CwruError(f"{path}: not a CWRU record: MATLAB v7.3 files are not supported "
                         f"({exc})") from exc
     except Exception as exc:  # scipy raises several types for corrupt files
-        raise CwruError(f"{path}: not a readable MATLAB file ({exc})") from exc
+        raise CwruError(f"{path}: not a readable MATLAB file, truncated or corrupt ({exc})") from exc
 
 
 def _variable_prefixes(number: int) -> list[str]:
@@ -261,14 +264,20 @@ def read_cwru_file(path, channels=("DE",), table: pd.DataFrame | None = None,
 
     The file number comes from `number`, else from `file_number(path, table)`; when the name
     carries none and the file holds exactly one `X<n>_DE_time`, that n. Errors (`CwruError`,
-    naming the file) for: not a MATLAB file or no `X<n>_DE_time` (not a CWRU record), a
-    requested channel missing, NaN/inf samples, a file number not in the table.
+    naming the file) for: no such file, an unreadable or truncated file, not a MATLAB file or
+    no `X<n>_DE_time` (not a CWRU record), a requested channel missing, NaN/inf samples, a
+    constant (dead) channel, a file number not in the table, a drive-end length other than the
+    table's `de_samples` (where listed: a truncated or different recording), and a sampling rate
+    stored in the file (a scalar `fs`/`X<n>_fs`/`sampling_rate`... variable; the original files
+    store none) other than the table's `fs_hz`.
     """
     path = Path(path)
     table = CWRU_TABLE if table is None else table
     unknown = sorted(set(channels) - set(CHANNELS))
     if unknown or not channels:
         raise CwruError(f"channels {list(channels)}: choose from {list(CHANNELS)}")
+    if not path.exists():
+        raise CwruError(f"{path}: no such file")
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -307,7 +316,11 @@ def read_cwru_file(path, channels=("DE",), table: pd.DataFrame | None = None,
         if bad.any():
             raise CwruError(f"{path}: {name} has {int(bad.sum())} non-finite samples (NaN or inf),"
                             f" first at index {int(np.flatnonzero(bad)[0])}")
+        if np.ptp(values) == 0.0:
+            raise CwruError(f"{path}: {name} is constant ({values[0]:g} g in all {values.size} "
+                            "samples): dead sensor or disconnected channel")
         signals[channel] = values * G
+    _check_against_table(path, variables, prefix, number, row)
     rpm_name = f"{prefix}RPM"
     speed, from_file = np.nan, False
     if rpm_name in variables:
@@ -326,6 +339,31 @@ def read_cwru_file(path, channels=("DE",), table: pd.DataFrame | None = None,
                       sha256=hashlib.sha256(data).hexdigest())
 
 
+_RATE_VARIABLE = r"(?:X0*{number}_?)?(?:fs|fs_hz|sampling_?rate|sample_?rate)"
+
+
+def _check_against_table(path: Path, variables: dict, prefix: str, number: int, row) -> None:
+    """The drive-end length against the table's `de_samples` (if listed) and a sampling rate
+    stored in the file (if any) against the table's `fs_hz`."""
+    de = np.asarray(variables[f"{prefix}_DE_time"]).size
+    expected = pd.to_numeric(pd.Series([row["de_samples"]]), errors="coerce").iloc[0]
+    if np.isfinite(expected) and int(expected) != de:
+        raise CwruError(f"{path}: {prefix}_DE_time has {de} samples but the table lists "
+                        f"de_samples = {int(expected)} for file number {number} (truncated, or "
+                        "another recording?)")
+    pattern = re.compile(_RATE_VARIABLE.format(number=number), re.IGNORECASE)
+    for name, value in variables.items():
+        if name.startswith("__") or not pattern.fullmatch(name):
+            continue
+        value = np.asarray(value).ravel()
+        if value.size != 1 or not np.issubdtype(value.dtype, np.number):
+            continue
+        if not np.isclose(float(value[0]), float(row["fs_hz"]), rtol=1e-6):
+            raise CwruError(f"{path}: sampling rate {float(value[0]):g} Hz stored in {name} "
+                            f"differs from the table's fs_hz {float(row['fs_hz']):g} Hz for file "
+                            f"number {number}; fix the manifest's fs_hz or the file")
+
+
 def resample(signal, fs_in: float, fs_out: float) -> np.ndarray:
     """Polyphase resampling from fs_in to fs_out (48 kHz -> 12 kHz is up 1, down 4)."""
     if fs_in == fs_out:
@@ -340,7 +378,8 @@ def resample(signal, fs_in: float, fs_out: float) -> np.ndarray:
 @dataclass
 class CwruIngest:
     """What `cwru_rows` made of a folder: the signal-table rows, one line per record kept
-    (`records`), and the files left out because their class is outside the task (`excluded`)."""
+    (`records`), and the files left out (`excluded`, with a `reason`): their class is outside
+    the task, or (`on_bad_record="skip"`) they are bad records (`bad_record` true)."""
     rows: list
     records: pd.DataFrame
     excluded: pd.DataFrame
@@ -348,7 +387,8 @@ class CwruIngest:
 
 
 def cwru_rows(folder, task: str = "location", channels=("DE",), fs_hz: float = 12000.0,
-              segment_length: int = 4096, manifest="auto", files=None) -> CwruIngest:
+              segment_length: int = 4096, manifest="auto", files=None,
+              on_bad_record: str = "stop") -> CwruIngest:
     """Signal-table rows of every `*.mat` in `folder` (or of the given `files` names).
 
     `manifest`: a CSV (columns of `index.csv`) overriding/extending the built-in table; "auto"
@@ -356,8 +396,17 @@ def cwru_rows(folder, task: str = "location", channels=("DE",), fs_hz: float = 1
     in the table with a sha256 is checked; a mismatch is a warning (other versions exist).
     A record shorter than one segment (after resampling) is an error naming the file. Files
     whose class (by file number) is outside the task are left out unread and listed in
-    `excluded`.
+    `excluded`. A file an explicitly given manifest lists (with a class of the task) but the
+    folder lacks is a missing file; a folder's own `index.csv` ("auto") may describe more files
+    than the folder holds (a partial download, a chosen subset), so it only describes them.
+
+    `on_bad_record`: "stop" (default): the first bad file (see `read_cwru_file`; also too short,
+    missing) raises a `CwruError` naming it and the reason; "skip": it is left out, logged, and
+    listed in `excluded` with `bad_record` true and the reason; no usable record left is still
+    an error.
     """
+    if on_bad_record not in ON_BAD_RECORD:
+        raise ValueError(f"on_bad_record={on_bad_record!r}; choose one of {list(ON_BAD_RECORD)}")
     folder = Path(folder)
     if task not in TASKS:
         raise ValueError(f"unknown task {task!r}; choose one of {list(TASKS)}")
@@ -365,75 +414,121 @@ def cwru_rows(folder, task: str = "location", channels=("DE",), fs_hz: float = 1
         raise CwruError(f"{folder}: no such folder")
     if int(segment_length) < 2:
         raise ValueError(f"segment_length must be at least 2, got {segment_length}")
+    explicit = manifest not in ("auto", None)
     if manifest == "auto":
         manifest = folder / "index.csv" if (folder / "index.csv").exists() else None
-    table = merged_table(manifest)
+    listed = read_manifest(manifest) if manifest is not None else None
+    table = merged_table(listed)
     paths = (sorted(folder.glob("*.mat")) if files is None else [folder / f for f in files])
     if not paths:
         raise CwruError(f"{folder}: no .mat files")
+    if files is None and explicit:  # listed but absent: a missing file, not silence
+        present = {p.name for p in paths}
+        paths += [folder / name for name in listed["file"] if name not in present]
     numbered = [(file_number(p, table), p) for p in paths]
     keyed = sorted(((-1 if n is None else n, p) for n, p in numbered),
                    key=lambda t: (t[0], str(t[1])))
     rows, records, excluded = [], [], []
     for number, path in keyed:
-        known = table.loc[table["cwru_number"] == number]
-        if len(known) and health_label(task, known.iloc[-1]["fault"],
-                                       known.iloc[-1]["diameter_in"]) is None:
-            info = known.iloc[-1]  # class outside the task: left out without reading the file
-            excluded.append(dict(file=path.name, cwru_number=int(number), fault=info["fault"],
-                                 or_position=info["or_position"],
-                                 diameter_in=float(info["diameter_in"]),
-                                 load_hp=float(info["load_hp"]),
-                                 reason=f"class not in task {task!r}"))
-            log.info("%s: %s %.3f in is not a class of task %s; left out", path.name,
-                     info["fault"], info["diameter_in"], task)
+        try:
+            kept = _ingest_file(path, number, table, task, channels, fs_hz, segment_length,
+                                excluded)
+        except CwruError as exc:
+            if on_bad_record == "stop":
+                raise
+            excluded.append(_bad_file(path, number, table, exc))
+            log.warning("%s: bad record, skipped: %s", path, exc)
             continue
-        record = read_cwru_file(path, channels=channels, table=table)
-        info = table.loc[table["cwru_number"] == record.number].iloc[-1]
-        label = health_label(task, info["fault"], info["diameter_in"])
-        description = dict(file=path.name, cwru_number=record.number, fault=info["fault"],
-                           or_position=info["or_position"], diameter_in=float(info["diameter_in"]),
-                           load_hp=float(info["load_hp"]))
-        if label is None:  # number known only from the file's variables
-            excluded.append({**description, "reason": f"class not in task {task!r}"})
-            log.info("%s: %s %.3f in is not a class of task %s; left out", path.name,
-                     info["fault"], info["diameter_in"], task)
-            continue
-        expected = str(info["sha256"] or "")
-        sha_ok = None
-        if expected:
-            sha_ok = expected.lower() == record.sha256
-            if not sha_ok:
-                log.warning("%s: sha256 %s differs from the table's %s (another version of the "
-                            "file?)", path, record.sha256, expected)
-        signals = {ch: resample(sig, record.fs_hz, fs_hz) for ch, sig in record.signals.items()}
-        n = min(len(s) for s in signals.values())
-        if n < segment_length:
-            raise CwruError(f"{path}: {n} samples at {fs_hz:g} Hz, shorter than one segment "
-                            f"({segment_length})")
-        record_id = f"cwru-{record.number}"
-        rows += make_rows(record_id, SOURCE, label, record.speed_rpm, float(info["load_hp"]),
-                          fs_hz, {ch: s[:n] for ch, s in signals.items()},
-                          segment_length=int(segment_length))
-        records.append({**description, "record_id": record_id, "health_state": label,
-                        "speed_rpm": record.speed_rpm, "speed_from_file": record.speed_from_file,
-                        "fs_original_hz": record.fs_hz, "n_samples": n,
-                        "n_segments": n // int(segment_length), "sha256": record.sha256,
-                        "sha256_ok": sha_ok})
+        if kept is not None:
+            rows += kept[0]
+            records.append(kept[1])
+    bad = [e for e in excluded if e.get("bad_record")]
+    if not records and bad:
+        raise CwruError(f"{folder}: no usable record left; {len(bad)} bad file(s) skipped: "
+                        + "; ".join(f"{e['file']}: {e['reason']}" for e in bad))
     if not records:
         raise CwruError(f"{folder}: no record belongs to a class of task {task!r}")
-    return CwruIngest(rows=rows, records=pd.DataFrame(records),
-                      excluded=pd.DataFrame(excluded, columns=["file", "cwru_number", "fault",
-                                                               "or_position", "diameter_in",
-                                                               "load_hp", "reason"]),
-                      task=task)
+    excluded = pd.DataFrame(excluded, columns=EXCLUDED_COLUMNS)
+    excluded["cwru_number"] = excluded["cwru_number"].astype("Int64")
+    excluded["bad_record"] = excluded["bad_record"].astype(bool)
+    return CwruIngest(rows=rows, records=pd.DataFrame(records), excluded=excluded, task=task)
+
+
+def _bad_file(path: Path, number, table: pd.DataFrame, error: CwruError) -> dict:
+    """The `excluded` line of a bad file: what the table says it is, and why it was skipped."""
+    reason = str(error)
+    if reason.startswith(f"{path}: "):
+        reason = reason[len(f"{path}: "):]
+    entry = dict(file=path.name, cwru_number=None if number in (None, -1) else int(number),
+                 fault="", or_position="", diameter_in=np.nan, load_hp=np.nan, reason=reason,
+                 bad_record=True)
+    known = table.loc[table["cwru_number"] == entry["cwru_number"]]
+    if len(known):
+        info = known.iloc[-1]
+        entry.update(fault=info["fault"], or_position=info["or_position"],
+                     diameter_in=float(info["diameter_in"]), load_hp=float(info["load_hp"]))
+    return entry
+
+
+def _ingest_file(path: Path, number: int, table: pd.DataFrame, task: str, channels, fs_hz: float,
+                 segment_length: int, excluded: list):
+    """(rows, record line) of one file, or None when its class is outside the task (then a line
+    is appended to `excluded`). Raises CwruError for a bad file."""
+    known = table.loc[table["cwru_number"] == number]
+    if len(known) and health_label(task, known.iloc[-1]["fault"],
+                                   known.iloc[-1]["diameter_in"]) is None:
+        info = known.iloc[-1]  # class outside the task: left out without reading the file
+        excluded.append(dict(file=path.name, cwru_number=int(number), fault=info["fault"],
+                             or_position=info["or_position"],
+                             diameter_in=float(info["diameter_in"]),
+                             load_hp=float(info["load_hp"]),
+                             reason=f"class not in task {task!r}", bad_record=False))
+        log.info("%s: %s %.3f in is not a class of task %s; left out", path.name,
+                 info["fault"], info["diameter_in"], task)
+        return None
+    record = read_cwru_file(path, channels=channels, table=table)
+    info = table.loc[table["cwru_number"] == record.number].iloc[-1]
+    label = health_label(task, info["fault"], info["diameter_in"])
+    description = dict(file=path.name, cwru_number=record.number, fault=info["fault"],
+                       or_position=info["or_position"], diameter_in=float(info["diameter_in"]),
+                       load_hp=float(info["load_hp"]))
+    if label is None:  # number known only from the file's variables
+        excluded.append({**description, "reason": f"class not in task {task!r}",
+                         "bad_record": False})
+        log.info("%s: %s %.3f in is not a class of task %s; left out", path.name,
+                 info["fault"], info["diameter_in"], task)
+        return None
+    expected = str(info["sha256"] or "")
+    sha_ok = None
+    if expected:
+        sha_ok = expected.lower() == record.sha256
+        if not sha_ok:
+            log.warning("%s: sha256 %s differs from the table's %s (another version of the "
+                        "file?)", path, record.sha256, expected)
+    signals = {ch: resample(sig, record.fs_hz, fs_hz) for ch, sig in record.signals.items()}
+    n = min(len(s) for s in signals.values())
+    if n < segment_length:
+        raise CwruError(f"{path}: {n} samples at {fs_hz:g} Hz, shorter than one segment "
+                        f"({segment_length})")
+    record_id = f"cwru-{record.number}"
+    rows = make_rows(record_id, SOURCE, label, record.speed_rpm, float(info["load_hp"]),
+                     fs_hz, {ch: s[:n] for ch, s in signals.items()},
+                     segment_length=int(segment_length))
+    return rows, {**description, "record_id": record_id, "health_state": label,
+                  "speed_rpm": record.speed_rpm, "speed_from_file": record.speed_from_file,
+                  "fs_original_hz": record.fs_hz, "n_samples": n,
+                  "n_segments": n // int(segment_length), "sha256": record.sha256,
+                  "sha256_ok": sha_ok}
 
 
 def write_cwru_signal_table(folder, path, task: str = "location", channels=("DE",),
                             fs_hz: float = 12000.0, segment_length: int = 4096, manifest="auto",
-                            files=None, config: dict | None = None) -> CwruIngest:
-    """`cwru_rows` of a folder written as a signal table at `path`; returns the ingest summary."""
+                            files=None, config: dict | None = None,
+                            on_bad_record: str = "stop") -> CwruIngest:
+    """`cwru_rows` of a folder written as a signal table at `path`; returns the ingest summary
+    (bad files left out with `on_bad_record="skip"` are in its `excluded`)."""
     ingest = cwru_rows(folder, task=task, channels=channels, fs_hz=fs_hz,
-                       segment_length=segment_length, manifest=manifest, files=files)
+                       segment_length=segment_length, manifest=manifest, files=files,
+                       on_bad_record=on_bad_record)
     write_signal_table(ingest.rows, path, config=config)
     return ingest

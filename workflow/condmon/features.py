@@ -27,6 +27,7 @@ LOG_FLOOR = 1e-6  # added before log10 so silent bands stay finite
 FEATURE_NAMES_KEY = b"condmon.feature_names"
 FEATURE_KIND_KEY = b"condmon.feature_kind"
 BAND_STATISTICS = ("mean", "rms")
+FEATURE_KINDS = ("spectrum", "statistical")
 SPECTRUM_PARAMS = ("f_min_hz", "f_max_hz", "resolution_hz", "scale", "band_statistic")
 
 
@@ -207,12 +208,24 @@ def compute_feature_table(signal_frame: pd.DataFrame, channels,
     return pd.concat([ids.reset_index(drop=True), values], axis=1)
 
 
-def compute_feature_table_from_files(paths, channels, spectrum_params: dict) -> pd.DataFrame:
-    """Features of several signal tables in one table (read one at a time to bound memory)."""
+def compute_feature_table_from_files(paths, channels, spectrum_params: dict, kind: str = "spectrum",
+                                     statistical_params: dict | None = None) -> pd.DataFrame:
+    """Features of several signal tables in one table (read one at a time to bound memory).
+
+    kind "spectrum": band spectra (`spectrum_params`); "statistical": time/frequency statistics
+    and envelope features (`condmon.stat_features`, `statistical_params`)."""
+    if kind not in FEATURE_KINDS:
+        raise FeatureTableError(f"unknown feature kind {kind!r}; choose one of {list(FEATURE_KINDS)}")
     frames = []
     for path in paths:
-        log.info("features of %s", path)
-        frames.append(compute_feature_table(read_signal_table(path), channels, spectrum_params))
+        log.info("%s features of %s", kind, path)
+        signals = read_signal_table(path)
+        if kind == "statistical":
+            from condmon.stat_features import statistical_feature_table  # imports this module
+
+            frames.append(statistical_feature_table(signals, channels, statistical_params or {}))
+        else:
+            frames.append(compute_feature_table(signals, channels, spectrum_params))
     if not frames:
         raise FeatureTableError("no signal tables given")
     frame = pd.concat(frames, ignore_index=True)
@@ -231,7 +244,7 @@ def feature_columns(frame: pd.DataFrame) -> list[str]:
 
 
 def write_feature_table(frame: pd.DataFrame, feature_names, path,
-                        config: dict | None = None) -> None:
+                        config: dict | None = None, kind: str = "spectrum") -> None:
     """Write a features table atomically; metadata lists the feature columns in order."""
     feature_names = list(feature_names)
     missing = [c for c in ID_COLUMNS + feature_names if c not in frame.columns]
@@ -242,7 +255,7 @@ def write_feature_table(frame: pd.DataFrame, feature_names, path,
     table = pa.Table.from_pandas(frame[ID_COLUMNS + feature_names], schema=schema,
                                  preserve_index=False)
     meta = {FEATURE_NAMES_KEY: json.dumps(feature_names).encode(),
-            FEATURE_KIND_KEY: b"spectrum",
+            FEATURE_KIND_KEY: kind.encode(),
             b"condmon.config_hash": config_hash(config or {}).encode(),
             b"condmon.package_versions": json.dumps(package_versions()).encode()}
     write_table(table.replace_schema_metadata({**(table.schema.metadata or {}), **meta}), path)

@@ -1,14 +1,26 @@
 """Hybrid training sets: which measured records join the simulated ones in training.
 
 A split table lists, per (measured_percent, repeat, holdout), the role of every measured record
-(see ARCHITECTURE.md, "Split table"). Simulated records are not listed: they always train.
+(see ARCHITECTURE.md, "Split table"), or of every segment (`segment` >= 0) for segment_share;
+`segment` = -1 means the whole record. Simulated records are not listed: they always train.
+
+An operating condition is the value of the `condition` column (speed_rpm on the gear bench,
+load on the CWRU rig, whose records at one load differ by a few rpm). Strata are
+(health_state x condition).
 
 Protocols
-- record_split: per stratum (health_state x speed_rpm) a share of whole records trains, the rest
-  tests; at least `min_test_records` per stratum stay in the test set.
-- condition_holdout: each speed in turn is held out whole as the test set; the training share is
-  drawn per stratum from the other speeds' records. Records of the other speeds that are not
-  drawn get the role "unused" (neither trained on nor tested), so every record still has a row.
+- record_split: per stratum a share of whole records trains, the rest tests; at least
+  `min_test_records` per stratum stay in the test set.
+- condition_holdout: each condition in turn is held out whole as the test set; the training
+  share is drawn per stratum from the other conditions' records. Records of the other conditions
+  that are not drawn get the role "unused" (neither trained on nor tested), so every record
+  still has a row.
+- segment_share: the bearing study's protocol: per health state, a share of all its measured
+  segments trains and the rest tests. Segments of one record land on both sides (leaky: the
+  report labels its numbers so).
+- unseen_fault: only the `measured_classes` (e.g. healthy) have measured records in training:
+  per stratum of those classes a share of whole records trains; every other record tests, so
+  every other class is learnt from simulation alone.
 
 The record order within a stratum is a random permutation seeded by (seed, repeat, stratum) only,
 and the first n_train records of it train. So a higher percentage's training set contains the
@@ -29,7 +41,9 @@ from condmon.seeds import derive_seed, stable_int
 
 log = logging.getLogger(__name__)
 
-PROTOCOLS = ("record_split", "condition_holdout")
+PROTOCOLS = ("record_split", "condition_holdout", "segment_share", "unseen_fault")
+CONDITIONS = ("speed_rpm", "load")
+WHOLE_RECORD = -1
 ROLES = ("train", "test", "unused")
 SPLIT_SCHEMA = pa.schema([
     ("protocol", pa.string()),
@@ -37,6 +51,7 @@ SPLIT_SCHEMA = pa.schema([
     ("repeat", pa.int32()),
     ("holdout", pa.string()),
     ("record_id", pa.string()),
+    ("segment", pa.int32()),  # WHOLE_RECORD, or one segment (segment_share)
     ("role", pa.string()),
 ])
 SPLIT_COLUMNS = SPLIT_SCHEMA.names
@@ -52,8 +67,8 @@ def format_speed(speed_rpm: float) -> str:
     return str(int(speed_rpm)) if speed_rpm.is_integer() else repr(speed_rpm)
 
 
-def holdout_label(speed_rpm: float) -> str:
-    return f"speed_rpm={format_speed(speed_rpm)}"
+def holdout_label(value: float, condition: str = "speed_rpm") -> str:
+    return f"{condition}={format_speed(value)}"
 
 
 def sorted_holdouts(holdouts) -> list[str]:
@@ -76,19 +91,23 @@ def n_train_records(n_records: int, percent: float, min_test_records: int) -> in
     return max(0, min(wanted, n_records - min_test_records))
 
 
-def unique_records(records: pd.DataFrame) -> pd.DataFrame:
-    """One row per record_id (per-segment rows are fine); each record has one label and speed."""
-    missing = [c for c in ("record_id", "health_state", "speed_rpm") if c not in records.columns]
+def unique_records(records: pd.DataFrame, condition: str = "speed_rpm") -> pd.DataFrame:
+    """One row per record_id (per-segment rows are fine) with its health_state and condition
+    (renamed `condition`); each record has one of each."""
+    if condition not in CONDITIONS:
+        raise SplitError(f"unknown condition {condition!r}; choose one of {list(CONDITIONS)}")
+    missing = [c for c in ("record_id", "health_state", condition) if c not in records.columns]
     if missing:
         raise SplitError(f"records lack column(s) {missing}")
-    records = records[["record_id", "health_state", "speed_rpm"]].drop_duplicates()
+    records = records[["record_id", "health_state", condition]].drop_duplicates()
     mixed = records["record_id"][records["record_id"].duplicated()]
     if len(mixed):
         raise SplitError(f"record(s) {sorted(set(mixed))[:5]} have several health_state or "
-                         "speed_rpm values")
+                         f"{condition} values")
     if records.empty:
         raise SplitError("no measured records to split")
-    records = records.astype({"record_id": str, "health_state": str, "speed_rpm": float})
+    records = records.rename(columns={condition: "condition"}).astype(
+        {"record_id": str, "health_state": str, "condition": float})
     return records.sort_values("record_id").reset_index(drop=True)
 
 
@@ -117,30 +136,58 @@ def _check_arguments(protocol, measured_percent, repeats, seed, min_test_records
 
 
 def stratum_orders(records: pd.DataFrame, seed: int, repeat: int) -> dict[tuple, list[str]]:
-    """Per stratum (health_state, speed_rpm): its record ids in this repeat's random order.
+    """Per stratum (health_state, condition): its record ids in this repeat's random order.
 
     Seeded by (seed, repeat, stratum) only, so the order is the same at every percentage and
     holdout, and adding a stratum does not reshuffle the others.
     """
     orders = {}
-    for (health, speed), group in records.groupby(["health_state", "speed_rpm"], sort=True):
+    for (health, value), group in records.groupby(["health_state", "condition"], sort=True):
         ids = sorted(group["record_id"])  # start from a fixed order: input row order is irrelevant
         rng = np.random.default_rng(
-            derive_seed(seed, repeat, stable_int(f"{health}|{format_speed(speed)}")))
-        orders[(health, speed)] = [ids[i] for i in rng.permutation(len(ids))]
+            derive_seed(seed, repeat, stable_int(f"{health}|{format_speed(value)}")))
+        orders[(health, value)] = [ids[i] for i in rng.permutation(len(ids))]
+    return orders
+
+
+def class_segment_orders(segments: pd.DataFrame, seed: int, repeat: int) -> dict[str, list]:
+    """Per health state: its (record_id, segment) pairs in this repeat's random order."""
+    orders = {}
+    for health, group in segments.groupby("health_state", sort=True):
+        pairs = sorted(zip(group["record_id"].astype(str), group["segment"].astype(int)))
+        rng = np.random.default_rng(derive_seed(seed, repeat, stable_int(f"segments|{health}")))
+        orders[health] = [pairs[i] for i in rng.permutation(len(pairs))]
     return orders
 
 
 def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats: int, seed: int,
-                min_test_records: int = 1) -> pd.DataFrame:
-    """The split table for one protocol (columns SPLIT_COLUMNS, one row per record and split)."""
+                min_test_records: int = 1, condition: str = "speed_rpm",
+                measured_classes=None) -> pd.DataFrame:
+    """The split table for one protocol (columns SPLIT_COLUMNS, one row per record, or per
+    segment for segment_share, and split).
+
+    `records`: record_id, health_state and the `condition` column, one or more rows per record
+    (segment_share needs the `segment` column, one row per segment). `min_test_records`: records
+    per stratum (record_split) or segments per class (segment_share) kept for testing.
+    `measured_classes`: the health states with measured training data under unseen_fault.
+    """
     percents = _check_arguments(protocol, measured_percent, repeats, seed, min_test_records)
-    records = unique_records(records)
-    speeds = sorted(records["speed_rpm"].unique())
-    if protocol == "condition_holdout" and len(speeds) < 2:
-        raise SplitError(f"condition_holdout needs at least two speeds; the measured records "
-                         f"have only speed_rpm {[format_speed(s) for s in speeds]}")
-    sizes = records.groupby(["health_state", "speed_rpm"]).size()
+    unique = unique_records(records, condition)
+    if protocol == "segment_share":
+        return _segment_share_splits(records, unique, percents, repeats, seed, min_test_records)
+    conditions = sorted(unique["condition"].unique())
+    if protocol == "condition_holdout" and len(conditions) < 2:
+        raise SplitError(f"condition_holdout needs at least two values of {condition}; the "
+                         f"measured records have only {condition} "
+                         f"{[format_speed(c) for c in conditions]}")
+    if protocol == "unseen_fault":
+        if not measured_classes:
+            raise SplitError("unseen_fault needs measured_classes: the health states whose "
+                             "measured records may train (e.g. [normal])")
+        absent = sorted(set(measured_classes) - set(unique["health_state"]))
+        if absent:
+            log.warning("unseen_fault: measured class(es) %s have no measured record", absent)
+    sizes = unique.groupby(["health_state", "condition"]).size()
     small = sizes[sizes <= min_test_records]
     if protocol == "record_split" and len(small):
         log.warning("strata with <= min_test_records=%d records never train: %s",
@@ -148,54 +195,90 @@ def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats:
 
     rows = []
     for repeat in range(int(repeats)):
-        orders = stratum_orders(records, seed, repeat)
+        orders = stratum_orders(unique, seed, repeat)
         for percent in percents:
             if protocol == "record_split":
                 rows += _record_split_rows(orders, percent, repeat, min_test_records)
+            elif protocol == "unseen_fault":
+                rows += _unseen_fault_rows(orders, percent, repeat, set(measured_classes))
             else:
-                for speed in speeds:
-                    rows += _holdout_rows(orders, percent, repeat, speed)
+                for value in conditions:
+                    rows += _holdout_rows(orders, percent, repeat, value, condition)
+    return _typed(_frame(rows, protocol))
+
+
+def _frame(rows, protocol) -> pd.DataFrame:
+    """Rows (percent, repeat, holdout, record_id, segment, role) as a split table."""
     splits = pd.DataFrame(rows, columns=SPLIT_COLUMNS[1:])
     splits.insert(0, "protocol", protocol)
-    return _typed(splits)
+    return splits
 
 
 def _record_split_rows(orders, percent, repeat, min_test_records) -> list[tuple]:
     rows = []
     for ids in orders.values():
         n_train = n_train_records(len(ids), percent, min_test_records)
-        rows += [(percent, repeat, "", rid, "train" if i < n_train else "test")
+        rows += [(percent, repeat, "", rid, WHOLE_RECORD, "train" if i < n_train else "test")
                  for i, rid in enumerate(ids)]
     return rows
 
 
-def _holdout_rows(orders, percent, repeat, held_out_speed) -> list[tuple]:
-    # The held-out speed supplies the whole test set, so no record of the other speeds needs
-    # to stay back for testing: at 100 % all of them train.
-    label = holdout_label(held_out_speed)
+def _unseen_fault_rows(orders, percent, repeat, measured_classes) -> list[tuple]:
+    # At 100 % every record of a measured class trains: the other classes still test.
     rows = []
-    for (_, speed), ids in orders.items():
-        if speed == held_out_speed:
-            rows += [(percent, repeat, label, rid, "test") for rid in ids]
+    for (health, _), ids in orders.items():
+        n_train = n_train_records(len(ids), percent, 0) if health in measured_classes else 0
+        rows += [(percent, repeat, "", rid, WHOLE_RECORD, "train" if i < n_train else "test")
+                 for i, rid in enumerate(ids)]
+    return rows
+
+
+def _holdout_rows(orders, percent, repeat, held_out, condition) -> list[tuple]:
+    # The held-out condition supplies the whole test set, so no record of the other conditions
+    # needs to stay back for testing: at 100 % all of them train.
+    label = holdout_label(held_out, condition)
+    rows = []
+    for (_, value), ids in orders.items():
+        if value == held_out:
+            rows += [(percent, repeat, label, rid, WHOLE_RECORD, "test") for rid in ids]
         else:
             n_train = n_train_records(len(ids), percent, 0)
-            rows += [(percent, repeat, label, rid, "train" if i < n_train else "unused")
-                     for i, rid in enumerate(ids)]
+            rows += [(percent, repeat, label, rid, WHOLE_RECORD,
+                      "train" if i < n_train else "unused") for i, rid in enumerate(ids)]
     return rows
+
+
+def _segment_share_splits(records, unique, percents, repeats, seed, min_test) -> pd.DataFrame:
+    if "segment" not in records.columns:
+        raise SplitError("segment_share needs the segment column of the measured features")
+    segments = records[["record_id", "segment"]].drop_duplicates().merge(
+        unique[["record_id", "health_state"]], on="record_id")
+    rows = []
+    for repeat in range(int(repeats)):
+        orders = class_segment_orders(segments, seed, repeat)
+        for percent in percents:
+            for pairs in orders.values():
+                n_train = n_train_records(len(pairs), percent, max(1, min_test))
+                rows += [(percent, repeat, "", rid, seg, "train" if i < n_train else "test")
+                         for i, (rid, seg) in enumerate(pairs)]
+    return _typed(_frame(rows, "segment_share"))
 
 
 def _typed(splits: pd.DataFrame) -> pd.DataFrame:
     order = {label: i for i, label in enumerate(sorted_holdouts(splits["holdout"]))}
+    if "segment" not in splits.columns:  # split tables written before segment_share
+        splits = splits.assign(segment=WHOLE_RECORD)
     splits = (splits.assign(_h=splits["holdout"].map(order))
-              .sort_values(["measured_percent", "repeat", "_h", "record_id"])
+              .sort_values(["measured_percent", "repeat", "_h", "record_id", "segment"])
               .drop(columns="_h").reset_index(drop=True))
     return splits.astype({"protocol": str, "measured_percent": "int32", "repeat": "int32",
-                          "holdout": str, "record_id": str, "role": str})
+                          "holdout": str, "record_id": str, "segment": "int32",
+                          "role": str})[SPLIT_COLUMNS]
 
 
 def validate_splits(splits: pd.DataFrame, where: str = "split table") -> None:
-    """Check columns, roles, one protocol, and one row per record per split."""
-    missing = [c for c in SPLIT_COLUMNS if c not in splits.columns]
+    """Check columns, roles, one protocol, and one row per record (or segment) per split."""
+    missing = [c for c in SPLIT_COLUMNS if c not in splits.columns and c != "segment"]
     if missing:
         raise SplitError(f"{where}: missing column(s) {missing}")
     bad_roles = sorted(set(splits["role"]) - set(ROLES))
@@ -204,7 +287,8 @@ def validate_splits(splits: pd.DataFrame, where: str = "split table") -> None:
     protocols = sorted(set(splits["protocol"]))
     if len(protocols) != 1:
         raise SplitError(f"{where}: expected one protocol, found {protocols}")
-    dup = splits.duplicated(["measured_percent", "repeat", "holdout", "record_id"])
+    keys = ["measured_percent", "repeat", "holdout", "record_id"]
+    dup = splits.duplicated(keys + ["segment"] if "segment" in splits.columns else keys)
     if dup.any():
         first = splits.loc[dup].iloc[0]
         raise SplitError(f"{where}: record {first.record_id!r} listed twice in split "
@@ -214,7 +298,7 @@ def validate_splits(splits: pd.DataFrame, where: str = "split table") -> None:
 
 def write_split_table(splits: pd.DataFrame, path) -> None:
     validate_splits(splits, str(path))
-    table = pa.Table.from_pandas(_typed(splits[SPLIT_COLUMNS]), schema=SPLIT_SCHEMA,
+    table = pa.Table.from_pandas(_typed(splits), schema=SPLIT_SCHEMA,
                                  preserve_index=False)
     write_table(table, path)
 
@@ -225,4 +309,4 @@ def read_split_table(path) -> pd.DataFrame:
     except FileNotFoundError:
         raise SplitError(f"{path}: no such split table") from None
     validate_splits(splits, str(path))
-    return splits
+    return _typed(splits)

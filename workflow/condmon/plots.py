@@ -74,6 +74,72 @@ def accuracy_vs_measured_percent(per_repeat, chance: float, note: str):
                         "(line: mean over repeats, band: min-max)", note, legend_from=axes[0, 0])
 
 
+def _wrapped(text: str, width: int = 48) -> str:
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, width))
+
+
+def simulation_gain(gain, chance: float, note: str, protocol_labels: dict):
+    """One panel per protocol: accuracy with the simulated data (solid) and of the same
+    classifier on the measured training data alone (dashed), per classifier; the gap is the
+    simulation's gain. ``gain``: columns classifier, protocol, measured_percent, hybrid,
+    measured_only."""
+    protocols = sorted(gain["protocol"].unique())
+    colours = _colours(sorted(gain["classifier"].unique()))
+    fig, axes = plt.subplots(1, len(protocols), figsize=(5.5 * len(protocols), 4.8),
+                             sharey=True, squeeze=False)
+    for ax, protocol in zip(axes[0], protocols):
+        for classifier, group in gain[gain["protocol"] == protocol].groupby("classifier"):
+            group = group.sort_values("measured_percent")
+            ax.plot(group["measured_percent"], group["hybrid"], marker="o",
+                    color=colours[classifier], label=f"{classifier}: simulated + measured")
+            ax.plot(group["measured_percent"], group["measured_only"], marker="x", linestyle="--",
+                    color=colours[classifier], label=f"{classifier}: measured only")
+        ax.axhline(chance, linestyle=":", color="0.4", label=f"chance ({chance:.2f})")
+        ax.set_title(_wrapped(f"{protocol}: {protocol_labels.get(protocol, '')}"), fontsize=9)
+        ax.set_xlabel(PERCENT_LABEL)
+        ax.set_ylim(0, 1.05)
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel(f"{ACCURACY_LABEL} (fraction)")
+    return _finish(fig, "The simulation's gain: with vs without the simulated data",
+                   note, legend_from=axes[0, 0])
+
+
+def recall_per_class(recalls, note: str, protocol_labels: dict):
+    """Grid protocol x classifier: recall of every class against the measured percentage
+    (pooled over repeats and holdouts). ``recalls``: columns classifier, protocol,
+    measured_percent, true_label, recall."""
+    protocols = sorted(recalls["protocol"].unique())
+    classifiers = sorted(recalls["classifier"].unique())
+    colours = _colours(sorted(recalls["true_label"].unique()))
+    fig, axes = plt.subplots(len(protocols), len(classifiers),
+                             figsize=(5.0 * len(classifiers), 3.6 * len(protocols)),
+                             sharey=True, squeeze=False)
+    for i, protocol in enumerate(protocols):
+        for j, classifier in enumerate(classifiers):
+            ax = axes[i, j]
+            rows = recalls[(recalls["protocol"] == protocol) & (recalls["classifier"] == classifier)]
+            for label, group in rows.groupby("true_label"):
+                group = group.sort_values("measured_percent")
+                ax.plot(group["measured_percent"], group["recall"], marker="o",
+                        color=colours[label], label=label)
+            ax.set_title(_wrapped(f"{classifier}, {protocol}: "
+                                  f"{protocol_labels.get(protocol, '')}"), fontsize=8)
+            ax.set_ylim(0, 1.05)
+            ax.grid(alpha=0.3)
+            if i == len(protocols) - 1:
+                ax.set_xlabel(PERCENT_LABEL)
+        axes[i, 0].set_ylabel("recall")
+    handles = {}
+    for ax in axes.flat:  # one legend entry per class over all panels
+        for handle, label in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(label, handle)
+    legend_ax = axes[0, 0]
+    legend_ax.legend(handles.values(), handles.keys(), fontsize=7, loc="lower right")
+    return _finish(fig, "Recall per class on held-out measured segments", note)
+
+
 def accuracy_per_speed(speed_rows, percents, chance: float, note: str):
     """Grid protocol x chosen measured percentage; grouped bars per speed, one per classifier.
 
@@ -189,7 +255,13 @@ def confusion_matrix_small(counts, labels, title: str, note: str):
 
 
 def spectra_grid(spectra, note: str):
-    """Grid speed x channel: mean amplitude spectrum measured vs calibrated model, log axis."""
+    """Grid speed x channel: mean amplitude spectrum measured vs calibrated model, log axis.
+
+    With a `mesh_stiffness_model` column (the calibrations of several models, same measured
+    spectra) one calibrated line per model."""
+    models = (list(dict.fromkeys(spectra["mesh_stiffness_model"]))
+              if "mesh_stiffness_model" in spectra.columns else [None])
+    model_colours = dict(zip(models, ("tab:red", "tab:blue", "tab:green", "tab:orange")))
     speeds = sorted(spectra["speed_rpm"].unique())
     channels = sorted(spectra["channel"].unique())
     fig, axes = plt.subplots(len(speeds), len(channels),
@@ -198,11 +270,17 @@ def spectra_grid(spectra, note: str):
     for i, speed in enumerate(speeds):
         for j, channel in enumerate(channels):
             ax = axes[i, j]
-            rows = (spectra[(spectra["speed_rpm"] == speed) & (spectra["channel"] == channel)]
-                    .sort_values("freq_hz"))
-            for column, label, style in (
-                    ("measured", "measured", {"color": "black", "lw": 1.0}),
-                    ("calibrated", "calibrated model", {"color": "tab:red", "lw": 1.0, "alpha": 0.8})):
+            at = (spectra[(spectra["speed_rpm"] == speed) & (spectra["channel"] == channel)]
+                  .sort_values("freq_hz"))
+            lines = []
+            for model in models:
+                rows = at if model is None else at[at["mesh_stiffness_model"] == model]
+                if model == models[0]:
+                    lines.append((rows, "measured", "measured", {"color": "black", "lw": 1.0}))
+                lines.append((rows, "calibrated", "calibrated model" if model is None else
+                              f"calibrated, {model} mesh",
+                              {"color": model_colours[model], "lw": 1.0, "alpha": 0.8}))
+            for rows, column, label, style in lines:
                 # log axis: non-positive amplitudes cannot be drawn, leave gaps
                 values = rows[column].where(rows[column] > 0)
                 ax.plot(rows["freq_hz"], values, label=label, **style)

@@ -1,11 +1,15 @@
 """The report stage: accuracy table, summary and plots from the train and calibration outputs.
 
 Reads only the files of the stage contracts (train/<classifier>/<protocol>/metrics.csv and
-predictions.parquet, calibration/params.json, spectra.parquet, history.parquet) and writes
+predictions.parquet, calibration/<mesh stiffness model>/params.json, spectra.parquet,
+history.parquet) and writes
 
 - ``accuracy.csv``: the concatenated metrics files, sorted; columns ``ACCURACY_COLUMNS``;
-- ``summary.json``: data source, calibration, per classifier x protocol x measured percentage the
-  mean and spread of accuracy over repeats, per-speed means, record counts, plot list;
+- ``summary.json``: data source, calibration (the one the simulated data come from; with one
+  calibration per mesh stiffness model each one's contact law, final and nominal cost,
+  evaluations and seconds under ``calibration_by_mesh_stiffness_model``), per classifier x
+  protocol x measured percentage the mean and spread of accuracy over repeats, per-speed means,
+  record counts, plot list;
 - ``plots/*.png``: see ``condmon.plots``.
 
 Aggregation over repeats: for ``condition_holdout`` one repeat has one evaluation per held-out
@@ -37,6 +41,16 @@ PREDICTION_COLUMNS = ["protocol", "measured_percent", "repeat", "holdout", "reco
 # optional: the CNN ensemble's member spread per prediction (NaN for the other classifiers)
 OPTIONAL_PREDICTION_COLUMNS = ["uncertainty"]
 SORT_KEYS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "speed_rpm"]
+
+# What each protocol's test set is: every number the report gives is labelled with it.
+PROTOCOL_LABELS = {
+    "record_split": "whole measured records held out (records never seen in training)",
+    "condition_holdout": "a whole operating condition held out (speed or load never seen)",
+    "segment_share": ("LEAKY (the bearing study's protocol): segments of the same records on "
+                      "both sides of the split"),
+    "unseen_fault": ("faults never measured: measured training data holds only the configured "
+                     "measured classes; the other classes come from simulation alone"),
+}
 
 # Data-source kinds that are not real measurements; anything labelled with them must say so.
 SYNTHETIC_SOURCES = {"virtual_bench": "virtual bench (synthetic)"}
@@ -145,8 +159,13 @@ def load_calibration(params_path) -> dict:
     missing = [k for k in ("contact_law", "parameters", "cost", "evaluations") if k not in params]
     if missing:
         raise ReportInputError(f"{params_path}: calibration file lacks keys {missing}")
-    return {"contact_law": params["contact_law"], "cost": params["cost"],
-            "evaluations": params["evaluations"], "parameters": params["parameters"]}
+    summary = {"contact_law": params["contact_law"], "cost": params["cost"],
+               "evaluations": params["evaluations"], "parameters": params["parameters"]}
+    # written by the calibrate stage since calibrations per mesh stiffness model
+    for key in ("mesh_stiffness_model", "nominal_cost", "seconds", "sensor_noise"):
+        if key in params:
+            summary[key] = params[key]
+    return summary
 
 
 def read_table(path, required: list[str], what: str) -> pd.DataFrame:
@@ -163,9 +182,11 @@ def read_table(path, required: list[str], what: str) -> pd.DataFrame:
 # --------------------------------------------------------------------------- aggregation
 
 def label_order(labels) -> list[str]:
-    """Class labels sorted, "healthy" first so confusion matrices read from the normal state."""
+    """Class labels sorted, the healthy state ("healthy", CWRU "normal") first so confusion
+    matrices read from it. Pass true and predicted labels: a class may be predicted but never
+    tested (a folder without healthy records)."""
     labels = sorted(set(labels))
-    return sorted(labels, key=lambda label: label != "healthy")
+    return sorted(labels, key=lambda label: label not in ("healthy", "normal"))
 
 
 def confusion_counts(true_labels, predicted_labels, labels) -> np.ndarray:
@@ -218,9 +239,50 @@ def _json_number(value):
     return None if not np.isfinite(value) else value
 
 
+def recall_per_class(predictions: pd.DataFrame) -> pd.DataFrame:
+    """Recall of every true class per (classifier, protocol, percent): the share of its test
+    segments predicted right, pooled over repeats and holdouts."""
+    hit = predictions["true_label"] == predictions["predicted_label"]
+    return (predictions.assign(hit=hit)
+            .groupby(["classifier", "protocol", "measured_percent", "true_label"], as_index=False)
+            .agg(recall=("hit", "mean"), n_test=("hit", "size")))
+
+
+def recall_per_record(predictions: pd.DataFrame) -> pd.DataFrame:
+    """Share of every measured record's test segments predicted right, per (classifier,
+    protocol, percent), pooled over repeats and holdouts: shows which records a class's recall
+    loses (CWRU's near-healthy outer-race 0.014 in records, say)."""
+    hit = predictions["true_label"] == predictions["predicted_label"]
+    return (predictions.assign(hit=hit)
+            .groupby(["classifier", "protocol", "measured_percent", "record_id", "true_label"],
+                     as_index=False)
+            .agg(recall=("hit", "mean"), n_test=("hit", "size"),
+                 most_predicted=("predicted_label", lambda s: s.value_counts().index[0])))
+
+
+def simulation_gain(accuracy: pd.DataFrame, baseline: pd.DataFrame) -> pd.DataFrame:
+    """Per (classifier, protocol, percent): mean accuracy with the simulated data, of the same
+    classifier on the same measured training data alone, and their difference (the gain).
+    Splits with no measured training data have no baseline (NaN)."""
+    keys = ["classifier", "protocol", "measured_percent"]
+    if baseline.empty:
+        return pd.DataFrame(columns=keys + ["hybrid", "measured_only", "gain"])
+    hybrid = over_repeats(accuracy)[keys + ["accuracy_mean"]].rename(
+        columns={"accuracy_mean": "hybrid"})
+    alone = over_repeats(baseline)[keys + ["accuracy_mean"]].rename(
+        columns={"accuracy_mean": "measured_only"})
+    gain = hybrid.merge(alone, on=keys, how="left")
+    gain["gain"] = gain["hybrid"] - gain["measured_only"]
+    return gain
+
+
 def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: dict,
-              run_name: str, data_source: str, plot_names: list[str]) -> dict:
+              run_name: str, data_source: str, plot_names: list[str],
+              baseline: pd.DataFrame | None = None) -> dict:
     """The content of summary.json (see module docstring)."""
+    recalls = recall_per_class(predictions)
+    gains = simulation_gain(accuracy, baseline if baseline is not None else accuracy.iloc[:0])
+    gains = gains.set_index(["classifier", "protocol", "measured_percent"])
     test_records = (predictions
                     .groupby(["classifier", "protocol", "measured_percent", "repeat"])["record_id"]
                     .nunique()
@@ -247,8 +309,16 @@ def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: di
                                         for s in speed_rows.itertuples(index=False)},
             "n_test_records_per_repeat": _json_number(test_records.get(key)),
             "n_test_segments_per_repeat": _json_number(row.n_test_segments),
+            "protocol_label": PROTOCOL_LABELS.get(row.protocol, row.protocol),
+            "recall_per_class": {r.true_label: _json_number(r.recall) for r in recalls[
+                (recalls["classifier"] == row.classifier) & (recalls["protocol"] == row.protocol)
+                & (recalls["measured_percent"] == row.measured_percent)].itertuples()},
+            "measured_only_accuracy_mean": (_json_number(gains.loc[key, "measured_only"])
+                                            if key in gains.index else None),
+            "simulation_gain": (_json_number(gains.loc[key, "gain"])
+                                if key in gains.index else None),
         })
-    labels = label_order(predictions["true_label"])
+    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]])
     return {
         "run_name": run_name,
         "data_source": {
@@ -265,6 +335,10 @@ def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: di
         "n_evaluations": int(accuracy["speed_rpm"].isna().sum()),
         "aggregation": ("accuracy_std is the sample std over repeats (null with one repeat); "
                         "condition_holdout: held-out conditions are averaged within a repeat first"),
+        "protocols": {p: PROTOCOL_LABELS.get(p, p) for p in sorted(accuracy["protocol"].unique())},
+        "simulation_gain": ("accuracy with the simulated data minus accuracy of the same "
+                            "classifier on the same measured training data alone (null: no "
+                            "measured-only baseline, or no measured training data)"),
         "results": results,
         "plots": plot_names,
     }
@@ -284,10 +358,10 @@ def confusion_percents(accuracy: pd.DataFrame, requested) -> list[int]:
 
 
 def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: Path,
-               run_name: str, data_source: str, confusion_percent) -> list[str]:
+               run_name: str, data_source: str, confusion_percent, baseline=None) -> list[str]:
     """Write every report plot into ``plots_dir``; returns the file names."""
     note = f"Data: {data_source_label(data_source)} | run {run_name}"
-    labels = label_order(predictions["true_label"])
+    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]])
     chance = 1.0 / len(labels)
     percents = confusion_percents(accuracy, confusion_percent)
     names = []
@@ -300,6 +374,11 @@ def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: 
          "accuracy_vs_measured_percent.png")
     save(plots.accuracy_per_speed(accuracy[accuracy["speed_rpm"].notna()], percents, chance, note),
          "accuracy_per_speed.png")
+    if baseline is not None and not baseline.empty:
+        save(plots.simulation_gain(simulation_gain(accuracy, baseline), chance, note,
+                                   PROTOCOL_LABELS), "simulation_gain.png")
+    save(plots.recall_per_class(recall_per_class(predictions), note, PROTOCOL_LABELS),
+         "recall_per_class.png")
     for (classifier, protocol), group in predictions.groupby(["classifier", "protocol"]):
         # a classifier may train on fewer percentages (classifiers.cnn.measured_percent): show
         # the chosen ones it has, and its own largest
@@ -318,9 +397,22 @@ def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: 
             save(plots.confusion_matrices(matrices, labels, classifier, protocol,
                                           None if speed is None else format_speed(speed), note),
                  f"confusion_{classifier}_{protocol}_{speed_name}.png")
-    save(plots.spectra_grid(spectra, note), "spectra_measured_vs_calibrated.png")
-    save(plots.calibration_convergence(history, calibration["contact_law"], note),
-         "calibration_convergence.png")
+    if not isinstance(spectra, dict):  # one calibration
+        save(plots.spectra_grid(spectra, note), "spectra_measured_vs_calibrated.png")
+        save(plots.calibration_convergence(history, calibration["contact_law"], note),
+             "calibration_convergence.png")
+        return names
+    # one calibration per mesh stiffness model: all against the measured spectra, then each
+    save(plots.spectra_grid(pd.concat([frame.assign(mesh_stiffness_model=model)
+                                       for model, frame in spectra.items()], ignore_index=True),
+                            note), "spectra_measured_vs_calibrated.png")
+    for model in spectra:
+        model_note = f"{note} | mesh stiffness: {model}"
+        if len(spectra) > 1:
+            save(plots.spectra_grid(spectra[model], model_note),
+                 f"spectra_measured_vs_calibrated_{model}.png")
+        save(plots.calibration_convergence(history[model], calibration[model]["contact_law"],
+                                           model_note), f"calibration_convergence_{model}.png")
     return names
 
 
@@ -336,27 +428,65 @@ def simulation_summary(report_paths) -> dict:
             "wall_seconds_per_simulated_second": sum(wall) / simulated if simulated else None}
 
 
+def measured_records_summary(records_path) -> dict:
+    """What the measured stage kept and left out (file, class, reason) from records.csv."""
+    records = pd.read_csv(records_path, dtype=str, keep_default_na=False)
+    left_out = records[records["status"] != "kept"]
+    columns = [c for c in ("file", "record_id", "fault", "diameter_in", "load_hp", "reason")
+               if c in records.columns]
+    return {"kept": int((records["status"] == "kept").sum()),
+            "left_out": left_out[columns].to_dict(orient="records")}
+
+
 def write_report(metrics_paths, predictions_paths, calibration_params, calibration_spectra,
                  calibration_history, accuracy_path, summary_path, plots_dir, run_name: str,
-                 data_source: str, confusion_percent=(0,), simulation_reports=()) -> dict:
-    """Build the whole report; returns the summary dict. Every output is written atomically."""
+                 data_source: str, confusion_percent=(0,), simulation_reports=(),
+                 baseline_paths=(), measured_records=None, record_recall_path=None) -> dict:
+    """Build the whole report; returns the summary dict. Every output is written atomically.
+
+    calibration_params, calibration_spectra, calibration_history: the files of one calibration,
+    or {mesh stiffness model: file} of one calibration per model, the simulation's first (its
+    calibration is the summary's `calibration`; `calibration_by_mesh_stiffness_model` lists all)."""
     accuracy = load_metrics(metrics_paths)
+    # measured-only baselines (empty files where hybrid.measured_only_baseline is off)
+    with_rows = [p for p in baseline_paths if len(pd.read_csv(p))]
+    baseline = load_metrics(with_rows) if with_rows else None
     predictions = load_predictions(predictions_paths)
-    calibration = load_calibration(calibration_params)
-    spectra = read_table(calibration_spectra,
-                         ["speed_rpm", "channel", "freq_hz", "measured", "calibrated"],
-                         "calibration spectra")
-    history = read_table(calibration_history, ["evaluation", "contact_law", "cost"],
-                         "calibration history")
+    per_model = isinstance(calibration_params, dict)
+    params_paths = calibration_params if per_model else {None: calibration_params}
+    spectra_paths = calibration_spectra if per_model else {None: calibration_spectra}
+    history_paths = calibration_history if per_model else {None: calibration_history}
+    if not (list(params_paths) == list(spectra_paths) == list(history_paths)) or not params_paths:
+        raise ReportInputError("calibration params, spectra and history must name the same "
+                               f"mesh stiffness models: {list(params_paths)}, "
+                               f"{list(spectra_paths)}, {list(history_paths)}")
+    calibrations = {m: load_calibration(p) for m, p in params_paths.items()}
+    for model, calibration in calibrations.items():
+        if model is not None:
+            calibration.setdefault("mesh_stiffness_model", model)
+    spectra = {m: read_table(p, ["speed_rpm", "channel", "freq_hz", "measured", "calibrated"],
+                             "calibration spectra") for m, p in spectra_paths.items()}
+    history = {m: read_table(p, ["evaluation", "contact_law", "cost"], "calibration history")
+               for m, p in history_paths.items()}
+    calibration = next(iter(calibrations.values()))  # the one the simulated data come from
+    if not per_model:
+        spectra, history, calibrations = spectra[None], history[None], calibrations[None]
     log.info("%d metrics rows from %d files, %d predictions", len(accuracy),
              len(list(metrics_paths)), len(predictions))
 
     with staging_directory(plots_dir) as staging:
-        plot_names = make_plots(accuracy, predictions, spectra, history, calibration, staging,
-                                run_name, data_source, confusion_percent)
-        summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names)
+        plot_names = make_plots(accuracy, predictions, spectra, history, calibrations, staging,
+                                run_name, data_source, confusion_percent, baseline)
+        summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names,
+                            baseline)
+        if per_model:
+            summary["calibration_by_mesh_stiffness_model"] = calibrations
         summary["simulation"] = simulation_summary(simulation_reports)
+        if measured_records is not None:
+            summary["measured_records"] = measured_records_summary(measured_records)
         write_text(accuracy.to_csv(index=False), accuracy_path)
+        if record_recall_path is not None:
+            write_text(recall_per_record(predictions).to_csv(index=False), record_recall_path)
         write_text(json.dumps(summary, indent=2) + "\n", summary_path)
     log.info("wrote %s, %s and %d plots in %s", accuracy_path, summary_path, len(plot_names),
              plots_dir)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import logging
+import signal
 import sys
 
 
@@ -17,4 +18,10 @@ def setup_logging(snakemake) -> logging.Logger:
     def excepthook(kind, value, tb):
         log.error("failed", exc_info=(kind, value, tb))
     sys.excepthook = excepthook
+
+    def terminated(signum, frame):
+        # SIGTERM (a scheduler or Snakemake stopping the job) as an exception, so that pending
+        # `finally` blocks remove half-written temporary files
+        raise SystemExit(128 + signum)
+    signal.signal(signal.SIGTERM, terminated)
     return log

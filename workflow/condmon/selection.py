@@ -95,3 +95,31 @@ class SequentialBackwardSelector(SelectorMixin, BaseEstimator):
         tags = super().__sklearn_tags__()
         tags.target_tags.required = True
         return tags
+
+
+class SelectThenClassify(BaseEstimator):
+    """A classifier fitted on the features a `SequentialBackwardSelector` keeps.
+
+    `fit(X, y, groups=None, feature_names=None)` fits the selector on the training rows only
+    (its CV folds keep the `groups`, the record ids, whole), then `classifier` on the kept
+    columns; `predict` applies the stored choice. `selected_features_` names the kept features
+    when `feature_names` are given (else their column indices).
+    """
+
+    def __init__(self, selector=None, classifier=None):
+        self.selector = selector
+        self.classifier = classifier
+
+    def fit(self, X, y, groups=None, feature_names=None):
+        X = np.asarray(X)
+        self.selector_ = clone(self.selector or SequentialBackwardSelector()).fit(X, y, groups)
+        mask = self.selector_.get_support()
+        self.classifier_ = clone(self.classifier).fit(X[:, mask], y)
+        names = list(feature_names) if feature_names is not None else list(range(X.shape[1]))
+        self.selected_features_ = [n for n, keep in zip(names, mask) if keep]
+        self.classes_ = self.classifier_.classes_
+        return self
+
+    def predict(self, X):
+        check_is_fitted(self, "classifier_")
+        return self.classifier_.predict(np.asarray(X)[:, self.selector_.get_support()])

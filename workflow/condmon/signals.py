@@ -96,6 +96,14 @@ def write_signal_table(rows, path, config: dict | None = None) -> None:
 
 def read_signal_table(path, allowed_sources=SOURCES) -> pd.DataFrame:
     """Read and validate a signal table; `signal` comes back as float32 numpy arrays."""
+    frame = read_unvalidated(path)
+    validate(frame, str(path), allowed_sources)
+    return frame
+
+
+def read_unvalidated(path) -> pd.DataFrame:
+    """The rows of a signal-table file, checked only for being one (exists, Parquet, columns);
+    `signal` as float32 arrays (empty for a null)."""
     path = Path(path)
     if not path.exists():
         raise SignalTableError(f"{path}: no such signal table")
@@ -107,8 +115,7 @@ def read_signal_table(path, allowed_sources=SOURCES) -> pd.DataFrame:
     if missing:
         raise SignalTableError(f"{path}: missing signal-table columns {missing}")
     frame = table.to_pandas()
-    frame["signal"] = [np.asarray(s, dtype=np.float32) for s in frame["signal"]]
-    validate(frame, str(path), allowed_sources)
+    frame["signal"] = [np.asarray([] if s is None else s, dtype=np.float32) for s in frame["signal"]]
     return frame
 
 

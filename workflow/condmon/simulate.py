@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import logging
 import time
 
@@ -71,13 +72,21 @@ def simulate_batch(model: dict, calibrated: dict, health_state: str, speed_rpm: 
         rows += make_rows(record_id, "simulated", health_state, speed_rpm, params.load_torque, fs, signals,
                           segment_length=int(round(segment_seconds * fs)),
                           params={"contact_law": calibrated["contact_law"], **values})
-    if len(failures) > max_failed_share * samples:
-        raise TooManyFailures(
-            f"{len(failures)} of {samples} simulations of {health_state} at {speed_rpm:g} rpm batch {batch} "
-            f"failed (tolerated share {max_failed_share:g}); first: {failures[0]['record_id']} "
-            f"{failures[0]['errors'][-1]} with parameters {failures[0]['params']}")
-    report = {"health_state": health_state, "speed_rpm": float(speed_rpm), "batch": batch, "samples": samples,
-              "succeeded": samples - len(failures), "failures": failures,
-              "simulated_seconds_per_sample": settings.settle_time + settings.duration,
-              "wall_seconds": seconds}
+    report = batch_report(health_state, speed_rpm, batch, samples, failures, seconds,
+                          settings.settle_time + settings.duration, max_failed_share)
     return rows, report
+
+
+def batch_report(health_state, speed_rpm, batch, samples, failures, seconds, simulated_seconds,
+                 max_failed_share, what="simulations") -> dict:
+    """A simulation job's report (samples, failures with their parameters, wall seconds per
+    sample); TooManyFailures when more than `max_failed_share` of the samples failed."""
+    if len(failures) > max_failed_share * samples:
+        first = failures[0]
+        raise TooManyFailures(
+            f"{len(failures)} of {samples} {what} of {health_state} at {speed_rpm:g} rpm batch {batch} "
+            f"failed (tolerated share {max_failed_share:g}); first: {first['record_id']} "
+            f"{first['errors'][-1]} with parameters {json.dumps(first['params'], default=str)}")
+    return {"health_state": health_state, "speed_rpm": float(speed_rpm), "batch": batch, "samples": samples,
+            "succeeded": samples - len(failures), "failures": failures,
+            "simulated_seconds_per_sample": simulated_seconds, "wall_seconds": seconds}

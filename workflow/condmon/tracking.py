@@ -92,9 +92,10 @@ def is_remote(uri: str) -> bool:
 
 
 def check_tracking_server(uri: str, timeout_s: float = PROBE_TIMEOUT_S) -> None:
-    """Raise TrackingError naming ``uri`` if an http(s) tracking server does not answer.
-
-    Also caps MLflow's HTTP retries (HTTP_ENV_DEFAULTS) for the rest of the process.
+    """Raise TrackingError naming ``uri`` if an http(s) tracking server does not answer within
+    ``timeout_s`` (refused, unknown host, no answer, or a 502/503/504 from a proxy in front of
+    it); any other HTTP answer counts as reachable. Also caps MLflow's HTTP retries
+    (HTTP_ENV_DEFAULTS) for the rest of the process.
     """
     if not is_remote(uri):
         return
@@ -102,13 +103,17 @@ def check_tracking_server(uri: str, timeout_s: float = PROBE_TIMEOUT_S) -> None:
         os.environ.setdefault(name, value)
     try:
         urllib.request.urlopen(uri.rstrip("/") + "/health", timeout=timeout_s).close()
-    except urllib.error.HTTPError:
-        return  # something answered (an auth proxy, say); MLflow reports any real problem
+    except urllib.error.HTTPError as exc:
+        if exc.code not in (502, 503, 504):
+            return  # something answered (an auth proxy, say); MLflow reports any real problem
+        reason = f"HTTP {exc.code} {exc.reason}: a proxy or gateway answered for it"
     except (urllib.error.URLError, OSError) as exc:
         reason = getattr(exc, "reason", exc)
-        raise TrackingError(
-            f"MLflow tracking server {uri} is unreachable ({reason}). Start the server or set "
-            f"the tracking URI to a reachable one (e.g. {DEFAULT_TRACKING_URI})") from None
+    else:
+        return
+    raise TrackingError(
+        f"MLflow tracking server {uri} is unreachable ({reason}). Start the server or set "
+        f"the tracking URI to a reachable one (e.g. {DEFAULT_TRACKING_URI})")
 
 
 def artifact_location(uri: str, experiment: str) -> str | None:
@@ -370,7 +375,7 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
 
     metrics = report.load_metrics(metrics_paths, extra_columns=("fit_seconds",))
     predictions = report.load_predictions(predictions_paths)
-    labels = report.label_order(predictions["true_label"])
+    labels = report.label_order([*predictions["true_label"], *predictions["predicted_label"]])
     unknown = sorted(set(metrics["classifier"]) - set(classifier_params))
     if unknown:
         raise TrackingError(f"classifier_params has no entry for {unknown} "

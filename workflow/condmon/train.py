@@ -1,8 +1,14 @@
 """Train on simulated (+ a share of measured) segments, test on held-out measured records.
 
 One fit per (measured_percent, repeat, holdout) of a split table: training is every simulated
-segment plus the measured segments of records with role "train"; the test set is the measured
-segments of records with role "test". Labels are the health_state strings.
+segment plus the measured segments with role "train" (whole records, or single segments under
+segment_share); the test set is the measured segments with role "test". Labels are the
+health_state strings. With `feature_selection` (n_features, cv) a sequential backward selection
+is fitted on each training set (never on test data) before the classifier.
+
+The measured-only baseline (`run_protocol` without simulated features) fits the same
+classifier on the same measured training segments alone, so the report can give the
+simulation's gain. With one measured class it predicts that class; with none, it is skipped.
 
 A classifier may train on a subset of the split table (``measured_percent``, ``repeats``: the
 CNN, whose fits cost far more than an SVM's). Estimators whose ``fit`` accepts
@@ -30,6 +36,7 @@ from condmon import classifiers
 from condmon.atomic import staging_directory, write_frame, write_table, write_text
 from condmon.hybrid import sorted_holdouts, validate_splits
 from condmon.seeds import derive_seed, stable_int
+from condmon.selection import SelectThenClassify, SequentialBackwardSelector
 from condmon.signals import package_versions
 
 log = logging.getLogger(__name__)
@@ -127,21 +134,68 @@ def _fit_kwargs(model, feature_names, groups) -> dict:
     return {name: value for name, value in extra.items() if name in accepted}
 
 
+def segment_roles(split: pd.DataFrame, measured_features: pd.DataFrame) -> np.ndarray:
+    """The role of every measured feature row in one split: by record, or by (record, segment)
+    where the split lists single segments; rows the split does not name get None."""
+    whole = split[split["segment"] < 0]
+    roles = measured_features["record_id"].astype(str).map(
+        dict(zip(whole["record_id"], whole["role"]))).to_numpy(object)
+    single = split[split["segment"] >= 0]
+    if len(single):
+        keys = pd.MultiIndex.from_arrays([measured_features["record_id"].astype(str),
+                                          measured_features["segment"].astype(int)])
+        by_segment = pd.Series(single["role"].to_numpy(),
+                               index=pd.MultiIndex.from_arrays([single["record_id"],
+                                                                single["segment"].astype(int)]))
+        found = keys.isin(by_segment.index)
+        roles[found] = by_segment.reindex(keys[found]).to_numpy()
+    return roles
+
+
+class ConstantClassifier:
+    """What a classifier trained on one class can say: that class (measured-only baseline)."""
+
+    def __init__(self, label):
+        self.classes_ = np.array([label])
+
+    def fit(self, X, y):
+        return self
+
+    def predict(self, X):
+        return np.full(len(X), self.classes_[0])
+
+
+def build_model(classifier_name, classifier_params, seed, feature_selection=None):
+    """The configured classifier, behind a sequential backward selection if one is asked for."""
+    model = classifiers.make_classifier(classifier_name, classifier_params, seed)
+    if not feature_selection or feature_selection.get("n_features") is None:
+        return model
+    selector = SequentialBackwardSelector(n_features=int(feature_selection["n_features"]),
+                                          cv=int(feature_selection.get("cv", 3)),
+                                          random_state=seed)
+    return SelectThenClassify(selector, model)
+
+
 def run_protocol(classifier_name: str, classifier_params: dict | None,
-                 simulated_features: pd.DataFrame, measured_features: pd.DataFrame,
+                 simulated_features: pd.DataFrame | None, measured_features: pd.DataFrame,
                  splits: pd.DataFrame, feature_names, seed: int, measured_percent=None,
-                 repeats=None):
+                 repeats=None, feature_selection: dict | None = None):
     """Fit and evaluate one classifier on every split of a split table.
 
     ``measured_percent``/``repeats`` restrict the splits (see select_splits).
+    ``simulated_features`` None: the measured-only baseline (see the module docstring).
     Returns (predictions, metrics, models): predictions and metrics per the train contract, and
     the fitted estimators keyed by (measured_percent, repeat, holdout).
     """
     feature_names = list(feature_names)
-    classifiers.make_classifier(classifier_name, classifier_params, seed)  # fail early if bad
+    build_model(classifier_name, classifier_params, seed, feature_selection)  # fail early if bad
     validate_splits(splits)
     splits = select_splits(splits, classifier_name, measured_percent, repeats)
-    _check_columns(simulated_features, feature_names, "simulated")
+    measured_only = simulated_features is None
+    if measured_only:
+        simulated_features = measured_features.iloc[:0]
+    else:
+        _check_columns(simulated_features, feature_names, "simulated")
     _check_columns(measured_features, feature_names, "measured")
     protocol = str(splits["protocol"].iloc[0])
 
@@ -167,7 +221,7 @@ def run_protocol(classifier_name: str, classifier_params: dict | None,
     for percent, repeat, holdout in _split_keys(splits):
         split = splits[(splits["measured_percent"] == percent) & (splits["repeat"] == repeat)
                        & (splits["holdout"] == holdout)]
-        role = meas_records.map(dict(zip(split["record_id"], split["role"]))).to_numpy()
+        role = segment_roles(split, measured_features)
         train, test = role == "train", role == "test"
         where = f"measured_percent={percent} repeat={repeat} holdout={holdout!r}"
         if not test.any():
@@ -176,12 +230,16 @@ def run_protocol(classifier_name: str, classifier_params: dict | None,
         x_train = np.concatenate([x_sim, x_meas[train]])
         y_train = np.concatenate([y_sim, y_meas[train]])
         groups = np.concatenate([sim_records, meas_records.to_numpy()[train]])
-        if len(set(y_train)) < 2:
+        fit_seed = derive_seed(seed, stable_int(protocol), percent, repeat, holdout_index[holdout])
+        if measured_only and len(set(y_train)) < 2:
+            if not len(y_train):
+                continue  # nothing measured trains: no baseline at this split
+            model = ConstantClassifier(y_train[0])
+        elif len(set(y_train)) < 2:
             raise ValueError(f"{where}: training data has only class(es) {sorted(set(y_train))}; "
                              "a classifier needs at least two")
-
-        fit_seed = derive_seed(seed, stable_int(protocol), percent, repeat, holdout_index[holdout])
-        model = classifiers.make_classifier(classifier_name, classifier_params, fit_seed)
+        else:
+            model = build_model(classifier_name, classifier_params, fit_seed, feature_selection)
         start = time.perf_counter()
         model.fit(x_train, y_train, **_fit_kwargs(model, feature_names, groups))
         fit_seconds = time.perf_counter() - start
@@ -272,6 +330,8 @@ def write_models(models: dict, directory) -> list[dict]:
                      "holdout": holdout, "holdout_index": index}
             if hasattr(model, "member_info_"):
                 entry["members"] = model.member_info_
+            if hasattr(model, "selected_features_"):
+                entry["selected_features"] = [str(n) for n in model.selected_features_]
             entries.append(entry)
         history = training_history(models)
         if not history.empty:

@@ -1,5 +1,6 @@
 # Helpers shared by the rules: output paths and the lists of jobs the config asks for.
 import json
+from pathlib import Path
 
 def canonical(section):
     """A config section with its keys sorted at every level: Snakemake compares params as
@@ -20,13 +21,38 @@ def speed_label(speed):
     return f"{float(speed):g}"
 
 
+SYSTEM = config["system"]  # gear: drivetrain model; bearing: ball-bearing rig on CWRU records
 SPEEDS = [speed_label(s) for s in config["rig"]["speeds_rpm"]]
+if SYSTEM == "bearing":
+    from condmon.cwru import task_labels
+
+    # The classes of the CWRU task; segments as long as the measured ones (cwru.segment_length).
+    HEALTH_STATES = task_labels(config["cwru"]["task"])
+    OUTPUT_RATE = config["cwru"]["fs_hz"]
+    SEGMENT_SECONDS = config["cwru"]["segment_length"] / OUTPUT_RATE
+    MODEL = config["bearing"]
+else:
+    HEALTH_STATES = config["rig"]["health_states"]
+    OUTPUT_RATE = config["rig"]["output_rate_hz"]
+    SEGMENT_SECONDS = config["rig"]["segment_seconds"]
+    MODEL = config["model"]
 # Numerical settings of every model run, with the rig's output rate.
-NUMERICS = dict(config["numerics"], output_rate=config["rig"]["output_rate_hz"])
-HEALTH_STATES = config["rig"]["health_states"]
+if SYSTEM == "bearing":
+    NUMERICS = dict(config["bearing"]["numerics"], output_rate_hz=OUTPUT_RATE)
+else:
+    NUMERICS = dict(config["numerics"], output_rate=OUTPUT_RATE)
+# What an operating condition is (condition_holdout, strata): a load on the CWRU rig, whose
+# records at one load differ by a few rpm; the speed on the gear bench.
+CONDITION = config["hybrid"]["condition"] or ("load" if SYSTEM == "bearing" else "speed_rpm")
 CLASSIFIERS = [name for name, c in config["classifiers"].items() if c["enabled"]]
 PROTOCOLS = config["hybrid"]["protocols"]
 N_BATCHES = -(-config["simulation"]["samples_per_state"] // config["simulation"]["samples_per_job"])
+# Mesh stiffness models: the simulation's (model.mesh_stiffness_model) first, then the others
+# calibration.mesh_stiffness_models lists; one calibration job each, all in the report.
+# The bearing rig has one calibration ("rig").
+SIM_STIFFNESS = config["model"]["mesh_stiffness_model"] if SYSTEM == "gear" else "rig"
+STIFFNESS_MODELS = [SIM_STIFFNESS] + [m for m in config["calibration"]["mesh_stiffness_models"]
+                                      if m != SIM_STIFFNESS and SYSTEM == "gear"]
 
 
 wildcard_constraints:
@@ -35,6 +61,7 @@ wildcard_constraints:
     batch="[0-9]+",
     classifier="|".join(CLASSIFIERS),
     protocol="|".join(PROTOCOLS),
+    stiffness="simple|potential_energy|rig",
 
 
 def batch_samples(batch):
@@ -47,6 +74,13 @@ def simulated_batches(extension="parquet"):
     """Every simulation job's signal table (or its .json report)."""
     return expand(f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.{extension}",
                   health=HEALTH_STATES, speed=SPEEDS, batch=[f"{b:03d}" for b in range(N_BATCHES)])
+
+
+def calibration_outputs(name, stiffness=None):
+    """calibration/<mesh stiffness model>/<name>: of one model, or {model: path} of every one."""
+    if stiffness is not None:
+        return f"{RESULTS}/calibration/{stiffness}/{name}"
+    return {m: f"{RESULTS}/calibration/{m}/{name}" for m in STIFFNESS_MODELS}
 
 
 def train_outputs(name):
@@ -84,7 +118,17 @@ for _name in CLASSIFIERS:
 
 
 def measured_inputs(wildcards):
-    """The user's measured table, or every virtual-bench part."""
+    """The CWRU .mat files of measured_dir, the user's measured table, or every virtual-bench
+    part."""
+    if SYSTEM == "bearing":
+        folder = Path(config["measured_dir"])
+        files = sorted(folder.glob("*.mat"))
+        if not files:
+            raise ValueError(f"measured_dir: no .mat files in {folder}")
+        manifest = config["cwru"]["manifest"]
+        if manifest == "auto":
+            manifest = folder / "index.csv" if (folder / "index.csv").exists() else None
+        return [str(f) for f in files] + ([str(manifest)] if manifest else [])
     if config["measured_table"] is not None:
         return [config["measured_table"]]
     return expand(f"{RESULTS}/measured/virtual_bench/{{health}}_{{speed}}rpm.parquet",
@@ -92,12 +136,19 @@ def measured_inputs(wildcards):
 
 
 def data_source():
+    if SYSTEM == "bearing":
+        return "measured"
     return "virtual_bench" if config["measured_table"] is None else "measured"
+
+
+def statistical_feature_params():
+    """features.statistical (envelope lines at the SKF 6205 defect orders of the CWRU drive end)."""
+    return dict(config["features"]["statistical"])
 
 
 def final_outputs():
     return [
-        f"{RESULTS}/calibration/params.json",
+        *calibration_outputs("params.json").values(),
         f"{RESULTS}/report/accuracy.csv",
         f"{RESULTS}/report/summary.json",
         f"{RESULTS}/report/mlflow_run.json",

@@ -1,4 +1,4 @@
-# Stage 4: features (FFT spectra of every channel, concatenated).
+# Stage 4: features (FFT spectra of every channel, concatenated; or statistical features).
 
 
 rule features_measured:
@@ -9,6 +9,8 @@ rule features_measured:
     params:
         channels=config["features"]["channels"],
         spectrum=config["features"]["spectrum"],
+        kind=config["features"]["kind"],
+        statistical=statistical_feature_params(),
     log:
         f"{LOGS}/features_measured.log",
     script:
@@ -23,6 +25,8 @@ rule features_simulated:
     params:
         channels=config["features"]["channels"],
         spectrum=config["features"]["spectrum"],
+        kind=config["features"]["kind"],
+        statistical=statistical_feature_params(),
     log:
         f"{LOGS}/features_simulated.log",
     script:

@@ -12,6 +12,9 @@ rule hybrid:
         repeats=config["hybrid"]["repeats"],
         seed=config["hybrid"]["seed"],
         min_test_records=config["hybrid"]["min_test_records"],
+        condition=CONDITION,
+        measured_classes=lambda wc: (config["hybrid"]["measured_classes"]
+                                     if wc.protocol == "unseen_fault" else None),
     log:
         f"{LOGS}/hybrid/{{protocol}}.log",
     script:

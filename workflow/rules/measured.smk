@@ -1,11 +1,13 @@
-# Stage 1: measured records into one signal table (the virtual bench, or the user's table).
+# Stage 1: measured records into one signal table (the virtual bench, the user's table, or the
+# CWRU .mat files of measured_dir), with a list of what was kept and what was left out.
 
 
 rule virtual_bench:
     output:
         temp(f"{RESULTS}/measured/virtual_bench/{{health}}_{{speed}}rpm.parquet"),
     params:
-        model=config["model"],
+        # the bench's mesh is virtual_bench.true_parameters.mesh_stiffness_model, not the model's
+        model={k: v for k, v in config["model"].items() if k != "mesh_stiffness_model"},
         bench=config["virtual_bench"],
         numerics=NUMERICS,
         segment_seconds=config["rig"]["segment_seconds"],
@@ -20,12 +22,16 @@ rule measured:
         measured_inputs,
     output:
         f"{RESULTS}/measured/signals.parquet",
+        records=f"{RESULTS}/measured/records.csv",
     params:
-        source=data_source(),
+        source="cwru" if SYSTEM == "bearing" else data_source(),
         health_states=HEALTH_STATES,
         channels=config["features"]["channels"],
-        output_rate_hz=config["rig"]["output_rate_hz"],
-        segment_seconds=config["rig"]["segment_seconds"],
+        output_rate_hz=OUTPUT_RATE,
+        segment_seconds=SEGMENT_SECONDS,
+        measured_dir=config["measured_dir"] if SYSTEM == "bearing" else None,
+        cwru=config["cwru"] if SYSTEM == "bearing" else None,
+        on_bad_record=config["on_bad_record"],
     log:
         f"{LOGS}/measured.log",
     script:

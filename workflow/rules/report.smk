@@ -26,18 +26,23 @@ rule report:
     input:
         metrics=train_outputs("metrics.csv"),
         predictions=train_outputs("predictions.parquet"),
-        calibration_params=rules.calibrate.output.params,
-        calibration_spectra=rules.calibrate.output.spectra,
-        calibration_history=rules.calibrate.output.history,
+        # one calibration per mesh stiffness model (dict keys of the same order in each)
+        **{f"calibration_params_{m}": p for m, p in calibration_outputs("params.json").items()},
+        **{f"calibration_spectra_{m}": p for m, p in calibration_outputs("spectra.parquet").items()},
+        **{f"calibration_history_{m}": p for m, p in calibration_outputs("history.parquet").items()},
         simulation_reports=simulated_batches("json"),
+        measured_only=train_outputs("measured_only.csv"),
+        measured_records=rules.measured.output.records,
     output:
         accuracy=f"{RESULTS}/report/accuracy.csv",
         summary=f"{RESULTS}/report/summary.json",
+        recall_per_record=f"{RESULTS}/report/recall_per_record.csv",
         plots=directory(f"{RESULTS}/report/plots"),
     params:
         run_name=config["run_name"],
         data_source=data_source(),
         confusion_percent=config["report"]["confusion_percent"],
+        stiffness_models=STIFFNESS_MODELS,  # the first one's calibration made the simulated data
     log:
         f"{LOGS}/report.log",
     script:

@@ -3,16 +3,17 @@
 
 rule simulate:
     input:
-        calibration=rules.calibrate.output.params,
+        calibration=calibration_outputs("params.json", SIM_STIFFNESS),
     output:
         signals=f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.parquet",
         report=f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.json",
     params:
-        model=config["model"],
+        system=SYSTEM,
+        model=MODEL,
         numerics=NUMERICS,
         simulation=config["simulation"],
         samples=lambda wc: batch_samples(wc.batch),
-        segment_seconds=config["rig"]["segment_seconds"],
+        segment_seconds=SEGMENT_SECONDS,
     log:
         f"{LOGS}/simulate/{{health}}_{{speed}}rpm_batch{{batch}}.log",
     script:

@@ -11,11 +11,14 @@ rule train:
         metrics=f"{RESULTS}/train/{{classifier}}/{{protocol}}/metrics.csv",
         models=directory(f"{RESULTS}/train/{{classifier}}/{{protocol}}/models"),
         info=f"{RESULTS}/train/{{classifier}}/{{protocol}}/info.json",
+        measured_only=f"{RESULTS}/train/{{classifier}}/{{protocol}}/measured_only.csv",
     params:
         classifier=lambda wc: wc.classifier,
         classifier_params=lambda wc: classifier_params(wc.classifier),
         selection=lambda wc: classifier_selection(wc.classifier),
         seed=config["hybrid"]["seed"],
+        feature_selection=config["features"]["selection"],
+        measured_only_baseline=config["hybrid"]["measured_only_baseline"],
     # the CNN's intra-op threads (classifiers.cnn.threads), so Snakemake reserves the cores
     threads: lambda wc: config["classifiers"][wc.classifier].get("threads", 1)
     log:

@@ -1,4 +1,4 @@
-"""Snakemake script: signal table(s) -> features table (band-averaged amplitude spectra).
+"""Snakemake script: signal table(s) -> features table (band spectra, or statistical features).
 
 `snakemake` is injected by Snakemake's script directive.
 """
@@ -11,10 +11,13 @@ signal_paths = snakemake.input.signals
 signal_paths = [signal_paths] if isinstance(signal_paths, str) else list(signal_paths)
 channels = list(snakemake.params.channels)
 spectrum = dict(snakemake.params.spectrum)
+kind = getattr(snakemake.params, "kind", "spectrum")
+statistical = dict(getattr(snakemake.params, "statistical", None) or {})
 
-frame = compute_feature_table_from_files(signal_paths, channels, spectrum)
+frame = compute_feature_table_from_files(signal_paths, channels, spectrum, kind, statistical)
 names = feature_columns(frame)
-write_feature_table(frame, names, snakemake.output.features,
-                    config={"channels": channels, "spectrum": spectrum})
+write_feature_table(frame, names, snakemake.output.features, kind=kind,
+                    config={"channels": channels, "spectrum": spectrum, "kind": kind,
+                            "statistical": statistical})
 log.info("wrote %d segments x %d features to %s", len(frame), len(names),
          snakemake.output.features)

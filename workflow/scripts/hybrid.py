@@ -10,12 +10,15 @@ log = setup_logging(snakemake)  # to snakemake.log[0]
 params = snakemake.params
 
 measured, _ = read_feature_table(snakemake.input.features)
-splits = make_splits(measured[["record_id", "health_state", "speed_rpm"]],
+condition = getattr(params, "condition", "speed_rpm")
+splits = make_splits(measured[["record_id", "segment", "health_state", condition]],
                      protocol=params.protocol,
                      measured_percent=list(params.measured_percent),
                      repeats=int(params.repeats),
                      seed=int(params.seed),
-                     min_test_records=int(params.min_test_records))
+                     min_test_records=int(params.min_test_records),
+                     condition=condition,
+                     measured_classes=getattr(params, "measured_classes", None))
 write_split_table(splits, snakemake.output.splits)
 log.info("%s: %d rows, %d records, roles %s", params.protocol, len(splits),
          splits["record_id"].nunique(), splits["role"].value_counts().to_dict())

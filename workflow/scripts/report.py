@@ -7,12 +7,20 @@ from condmon.report import write_report
 from condmon.runlog import setup_logging
 
 log = setup_logging(snakemake)  # to snakemake.log[0]
+# One calibration per mesh stiffness model, the simulation's first: {model: path}.
+stiffness_models = list(snakemake.params.stiffness_models)
+
+
+def calibration_files(kind):
+    return {m: snakemake.input[f"calibration_{kind}_{m}"] for m in stiffness_models}
+
+
 summary = write_report(
     metrics_paths=list(snakemake.input.metrics),
     predictions_paths=list(snakemake.input.predictions),
-    calibration_params=snakemake.input.calibration_params,
-    calibration_spectra=snakemake.input.calibration_spectra,
-    calibration_history=snakemake.input.calibration_history,
+    calibration_params=calibration_files("params"),
+    calibration_spectra=calibration_files("spectra"),
+    calibration_history=calibration_files("history"),
     accuracy_path=snakemake.output.accuracy,
     summary_path=snakemake.output.summary,
     plots_dir=snakemake.output.plots,
@@ -20,6 +28,9 @@ summary = write_report(
     data_source=snakemake.params.data_source,
     confusion_percent=list(snakemake.params.get("confusion_percent", [0])),
     simulation_reports=list(snakemake.input.simulation_reports),
+    baseline_paths=list(snakemake.input.measured_only),
+    measured_records=snakemake.input.measured_records,
+    record_recall_path=snakemake.output.recall_per_record,
 )
 log.info("report of run %s: %d result rows, %d plots", summary["run_name"],
          len(summary["results"]), len(summary["plots"]))

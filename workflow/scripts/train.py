@@ -25,14 +25,23 @@ measured, measured_names = read_feature_table(snakemake.input.measured)
 feature_names = matching_feature_names(simulated_names, measured_names)
 splits = read_split_table(snakemake.input.splits)
 
+# sequential backward selection inside every fit (features.selection; n_features null = off)
+feature_selection = snakemake.params.feature_selection
+subset = dict(measured_percent=selection.get("measured_percent"), repeats=selection.get("repeats"),
+              feature_selection=feature_selection)
 predictions, metrics, models = run_protocol(name, params, simulated, measured, splits,
-                                            feature_names, seed,
-                                            measured_percent=selection.get("measured_percent"),
-                                            repeats=selection.get("repeats"))
+                                            feature_names, seed, **subset)
+if snakemake.params.measured_only_baseline:
+    # the same classifier on the same measured training data alone: the simulation's gain
+    _, baseline, _ = run_protocol(name, params, None, measured, splits, feature_names, seed, **subset)
+    log.info("measured-only baseline: %d metric rows", len(baseline))
+else:
+    baseline = metrics.iloc[:0]
 
 out = snakemake.output
 write_predictions(predictions, out.predictions)
 write_metrics(metrics, out.metrics)
+write_metrics(baseline, out.measured_only)
 model_files = write_models(models, out.models)
 labels = set(simulated["health_state"]) | set(measured["health_state"])
 peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # Linux: KiB

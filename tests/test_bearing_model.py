@@ -1,0 +1,147 @@
+"""The adapter between the `bearing` config section and the rig model
+(workflow/condmon/bearing_model.py): labels, randomisation, batches, calibration spectra."""
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from condmon.bearing_model import (DEFAULT_BEARING, RigSpectrumModel, build_rig_parameters, defect_of_label,
+                                   draw_defect_diameter, load_of_speed, measured_rig_spectra, randomise,
+                                   simulate_bearing_batch)
+from condmon.cwru import task_labels
+from condmon.seeds import job_rng
+from condmon.signals import make_rows, validate
+from condmon.simulate import TooManyFailures
+
+SPECTRUM = {"f_min_hz": 0.0, "f_max_hz": 6000.0}
+
+
+@pytest.mark.parametrize("task", ["location", "severity", "ten_class"])
+def test_every_task_label_maps_to_a_defect(task):
+    for label in task_labels(task):
+        kind, (low, high) = defect_of_label(label)
+        if label == "normal":
+            assert kind == "none"
+        else:
+            assert label.startswith(kind)
+            assert 0.007 <= low <= high <= 0.021
+
+
+def test_label_mapping_values_and_unknown_label():
+    assert defect_of_label("outer_race") == ("outer_race", (0.007, 0.021))
+    assert defect_of_label("ball_0.014in") == ("ball", (0.014, 0.014))
+    assert defect_of_label("inner_race_0.021in") == ("inner_race", (0.021, 0.021))
+    for bad in ("healthy", "cage", "outer_race_big", "ball_0.000in"):
+        with pytest.raises(ValueError, match="unknown bearing health label"):
+            defect_of_label(bad)
+
+
+def test_defect_diameter_draws():
+    rng = np.random.default_rng(0)
+    pooled = [draw_defect_diameter("ball", 0.1, rng) for _ in range(200)]
+    assert 0.007 <= min(pooled) and max(pooled) <= 0.021 and np.ptp(pooled) > 0.01
+    fixed = [draw_defect_diameter("outer_race_0.014in", 0.1, rng) for _ in range(200)]
+    assert 0.014 * 0.9 <= min(fixed) and max(fixed) <= 0.014 * 1.1
+    assert draw_defect_diameter("normal", 0.1, rng) is None
+
+
+def test_randomise_draws_within_ranges():
+    spec = DEFAULT_BEARING["randomisation"]
+    base = DEFAULT_BEARING["model"]
+    rng = np.random.default_rng(1)
+    draws = [randomise(spec, rng, base) for _ in range(300)]
+    for name, s in spec.items():
+        if name in ("resonances", "background"):
+            level = "gain" if name == "resonances" else "rms"
+            for d in draws:
+                assert s["count"][0] <= len(d[name]) <= s["count"][1]
+                for f, z, g in d[name]:
+                    assert s["frequency_hz"][0] <= f <= s["frequency_hz"][1]
+                    assert s["damping_ratio"][0] <= z <= s["damping_ratio"][1]
+                    assert s[level][0] <= g <= s[level][1]
+            continue
+        values = np.array([d[name] for d in draws])
+        factor = base.get(name, 1.0) if s.get("relative") else 1.0
+        assert (values >= s["low"] * factor * (1 - 1e-12)).all() and (values <= s["high"] * factor * (1 + 1e-12)).all()
+        # wide, not a 3 % spread: the draws cover most of the range
+        assert np.ptp(values) > 0.7 * (s["high"] - s["low"]) * factor, name
+    # same seed, same draws; key order of the config does not matter
+    a = randomise(spec, np.random.default_rng(5), base)
+    b = randomise(dict(reversed(list(spec.items()))), np.random.default_rng(5), base)
+    assert a == b
+
+
+def test_build_rig_parameters():
+    p = build_rig_parameters(DEFAULT_BEARING["model"], "outer_race_0.007in", 1772.0, radial_load=30.0)
+    assert p.defect_kind == "outer_race" and p.speed_rpm == 1772.0 and p.radial_load == 30.0
+    assert p.defect_width == pytest.approx(0.007 * 0.0254)
+    scaled = build_rig_parameters({}, "normal", 1797.0, resonance_frequency_scale=2.0, resonance_gain_scale=0.5)
+    nominal = build_rig_parameters({}, "normal", 1797.0)
+    assert scaled.resonances[0][0] == pytest.approx(2 * nominal.resonances[0][0])
+    assert scaled.resonances[0][2] == pytest.approx(0.5 * nominal.resonances[0][2])
+    ball = build_rig_parameters({}, "ball", 1797.0, ball_defect_strike_probability=0.3, ball_drop_scale=0.5)
+    race = build_rig_parameters({}, "inner_race", 1797.0, ball_defect_strike_probability=0.3, ball_drop_scale=0.5)
+    assert ball.defect_strike_probability == 0.3 and ball.defect_drop_scale == 0.5
+    assert race.defect_strike_probability == 1.0 and race.defect_drop_scale == 1.0
+    with pytest.raises(ValueError, match="unknown bearing model parameters"):
+        build_rig_parameters({}, "normal", 1797.0, rotor_colour=1.0)
+
+
+def test_load_of_speed():
+    assert load_of_speed(1797) == 0.0 and load_of_speed(1772) == 1.0 and load_of_speed(1730) == 3.0
+
+
+NUMERICS = {"settle_time": 0.02}
+
+
+def test_simulate_bearing_batch_rows_and_report():
+    rows, report = simulate_bearing_batch(DEFAULT_BEARING, None, "inner_race", 1772.0, batch=2, samples=2,
+                                          numerics=NUMERICS, segment_length=1024, segments_per_sample=2, seed=4)
+    assert set(report) == {"health_state", "speed_rpm", "batch", "samples", "succeeded", "failures",
+                           "simulated_seconds_per_sample", "wall_seconds"}
+    assert report["succeeded"] == 2 and report["failures"] == [] and len(report["wall_seconds"]) == 2
+    assert report["simulated_seconds_per_sample"] == pytest.approx(0.02 + 2048 / 12000)
+    frame = pd.DataFrame(rows)
+    validate(frame, "test")
+    assert sorted(frame["record_id"].unique()) == ["sim-inner_race-1772rpm-b002-s000",
+                                                   "sim-inner_race-1772rpm-b002-s001"]
+    assert set(frame["source"]) == {"simulated"} and set(frame["channel"]) == {"DE"}
+    assert set(frame["fs_hz"]) == {12000.0} and set(frame["load"]) == {1.0} and len(frame) == 4
+    params = json.loads(frame["params"].iloc[0])
+    assert 0.007 <= params["defect_diameter_in"] <= 0.021 and "sensor_gain" in params
+    again, _ = simulate_bearing_batch(DEFAULT_BEARING, None, "inner_race", 1772.0, batch=2, samples=2,
+                                      numerics=NUMERICS, segment_length=1024, segments_per_sample=2, seed=4)
+    for r1, r2 in zip(rows, again):
+        np.testing.assert_array_equal(r1["signal"], r2["signal"])
+
+
+def test_failed_samples_are_reported_and_too_many_stop_the_job():
+    bearing = {**DEFAULT_BEARING, "model": {**DEFAULT_BEARING["model"], "contact_stiffness": 1e17}}
+    rows, report = simulate_bearing_batch(bearing, {"parameters": {}}, "outer_race", 1797.0, batch=0, samples=1,
+                                          numerics=NUMERICS, segment_length=256, segments_per_sample=1, seed=1,
+                                          max_failed_share=1.0)
+    assert rows == [] and report["succeeded"] == 0
+    assert len(report["failures"][0]["errors"]) == 2  # retried once with half the step
+    with pytest.raises(TooManyFailures, match="contact_stiffness"):
+        simulate_bearing_batch(bearing, None, "outer_race", 1797.0, batch=0, samples=1, numerics=NUMERICS,
+                               segment_length=256, segments_per_sample=1, seed=1, max_failed_share=0.0)
+
+
+def test_calibration_spectra_shapes():
+    model = RigSpectrumModel(DEFAULT_BEARING, NUMERICS, [1797.0, 1772.0], SPECTRUM, resolution_hz=100.0,
+                             sim_seconds=0.1, segment_length=600)
+    simulated = model("hertz", {"contact_stiffness": 6e9, "noise_rms": 0.2})
+    assert simulated.shape == (2, 1, 60) and np.isfinite(simulated).all()
+    np.testing.assert_array_equal(simulated, model("hertz", {"contact_stiffness": 6e9, "noise_rms": 0.2}))
+    with pytest.raises(ValueError, match="Hertz"):
+        model("kelvin_voigt", {})
+    rng = job_rng(0, "test")
+    rows = []
+    for rid, speed in (("a", 1796.0), ("b", 1772.0)):
+        rows += make_rows(rid, "measured", "normal", speed, 0.0, 12000.0, {"DE": rng.normal(size=1200)},
+                          segment_length=600)
+    target = measured_rig_spectra(pd.DataFrame(rows), [1797.0, 1772.0], SPECTRUM, resolution_hz=100.0)
+    assert target.shape == simulated.shape
+    with pytest.raises(ValueError, match="no measured"):
+        measured_rig_spectra(pd.DataFrame(rows), [1730.0], SPECTRUM, resolution_hz=100.0)

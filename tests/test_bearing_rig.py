@@ -1,0 +1,113 @@
+"""The bearing-rig model (models/bearing_rig.py): kinematics, envelope-spectrum lines of the
+defects at the kinematic frequencies, reproducibility, divergence."""
+import numpy as np
+import pytest
+
+from condmon.stat_features import envelope_line_ratio, envelope_spectrum
+from models.bearing_rig import (SKF_6203, SKF_6205, BearingRigParameters, RigSettings, SimulationError,
+                                effective_defect_depth, simulate_rig)
+
+SPEED = 1797.0
+SHAFT_HZ = SPEED / 60.0
+FS = 12000.0
+
+
+def test_6205_orders_match_the_cwru_table():
+    orders = SKF_6205.orders()
+    for name, value in dict(bpfo=3.5848, bpfi=5.4152, bsf=2.3567, ftf=0.39828).items():
+        assert orders[name] == pytest.approx(value, rel=0.005), name
+    fe = SKF_6203.orders()  # fan end: 8 balls, 0.2656 / 1.122 in
+    assert fe["bpfo"] == pytest.approx(4 * (1 - 0.2656 / 1.122), rel=1e-9)
+    assert fe["bpfo"] + fe["bpfi"] == pytest.approx(8.0)
+
+
+def test_effective_depth_is_limited_by_the_ball():
+    small = BearingRigParameters(defect_kind="outer_race", defect_width=0.007 * 0.0254)
+    large = small.replace(defect_width=0.021 * 0.0254)
+    assert 0.5e-6 < effective_defect_depth(small) < 2e-6          # ~1 um, far below the 0.28 mm pit
+    assert effective_defect_depth(large) == pytest.approx(9 * effective_defect_depth(small), rel=1e-9)
+    assert effective_defect_depth(large.replace(defect_depth=1e-6)) == 1e-6
+
+
+# Clean signals for the kinematic checks: no background, little noise, every passage strikes.
+CLEAN = dict(noise_rms=0.05, background=(), slip_std=0.005, defect_width=0.014 * 0.0254,
+             defect_strike_probability=1.0, defect_depth_variation=0.1)
+
+
+@pytest.fixture(scope="module")
+def runs():
+    settings = RigSettings(duration=1.0, settle_time=0.1)
+    out = {}
+    for kind in ("none", "outer_race", "inner_race", "ball"):
+        params = BearingRigParameters(speed_rpm=SPEED, defect_kind=kind, **CLEAN)
+        out[kind] = simulate_rig(params, settings, np.random.default_rng(3))["DE"]
+    return out
+
+
+def _line(signal, order, search=0.05):
+    """(frequency of the largest envelope line within +/- search of order x shaft, its ratio over
+    the local floor at that frequency)."""
+    freqs, amps = envelope_spectrum(signal, FS)
+    f0 = order * SHAFT_HZ
+    window = np.abs(freqs - f0) <= search * f0
+    peak = freqs[window][np.argmax(amps[window])]
+    ratio = envelope_line_ratio(freqs, amps, f0, tolerance=0.015, floor_halfwidth_hz=0.5 * SHAFT_HZ)[0]
+    return peak, ratio
+
+
+def test_outputs_are_finite_and_of_the_requested_length(runs):
+    for kind, signal in runs.items():
+        assert signal.shape == (12000,), kind
+        assert np.isfinite(signal).all(), kind
+
+
+@pytest.mark.parametrize("kind, order", [("outer_race", SKF_6205.orders()["bpfo"]),
+                                         ("inner_race", SKF_6205.orders()["bpfi"]),
+                                         ("ball", 2 * SKF_6205.orders()["bsf"])])
+def test_defect_line_at_the_kinematic_frequency(runs, kind, order):
+    peak, ratio = _line(runs[kind], order)
+    assert peak == pytest.approx(order * SHAFT_HZ, rel=0.015), kind
+    assert ratio > 4.0, f"{kind}: envelope line only {ratio:.2f} x its floor"
+    healthy_peak, healthy_ratio = _line(runs["none"], order)
+    assert healthy_ratio < 3.0, f"healthy rig shows a line at the {kind} frequency ({healthy_ratio:.2f})"
+
+
+def test_inner_race_has_shaft_speed_sidebands(runs):
+    """The inner-race defect turns with the shaft through the load zone: BPFI +/- 1 x shaft."""
+    bpfi = SKF_6205.orders()["bpfi"]
+    for side in (bpfi - 1.0, bpfi + 1.0):
+        peak, ratio = _line(runs["inner_race"], side, search=0.02)
+        assert peak == pytest.approx(side * SHAFT_HZ, rel=0.015)
+        assert ratio > 2.0, f"no sideband at {side:.3f} orders ({ratio:.2f})"
+
+
+def test_outer_race_defect_is_impulsive_and_healthy_is_not(runs):
+    def kurtosis(x):
+        d = x - x.mean()
+        return np.mean(d ** 4) / np.mean(d ** 2) ** 2
+    assert kurtosis(runs["none"]) < 3.5
+    assert kurtosis(runs["outer_race"]) > 4.0
+    assert np.std(runs["outer_race"]) > 3 * np.std(runs["none"])
+
+
+def test_same_seed_gives_identical_arrays_and_another_seed_differs():
+    params = BearingRigParameters(defect_kind="inner_race", slip_std=0.02, defect_roughness=2.0)
+    settings = RigSettings(duration=0.05, settle_time=0.02)
+    a = simulate_rig(params, settings, np.random.default_rng(11))["DE"]
+    b = simulate_rig(params, settings, np.random.default_rng(11))["DE"]
+    c = simulate_rig(params, settings, np.random.default_rng(12))["DE"]
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+def test_divergence_raises_simulation_error_naming_the_parameters():
+    params = BearingRigParameters(defect_kind="outer_race", contact_stiffness=1e14)
+    with pytest.raises(SimulationError, match="contact_stiffness=1e\\+14"):
+        simulate_rig(params, RigSettings(duration=0.05, settle_time=0.02), np.random.default_rng(0))
+
+
+def test_invalid_parameters_are_rejected():
+    with pytest.raises(ValueError, match="defect_kind"):
+        simulate_rig(BearingRigParameters(defect_kind="cage"), RigSettings(duration=0.01))
+    with pytest.raises(ValueError, match="slip_std"):
+        simulate_rig(BearingRigParameters(slip_std=0.5), RigSettings(duration=0.01))
