@@ -142,7 +142,10 @@ def data_source():
 
 
 def statistical_feature_params():
-    """features.statistical (envelope lines at the SKF 6205 defect orders of the CWRU drive end)."""
+    """features.statistical (envelope lines at the SKF 6205 defect orders of the CWRU drive end);
+    None with spectrum features, so its settings never rerun a spectrum run's features."""
+    if config["features"]["kind"] != "statistical":
+        return None
     return dict(config["features"]["statistical"])
 
 
