@@ -55,6 +55,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import bilinear, firwin, lfilter, resample_poly
 
+from models.solver import solve_rk44
+
 SPEED_NOTE = ("1.2-1.35 s of CPU per simulated second on one core (defaults, oversampling 4, "
               "h = 20.8 us, load-zone ball sums, post-processing included); wall time the same on an idle "
               "core, up to 2x when the 2 cores are shared")
@@ -490,17 +492,9 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
                                                       writeToFile=False, outputVariableType=variable)))
     mbs.Assemble()
 
-    sensor_rate = s.output_rate_hz * s.oversampling
-    step = 1.0 / (sensor_rate * s.steps_per_sensor_sample)
-    end_time = s.settle_time + s.duration
-    sim = exu.SimulationSettings()
-    sim.timeIntegration.numberOfSteps = int(round(end_time / step))
-    sim.timeIntegration.endTime = sim.timeIntegration.numberOfSteps * step
-    sim.timeIntegration.verboseMode = 0
-    sim.solution.file.write = False
-    sim.solution.sensors.writePeriod = 1.0 / sensor_rate
     try:
-        mbs.SolveDynamic(sim, solverType=exu.DynamicSolverType.RK44)
+        solve_rk44(mbs, s.output_rate_hz * s.oversampling, s.steps_per_sensor_sample,
+                   s.settle_time + s.duration)
     except Exception as exc:
         raise SimulationError(f"exudyn solver failed ({where}): {exc}") from exc
     acc, force, disp = (mbs.GetSensorStoredData(sensor) for sensor in sensors)

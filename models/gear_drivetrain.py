@@ -29,6 +29,7 @@ import numpy as np
 from scipy.signal import firwin, resample_poly
 
 from models.contact_laws import hysteresis_factor
+from models.solver import solve_rk44
 from models.gear_mesh import GearGeometry, GearMesh, ProfileDeviation, ToothDamage
 
 HEALTH_STATES = ("healthy", "surface_fault", "missing_tooth", "chipped_tooth", "root_crack")
@@ -525,17 +526,9 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
             outputVariableType=exu.OutputVariableType.Coordinates))
     mbs.Assemble()
 
-    sensor_rate = settings.output_rate * settings.oversampling
-    step = 1.0 / (sensor_rate * settings.steps_per_sensor_sample)
-    end_time = settings.settle_time + settings.duration
-    sim = exu.SimulationSettings()
-    sim.timeIntegration.numberOfSteps = int(round(end_time / step))
-    sim.timeIntegration.endTime = sim.timeIntegration.numberOfSteps * step
-    sim.timeIntegration.verboseMode = 0
-    sim.solution.file.write = False
-    sim.solution.sensors.writePeriod = 1.0 / sensor_rate
     try:
-        mbs.SolveDynamic(sim, solverType=exu.DynamicSolverType.RK44)
+        solve_rk44(mbs, settings.output_rate * settings.oversampling,
+                   settings.steps_per_sensor_sample, settings.settle_time + settings.duration)
     except Exception as exc:
         raise SimulationError(f"exudyn solver failed: {exc}") from exc
 
