@@ -265,7 +265,7 @@ def spectra_grid(spectra, note: str):
     speeds = sorted(spectra["speed_rpm"].unique())
     channels = sorted(spectra["channel"].unique())
     fig, axes = plt.subplots(len(speeds), len(channels),
-                             figsize=(4.2 * len(channels), 2.8 * len(speeds) + 0.8),
+                             figsize=(max(4.2 * len(channels), 7.0), 2.8 * len(speeds) + 0.8),
                              sharex=True, squeeze=False)
     for i, speed in enumerate(speeds):
         for j, channel in enumerate(channels):
@@ -278,7 +278,7 @@ def spectra_grid(spectra, note: str):
                 if model == models[0]:
                     lines.append((rows, "measured", "measured", {"color": "black", "lw": 1.0}))
                 lines.append((rows, "calibrated", "calibrated model" if model is None else
-                              f"calibrated, {model} mesh",
+                              ("calibrated rig model" if model == "rig" else f"calibrated, {model} mesh"),
                               {"color": model_colours[model], "lw": 1.0, "alpha": 0.8}))
             for rows, column, label, style in lines:
                 # log axis: non-positive amplitudes cannot be drawn, leave gaps
