@@ -31,6 +31,48 @@ def test_log_bounds_round_trip_and_clip():
     assert bound.from_unit(1.7) == pytest.approx(1e9)
 
 
+
+def _quadratic_spectra(law, values):
+    """A cheap stand-in for a simulation: spectra that match the target at x = 0.3."""
+    return np.full((1, 1, 4), 1.0 + (values["x"] - 0.3) ** 2)
+
+
+def _spectra_unless_the_worker_stops_on_sigterm(law, values):
+    import signal
+    if signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+        raise AssertionError("a calibration worker inherited a SIGTERM handler")
+    return _quadratic_spectra(law, values)
+
+
+def _spectra_or_a_dying_worker(law, values):
+    import os
+    if values["x"] > 0.5:
+        os._exit(1)  # as a crash in native code would
+    return _quadratic_spectra(law, values)
+
+
+def test_calibration_workers_end_at_once_on_sigterm_even_when_the_script_catches_it():
+    """The scripts turn SIGTERM into SystemExit for cleanup; the forked workers must not, or
+    stopping the pool can leave one waiting for ever on the task queue's lock."""
+    import signal
+    previous = signal.signal(signal.SIGTERM, lambda signum, frame: None)
+    try:
+        calibrator = Calibrator([Bound("x", 0.0, 1.0, False)], ["hertz"], strategy="per_law",
+                                population=4, generations=3, processes=2)
+        best, history = calibrator.run(_spectra_unless_the_worker_stops_on_sigterm, np.ones((1, 1, 4)))
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert len(history) == 12 and (history["error"] == "").all()
+    assert best["parameters"]["x"] == pytest.approx(0.3, abs=0.15)
+
+
+def test_a_calibration_worker_that_dies_fails_the_calibration_instead_of_hanging_it():
+    calibrator = Calibrator([Bound("x", 0.0, 1.0, False)], ["hertz"], strategy="per_law",
+                            population=6, generations=3, sigma0=0.5, processes=2, initial={"x": 0.9})
+    with pytest.raises(RuntimeError, match="calibration generation 0: a worker process died"):
+        calibrator.run(_spectra_or_a_dying_worker, np.ones((1, 1, 4)))
+
+
 MESH_MODELS = ("potential_energy", "simple")
 
 

@@ -14,7 +14,10 @@ from __future__ import annotations
 import logging
 import math
 import multiprocessing
+import signal
 import time
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 
 import numpy as np
@@ -137,6 +140,9 @@ _WORKER = {}
 
 
 def _init_worker(spectrum_model, target, cost_kind):
+    # fork copies the script's SIGTERM handler (SystemExit for cleanup); a worker writes no file,
+    # and stopping the pool relies on SIGTERM ending a worker at once, even while it waits on a lock
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _WORKER.update(model=spectrum_model, target=target, cost=cost_kind)
 
 
@@ -174,12 +180,18 @@ class Calibrator:
         """Returns (best dict, history DataFrame)."""
         history = []
         unit_bounds = np.tile([0.0, 1.0], (len(self.bounds), 1))
-        ctx = multiprocessing.get_context("fork")
-        with ctx.Pool(self.processes, initializer=_init_worker,
-                      initargs=(spectrum_model, target, cost_kind)) as pool:
+        # an executor, not multiprocessing.Pool: a worker that dies breaks it with an error
+        # instead of leaving its task unanswered for ever
+        pool = ProcessPoolExecutor(self.processes, mp_context=multiprocessing.get_context("fork"),
+                                   initializer=_init_worker, initargs=(spectrum_model, target, cost_kind))
+        try:
             def evaluate(generation, candidates):
                 tasks = [(law, self._values(z)) for law, z in candidates]
-                results = pool.map(_evaluate, tasks)
+                try:
+                    results = list(pool.map(_evaluate, tasks))
+                except BrokenProcessPool as exc:
+                    raise RuntimeError(f"calibration generation {generation}: a worker process died "
+                                          f"while evaluating {len(tasks)} candidates ({exc})") from None
                 for (law, values), (cost, error, seconds) in zip(tasks, results):
                     history.append(dict(generation=generation, evaluation=len(history), contact_law=law,
                                         cost=cost, seconds=seconds, error=error, **values))
@@ -203,6 +215,9 @@ class Calibrator:
                         costs = evaluate(generation, [(law, x) for x in asked])
                         optimizer.tell(list(zip(asked, costs)))
                         log.info("%s generation %d: best %.4g", law, generation, min(costs))
+        finally:
+            # after an error or SIGTERM only the evaluations already running finish
+            pool.shutdown(wait=True, cancel_futures=True)
         frame = pd.DataFrame(history)
         best = frame.loc[frame["cost"].idxmin()]
         if best["cost"] >= FAILED_COST:
