@@ -18,7 +18,6 @@ import argparse
 import json
 import os
 import statistics
-import sys
 import time
 from pathlib import Path
 
@@ -26,12 +25,11 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "workflow")]
 
 import yaml  # noqa: E402
 
-from condmon.gear_model import build_parameters, simulation_settings  # noqa: E402
-from models.gear_drivetrain import MeshForce, simulate  # noqa: E402
+from condmon.systems.gear.parameters import build_parameters, simulation_settings  # noqa: E402
+from condmon.models.gear_drivetrain import MeshForce, simulate  # noqa: E402
 
 MODELS = ("simple", "potential_energy")
 

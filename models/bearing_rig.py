@@ -53,9 +53,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import bilinear, firwin, lfilter, resample_poly
+from scipy.signal import bilinear, lfilter, resample_poly
 
-from models.solver import solve_rk44
+from condmon.models.numerics import SimulationError, decimation_filter, solve_rk44
 
 SPEED_NOTE = ("1.2-1.35 s of CPU per simulated second on one core (defaults, oversampling 4, "
               "h = 20.8 us, load-zone ball sums, post-processing included); wall time the same on an idle "
@@ -63,10 +63,6 @@ SPEED_NOTE = ("1.2-1.35 s of CPU per simulated second on one core (defaults, ove
 DEFECT_KINDS = ("none", "outer_race", "inner_race", "ball")
 CHANNELS = ("DE",)
 INCH = 0.0254
-
-
-class SimulationError(RuntimeError):
-    """A simulation diverged, produced non-finite output or an unphysical penetration."""
 
 
 @dataclass(frozen=True)
@@ -173,15 +169,6 @@ class RigSettings:
     duration: float = 1.0             # recorded seconds
     max_penetration: float = 2.0e-4   # |journal - housing| beyond clearance + this is divergence, m
     load_zone_only: bool = True       # sum only the balls near the bottom (checked; else rerun with all)
-
-
-def decimation_filter(factor: int, passband: float = 0.8, attenuation_db: float = 80.0) -> np.ndarray:
-    """FIR low-pass for decimation by `factor`: flat to `passband` x the output Nyquist and
-    `attenuation_db` down from the output Nyquist on."""
-    transition = (1.0 - passband) / factor
-    beta = 0.1102 * (attenuation_db - 8.7)
-    numtaps = int(math.ceil((attenuation_db - 7.95) / (2.285 * math.pi * transition))) | 1
-    return firwin(numtaps, (1.0 + passband) / 2.0 / factor, window=("kaiser", beta))
 
 
 def clock_angle(hours: float) -> float:

@@ -26,11 +26,11 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import firwin, resample_poly
+from scipy.signal import resample_poly
 
-from models.contact_laws import hysteresis_factor
-from models.solver import solve_rk44
-from models.gear_mesh import GearGeometry, GearMesh, ProfileDeviation, ToothDamage
+from condmon.models.contact_laws import hysteresis_factor
+from condmon.models.numerics import SimulationError, decimation_filter, solve_rk44
+from condmon.models.gear_mesh import GearGeometry, GearMesh, ProfileDeviation, ToothDamage
 
 HEALTH_STATES = ("healthy", "surface_fault", "missing_tooth", "chipped_tooth", "root_crack")
 MESH_STIFFNESS_MODELS = ("potential_energy", "simple")
@@ -42,10 +42,6 @@ HOUSING_X = (6, 8, 10, 12)  # housings 1, 2 carry the input shaft, 3, 4 the outp
 N_COORDINATES = 14
 # A1 above the input shaft (housing 1), A2 above the output shaft (housing 3).
 SENSOR_HOUSINGS = {"A1": 0, "A2": 2}
-
-
-class SimulationError(RuntimeError):
-    """A simulation diverged or produced non-finite output."""
 
 
 @dataclass
@@ -453,16 +449,6 @@ class SimulationSettings:
     oversampling: int = 10           # sensors record at output_rate * oversampling
     steps_per_sensor_sample: int = 1  # RK44 steps per sensor sample (h = 19.5 us at the defaults)
     max_deflection: float = 1.0e-3   # |mesh deflection| beyond this is divergence, m
-
-
-def decimation_filter(factor: int, passband: float = 0.8, attenuation_db: float = 80.0) -> np.ndarray:
-    """FIR low-pass for decimation by `factor`: flat to `passband` x the output Nyquist and at
-    least `attenuation_db` down from the output Nyquist on, so no mesh harmonic above it folds
-    back into the band (scipy's default decimation filter lets them through at -20 dB)."""
-    transition = (1.0 - passband) / factor  # as a fraction of the input Nyquist
-    beta = 0.1102 * (attenuation_db - 8.7)
-    numtaps = int(math.ceil((attenuation_db - 7.95) / (2.285 * math.pi * transition))) | 1
-    return firwin(numtaps, (1.0 + passband) / 2.0 / factor, window=("kaiser", beta))
 
 
 def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = SimulationSettings(),

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from models.gear_drivetrain import GearDrivetrainParameters, SimulationSettings, simulate
+from condmon.models.gear_drivetrain import GearDrivetrainParameters, SimulationSettings, simulate
 
 
 def bench_record(true_params: GearDrivetrainParameters, settings: SimulationSettings,

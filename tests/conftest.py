@@ -1,4 +1,38 @@
-"""Shared test constants (pytest puts this folder on sys.path: `from conftest import ROOT`)."""
+"""Shared test constants and helpers (pytest puts this folder on sys.path: `from conftest import ROOT`)."""
+import copy
 from pathlib import Path
 
+import yaml
+
 ROOT = Path(__file__).resolve().parents[1]
+CWRU = ROOT.parent / "shared" / "data" / "cwru"
+
+
+def deep_update(base: dict, changes: dict) -> dict:
+    for key, value in changes.items():
+        if isinstance(value, dict) and isinstance(base.get(key), dict):
+            deep_update(base[key], value)
+        else:
+            base[key] = copy.deepcopy(value)
+    return base
+
+
+def config_of(configfile="config/smoke.yaml", changes: dict | None = None) -> dict:
+    """A validated config: a project config file (or a config dict) with `changes` merged in."""
+    from condmon.config import load_schema, validate_config
+
+    if isinstance(configfile, dict):
+        config = copy.deepcopy(configfile)
+    else:
+        config = yaml.safe_load((ROOT / configfile).read_text())
+    if config.get("system") == "bearing":
+        config["measured_dir"] = str(CWRU)
+    deep_update(config, changes or {})
+    return validate_config(config, load_schema(ROOT / "config" / "schema.yaml"))
+
+
+def system_of(configfile: str = "config/smoke.yaml", changes: dict | None = None):
+    """The system object a project config file (with `changes`) builds."""
+    from condmon.systems import get_system
+
+    return get_system(config_of(configfile, changes))

@@ -1,18 +1,22 @@
-"""The adapter between the `bearing` config section and the rig model
-(workflow/condmon/bearing_model.py): labels, randomisation, batches, calibration spectra."""
+"""The bearing system (workflow/condmon/systems/bearing): labels, randomisation, batches,
+calibration spectra, another rig's geometry and labels."""
 import json
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from condmon.bearing_model import (DEFAULT_BEARING, RigSpectrumModel, build_rig_parameters, defect_of_label,
-                                   draw_defect_diameter, load_of_speed, measured_rig_spectra, randomise,
-                                   simulate_bearing_batch)
-from condmon.cwru import task_labels
+from conftest import system_of
+from condmon.calibrate import SpectrumModel, measured_spectra
+from condmon.systems.bearing.cwru import task_labels
+from condmon.systems.bearing.model import (bearing_defaults, build_rig_parameters, defect_of_label,
+                                           draw_defect_diameter, feature_orders, load_of_speed, randomise)
 from condmon.seeds import job_rng
 from condmon.signals import make_rows, validate
-from condmon.simulate import TooManyFailures
+from condmon.simulate import TooManyFailures, simulate_batch
+
+DEFAULT_BEARING = bearing_defaults()
+CWRU_LOADS = DEFAULT_BEARING["load_speeds"]
 
 SPECTRUM = {"f_min_hz": 0.0, "f_max_hz": 6000.0}
 
@@ -89,15 +93,26 @@ def test_build_rig_parameters():
 
 
 def test_load_of_speed():
-    assert load_of_speed(1797) == 0.0 and load_of_speed(1772) == 1.0 and load_of_speed(1730) == 3.0
+    assert load_of_speed(1797, CWRU_LOADS) == 0.0 and load_of_speed(1772, CWRU_LOADS) == 1.0
+    assert load_of_speed(1730, CWRU_LOADS) == 3.0 and load_of_speed(1500, [[5, 1400], [9, 1600]]) in (5.0, 9.0)
 
 
-NUMERICS = {"settle_time": 0.02}
+def bearing_system(segment_length=1024, model=None):
+    return system_of("config/cwru-smoke.yaml", {"bearing": {"segment_length": segment_length,
+                                                          "numerics": {"settle_time": 0.02},
+                                                          "model": model or {}}})
+
+
+def simulate_bearing_batch(system, calibrated, health, speed, batch, samples, segments_per_sample, seed,
+                           max_failed_share=0.0):
+    return simulate_batch(system, calibrated or {"parameters": {}}, health, speed, batch, samples,
+                          {"seed": seed, "segments_per_sample": segments_per_sample,
+                           "max_failed_share": max_failed_share})
 
 
 def test_simulate_bearing_batch_rows_and_report():
-    rows, report = simulate_bearing_batch(DEFAULT_BEARING, None, "inner_race", 1772.0, batch=2, samples=2,
-                                          numerics=NUMERICS, segment_length=1024, segments_per_sample=2, seed=4)
+    rows, report = simulate_bearing_batch(bearing_system(), None, "inner_race", 1772.0, batch=2, samples=2,
+                                          segments_per_sample=2, seed=4)
     assert set(report) == {"health_state", "speed_rpm", "batch", "samples", "succeeded", "failures",
                            "simulated_seconds_per_sample", "wall_seconds"}
     assert report["succeeded"] == 2 and report["failures"] == [] and len(report["wall_seconds"]) == 2
@@ -110,27 +125,26 @@ def test_simulate_bearing_batch_rows_and_report():
     assert set(frame["fs_hz"]) == {12000.0} and set(frame["load"]) == {1.0} and len(frame) == 4
     params = json.loads(frame["params"].iloc[0])
     assert 0.007 <= params["defect_diameter_in"] <= 0.021 and "sensor_gain" in params
-    again, _ = simulate_bearing_batch(DEFAULT_BEARING, None, "inner_race", 1772.0, batch=2, samples=2,
-                                      numerics=NUMERICS, segment_length=1024, segments_per_sample=2, seed=4)
+    again, _ = simulate_bearing_batch(bearing_system(), None, "inner_race", 1772.0, batch=2, samples=2,
+                                      segments_per_sample=2, seed=4)
     for r1, r2 in zip(rows, again):
         np.testing.assert_array_equal(r1["signal"], r2["signal"])
 
 
 def test_failed_samples_are_reported_and_too_many_stop_the_job():
-    bearing = {**DEFAULT_BEARING, "model": {**DEFAULT_BEARING["model"], "contact_stiffness": 1e17}}
-    rows, report = simulate_bearing_batch(bearing, {"parameters": {}}, "outer_race", 1797.0, batch=0, samples=1,
-                                          numerics=NUMERICS, segment_length=256, segments_per_sample=1, seed=1,
-                                          max_failed_share=1.0)
+    system = bearing_system(segment_length=256, model={"contact_stiffness": 1e17})
+    rows, report = simulate_bearing_batch(system, {"parameters": {}}, "outer_race", 1797.0, batch=0, samples=1,
+                                          segments_per_sample=1, seed=1, max_failed_share=1.0)
     assert rows == [] and report["succeeded"] == 0
     assert len(report["failures"][0]["errors"]) == 2  # retried once with half the step
     with pytest.raises(TooManyFailures, match="contact_stiffness"):
-        simulate_bearing_batch(bearing, None, "outer_race", 1797.0, batch=0, samples=1, numerics=NUMERICS,
-                               segment_length=256, segments_per_sample=1, seed=1, max_failed_share=0.0)
+        simulate_bearing_batch(system, None, "outer_race", 1797.0, batch=0, samples=1, segments_per_sample=1,
+                               seed=1, max_failed_share=0.0)
 
 
 def test_calibration_spectra_shapes():
-    model = RigSpectrumModel(DEFAULT_BEARING, NUMERICS, [1797.0, 1772.0], SPECTRUM, resolution_hz=100.0,
-                             sim_seconds=0.1, segment_length=600)
+    model = SpectrumModel(bearing_system(segment_length=600), [1797.0, 1772.0], ["DE"], SPECTRUM,
+                          resolution_hz=100.0, sim_seconds=0.1)
     simulated = model("hertz", {"contact_stiffness": 6e9, "noise_rms": 0.2})
     assert simulated.shape == (2, 1, 60) and np.isfinite(simulated).all()
     np.testing.assert_array_equal(simulated, model("hertz", {"contact_stiffness": 6e9, "noise_rms": 0.2}))
@@ -141,7 +155,30 @@ def test_calibration_spectra_shapes():
     for rid, speed in (("a", 1796.0), ("b", 1772.0)):
         rows += make_rows(rid, "measured", "normal", speed, 0.0, 12000.0, {"DE": rng.normal(size=1200)},
                           segment_length=600)
-    target = measured_rig_spectra(pd.DataFrame(rows), [1797.0, 1772.0], SPECTRUM, resolution_hz=100.0)
+    target = measured_spectra(pd.DataFrame(rows), [1797.0, 1772.0], ["DE"], SPECTRUM, 100.0, 12000.0,
+                              label="normal", tolerance_rpm=5.0)
     assert target.shape == simulated.shape
     with pytest.raises(ValueError, match="no measured"):
-        measured_rig_spectra(pd.DataFrame(rows), [1730.0], SPECTRUM, resolution_hz=100.0)
+        measured_spectra(pd.DataFrame(rows), [1730.0], ["DE"], SPECTRUM, 100.0, 12000.0, label="normal",
+                         tolerance_rpm=5.0)
+
+
+def test_another_rig_geometry_labels_and_loads():
+    """A non-CWRU bearing: its labels with their defects, its geometry's defect orders, its loads."""
+    labels = {"ok": {"defect": "none"}, "or_small": {"defect": "outer_race", "diameter_mm": [0.2, 0.4]},
+              "ir": {"defect": "inner_race", "diameter_mm": [0.5, 0.5]}}
+    geometry = {"n_balls": 12, "ball_diameter": 6.0e-3, "pitch_diameter": 40.0e-3, "contact_angle_deg": 15.0}
+    system = system_of("config/cwru-smoke.yaml", {
+        "measured_table": "signals.parquet", "hybrid": {"protocols": ["record_split"]},
+        "bearing": {"health_states": labels, "healthy_state": "ok", "geometry": geometry,
+                    "load_speeds": [[10.0, 1500.0], [20.0, 1450.0]]}, "rig": {"speeds_rpm": [1500, 1450]}})
+    assert system.health_states == ["ok", "or_small", "ir"] and system.healthy_state == "ok"
+    assert system.defect("or_small") == ("outer_race", (0.2 / 25.4, 0.4 / 25.4))
+    r = 6.0 / 40.0 * np.cos(np.radians(15.0))
+    assert system.defect_orders()["bpfo"] == pytest.approx(6 * (1 - r)) and feature_orders(geometry)["bpfi"] == \
+        pytest.approx(6 * (1 + r))
+    assert system.sample_load(1490.0, {}) == 10.0 and system.sample_load(1455.0, {}) == 20.0
+    params = system.sample_parameters({"parameters": {}}, "or_small", np.random.default_rng(0), {})
+    assert 0.2 / 25.4 * 0.999 <= params["defect_diameter_in"] <= 0.4 / 25.4 * 1.001
+    rig = system._parameters(params, "or_small", 1500.0)
+    assert rig.de_geometry.n_balls == 12 and rig.defect_kind == "outer_race"

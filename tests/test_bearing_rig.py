@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from condmon.stat_features import envelope_line_ratio, envelope_spectrum
-from models.bearing_rig import (SKF_6203, SKF_6205, BearingRigParameters, RigSettings, SimulationError,
+from condmon.models.bearing_rig import (SKF_6203, SKF_6205, BearingRigParameters, RigSettings, SimulationError,
                                 effective_defect_depth, simulate_rig)
 
 SPEED = 1797.0

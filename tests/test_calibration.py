@@ -2,16 +2,15 @@
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
 
 from condmon.calibrate import (Bound, Calibrator, SpectrumModel, estimate_sensor_noise, measured_spectra,
                                spectrum_cost, with_sensor_noise)
-from condmon.config import load_schema, validate_config
-from condmon.gear_model import build_parameters
-from condmon.measured import virtual_bench_rows
-from models.gear_drivetrain import operating_mesh_stiffness
+from condmon.models.gear_drivetrain import operating_mesh_stiffness
+from condmon.systems import get_system
+from condmon.systems.gear.bench import virtual_bench_rows
+from condmon.systems.gear.parameters import build_parameters
 
-from conftest import ROOT
+from conftest import config_of
 
 
 def test_costs_are_zero_for_identical_spectra_and_grow_with_the_error():
@@ -81,8 +80,7 @@ def bench():
     """Healthy virtual-bench records at two speeds, default bench effects (the potential-energy
     mesh, noise, speed fluctuation, run-out), and the pieces calibration needs: a spectrum model
     per mesh stiffness model."""
-    config = validate_config(yaml.safe_load((ROOT / "config" / "config.yaml").read_text()),
-                             load_schema(ROOT / "config" / "schema.yaml"))
+    config = config_of("config/config.yaml")
     assert config["virtual_bench"]["true_parameters"]["mesh_stiffness_model"] == "potential_energy"
     numerics = dict(config["numerics"], output_rate=config["rig"]["output_rate_hz"])
     speeds, channels = [450.0, 1100.0], config["features"]["channels"]
@@ -90,8 +88,8 @@ def bench():
     frame = pd.DataFrame(virtual_bench_rows(config["model"], bench, ["healthy"], speeds, numerics, 0.5))
     spectrum, resolution = config["features"]["spectrum"], config["calibration"]["resolution_hz"]
     target = measured_spectra(frame, speeds, channels, spectrum, resolution, 5120.0)
-    models = {m: SpectrumModel(dict(config["model"], mesh_stiffness_model=m), numerics, speeds, channels,
-                               spectrum, resolution, 0.5, 0.5) for m in MESH_MODELS}
+    systems = {m: get_system(dict(config, model=dict(config["model"], mesh_stiffness_model=m))) for m in MESH_MODELS}
+    models = {m: SpectrumModel(systems[m], speeds, channels, spectrum, resolution, 0.5) for m in MESH_MODELS}
     return config, target, models
 
 

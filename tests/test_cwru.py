@@ -8,7 +8,7 @@ import pytest
 import scipy.io
 
 from conftest import ROOT
-from condmon.cwru import (CWRU_TABLE, G, CwruError, cwru_rows, health_label, read_cwru_file,
+from condmon.systems.bearing.cwru import (CWRU_TABLE, G, CwruError, cwru_rows, health_label, read_cwru_file,
                           read_manifest, task_labels, write_cwru_signal_table)
 from condmon.signals import read_signal_table
 
@@ -102,7 +102,7 @@ def test_a_file_holding_only_another_record_is_an_error(tmp_path):
 
 def test_missing_speed_falls_back_to_the_table_with_a_warning(tmp_path, caplog):
     write_mat(tmp_path / "131.mat", 131, rpm=None)
-    with caplog.at_level(logging.WARNING, logger="condmon.cwru"):
+    with caplog.at_level(logging.WARNING, logger="condmon.systems.bearing.cwru"):
         record = read_cwru_file(tmp_path / "131.mat")
     assert record.speed_rpm == 1773.0 and not record.speed_from_file
     assert "X131RPM" in caplog.text and "131.mat" in caplog.text
@@ -151,7 +151,7 @@ def test_folder_to_rows_resamples_segments_and_reports_left_out_files(tmp_path, 
     write_mat(tmp_path / "105.mat", 105, n=12_500, seed=4)
     (tmp_path / "118.mat").write_bytes(b"left out unread: ball is not a severity class")
     (tmp_path / "notes.txt").write_text("not a record")
-    with caplog.at_level(logging.WARNING, logger="condmon.cwru"):
+    with caplog.at_level(logging.WARNING, logger="condmon.systems.bearing.cwru"):
         ingest = cwru_rows(tmp_path, task="severity", segment_length=2048, manifest=None)
     # these synthetic files are not the originals: a sha256 warning, not an error
     assert "sha256" in caplog.text
@@ -321,7 +321,7 @@ def test_a_bad_file_stops_ingestion_naming_file_and_reason(tmp_path, case):
 def test_a_bad_file_is_skipped_and_listed_with_its_reason(tmp_path, case, caplog):
     folder = tmp_path / "cwru"
     channels = bad_copy(folder, case)
-    with caplog.at_level(logging.WARNING, logger="condmon.cwru"):
+    with caplog.at_level(logging.WARNING, logger="condmon.systems.bearing.cwru"):
         ingest = write_cwru_signal_table(folder, tmp_path / "signals.parquet", channels=channels,
                                          manifest=manifest_for(tmp_path, case),
                                          files=["130.mat", "131.mat"], on_bad_record="skip")

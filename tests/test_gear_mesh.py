@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from models.gear_mesh import (GearGeometry, GearMesh, ProfileDeviation, ToothDamage, iso6336_mesh_stiffness,
+from condmon.models.gear_mesh import (GearGeometry, GearMesh, ProfileDeviation, ToothDamage, iso6336_mesh_stiffness,
                               pair_stiffness_per_width, tooth_compliances)
 
 RIG = GearGeometry()  # the helical-gear study's pair: 29/44, m_n 2.25 mm, 20 deg, 26 deg helix, b 20 mm

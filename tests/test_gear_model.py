@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.signal import resample_poly
 
-from models.contact_laws import CONTACT_LAWS, contact_force, hysteresis_factor
-from models.gear_drivetrain import (HEALTH_STATES, GearDrivetrainParameters, GearGeometry, MeshForce,
+from condmon.models.contact_laws import CONTACT_LAWS, contact_force, hysteresis_factor
+from condmon.models.gear_drivetrain import (HEALTH_STATES, GearDrivetrainParameters, GearGeometry, MeshForce,
                                     SimulationError, SimulationSettings, TVMSMeshForce, decimation_filter,
                                     simulate)
 

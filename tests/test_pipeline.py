@@ -29,7 +29,8 @@ def snakemake(workdir, *args, check=True):
 
 
 def copy_project(target: Path) -> Path:
-    for name in ("Snakefile", "workflow", "config", "models"):
+    target.mkdir(parents=True, exist_ok=True)
+    for name in ("Snakefile", "workflow", "config", "models", "profiles"):
         source = ROOT / name
         if source.is_dir():
             shutil.copytree(source, target / name, ignore=shutil.ignore_patterns("__pycache__"))

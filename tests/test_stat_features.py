@@ -211,7 +211,7 @@ def test_transformer_pandas_output():
 def cwru_features():
     if not CWRU_DIR.is_dir():
         pytest.skip(f"CWRU data folder {CWRU_DIR} not present")
-    from condmon.cwru import cwru_rows
+    from condmon.systems.bearing.cwru import cwru_rows
     from condmon.signals import to_arrays
 
     ingest = cwru_rows(CWRU_DIR, task="ten_class")
@@ -266,7 +266,7 @@ def test_study_features_on_real_data_match_the_readme(cwru_features):
 def test_statistical_feature_table_keeps_names_logs_and_prefixes_channels():
     from condmon.features import FeatureTableError
     from condmon.signals import make_rows
-    from condmon.stat_features import statistical_feature_table
+    from condmon.features import statistical_feature_table
 
     rng = np.random.default_rng(0)
     fs, n = 12000.0, 4096

@@ -241,7 +241,8 @@ def test_scripts_run_end_to_end(tmp_path, isolated_logging):
                          ("measured", str(tmp_path / "measured.parquet"))):
         run_script("features.py", input=SimpleNamespace(signals=inputs),
                    output=SimpleNamespace(features=tmp_path / f"features/{name}.parquet"),
-                   params=SimpleNamespace(channels=channels, spectrum=spectrum),
+                   params=SimpleNamespace(channels=channels, spectrum=spectrum,
+                                         system={"name": "gear", "config": {}}),
                    log=[str(tmp_path / f"logs/features_{name}.log")])
     simulated, names = read_feature_table(tmp_path / "features/simulated.parquet")
     assert len(simulated) == 3 * 2 * 3 * 2 and len(names) == 8

@@ -1,4 +1,4 @@
-"""Calibration stage: CMA-ES tunes the gear model (parameters and contact law) so its healthy
+"""Calibration stage: CMA-ES tunes a system's model (parameters and contact law) so its healthy
 spectra match the measured healthy spectra.
 
 Cost (CFRP study, eq. 4): the normalised least-squares error between simulated and measured
@@ -25,9 +25,8 @@ import pandas as pd
 from cmaes import CMA, CatCMA
 
 from condmon.features import SpectrumFeatures
-from condmon.gear_model import build_parameters, simulation_settings
 from condmon.signals import to_arrays
-from models.gear_drivetrain import SimulationError, simulate
+from condmon.models.numerics import SimulationError
 
 log = logging.getLogger(__name__)
 COST_FUNCTIONS = ("cfrp_eq4", "helical_eq14", "features_eq6")
@@ -93,13 +92,20 @@ def calibration_spectrum(spectrum: dict, resolution_hz: float) -> dict:
 
 
 class SpectrumModel:
-    """Simulated mean healthy spectra at the calibration speeds for one parameter set."""
+    """Mean spectra of a system's healthy runs at the calibration speeds for one candidate, the
+    callable `Calibrator` evaluates: __call__(contact_law, values) -> (n_speeds, n_channels,
+    n_bands), RMS bands of `calibration_spectrum`. Every run is `sim_seconds` long and cut into
+    the system's segments; `seed` makes a model with randomness repeatable."""
 
-    def __init__(self, model: dict, numerics: dict, speeds, channels, spectrum: dict, resolution_hz: float,
-                 sim_seconds: float, segment_seconds: float):
-        self.model, self.speeds, self.channels = model, list(speeds), list(channels)
-        self.settings = simulation_settings(numerics, duration=sim_seconds)
-        self.segment_length = int(round(segment_seconds * self.settings.output_rate))
+    def __init__(self, system, speeds, channels, spectrum: dict, resolution_hz: float, sim_seconds: float,
+                 seed: int = 1):
+        self.system, self.speeds, self.channels = system, [float(s) for s in speeds], list(channels)
+        self.sim_seconds, self.seed = float(sim_seconds), int(seed)
+        self.output_rate = system.output_rate_hz
+        self.segment_length = system.segment_length
+        if int(round(self.sim_seconds * self.output_rate)) < self.segment_length:
+            raise ValueError(f"calibration.sim_seconds: {sim_seconds} s is shorter than one segment "
+                             f"({self.segment_length} samples at {self.output_rate:g} Hz)")
         self.spectrum = SpectrumFeatures(channels=self.channels, **calibration_spectrum(spectrum, resolution_hz))
 
     def mean_spectra(self, signals_by_speed) -> np.ndarray:
@@ -108,31 +114,77 @@ class SpectrumModel:
             n_seg = len(signals[self.channels[0]]) // self.segment_length
             stack = np.stack([[signals[c][k * self.segment_length:(k + 1) * self.segment_length]
                                for c in self.channels] for k in range(n_seg)])
-            features = self.spectrum.transform(stack, self.settings.output_rate)
+            features = self.spectrum.transform(stack, self.output_rate)
             out.append(features.mean(0).reshape(len(self.channels), -1))
         return np.stack(out)
 
     def __call__(self, contact_law: str, values: dict) -> np.ndarray:
-        runs = []
-        for speed in self.speeds:
-            params = build_parameters(self.model, contact_law=contact_law, speed_rpm=float(speed),
-                                      health_state="healthy", **values)
-            runs.append(simulate(params, self.settings))
-        return self.mean_spectra(runs)
+        return self.mean_spectra([self.system.simulate_healthy(contact_law, values, speed, self.sim_seconds,
+                                                               self.seed)
+                                  for speed in self.speeds])
 
 
 def measured_spectra(frame: pd.DataFrame, speeds, channels, spectrum: dict, resolution_hz: float,
-                     fs_hz: float) -> np.ndarray:
-    """Mean amplitude spectra of the healthy measured segments per speed: (speeds, channels, bins)."""
+                     fs_hz: float, label: str = "healthy", tolerance_rpm: float = 0.0) -> np.ndarray:
+    """Mean amplitude spectra of the measured `label` segments per speed (records within
+    `tolerance_rpm` of it): (speeds, channels, bands), the calibration target."""
     transformer = SpectrumFeatures(channels=list(channels), **calibration_spectrum(spectrum, resolution_hz))
     out = []
     for speed in speeds:
-        rows = frame[(frame["health_state"] == "healthy") & (frame["speed_rpm"] == float(speed))]
+        rows = frame[(frame["health_state"] == label)
+                     & ((frame["speed_rpm"] - float(speed)).abs() <= tolerance_rpm)]
         if rows.empty:
-            raise ValueError(f"no healthy measured records at {speed} rpm to calibrate on")
+            raise ValueError(f"no measured {label!r} records at {speed:g} rpm to calibrate on")
         _, arrays = to_arrays(rows, list(channels))
         out.append(transformer.transform(arrays, fs_hz).mean(0).reshape(len(channels), -1))
     return np.stack(out)
+
+
+def calibrate_on_spectra(system, frame: pd.DataFrame, calibration: dict, spectrum: dict, channels,
+                         nominal: dict, nominal_law: str, processes: int = 1):
+    """The spectral calibration of a system on its healthy measured records at its simulated
+    speeds: CMA-ES over `calibration.parameters` (and `contact_laws`) from the `nominal` values,
+    then the white sensor noise the model lacks. Returns (result, history, spectra frame) as
+    `System.calibrate` does."""
+    start = time.perf_counter()
+    fs = system.output_rate_hz
+    healthy = frame.loc[frame["health_state"] == system.healthy_state, "speed_rpm"].unique()
+    speeds = sorted(float(s) for s in healthy if float(s) in [float(x) for x in system.speeds_rpm])
+    if not speeds:
+        raise ValueError(f"no measured {system.healthy_state!r} records at the simulated speeds "
+                         f"{system.speeds_rpm} rpm to calibrate on")
+    target = measured_spectra(frame, speeds, channels, spectrum, calibration["resolution_hz"], fs,
+                              label=system.healthy_state)
+    spectrum_model = SpectrumModel(system, speeds, channels, spectrum, calibration["resolution_hz"],
+                                   calibration["sim_seconds"], seed=calibration["seed"])
+    bounds = [Bound(name, b["low"], b["high"], b.get("log", False))
+              for name, b in calibration["parameters"].items()]
+    calibrator = Calibrator(bounds, calibration["contact_laws"], strategy=calibration["strategy"],
+                            population=calibration["population"], generations=calibration["generations"],
+                            sigma0=calibration["sigma0"], seed=calibration["seed"], processes=processes,
+                            initial={b.name: nominal[b.name] for b in bounds})
+    log.info("calibrating %s of the %s system on %d healthy speeds %s, %d processes",
+             [b.name for b in bounds], system.name, len(speeds), speeds, processes)
+    best, history = calibrator.run(spectrum_model, target, calibration["cost"])
+    nominal_values = {b.name: nominal[b.name] for b in bounds}
+    nominal_cost = spectrum_cost(spectrum_model(nominal_law, nominal_values), target, calibration["cost"])
+    calibrated = spectrum_model(best["contact_law"], best["parameters"])
+    freqs = spectrum_model.spectrum.band_centres()
+    sensor_noise = estimate_sensor_noise(target, calibrated, spectrum_model.segment_length)
+    # What simulated records look like: the model plus the estimated sensor noise (6 sigma^2 / N per bin).
+    with_noise = with_sensor_noise(calibrated, sensor_noise, spectrum_model.segment_length)
+    rows = [pd.DataFrame(dict(speed_rpm=speed, channel=channel, freq_hz=freqs, measured=target[i, j],
+                              calibrated=with_noise[i, j], model_only=calibrated[i, j]))
+            for i, speed in enumerate(speeds) for j, channel in enumerate(channels)]
+    result = dict(best, nominal_cost=nominal_cost, sensor_noise=sensor_noise,
+                  strategy=calibration["strategy"], cost_function=calibration["cost"], speeds_rpm=speeds,
+                  seconds=round(time.perf_counter() - start, 1),
+                  seconds_per_evaluation=float(history["seconds"].mean()),
+                  failed_evaluations=int((history["error"] != "").sum()))
+    log.info("best %s cost %.4g (nominal %.4g) after %d evaluations: %s; sensor noise %.3g",
+             best["contact_law"], best["cost"], nominal_cost, best["evaluations"], best["parameters"],
+             sensor_noise)
+    return result, history, pd.concat(rows, ignore_index=True)
 
 
 # Worker state for the process pool (set once per process; fork copies it).

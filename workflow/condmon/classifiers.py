@@ -10,7 +10,10 @@ defaults.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
+
+import yaml
 
 from sklearn.neighbors import KNeighborsClassifier
 from sklearn.pipeline import Pipeline
@@ -44,20 +47,24 @@ def _cnn(params: dict, seed: int):
     return CNNEnsembleClassifier(**params, random_state=seed)
 
 
-# The helical-gear study's training (10 members, 25 epochs, Adam at 0.002, cross-entropy) on a
-# network small enough for CPU training: about 0.6 s per member on ~300 spectra of 4 x 1000
-# bands (see config/README.md for the measurements behind these choices).
-CNN_DEFAULTS = {"members": 10, "epochs": 25, "batch_size": 64, "learning_rate": 0.002,
-                "conv_channels": [4, 8], "kernel_size": 7, "pool_size": 4, "input_pool": 2,
-                "dense_units": [16], "dropout": 0.3, "batch_norm": True,
-                "standardize": "channel", "validation_fraction": 0.2, "patience": 5,
-                "input_channels": "auto", "device": "auto", "threads": 1}
+# config/schema.yaml is the only home of the classifiers' defaults (the CNN's sizes are the
+# helical-gear study's training on a network small enough for CPU training; config/README.md).
+SCHEMA_PATH = Path(__file__).resolve().parents[2] / "config" / "schema.yaml"
+# keys of a classifier section that choose what it trains on, not how it is built
+SELECTION_KEYS = ("enabled", "measured_percent", "repeats")
+
+
+def schema_defaults(name: str) -> dict:
+    """The parameter defaults of classifiers.<name> in config/schema.yaml."""
+    schema = yaml.safe_load(SCHEMA_PATH.read_text())
+    section = schema["properties"]["classifiers"]["properties"][name]["properties"]
+    return {key: spec["default"] for key, spec in section.items() if key not in SELECTION_KEYS}
 
 
 CLASSIFIERS: dict[str, ClassifierSpec] = {
-    "svm": ClassifierSpec(_svm, {"C": 1.2, "gamma": "scale", "class_weight": None}),
-    "knn": ClassifierSpec(_knn, {"n_neighbors": 5, "weights": "uniform"}),
-    "cnn": ClassifierSpec(_cnn, CNN_DEFAULTS),
+    "svm": ClassifierSpec(_svm, schema_defaults("svm")),
+    "knn": ClassifierSpec(_knn, schema_defaults("knn")),
+    "cnn": ClassifierSpec(_cnn, schema_defaults("cnn")),
 }
 
 

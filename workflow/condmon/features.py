@@ -13,12 +13,16 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
-from scipy.signal import get_window
 from sklearn.base import BaseEstimator, TransformerMixin
 
 from condmon.atomic import write_table
 from condmon.signals import (ID_COLUMNS, SCHEMA, config_hash, package_versions,
                              read_signal_table, to_arrays)
+from condmon.spectra import amplitude_spectrum
+from condmon.stat_features import statistical_features_from_params
+
+__all__ = ["amplitude_spectrum", "SpectrumFeatures", "compute_feature_table", "compute_feature_table_from_files",
+           "statistical_feature_table", "read_feature_table", "write_feature_table", "FeatureTableError"]
 
 log = logging.getLogger(__name__)
 
@@ -33,29 +37,6 @@ SPECTRUM_PARAMS = ("f_min_hz", "f_max_hz", "resolution_hz", "scale", "band_stati
 
 class FeatureTableError(ValueError):
     """A features table (or the request to build one) breaks the contract."""
-
-
-def amplitude_spectrum(signal, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Single-sided amplitude spectrum of `signal` (along its last axis).
-
-    The mean is removed and a (periodic) Hann window applied; amplitudes are corrected for the
-    window's coherent gain, so a sine of amplitude A at a bin frequency gives A at that bin.
-    Returns (freqs_hz, amplitudes); works on one signal or a stack of them.
-    """
-    x = np.asarray(signal, dtype=np.float64)
-    if x.shape[-1] < 2:
-        raise ValueError(f"amplitude_spectrum needs at least 2 samples, got {x.shape[-1]}")
-    if not fs_hz > 0:
-        raise ValueError(f"fs_hz must be positive, got {fs_hz}")
-    n = x.shape[-1]
-    x = x - x.mean(axis=-1, keepdims=True)
-    window = get_window("hann", n)  # periodic: sums to exactly n/2
-    amplitudes = np.abs(np.fft.rfft(x * window, axis=-1)) * (2.0 / window.sum())
-    # DC and (even n) Nyquist have no mirror image in the two-sided spectrum: no factor 2.
-    amplitudes[..., 0] /= 2.0
-    if n % 2 == 0:
-        amplitudes[..., -1] /= 2.0
-    return np.fft.rfftfreq(n, d=1.0 / fs_hz), amplitudes
 
 
 class SpectrumFeatures(TransformerMixin, BaseEstimator):
@@ -209,11 +190,13 @@ def compute_feature_table(signal_frame: pd.DataFrame, channels,
 
 
 def compute_feature_table_from_files(paths, channels, spectrum_params: dict, kind: str = "spectrum",
-                                     statistical_params: dict | None = None) -> pd.DataFrame:
+                                     statistical_params: dict | None = None,
+                                     defect_orders: dict | None = None) -> pd.DataFrame:
     """Features of several signal tables in one table (read one at a time to bound memory).
 
     kind "spectrum": band spectra (`spectrum_params`); "statistical": time/frequency statistics
-    and envelope features (`condmon.stat_features`, `statistical_params`)."""
+    and envelope features at the system's `defect_orders` (`condmon.stat_features`,
+    `statistical_params`)."""
     if kind not in FEATURE_KINDS:
         raise FeatureTableError(f"unknown feature kind {kind!r}; choose one of {list(FEATURE_KINDS)}")
     frames = []
@@ -221,9 +204,7 @@ def compute_feature_table_from_files(paths, channels, spectrum_params: dict, kin
         log.info("%s features of %s", kind, path)
         signals = read_signal_table(path)
         if kind == "statistical":
-            from condmon.stat_features import statistical_feature_table  # imports this module
-
-            frames.append(statistical_feature_table(signals, channels, statistical_params or {}))
+            frames.append(statistical_feature_table(signals, channels, statistical_params or {}, defect_orders))
         else:
             frames.append(compute_feature_table(signals, channels, spectrum_params))
     if not frames:
@@ -278,3 +259,38 @@ def read_feature_table(path) -> tuple[pd.DataFrame, list[str]]:
     if missing:
         raise FeatureTableError(f"{path}: missing column(s) {missing[:10]}")
     return table.to_pandas(), feature_names
+
+
+def statistical_feature_table(signal_frame, channels, params: dict, defect_orders: dict | None = None):
+    """Wide features table of one signal table: per channel, the statistical and envelope
+    features (columns `<channel>_<feature>`; envelope lines at `defect_orders`, default the
+    SKF 6205's), kept to `params["names"]` (feature names without
+    the channel prefix; None = all); those in `params["log_names"]` as their natural log
+    (columns `<channel>_log_<feature>`, floored at 1e-12). Envelope features use each segment's
+    stored speed."""
+    present = set(signal_frame["channel"])
+    missing = [ch for ch in channels if ch not in present]
+    if missing:
+        raise FeatureTableError(f"channel(s) {missing} not in the signal table "
+                                f"(it has {sorted(present)})")
+    fs_hz = _single_sampling_rate(signal_frame)
+    ids, arrays = to_arrays(signal_frame, list(channels))
+    wanted = params.get("names")
+    logged = set(params.get("log_names") or [])
+    columns = {}
+    for c, channel in enumerate(channels):
+        extractor = statistical_features_from_params(params, fs_hz, defect_orders=defect_orders)
+        names = list(extractor.get_feature_names_out())
+        unknown = sorted((set(wanted or []) | logged) - set(names))
+        if unknown:
+            raise FeatureTableError(f"features.statistical.names: unknown feature(s) {unknown}; "
+                                    f"choose among {names}")
+        values = extractor.fit_transform(arrays[:, c, :], speed_rpm=ids["speed_rpm"].to_numpy())
+        for j, name in enumerate(names):
+            if wanted is not None and name not in wanted:
+                continue
+            if name in logged:
+                columns[f"{channel}_log_{name}"] = np.log(np.maximum(values[:, j], 1e-12))
+            else:
+                columns[f"{channel}_{name}"] = values[:, j]
+    return pd.concat([ids.reset_index(drop=True), pd.DataFrame(columns)], axis=1)

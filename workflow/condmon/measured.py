@@ -1,43 +1,14 @@
-"""Measured stage: the virtual bench, or a user's own signal table, into one signal table."""
+"""Measured stage: a user's own signal table, checked against the system before it is used."""
 from __future__ import annotations
 
 import logging
-import time
 
 import numpy as np
 import pandas as pd
 
-from condmon.gear_model import build_parameters, simulation_settings
-from condmon.seeds import job_rng
-from condmon.signals import SignalTableError, make_rows, read_unvalidated, validate
-from models.virtual_bench import bench_record
+from condmon.signals import SignalTableError, read_unvalidated, validate
 
 log = logging.getLogger(__name__)
-
-
-def virtual_bench_rows(model: dict, bench: dict, health_states, speeds_rpm, numerics: dict,
-                       segment_seconds: float) -> list[dict]:
-    """Records of the virtual bench: `records_per_state` acquisitions per health state and speed,
-    each `record_seconds` long, cut into segments. Source is always `virtual_bench`."""
-    true = dict(bench["true_parameters"])
-    effects = {k: bench[k] for k in ("speed_fluctuation", "speed_fluctuation_hz")}
-    effects["runout_pinion"] = effects["runout_gear"] = bench["runout"]
-    settings = simulation_settings(numerics, duration=bench["record_seconds"])
-    segment_length = int(round(segment_seconds * settings.output_rate))
-    rows = []
-    for health_state in health_states:
-        for speed in speeds_rpm:
-            rng = job_rng(bench["seed"], "virtual_bench", health_state, float(speed))
-            params = build_parameters(model, speed_rpm=float(speed), health_state=health_state, **true, **effects)
-            for k in range(bench["records_per_state"]):
-                start = time.perf_counter()
-                signals = bench_record(params, settings, bench["sensor_noise"], rng)
-                log.info("virtual bench %s %s rpm record %d: %.1f s", health_state, speed, k,
-                         time.perf_counter() - start)
-                rows += make_rows(f"vb-{health_state}-{speed:g}rpm-r{k:02d}", "virtual_bench", health_state,
-                                  speed, params.load_torque, settings.output_rate, signals,
-                                  segment_length=segment_length)
-    return rows
 
 
 ON_BAD_RECORD = ("stop", "skip")

@@ -181,12 +181,12 @@ def read_table(path, required: list[str], what: str) -> pd.DataFrame:
 
 # --------------------------------------------------------------------------- aggregation
 
-def label_order(labels) -> list[str]:
-    """Class labels sorted, the healthy state ("healthy", CWRU "normal") first so confusion
-    matrices read from it. Pass true and predicted labels: a class may be predicted but never
-    tested (a folder without healthy records)."""
+def label_order(labels, healthy_state: str | None = None) -> list[str]:
+    """Class labels sorted, the system's healthy state first so confusion matrices read from it.
+    Pass true and predicted labels: a class may be predicted but never tested (a folder without
+    healthy records)."""
     labels = sorted(set(labels))
-    return sorted(labels, key=lambda label: label not in ("healthy", "normal"))
+    return sorted(labels, key=lambda label: label != healthy_state)
 
 
 def confusion_counts(true_labels, predicted_labels, labels) -> np.ndarray:
@@ -278,7 +278,7 @@ def simulation_gain(accuracy: pd.DataFrame, baseline: pd.DataFrame) -> pd.DataFr
 
 def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: dict,
               run_name: str, data_source: str, plot_names: list[str],
-              baseline: pd.DataFrame | None = None) -> dict:
+              baseline: pd.DataFrame | None = None, healthy_state: str | None = None) -> dict:
     """The content of summary.json (see module docstring)."""
     recalls = recall_per_class(predictions)
     gains = simulation_gain(accuracy, baseline if baseline is not None else accuracy.iloc[:0])
@@ -318,7 +318,7 @@ def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: di
             "simulation_gain": (_json_number(gains.loc[key, "gain"])
                                 if key in gains.index else None),
         })
-    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]])
+    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
     return {
         "run_name": run_name,
         "data_source": {
@@ -358,10 +358,11 @@ def confusion_percents(accuracy: pd.DataFrame, requested) -> list[int]:
 
 
 def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: Path,
-               run_name: str, data_source: str, confusion_percent, baseline=None) -> list[str]:
+               run_name: str, data_source: str, confusion_percent, baseline=None,
+               healthy_state: str | None = None) -> list[str]:
     """Write every report plot into ``plots_dir``; returns the file names."""
     note = f"Data: {data_source_label(data_source)} | run {run_name}"
-    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]])
+    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
     chance = 1.0 / len(labels)
     percents = confusion_percents(accuracy, confusion_percent)
     names = []
@@ -441,7 +442,8 @@ def measured_records_summary(records_path) -> dict:
 def write_report(metrics_paths, predictions_paths, calibration_params, calibration_spectra,
                  calibration_history, accuracy_path, summary_path, plots_dir, run_name: str,
                  data_source: str, confusion_percent=(0,), simulation_reports=(),
-                 baseline_paths=(), measured_records=None, record_recall_path=None) -> dict:
+                 baseline_paths=(), measured_records=None, record_recall_path=None,
+                 healthy_state: str | None = None) -> dict:
     """Build the whole report; returns the summary dict. Every output is written atomically.
 
     calibration_params, calibration_spectra, calibration_history: the files of one calibration,
@@ -476,9 +478,9 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
 
     with staging_directory(plots_dir) as staging:
         plot_names = make_plots(accuracy, predictions, spectra, history, calibrations, staging,
-                                run_name, data_source, confusion_percent, baseline)
+                                run_name, data_source, confusion_percent, baseline, healthy_state)
         summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names,
-                            baseline)
+                            baseline, healthy_state)
         if per_model:
             summary["calibration_by_mesh_stiffness_model"] = calibrations
         summary["simulation"] = simulation_summary(simulation_reports)

@@ -1,15 +1,14 @@
-"""Simulation stage: batches of perturbed model runs per health state and speed."""
+"""Simulation stage: batches of one system's runs per health state and speed, each sample with
+its own draw of the parameters (perturbation or domain randomisation, the system's rule)."""
 from __future__ import annotations
 
-import dataclasses
 import json
 import logging
 import time
 
-from condmon.gear_model import build_parameters, perturb, simulation_settings
+from condmon.models.numerics import SimulationError
 from condmon.seeds import job_rng
 from condmon.signals import make_rows
-from models.gear_drivetrain import SimulationError, simulate
 
 log = logging.getLogger(__name__)
 
@@ -18,62 +17,60 @@ class TooManyFailures(RuntimeError):
     """More simulations of a batch failed than the config tolerates."""
 
 
-def simulate_with_retry(params, settings):
-    """Run the model; if it diverges, retry once with half the time step.
+def simulate_with_retry(system, parameters: dict, health_state: str, speed_rpm: float, duration_s: float,
+                        seed: int):
+    """Run one sample; if it fails, retry once at half the time step with the same seed.
 
-    Returns (signals or None, list of error messages).
-    """
+    Returns (signals or None, list of error messages)."""
     errors = []
-    for attempt in (settings, dataclasses.replace(settings,
-                                                  steps_per_sensor_sample=2 * settings.steps_per_sensor_sample)):
+    for refinement in (1, 2):
         try:
-            return simulate(params, attempt), errors
+            return system.simulate_sample(parameters, health_state, speed_rpm, duration_s, seed,
+                                          step_refinement=refinement), errors
         except SimulationError as exc:
-            errors.append(f"h = 1/{attempt.output_rate * attempt.oversampling * attempt.steps_per_sensor_sample:g}"
-                          f" s: {exc}")
+            errors.append(f"time step 1/{refinement} of the configured: {exc}")
     return None, errors
 
 
-def simulate_batch(model: dict, calibrated: dict, health_state: str, speed_rpm: float, batch: int,
-                   samples: int, perturbation: dict, numerics: dict, segment_seconds: float,
-                   segments_per_sample: int, seed: int, max_failed_share: float = 0.0):
+def simulate_batch(system, calibrated: dict, health_state: str, speed_rpm: float, batch: int, samples: int,
+                   simulation: dict):
     """Signal-table rows for `samples` runs of one (health state, speed, batch), and a report
     (timings, failures with their parameters).
 
-    Every sample draws its own perturbation of the calibrated parameters from the job's
-    stream, seeded by (seed, health state, speed, batch): reruns and any job order give the
-    same records. White noise of the calibrated sensor-noise RMS stands in for the measurement
-    chain the model lacks, so classifiers do not learn a noise-free floor. A sample whose
-    simulation fails twice is left out and reported; more than `max_failed_share` of the batch
-    failing stops the job.
+    Every sample draws its parameters (`system.sample_parameters`) and then a run seed from the
+    job's stream, seeded by (simulation.seed, health state, speed, batch): reruns and any job order
+    give the same records. White noise of the calibrated `sensor_noise` RMS (when the calibration
+    estimated one) stands in for the measurement chain the model lacks, so classifiers do not learn
+    a noise-free floor. A sample whose simulation fails twice is left out and reported; more than
+    `simulation.max_failed_share` of the batch failing stops the job.
     """
-    rng = job_rng(seed, "simulate", health_state, float(speed_rpm), batch)
-    settings = simulation_settings(numerics, duration=segment_seconds * segments_per_sample)
-    fs = settings.output_rate
+    rng = job_rng(simulation["seed"], "simulate", health_state, float(speed_rpm), batch)
+    fs, segment_length = system.output_rate_hz, system.segment_length
+    duration = segment_length * simulation["segments_per_sample"] / fs
+    sensor_noise = float(calibrated.get("sensor_noise") or 0.0)
     rows, failures, seconds = [], [], []
     for i in range(samples):
-        values = perturb(calibrated["parameters"], perturbation["parameters"], perturbation["sigma"], rng)
-        noise_seed = int(rng.integers(2 ** 32))  # drawn for every sample, failed or not: streams stay aligned
-        params = build_parameters(model, contact_law=calibrated["contact_law"], speed_rpm=float(speed_rpm),
-                                  health_state=health_state, **values)
+        values = system.sample_parameters(calibrated, health_state, rng, simulation)
+        sample_seed = int(rng.integers(2 ** 32))  # drawn for every sample, failed or not: streams stay aligned
         record_id = f"sim-{health_state}-{speed_rpm:g}rpm-b{batch:03d}-s{i:03d}"
         start = time.perf_counter()
-        signals, errors = simulate_with_retry(params, settings)
+        signals, errors = simulate_with_retry(system, values, health_state, float(speed_rpm), duration, sample_seed)
         seconds.append(time.perf_counter() - start)
         for error in errors:
             log.warning("%s: %s", record_id, error)
         if signals is None:
             failures.append({"record_id": record_id, "errors": errors, "params": values})
             continue
-        log.info("%s: %.2f s", record_id, seconds[-1])
-        noise = job_rng(noise_seed, "noise")
-        signals = {name: signal + noise.normal(0.0, calibrated["sensor_noise"], size=signal.shape)
-                   for name, signal in signals.items()}
-        rows += make_rows(record_id, "simulated", health_state, speed_rpm, params.load_torque, fs, signals,
-                          segment_length=int(round(segment_seconds * fs)),
-                          params={"contact_law": calibrated["contact_law"], **values})
+        log.info("%s: %.2f s (%d of %d)", record_id, seconds[-1], i + 1, samples)
+        if sensor_noise > 0:
+            noise = job_rng(sample_seed, "noise")
+            signals = {name: signal + noise.normal(0.0, sensor_noise, size=signal.shape)
+                       for name, signal in signals.items()}
+        rows += make_rows(record_id, "simulated", health_state, speed_rpm, system.sample_load(speed_rpm, values),
+                          fs, signals, segment_length=segment_length, params={**values, "seed": sample_seed})
     report = batch_report(health_state, speed_rpm, batch, samples, failures, seconds,
-                          settings.settle_time + settings.duration, max_failed_share)
+                          system.settle_seconds + duration, simulation["max_failed_share"],
+                          what=f"{system.name} simulations")
     return rows, report
 
 

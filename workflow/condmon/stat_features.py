@@ -24,7 +24,7 @@ import numpy as np
 from scipy.signal import butter, hilbert, sosfiltfilt
 from sklearn.base import BaseEstimator, TransformerMixin
 
-from condmon.features import amplitude_spectrum
+from condmon.spectra import amplitude_spectrum
 
 # -- bearing geometry ------------------------------------------------------------------------
 # SKF 6205-2RS JEM (CWRU drive end): 9 balls, ball 0.3126 in, pitch 1.537 in, contact angle 0.
@@ -397,54 +397,15 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
 
 
 # -- features tables -------------------------------------------------------------------------
-def statistical_features_from_params(params: dict, fs_hz: float, prefix: str = "") -> StatisticalFeatures:
+def statistical_features_from_params(params: dict, fs_hz: float, prefix: str = "",
+                                     defect_orders: dict | None = None) -> StatisticalFeatures:
     """The extractor a `features.statistical` config section describes (band_hz, highpass_hz,
-    line_tolerance, floor_halfwidth_orders, rms_ref; bearing geometry for the defect orders)."""
+    line_tolerance, floor_halfwidth_orders, rms_ref), with envelope lines at `defect_orders` (the
+    system's; default the SKF 6205's)."""
     keys = ("band_hz", "highpass_hz", "line_tolerance", "floor_halfwidth_orders", "rms_ref")
     kwargs = {k: params[k] for k in keys if k in params}
     if "band_hz" in kwargs:
         kwargs["band_hz"] = tuple(kwargs["band_hz"])
-    if params.get("bearing"):
-        o = bearing_defect_orders(**params["bearing"])
-        kwargs["defect_orders"] = dict(bpfo=o["bpfo"], bpfi=o["bpfi"], bsf=o["bsf"],
-                                       bsf_x2=2 * o["bsf"])
+    if defect_orders is not None:
+        kwargs["defect_orders"] = dict(defect_orders)
     return StatisticalFeatures(fs_hz=fs_hz, prefix=prefix, **kwargs)
-
-
-def statistical_feature_table(signal_frame, channels, params: dict):
-    """Wide features table of one signal table: per channel, the statistical and envelope
-    features (columns `<channel>_<feature>`), kept to `params["names"]` (feature names without
-    the channel prefix; None = all); those in `params["log_names"]` as their natural log
-    (columns `<channel>_log_<feature>`, floored at 1e-12). Envelope features use each segment's
-    stored speed."""
-    import pandas as pd
-
-    from condmon.features import FeatureTableError, _single_sampling_rate
-    from condmon.signals import to_arrays
-
-    present = set(signal_frame["channel"])
-    missing = [ch for ch in channels if ch not in present]
-    if missing:
-        raise FeatureTableError(f"channel(s) {missing} not in the signal table "
-                                f"(it has {sorted(present)})")
-    fs_hz = _single_sampling_rate(signal_frame)
-    ids, arrays = to_arrays(signal_frame, list(channels))
-    wanted = params.get("names")
-    logged = set(params.get("log_names") or [])
-    columns = {}
-    for c, channel in enumerate(channels):
-        extractor = statistical_features_from_params(params, fs_hz)
-        names = list(extractor.get_feature_names_out())
-        unknown = sorted((set(wanted or []) | logged) - set(names))
-        if unknown:
-            raise FeatureTableError(f"features.statistical.names: unknown feature(s) {unknown}; "
-                                    f"choose among {names}")
-        values = extractor.fit_transform(arrays[:, c, :], speed_rpm=ids["speed_rpm"].to_numpy())
-        for j, name in enumerate(names):
-            if wanted is not None and name not in wanted:
-                continue
-            if name in logged:
-                columns[f"{channel}_log_{name}"] = np.log(np.maximum(values[:, j], 1e-12))
-            else:
-                columns[f"{channel}_{name}"] = values[:, j]
-    return pd.concat([ids.reset_index(drop=True), pd.DataFrame(columns)], axis=1)

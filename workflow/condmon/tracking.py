@@ -360,7 +360,7 @@ def supersede_earlier_runs(client, experiment_id: str, config_hash: str,
 def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_source: str,
                      classifier_params: dict, metrics_paths, predictions_paths, model_dirs,
                      features_measured, features_simulated=None, models: str = "all",
-                     workdir=".") -> dict:
+                     workdir=".", healthy_state: str | None = None) -> dict:
     """Log one pipeline invocation (see module docstring); returns the run_info dict.
 
     ``models``: "all" logs every fitted pipeline, "first_repeat" only repeat 0 of each
@@ -375,7 +375,7 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
 
     metrics = report.load_metrics(metrics_paths, extra_columns=("fit_seconds",))
     predictions = report.load_predictions(predictions_paths)
-    labels = report.label_order([*predictions["true_label"], *predictions["predicted_label"]])
+    labels = report.label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
     unknown = sorted(set(metrics["classifier"]) - set(classifier_params))
     if unknown:
         raise TrackingError(f"classifier_params has no entry for {unknown} "

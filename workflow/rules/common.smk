@@ -21,38 +21,22 @@ def speed_label(speed):
     return f"{float(speed):g}"
 
 
-SYSTEM = config["system"]  # gear: drivetrain model; bearing: ball-bearing rig on CWRU records
-SPEEDS = [speed_label(s) for s in config["rig"]["speeds_rpm"]]
-if SYSTEM == "bearing":
-    from condmon.cwru import task_labels
+# The simulated system (condmon.systems): its health states, speeds, measured inputs, calibrations
+# and the config each job needs; no rule looks at the system's name.
+from condmon.systems import get_system
 
-    # The classes of the CWRU task; segments as long as the measured ones (cwru.segment_length).
-    HEALTH_STATES = task_labels(config["cwru"]["task"])
-    OUTPUT_RATE = config["cwru"]["fs_hz"]
-    SEGMENT_SECONDS = config["cwru"]["segment_length"] / OUTPUT_RATE
-    MODEL = config["bearing"]
-else:
-    HEALTH_STATES = config["rig"]["health_states"]
-    OUTPUT_RATE = config["rig"]["output_rate_hz"]
-    SEGMENT_SECONDS = config["rig"]["segment_seconds"]
-    MODEL = config["model"]
-# Numerical settings of every model run, with the rig's output rate.
-if SYSTEM == "bearing":
-    NUMERICS = dict(config["bearing"]["numerics"], output_rate_hz=OUTPUT_RATE)
-else:
-    NUMERICS = dict(config["numerics"], output_rate=OUTPUT_RATE)
-# What an operating condition is (condition_holdout, strata): a load on the CWRU rig, whose
-# records at one load differ by a few rpm; the speed on the gear bench.
-CONDITION = config["hybrid"]["condition"] or ("load" if SYSTEM == "bearing" else "speed_rpm")
+SYSTEM = get_system(config)
+HEALTH_STATES = SYSTEM.health_states
+SPEEDS = [speed_label(s) for s in SYSTEM.speeds_rpm]
+# What an operating condition is (condition_holdout, strata); the config's, or the system's own.
+CONDITION = config["hybrid"]["condition"]
 CLASSIFIERS = [name for name, c in config["classifiers"].items() if c["enabled"]]
 PROTOCOLS = config["hybrid"]["protocols"]
 N_BATCHES = -(-config["simulation"]["samples_per_state"] // config["simulation"]["samples_per_job"])
-# Mesh stiffness models: the simulation's (model.mesh_stiffness_model) first, then the others
-# calibration.mesh_stiffness_models lists; one calibration job each, all in the report.
-# The bearing rig has one calibration ("rig").
-SIM_STIFFNESS = config["model"]["mesh_stiffness_model"] if SYSTEM == "gear" else "rig"
-STIFFNESS_MODELS = [SIM_STIFFNESS] + [m for m in config["calibration"]["mesh_stiffness_models"]
-                                      if m != SIM_STIFFNESS and SYSTEM == "gear"]
+# One calibration job per variant (the gear: per mesh stiffness model), the simulation's first.
+CALIBRATIONS = SYSTEM.calibration_variants()
+SIM_CALIBRATION = CALIBRATIONS[0]
+MEASURED_PARTS = SYSTEM.measured_parts()  # a synthetic bench's jobs, or none
 
 
 wildcard_constraints:
@@ -61,7 +45,8 @@ wildcard_constraints:
     batch="[0-9]+",
     classifier="|".join(CLASSIFIERS),
     protocol="|".join(PROTOCOLS),
-    stiffness="simple|potential_energy|rig",
+    variant="|".join(CALIBRATIONS),
+    part="|".join(MEASURED_PARTS) or "(?!)",
 
 
 def batch_samples(batch):
@@ -76,11 +61,11 @@ def simulated_batches(extension="parquet"):
                   health=HEALTH_STATES, speed=SPEEDS, batch=[f"{b:03d}" for b in range(N_BATCHES)])
 
 
-def calibration_outputs(name, stiffness=None):
-    """calibration/<mesh stiffness model>/<name>: of one model, or {model: path} of every one."""
-    if stiffness is not None:
-        return f"{RESULTS}/calibration/{stiffness}/{name}"
-    return {m: f"{RESULTS}/calibration/{m}/{name}" for m in STIFFNESS_MODELS}
+def calibration_outputs(name, calibration=None):
+    """calibration/<calibration>/<name>: of one calibration, or {calibration: path} of every one."""
+    if calibration is not None:
+        return f"{RESULTS}/calibration/{calibration}/{name}"
+    return {m: f"{RESULTS}/calibration/{m}/{name}" for m in CALIBRATIONS}
 
 
 def train_outputs(name):
@@ -90,7 +75,7 @@ def train_outputs(name):
 
 # Keys of a classifier section that choose what it trains on, not how it is built: the CNN may
 # train on fewer measured percentages and repeats than hybrid lists (its fits are costly).
-SELECTION_KEYS = ("enabled", "measured_percent", "repeats")
+from condmon.classifiers import SELECTION_KEYS
 
 
 def classifier_params(name):
@@ -118,32 +103,17 @@ for _name in CLASSIFIERS:
 
 
 def measured_inputs(wildcards):
-    """The CWRU .mat files of measured_dir, the user's measured table, or every virtual-bench
-    part."""
-    if SYSTEM == "bearing":
-        folder = Path(config["measured_dir"])
-        files = sorted(folder.glob("*.mat"))
-        if not files:
-            raise ValueError(f"measured_dir: no .mat files in {folder}")
-        manifest = config["cwru"]["manifest"]
-        if manifest == "auto":
-            manifest = folder / "index.csv" if (folder / "index.csv").exists() else None
-        return [str(f) for f in files] + ([str(manifest)] if manifest else [])
-    if config["measured_table"] is not None:
-        return [config["measured_table"]]
-    return expand(f"{RESULTS}/measured/virtual_bench/{{health}}_{{speed}}rpm.parquet",
-                  health=HEALTH_STATES, speed=SPEEDS)
+    """The system's measured files (a signal table, a folder of records), or every bench part."""
+    return SYSTEM.measured_files() + expand(f"{RESULTS}/measured/parts/{{part}}.parquet", part=MEASURED_PARTS)
 
 
 def data_source():
-    if SYSTEM == "bearing":
-        return "measured"
-    return "virtual_bench" if config["measured_table"] is None else "measured"
+    return SYSTEM.data_source()
 
 
 def statistical_feature_params():
-    """features.statistical (envelope lines at the SKF 6205 defect orders of the CWRU drive end);
-    None with spectrum features, so its settings never rerun a spectrum run's features."""
+    """features.statistical; None with spectrum features, so its settings never rerun a spectrum
+    run's features."""
     if config["features"]["kind"] != "statistical":
         return None
     return dict(config["features"]["statistical"])

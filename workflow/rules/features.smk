@@ -11,6 +11,7 @@ rule features_measured:
         spectrum=config["features"]["spectrum"],
         kind=config["features"]["kind"],
         statistical=statistical_feature_params(),
+        system=SYSTEM.job_spec("features"),
     log:
         f"{LOGS}/features_measured.log",
     script:
@@ -27,6 +28,7 @@ rule features_simulated:
         spectrum=config["features"]["spectrum"],
         kind=config["features"]["kind"],
         statistical=statistical_feature_params(),
+        system=SYSTEM.job_spec("features"),
     log:
         f"{LOGS}/features_simulated.log",
     script:

@@ -1,20 +1,16 @@
-# Stage 1: measured records into one signal table (the virtual bench, the user's table, or the
-# CWRU .mat files of measured_dir), with a list of what was kept and what was left out.
+# Stage 1: measured records into one signal table (a synthetic bench's parts, the user's table, or
+# the system's own records, e.g. CWRU .mat files), with a list of what was kept and what was left out.
 
 
-rule virtual_bench:
+rule measured_part:
     output:
-        temp(f"{RESULTS}/measured/virtual_bench/{{health}}_{{speed}}rpm.parquet"),
+        temp(f"{RESULTS}/measured/parts/{{part}}.parquet"),
     params:
-        # the bench's mesh is virtual_bench.true_parameters.mesh_stiffness_model, not the model's
-        model={k: v for k, v in config["model"].items() if k != "mesh_stiffness_model"},
-        bench=config["virtual_bench"],
-        numerics=NUMERICS,
-        segment_seconds=config["rig"]["segment_seconds"],
+        system=SYSTEM.job_spec("bench"),
     log:
-        f"{LOGS}/virtual_bench/{{health}}_{{speed}}rpm.log",
+        f"{LOGS}/measured_part/{{part}}.log",
     script:
-        "../scripts/virtual_bench.py"
+        "../scripts/measured_part.py"
 
 
 rule measured:
@@ -24,13 +20,9 @@ rule measured:
         f"{RESULTS}/measured/signals.parquet",
         records=f"{RESULTS}/measured/records.csv",
     params:
-        source="cwru" if SYSTEM == "bearing" else data_source(),
-        health_states=HEALTH_STATES,
+        system=SYSTEM.job_spec("measured"),
+        parts=len(MEASURED_PARTS),  # the last inputs are the bench parts
         channels=config["features"]["channels"],
-        output_rate_hz=OUTPUT_RATE,
-        segment_seconds=SEGMENT_SECONDS,
-        measured_dir=config["measured_dir"] if SYSTEM == "bearing" else None,
-        cwru=config["cwru"] if SYSTEM == "bearing" else None,
         on_bad_record=config["on_bad_record"],
     log:
         f"{LOGS}/measured.log",

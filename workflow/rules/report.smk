@@ -16,6 +16,7 @@ rule track:
         config_hash=config_hash,
         data_source=data_source(),
         classifier_params={name: classifier_params(name) for name in CLASSIFIERS},
+        healthy_state=SYSTEM.healthy_state,
     log:
         f"{LOGS}/track.log",
     script:
@@ -26,7 +27,7 @@ rule report:
     input:
         metrics=train_outputs("metrics.csv"),
         predictions=train_outputs("predictions.parquet"),
-        # one calibration per mesh stiffness model (dict keys of the same order in each)
+        # one calibration per variant (dict keys of the same order in each)
         **{f"calibration_params_{m}": p for m, p in calibration_outputs("params.json").items()},
         **{f"calibration_spectra_{m}": p for m, p in calibration_outputs("spectra.parquet").items()},
         **{f"calibration_history_{m}": p for m, p in calibration_outputs("history.parquet").items()},
@@ -42,7 +43,8 @@ rule report:
         run_name=config["run_name"],
         data_source=data_source(),
         confusion_percent=config["report"]["confusion_percent"],
-        stiffness_models=STIFFNESS_MODELS,  # the first one's calibration made the simulated data
+        healthy_state=SYSTEM.healthy_state,
+        calibrations=CALIBRATIONS,  # the first one's calibration made the simulated data
     log:
         f"{LOGS}/report.log",
     script:

@@ -4,6 +4,7 @@
 """
 from condmon.features import compute_feature_table_from_files, feature_columns, write_feature_table
 from condmon.runlog import setup_logging
+from condmon.systems import load_system
 
 log = setup_logging(snakemake)  # to snakemake.log[0]
 
@@ -14,7 +15,9 @@ spectrum = dict(snakemake.params.spectrum)
 kind = getattr(snakemake.params, "kind", "spectrum")
 statistical = dict(getattr(snakemake.params, "statistical", None) or {})
 
-frame = compute_feature_table_from_files(signal_paths, channels, spectrum, kind, statistical)
+# the system says where its envelope lines are (bearing defect orders), if it has any
+defect_orders = load_system(snakemake.params.system).defect_orders()
+frame = compute_feature_table_from_files(signal_paths, channels, spectrum, kind, statistical, defect_orders)
 names = feature_columns(frame)
 write_feature_table(frame, names, snakemake.output.features, kind=kind,
                     config={"channels": channels, "spectrum": spectrum, "kind": kind,

@@ -1,39 +1,21 @@
-"""The measured signal table: the virtual bench's parts merged, the user's table validated, or
-the CWRU .mat files of measured_dir ingested; plus records.csv (what was kept, what was left
-out and why)."""
-import pandas as pd
-
+"""The measured signal table (the system's records: a bench's parts merged, the user's table
+validated, or e.g. the CWRU .mat files of measured_dir), plus records.csv (what was kept, what was
+left out and why)."""
 from condmon.atomic import write_text
-from condmon.cwru import cwru_rows
-from condmon.measured import read_user_table_checked
 from condmon.runlog import setup_logging
-from condmon.signals import read_signal_table, write_signal_table
+from condmon.signals import write_signal_table
+from condmon.systems import load_system
 
 log = setup_logging(snakemake)
 p = snakemake.params
-if p.source == "cwru":
-    cwru = p.cwru
-    ingest = cwru_rows(p.measured_dir, task=cwru["task"], channels=tuple(cwru["channels"]),
-                       fs_hz=cwru["fs_hz"], segment_length=cwru["segment_length"],
-                       manifest=cwru["manifest"], on_bad_record=p.on_bad_record)
-    frame = pd.DataFrame(ingest.rows)
-    records = pd.concat([ingest.records.assign(status="kept", reason=""),
-                         ingest.excluded.assign(status="left out")], ignore_index=True)
-elif p.source == "measured":
-    frame, skipped = read_user_table_checked(snakemake.input[0], p.health_states, p.channels, p.output_rate_hz,
-                                             p.segment_seconds, on_bad_record=p.on_bad_record)
-else:
-    frame = pd.concat([read_signal_table(path, allowed_sources=("virtual_bench",)) for path in snakemake.input],
-                      ignore_index=True)
-if p.source != "cwru":
-    records = (frame[["record_id", "health_state", "speed_rpm", "load"]].drop_duplicates("record_id")
-               .assign(status="kept", reason=""))
-if p.source == "measured":
-    records = pd.concat([records, skipped.assign(status="left out")], ignore_index=True)
+system = load_system(p.system)
+inputs = list(snakemake.input)
+parts = inputs[len(inputs) - p.parts:] if p.parts else []
+files = inputs[:len(inputs) - p.parts]
+frame, records = system.read_measured(files, parts, list(p.channels), p.on_bad_record)
 write_signal_table(frame, snakemake.output[0], config=dict(p.items()))
 write_text(records.to_csv(index=False), snakemake.output.records)
-log.info("%s: %d records, %d segments, health states %s", p.source, frame["record_id"].nunique(),
+log.info("%s system: %d records, %d segments, health states %s", system.name, frame["record_id"].nunique(),
          len(frame.drop_duplicates(["record_id", "segment"])), sorted(frame["health_state"].unique()))
-left_out = records[records["status"] != "kept"]
-for row in left_out.itertuples():
+for row in records[records["status"] != "kept"].itertuples():
     log.warning("left out %s: %s", getattr(row, "file", row.record_id), row.reason)

@@ -7,12 +7,12 @@ from condmon.report import write_report
 from condmon.runlog import setup_logging
 
 log = setup_logging(snakemake)  # to snakemake.log[0]
-# One calibration per mesh stiffness model, the simulation's first: {model: path}.
-stiffness_models = list(snakemake.params.stiffness_models)
+# One calibration per variant, the simulation's first: {variant: path}.
+calibrations = list(snakemake.params.calibrations)
 
 
 def calibration_files(kind):
-    return {m: snakemake.input[f"calibration_{kind}_{m}"] for m in stiffness_models}
+    return {m: snakemake.input[f"calibration_{kind}_{m}"] for m in calibrations}
 
 
 summary = write_report(
@@ -31,6 +31,7 @@ summary = write_report(
     baseline_paths=list(snakemake.input.measured_only),
     measured_records=snakemake.input.measured_records,
     record_recall_path=snakemake.output.recall_per_record,
+    healthy_state=snakemake.params.get("healthy_state"),
 )
 log.info("report of run %s: %d result rows, %d plots", summary["run_name"],
          len(summary["results"]), len(summary["plots"]))

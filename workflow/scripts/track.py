@@ -24,6 +24,7 @@ try:
         features_measured=snakemake.input.features_measured,
         features_simulated=snakemake.input.features_simulated,
         models=params.get("log_models", "all"),
+        healthy_state=params.get("healthy_state"),
     )
 except TrackingError as error:  # a store that is down, inconsistent inputs: say so plainly
     log.error("%s", error)

@@ -5,7 +5,7 @@ import dataclasses
 
 import numpy as np
 
-from models.gear_drivetrain import GearDrivetrainParameters, GearGeometry, SimulationSettings
+from condmon.models.gear_drivetrain import GearDrivetrainParameters, GearGeometry, SimulationSettings
 
 # Parameters that calibration may tune (the contact law is the categorical one).
 CALIBRATABLE = ("mesh_stiffness", "restitution", "contact_exponent", "bushing_stiffness",

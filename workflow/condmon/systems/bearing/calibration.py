@@ -1,4 +1,4 @@
-"""Calibration of the bearing rig (`models/bearing_rig.py`) on the measured healthy records.
+"""Calibration of the bearing rig (`condmon.models.bearing_rig`) on the measured healthy records.
 
 CMA-ES (`condmon.calibrate.Calibrator`, one Hertz contact law) tunes the `calibration.parameters`
 of the rig (contact stiffness, clearance, damping, the transfer path's resonance scales, gain,
@@ -19,28 +19,26 @@ import time
 import numpy as np
 import pandas as pd
 
-from condmon.bearing_model import (CHANNEL, DEFAULT_BEARING, RigSpectrumModel,
-                                   measured_rig_spectra)
-from condmon.calibrate import Bound, Calibrator, spectrum_cost
+from condmon.calibrate import Bound, Calibrator, SpectrumModel, measured_spectra, spectrum_cost
+from condmon.systems.bearing.model import CHANNEL
 from condmon.signals import to_arrays
 from condmon.stat_features import StatisticalFeatures
 
 log = logging.getLogger(__name__)
 
-HEALTHY = "normal"
 # Dimension-bearing statistics of the healthy signal: level, shape and spectral balance.
 CALIBRATION_FEATURES = ("rms", "kurtosis", "crest_factor", "shape_factor", "mean_frequency",
                         "frequency_centre", "std_frequency")
 COSTS = ("cfrp_eq4", "helical_eq14", "features_eq6")
 
 
-class RigFeatureModel(RigSpectrumModel):
+class RigFeatureModel(SpectrumModel):
     """Mean `CALIBRATION_FEATURES` of the simulated healthy segments per speed, shape
     (n_speeds, 1, n_features): what `features_eq6` compares."""
 
     def mean_spectra(self, signals_by_speed) -> np.ndarray:
-        return np.stack([segment_features(signal, self.segment_length, self.settings.output_rate_hz)
-                         .mean(0).reshape(1, -1) for signal in signals_by_speed])
+        return np.stack([segment_features(signals[CHANNEL], self.segment_length, self.output_rate)
+                         .mean(0).reshape(1, -1) for signals in signals_by_speed])
 
 
 def segment_features(signal, segment_length: int, fs_hz: float) -> np.ndarray:
@@ -52,11 +50,11 @@ def segment_features(signal, segment_length: int, fs_hz: float) -> np.ndarray:
     return extractor.fit_transform(segments)[:, [names.index(f) for f in CALIBRATION_FEATURES]]
 
 
-def measured_features(frame: pd.DataFrame, speeds, fs_hz: float, tolerance_rpm: float = 5.0):
-    """Mean CALIBRATION_FEATURES of the measured healthy segments near each speed."""
+def measured_features(frame: pd.DataFrame, speeds, fs_hz: float, label: str, tolerance_rpm: float = 5.0):
+    """Mean CALIBRATION_FEATURES of the measured healthy (`label`) segments near each speed."""
     out = []
     for speed in speeds:
-        rows = frame[(frame["health_state"] == HEALTHY)
+        rows = frame[(frame["health_state"] == label)
                      & ((frame["speed_rpm"] - float(speed)).abs() <= tolerance_rpm)]
         _, arrays = to_arrays(rows, [CHANNEL])
         values = np.concatenate([segment_features(x, arrays.shape[-1], fs_hz) for x in arrays[:, 0]])
@@ -64,19 +62,20 @@ def measured_features(frame: pd.DataFrame, speeds, fs_hz: float, tolerance_rpm: 
     return np.stack(out)
 
 
-def healthy_speeds(frame: pd.DataFrame, tolerance_rpm: float = 5.0) -> list[float]:
-    """One calibration speed per group of healthy records within `tolerance_rpm` of each other."""
+def healthy_speeds(frame: pd.DataFrame, label: str, tolerance_rpm: float = 5.0) -> list[float]:
+    """One calibration speed per group of healthy (`label`) records within `tolerance_rpm` of each
+    other."""
     speeds = []
-    for speed in sorted(frame.loc[frame["health_state"] == HEALTHY, "speed_rpm"].unique()):
+    for speed in sorted(frame.loc[frame["health_state"] == label, "speed_rpm"].unique()):
         if not speeds or speed - speeds[-1] > tolerance_rpm:
             speeds.append(float(speed))
     return speeds
 
 
-def calibrate_rig(frame: pd.DataFrame, bearing: dict, numerics: dict, calibration: dict,
-                  spectrum: dict, segment_length: int, processes: int = 1,
+def calibrate_rig(system, frame: pd.DataFrame, calibration: dict, spectrum: dict, processes: int = 1,
                   fallback_speeds=(1797.0,)):
-    """Calibrate the rig on the healthy records of a measured signal table.
+    """Calibrate the rig of `system` (a BearingSystem) on the healthy records of a measured
+    signal table.
 
     Returns (result dict for params.json, history frame, spectra frame with speed_rpm, channel,
     freq_hz, measured, calibrated, model_only). Without a healthy record: the nominal
@@ -87,7 +86,7 @@ def calibrate_rig(frame: pd.DataFrame, bearing: dict, numerics: dict, calibratio
     if cost_kind not in COSTS:
         raise ValueError(f"calibration.cost: {cost_kind!r} is not a cost of the bearing rig; "
                          f"choose one of {list(COSTS)}")
-    model = {**DEFAULT_BEARING["model"], **(bearing.get("model") or {})}
+    model = system.model
     unknown = sorted(set(calibration["parameters"]) - set(model))
     if unknown:
         raise ValueError(f"calibration.parameters: {unknown} are not bearing.model parameters "
@@ -95,32 +94,34 @@ def calibrate_rig(frame: pd.DataFrame, bearing: dict, numerics: dict, calibratio
     bounds = [Bound(name, b["low"], b["high"], b.get("log", False))
               for name, b in calibration["parameters"].items()]
     nominal = {b.name: float(model[b.name]) for b in bounds}
-    fs = float(numerics.get("output_rate_hz", 12000.0))
-    rig_numerics = dict(numerics)
-    speeds = healthy_speeds(frame)
-    spectrum_args = dict(spectrum=spectrum, resolution_hz=calibration["resolution_hz"],
-                         sim_seconds=calibration["sim_seconds"], segment_length=segment_length,
-                         seed=calibration["seed"])
-    plot_model = RigSpectrumModel(bearing, rig_numerics, speeds or list(fallback_speeds), **spectrum_args)
+    fs, healthy = system.output_rate_hz, system.healthy_state
+    speeds = healthy_speeds(frame, healthy)
+    spectrum_args = dict(channels=[CHANNEL], spectrum=spectrum, resolution_hz=calibration["resolution_hz"],
+                         sim_seconds=calibration["sim_seconds"], seed=calibration["seed"])
+    plot_model = SpectrumModel(system, speeds or list(fallback_speeds), **spectrum_args)
     freqs = plot_model.spectrum.band_centres()
     if not speeds:
-        log.warning("no measured %r record: the rig keeps its nominal parameters", HEALTHY)
+        log.warning("no measured %r record: the rig keeps its nominal parameters", healthy)
         model_only = plot_model("hertz", nominal)
         result = dict(contact_law="hertz", parameters=nominal, cost=None, nominal_cost=None,
                       evaluations=0, calibrated=False,
-                      reason=f"no measured {HEALTHY!r} record to calibrate on",
+                      reason=f"no measured {healthy!r} record to calibrate on",
                       cost_function=cost_kind, speeds_rpm=[], sensor_noise=0.0,
                       seconds=round(time.perf_counter() - start, 1))
         history = pd.DataFrame([dict(generation=0, evaluation=0, contact_law="hertz", cost=np.nan,
                                      seconds=0.0, error="not calibrated", **nominal)])
         return result, history, _spectra_frame(list(fallback_speeds), freqs, None, model_only)
 
+    def measured_rig_spectra():
+        return measured_spectra(frame, speeds, [CHANNEL], spectrum, calibration["resolution_hz"], fs,
+                                label=healthy, tolerance_rpm=5.0)
+
     if cost_kind == "features_eq6":
-        evaluated = RigFeatureModel(bearing, rig_numerics, speeds, **spectrum_args)
-        target = measured_features(frame, speeds, fs)
+        evaluated = RigFeatureModel(system, speeds, **spectrum_args)
+        target = measured_features(frame, speeds, fs, healthy)
     else:
         evaluated = plot_model
-        target = measured_rig_spectra(frame, speeds, spectrum, calibration["resolution_hz"], fs)
+        target = measured_rig_spectra()
     calibrator = Calibrator(bounds, ["hertz"], strategy="per_law", population=calibration["population"],
                             generations=calibration["generations"], sigma0=calibration["sigma0"],
                             seed=calibration["seed"], processes=processes, initial=nominal)
@@ -128,14 +129,13 @@ def calibrate_rig(frame: pd.DataFrame, bearing: dict, numerics: dict, calibratio
              [b.name for b in bounds])
     best, history = calibrator.run(evaluated, target, cost_kind)
     nominal_cost = spectrum_cost(evaluated("hertz", nominal), target, cost_kind)
-    measured_spectra = measured_rig_spectra(frame, speeds, spectrum, calibration["resolution_hz"], fs)
     calibrated_spectra = plot_model("hertz", best["parameters"])
     result = dict(best, nominal_cost=nominal_cost, calibrated=True, cost_function=cost_kind,
                   speeds_rpm=speeds, sensor_noise=0.0, strategy="per_law",
                   seconds=round(time.perf_counter() - start, 1),
                   seconds_per_evaluation=float(history["seconds"].mean()),
                   failed_evaluations=int((history["error"] != "").sum()))
-    return result, history, _spectra_frame(speeds, freqs, measured_spectra, calibrated_spectra)
+    return result, history, _spectra_frame(speeds, freqs, measured_rig_spectra(), calibrated_spectra)
 
 
 def _spectra_frame(speeds, freqs, measured, calibrated) -> pd.DataFrame:

@@ -1,0 +1,44 @@
+"""What every exudyn model here shares: the one simulation error, explicit RK44 at a fixed step,
+and the FIR filter that decimates the sensors to the output rate."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.signal import firwin
+
+
+class SimulationError(RuntimeError):
+    """A model run failed: the solver stopped, or the solution diverged (non-finite states,
+    deflections beyond the model's limits). Every model raises this one class, so the pipeline
+    retries, scores or reports a failed run the same way for every system."""
+
+
+def decimation_filter(factor: int, passband: float = 0.8, attenuation_db: float = 80.0) -> np.ndarray:
+    """FIR low-pass for decimation by `factor`: flat to `passband` x the output Nyquist and at
+    least `attenuation_db` down from the output Nyquist on, so no harmonic above it folds back
+    into the band (scipy's default decimation filter lets them through at -20 dB)."""
+    transition = (1.0 - passband) / factor  # as a fraction of the input Nyquist
+    beta = 0.1102 * (attenuation_db - 8.7)
+    numtaps = int(math.ceil((attenuation_db - 7.95) / (2.285 * math.pi * transition))) | 1
+    return firwin(numtaps, (1.0 + passband) / 2.0 / factor, window=("kaiser", beta))
+
+
+def solve_rk44(mbs, sensor_rate: float, steps_per_sensor_sample: int, end_time: float) -> None:
+    """Integrate the assembled system `mbs` with RK44 at h = 1 / (sensor_rate x
+    steps_per_sensor_sample) up to `end_time` (rounded to whole steps).
+
+    Sensors record once per sensor period, a whole multiple of the step (they record at step
+    ends); no solution file, which parallel jobs would otherwise share. Solver errors propagate:
+    the caller names its model and parameters.
+    """
+    import exudyn as exu  # imported here so the models' pure helpers work without exudyn
+
+    step = 1.0 / (sensor_rate * steps_per_sensor_sample)
+    sim = exu.SimulationSettings()
+    sim.timeIntegration.numberOfSteps = int(round(end_time / step))
+    sim.timeIntegration.endTime = sim.timeIntegration.numberOfSteps * step
+    sim.timeIntegration.verboseMode = 0
+    sim.solution.file.write = False
+    sim.solution.sensors.writePeriod = 1.0 / sensor_rate
+    mbs.SolveDynamic(sim, solverType=exu.DynamicSolverType.RK44)

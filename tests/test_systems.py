@@ -1,0 +1,239 @@
+"""The contract every registered system passes (gear, bearing and the toy of tests/toy_system.py),
+the registry, and the proofs that a system is one folder: the toy runs the smoke pipeline, and the
+bearing system runs on another rig's signal table.
+
+Contract: finite signals of its channels at its rate for every health state; the same seed gives
+the same signal; a sample's parameters round-trip through JSON; a diverging sample raises the one
+SimulationError, and a calibration scores such a candidate and goes on; its health states and
+features agree with the config.
+"""
+import json
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from conftest import CWRU, ROOT, config_of
+from condmon.calibrate import FAILED_COST, Bound, Calibrator, SpectrumModel
+from condmon.config import ConfigError
+from condmon.features import compute_feature_table
+from condmon.models.numerics import SimulationError
+from condmon.signals import make_rows
+from condmon.systems import get_system, system_class
+
+TOY_MODULE = str(ROOT / "tests" / "toy_system.py")
+
+
+def toy_config(run_name="toy-smoke") -> dict:
+    """The toy's smoke config: every stage at tiny sizes."""
+    return {
+        "run_name": run_name, "system": "toy", "system_modules": [TOY_MODULE],
+        "calibration": {"contact_laws": ["flores"], "strategy": "per_law", "population": 4, "generations": 2,
+                        "sim_seconds": 0.5, "resolution_hz": 8.0},
+        "simulation": {"samples_per_state": 4, "samples_per_job": 4},
+        "features": {"spectrum": {"f_min_hz": 0.0, "f_max_hz": 200.0, "resolution_hz": 4.0}},
+        "hybrid": {"measured_percent": [0, 100], "repeats": 1, "protocols": ["record_split", "condition_holdout"]},
+        "classifiers": {"cnn": {"enabled": False}},
+    }
+
+
+CONFIGS = {
+    "gear": lambda: config_of("config/smoke.yaml"),
+    "bearing": lambda: config_of("config/cwru-smoke.yaml"),
+    "toy": lambda: config_of(toy_config()),
+}
+
+
+@pytest.fixture(scope="module", params=sorted(CONFIGS))
+def system_and_config(request):
+    config = CONFIGS[request.param]()
+    return get_system(config), config
+
+
+def one_sample(system, config, health_state, seed=7):
+    calibrated = system.nominal_calibration(config["calibration"]["parameters"])
+    parameters = system.sample_parameters(calibrated, health_state, np.random.default_rng(seed),
+                                          config["simulation"])
+    duration = 2 * system.segment_length / system.output_rate_hz
+    return parameters, duration
+
+
+def test_every_health_state_gives_finite_signals_of_its_channels_at_its_rate(system_and_config):
+    system, config = system_and_config
+    assert system.health_states == list(dict.fromkeys(system.health_states)) and len(system.health_states) >= 2
+    for health in system.health_states:
+        parameters, duration = one_sample(system, config, health)
+        signals = system.simulate_sample(parameters, health, system.speeds_rpm[0], duration, seed=3)
+        assert sorted(signals) == sorted(system.channels), health
+        for name, signal in signals.items():
+            assert len(signal) == int(round(duration * system.output_rate_hz)), (health, name)
+            assert np.isfinite(signal).all() and np.std(signal) > 0, (health, name)
+
+
+def test_same_seed_same_signal_and_parameters_round_trip_through_json(system_and_config):
+    system, config = system_and_config
+    health = system.health_states[-1]
+    parameters, duration = one_sample(system, config, health)
+    again, _ = one_sample(system, config, health)
+    assert again == parameters
+    through_json = json.loads(json.dumps(parameters))
+    assert through_json == parameters
+    speed = system.speeds_rpm[-1]
+    first = system.simulate_sample(parameters, health, speed, duration, seed=11)
+    second = system.simulate_sample(through_json, health, speed, duration, seed=11)
+    for name in first:
+        np.testing.assert_array_equal(first[name], second[name])
+
+
+def test_a_diverging_sample_raises_the_one_simulation_error(system_and_config):
+    system, config = system_and_config
+    parameters, duration = one_sample(system, config, system.healthy_state)
+    with pytest.raises(SimulationError):
+        system.simulate_sample(system.diverging(parameters), system.healthy_state, system.speeds_rpm[0],
+                               duration, seed=1)
+
+
+class SometimesDiverging(SpectrumModel):
+    """The system's own calibration spectra, but candidates with `diverge` > 0.5 run the system's
+    diverging parameters: what a calibration meets when CMA-ES strays into an unstable corner."""
+
+    def __call__(self, contact_law, values):
+        values = dict(values)
+        if values.pop("diverge") > 0.5:
+            values = self.system.diverging(values)
+        return super().__call__(contact_law, values)
+
+
+def test_a_calibration_scores_a_diverging_candidate_and_goes_on(system_and_config):
+    system, config = system_and_config
+    spectrum = config["features"]["spectrum"]
+    model = SometimesDiverging(system, system.speeds_rpm[:1], system.channels, spectrum,
+                               config["calibration"]["resolution_hz"],
+                               sim_seconds=system.segment_length / system.output_rate_hz, seed=1)
+    law = system.nominal_calibration([])["contact_law"]
+    target = model(law, {"diverge": 0.0})
+    calibrator = Calibrator([Bound("diverge", 0.0, 1.0, False)], [law], strategy="per_law", population=6,
+                            generations=2, sigma0=0.5, seed=2, processes=2, initial={"diverge": 0.5})
+    best, history = calibrator.run(model, target)
+    failed = history[history["cost"] >= FAILED_COST]
+    assert len(history) == 12 and len(failed) >= 1 and (failed["error"] != "").all()
+    assert (history["cost"] < FAILED_COST).sum() >= 1 and best["parameters"]["diverge"] <= 0.5
+
+
+def test_health_states_and_features_agree_with_the_config(system_and_config):
+    system, config = system_and_config
+    assert set(config["features"]["channels"]) <= set(system.channels)
+    assert system.healthy_state in system.health_states
+    assert set(config["hybrid"]["measured_classes"]) <= set(system.health_states)
+    rows = []
+    for k, health in enumerate(system.health_states):
+        parameters, duration = one_sample(system, config, health)
+        signals = system.simulate_sample(parameters, health, system.speeds_rpm[0], duration, seed=k)
+        rows += make_rows(f"r{k}", "simulated", health, system.speeds_rpm[0],
+                          system.sample_load(system.speeds_rpm[0], parameters), system.output_rate_hz,
+                          signals, segment_length=system.segment_length)
+    features = compute_feature_table(pd.DataFrame(rows), config["features"]["channels"], config["features"]["spectrum"])
+    assert len(features) == 2 * len(system.health_states)
+    assert np.isfinite(features.iloc[:, 7:].to_numpy()).all()
+
+
+def test_registry_errors_name_the_culprit():
+    with pytest.raises(ValueError, match=r"unknown system 'turbine'; registered: \[.*'bearing'.*'gear'"):
+        system_class("turbine")
+    with pytest.raises(ConfigError, match="unknown system 'turbine'"):
+        config_of("config/smoke.yaml", {"system": "turbine"})
+    with pytest.raises(ConfigError, match="unknown key cwru"):  # another system's section
+        config_of("config/smoke.yaml", {"cwru": {"task": "location"}})
+    with pytest.raises(ConfigError, match="no such file"):
+        config_of(toy_config() | {"system_modules": [str(ROOT / "tests" / "no_such_system.py")]})
+
+
+def test_no_branch_on_a_system_name_outside_the_registry():
+    """Rules, scripts and the stage library ask the system; only condmon/systems/ knows names."""
+    pattern = re.compile(r"""(['"](gear|bearing|cwru|toy)['"])|SYSTEM\s*==|\bsystem\s*==""")
+    files = [ROOT / "Snakefile", *(ROOT / "workflow" / "rules").glob("*.smk"),
+             *(ROOT / "workflow" / "scripts").glob("*.py"), *(ROOT / "workflow" / "condmon").glob("*.py")]
+    hits = [f"{path.relative_to(ROOT)}:{n}: {line.strip()}" for path in files
+            for n, line in enumerate(path.read_text().splitlines(), 1) if pattern.search(line)]
+    assert hits == []
+
+
+# -- pipelines (minutes) ---------------------------------------------------------------------------
+@pytest.mark.pipeline
+def test_the_toy_system_runs_the_smoke_pipeline_end_to_end(tmp_path):
+    from test_pipeline import copy_project, snakemake
+
+    workdir = copy_project(tmp_path / "project")
+    (workdir / "toy.yaml").write_text(yaml.safe_dump(toy_config()))
+    snakemake(workdir, "--cores", "2", "--configfile", "toy.yaml")
+    results = workdir / "results" / "toy-smoke"
+    accuracy = pd.read_csv(results / "report" / "accuracy.csv")
+    assert set(accuracy["protocol"]) == {"record_split", "condition_holdout"} and accuracy["accuracy"].between(0, 1).all()
+    calibration = json.loads((results / "calibration" / "rig" / "params.json").read_text())
+    assert set(calibration["parameters"]) == {"stiffness", "damping"}
+    simulated = pd.read_parquet(results / "features" / "simulated.parquet")
+    assert set(simulated["health_state"]) == {"healthy", "loose_mount"} and len(simulated) == 2 * 2 * 4  # states x speeds x samples
+    summary = json.loads((results / "report" / "summary.json").read_text())
+    assert summary["data_source"]["kind"] == "virtual_bench"
+
+
+def rig_signal_table(path, system, labels_by_defect, speeds_loads, records=2, seed=0):
+    """A 'measured' table of another bearing rig: the rig model with the config's geometry at
+    other values (stiffer contact, more noise, another transfer path), each record its own draw."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for label in labels_by_defect:
+        for speed, load in speeds_loads:
+            for r in range(records):
+                values = dict(system.sample_parameters({"parameters": {"contact_stiffness": 1.1e10}}, label, rng, {}))
+                values["noise_rms"] = 0.5
+                signals = system.simulate_sample(values, label, speed, 3 * system.segment_length / 12000.0,
+                                                 int(rng.integers(2 ** 31)))
+                rows += make_rows(f"rig2-{label}-{speed:g}-{r}", "measured", label, speed, load, 12000.0,
+                                  signals, segment_length=system.segment_length)
+    from condmon.signals import write_signal_table
+    write_signal_table(rows, path)
+
+
+@pytest.mark.pipeline
+def test_a_bearing_run_from_another_rigs_signal_table(tmp_path):
+    """Not CWRU: a 12-ball angular-contact bearing, labels of the user's own, loads of its own,
+    read from a signal table; the smoke pipeline runs end to end without an edit to the code."""
+    from test_pipeline import copy_project, snakemake
+
+    labels = {"ok": {"defect": "none"}, "outer": {"defect": "outer_race", "diameter_mm": [0.3, 0.6]},
+              "inner": {"defect": "inner_race", "diameter_mm": [0.3, 0.6]}}
+    config = yaml.safe_load((ROOT / "config" / "cwru-smoke.yaml").read_text())
+    config.update(run_name="rig2-smoke", measured_table=str(tmp_path / "rig2.parquet"))
+    config["bearing"].update(segment_length=2048, health_states=labels, healthy_state="ok",
+                             geometry={"n_balls": 12, "ball_diameter": 7.0e-3, "pitch_diameter": 46.0e-3,
+                                       "contact_angle_deg": 15.0},
+                             load_speeds=[[2.0, 1500.0], [5.0, 1450.0]])
+    config["rig"] = {"speeds_rpm": [1500, 1450]}
+    config["hybrid"].update(protocols=["unseen_fault", "record_split"], measured_classes=["ok"])
+    config["calibration"].update(sim_seconds=0.4)
+    validated = config_of(json.loads(json.dumps(config)))
+    rig_signal_table(tmp_path / "rig2.parquet", get_system(validated), labels, [(1500.0, 2.0), (1450.0, 5.0)])
+    workdir = copy_project(tmp_path / "project")
+    (workdir / "rig2.yaml").write_text(yaml.safe_dump(config))
+    snakemake(workdir, "--cores", "2", "--configfile", "rig2.yaml")
+    results = workdir / "results" / "rig2-smoke"
+    summary = json.loads((results / "report" / "summary.json").read_text())
+    assert summary["labels"][0] == "ok" and set(summary["labels"]) == set(labels)
+    records = pd.read_csv(results / "measured" / "records.csv")
+    assert (records["status"] == "kept").sum() == 12
+    simulated = pd.read_parquet(results / "features" / "simulated.parquet")
+    assert set(simulated["load"]) == {2.0, 5.0} and set(simulated["health_state"]) == set(labels)
+
+
+def test_the_default_profile_is_loaded():
+    import subprocess
+    import sys
+
+    result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--configfile", "config/smoke.yaml"],
+                            cwd=ROOT, capture_output=True, text=True, check=True)
+    assert "Using workflow specific profile profiles/default" in result.stdout + result.stderr
+    profile = yaml.safe_load((ROOT / "profiles" / "default" / "config.yaml").read_text())
+    assert profile["rerun-incomplete"] and profile["show-failed-logs"]

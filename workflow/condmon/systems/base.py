@@ -1,0 +1,266 @@
+"""The interface every simulated system implements (ARCHITECTURE.md, "Systems").
+
+A system is a rig and its model family: the helical-gear drivetrain, the CWRU ball-bearing rig,
+a user's own rig. The stages are the same for all; what differs lives behind this interface:
+- its config sections and their schema (`schema_file`, the only home of their defaults) and its
+  cross-field checks (`problems`);
+- its health states, channels, sampling rate, segment length and simulated speeds;
+- its measured data (`measured_files`, `read_measured`; a synthetic bench as `measured_parts`);
+- its parameters (nominal, calibrated, the per-sample draw `sample_parameters`) and one sample's
+  simulation (`simulate_sample`, raising `SimulationError`);
+- its calibration (`calibrate`: target, cost, search) and what its features need
+  (`defect_orders`).
+
+A system object is built on a config: the whole validated config in the Snakefile, or the part
+`job_config` gives one job (so an edit reruns exactly the jobs it affects). Jobs get it back with
+`condmon.systems.load_system(params.system)`. Every method is deterministic given its seed.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from condmon.models.numerics import SimulationError
+
+__all__ = ["System", "SimulationError"]
+
+# Stages whose jobs build a system object (job_config's `stage`).
+STAGES = ("bench", "measured", "calibrate", "simulate", "features")
+
+
+class System(ABC):
+    """One rig and its model family. Subclasses set the class attributes and implement the
+    abstract methods; the rest has defaults that fit most systems."""
+
+    name: ClassVar[str]                 # the config's `system` value
+    schema_file: ClassVar[Path]         # JSON schema (YAML) of its config sections, with defaults
+    sections: ClassVar[tuple[str, ...]]  # the top-level config keys it owns
+    default_condition: ClassVar[str] = "speed_rpm"  # hybrid.condition when the config leaves it null
+    synthetic_source: ClassVar[str] = "virtual_bench"  # source label of its bench records
+
+    def __init__(self, config: dict):
+        self.config = config
+
+    # -- schema ------------------------------------------------------------------------------
+    @classmethod
+    def schema(cls) -> dict:
+        """Its schema fragment: `properties` of its sections, merged into config/schema.yaml's."""
+        return yaml.safe_load(Path(cls.schema_file).read_text())
+
+    # -- what the stages need to know ----------------------------------------------------------
+    @property
+    @abstractmethod
+    def health_states(self) -> list[str]:
+        """The classes, in a fixed order."""
+
+    @property
+    @abstractmethod
+    def healthy_state(self) -> str:
+        """The label of the healthy machine (calibration target, false alarms)."""
+
+    @property
+    @abstractmethod
+    def channels(self) -> list[str]:
+        """Every channel the model produces (features use a subset)."""
+
+    @property
+    @abstractmethod
+    def output_rate_hz(self) -> float:
+        """Sampling rate of simulated and measured signals."""
+
+    @property
+    @abstractmethod
+    def segment_length(self) -> int:
+        """Samples per segment (one feature vector)."""
+
+    @property
+    @abstractmethod
+    def speeds_rpm(self) -> list[float]:
+        """Simulated speeds."""
+
+    @property
+    def settle_seconds(self) -> float:
+        """Simulated before the recorded part of every run (reported with the cost per sample)."""
+        return 0.0
+
+    @property
+    def calibratable(self) -> tuple[str, ...]:
+        """Parameter names `calibration.parameters` may bound."""
+        return ()
+
+    def calibration_variants(self) -> list[str]:
+        """Names of the calibrations a run makes (one job each, `calibration/<name>/`); the
+        first one's parameters make the simulated data."""
+        return ["rig"]
+
+    @property
+    def measured_table(self) -> str | None:
+        return self.config.get("measured_table")
+
+    def measured_parts(self) -> list[str]:
+        """Parts of a synthetic bench (one job each) when there is no measured data; none here."""
+        return []
+
+    def measured_files(self) -> list[str]:
+        """The measured input files (a signal table by default)."""
+        return [self.measured_table] if self.measured_table else []
+
+    def data_source(self) -> str:
+        """`measured`, or `synthetic_source` when the records come from a bench."""
+        return self.synthetic_source if self.measured_parts() else "measured"
+
+    def job_config(self, stage: str, variant: str | None = None) -> dict:
+        """The config a job of `stage` ("bench", "measured", "calibrate", "simulate",
+        "features") depends on: by default every section the system owns and the measured
+        table's path. Override to hide what a stage must not see (a bench's hidden truth from the
+        calibration) or need not (so an edit reruns only the jobs it affects)."""
+        if stage not in STAGES:
+            raise ValueError(f"unknown stage {stage!r}; choose one of {list(STAGES)}")
+        keys = [*self.sections, "measured_table"]
+        return {key: self.config[key] for key in keys if key in self.config}
+
+    def job_spec(self, stage: str, variant: str | None = None) -> dict:
+        """The `system` param of a rule: what `load_system` needs to rebuild this system in a job."""
+        return {"name": self.name, "modules": list(self.config.get("system_modules") or []),
+                "config": self.job_config(stage, variant)}
+
+    # -- config checks -----------------------------------------------------------------------
+    def problems(self) -> list[str]:
+        """Cross-field problems of the whole config that concern this system (messages name the
+        key). Subclasses extend this list."""
+        config, problems = self.config, []
+        unknown = sorted(set(config["features"]["channels"]) - set(self.channels))
+        if unknown:
+            problems.append(f"features.channels: {unknown} are not channels of the {self.name} system "
+                            f"({self.channels})")
+        wrong = sorted(set(config["calibration"]["parameters"]) - set(self.calibratable))
+        if wrong:
+            problems.append(f"calibration.parameters: {wrong} are not parameters of the {self.name} "
+                            f"system (choose among {sorted(self.calibratable)})")
+        if self.healthy_state not in self.health_states:
+            problems.append(f"the healthy state {self.healthy_state!r} is not among the health states "
+                            f"{self.health_states} (calibration uses healthy records)")
+        classes = config["hybrid"]["measured_classes"]
+        if "unseen_fault" in config["hybrid"]["protocols"] and classes is not None:
+            unknown = sorted(set(classes) - set(self.health_states))
+            if unknown:
+                problems.append(f"hybrid.measured_classes: {unknown} are not health states of the "
+                                f"{self.name} system ({self.health_states})")
+        nyquist = self.output_rate_hz / 2
+        spectrum = config["features"]["spectrum"]
+        if config["features"]["kind"] == "spectrum" or self.calibrates_on_spectra:
+            if spectrum["f_max_hz"] > nyquist:
+                problems.append(f"features.spectrum.f_max_hz: {spectrum['f_max_hz']} Hz is above the "
+                                f"Nyquist frequency {nyquist:g} Hz of the {self.name} system's rate")
+            if spectrum["f_min_hz"] >= spectrum["f_max_hz"]:
+                problems.append("features.spectrum.f_min_hz: must be below features.spectrum.f_max_hz")
+        return problems
+
+    calibrates_on_spectra: ClassVar[bool] = True  # the calibration compares features.spectrum bands
+
+    # -- measured stage ----------------------------------------------------------------------
+    def measured_part_rows(self, part: str) -> list[dict]:
+        """Signal-table rows of one bench part (`measured_parts`)."""
+        raise NotImplementedError(f"the {self.name} system has no synthetic bench")
+
+    def read_measured(self, files, parts, channels, on_bad_record: str) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """(signal-table frame, records list) of the measured data: the bench parts merged, or the
+        user's signal table checked against the system (labels, channels, rate, segment length).
+        The records list has `record_id, health_state, speed_rpm, load, status, reason`."""
+        from condmon.measured import read_user_table_checked
+        from condmon.signals import read_signal_table
+
+        if parts:
+            frame = pd.concat([read_signal_table(path, allowed_sources=(self.synthetic_source,))
+                               for path in parts], ignore_index=True)
+            return frame, kept_records(frame)
+        if not self.measured_table:
+            raise ValueError(f"the {self.name} system has no measured data: set measured_table")
+        frame, skipped = read_user_table_checked(
+            self.measured_table, self.health_states, channels, self.output_rate_hz,
+            self.segment_length / self.output_rate_hz, on_bad_record=on_bad_record)
+        return frame, pd.concat([kept_records(frame), skipped.assign(status="left out")], ignore_index=True)
+
+    # -- calibration -------------------------------------------------------------------------
+    @abstractmethod
+    def calibrate(self, frame: pd.DataFrame, variant: str, calibration: dict, spectrum: dict, channels,
+                  processes: int = 1) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
+        """Fit the model to the healthy measured records: (params.json dict with at least
+        `contact_law`, `parameters`, `cost`, `nominal_cost`, `evaluations`, `sensor_noise`;
+        the history of every evaluation; the spectra frame `speed_rpm, channel, freq_hz,
+        measured, calibrated, model_only`). A candidate whose simulation raises SimulationError
+        scores `condmon.calibrate.FAILED_COST` and the search goes on."""
+
+    def simulate_healthy(self, contact_law: str, values: dict, speed_rpm: float, duration_s: float,
+                         seed: int) -> dict[str, np.ndarray]:
+        """One healthy run of a calibration candidate (`values` overriding the nominal model)."""
+        parameters = {**values, "contact_law": contact_law}
+        return self.simulate_sample(parameters, self.healthy_state, speed_rpm, duration_s, seed)
+
+    # -- parameters and simulation -----------------------------------------------------------
+    nominal_law: ClassVar[str] = "none"  # contact law of the nominal model, where it has one
+
+    @abstractmethod
+    def nominal_values(self) -> dict:
+        """The nominal (uncalibrated) value of every parameter calibration may tune."""
+
+    def nominal_calibration(self, names=None) -> dict:
+        """A calibration result of the nominal model (what `sample_parameters` takes): the
+        nominal values of `names` (default: every calibratable parameter), no sensor noise."""
+        values = self.nominal_values()
+        names = self.calibratable if names is None else names
+        return {"contact_law": self.nominal_law, "parameters": {name: values[name] for name in names},
+                "sensor_noise": 0.0}
+
+    @abstractmethod
+    def sample_parameters(self, calibrated: dict, health_state: str, rng: np.random.Generator,
+                          simulation: dict) -> dict:
+        """One sample's parameters (JSON-able; stored with its records): the calibrated values
+        drawn by the system's rule (perturbation, domain randomisation) from `rng`, which the
+        caller advances in a fixed order."""
+
+    @abstractmethod
+    def simulate_sample(self, parameters: dict, health_state: str, speed_rpm: float, duration_s: float,
+                        seed: int, step_refinement: int = 1) -> dict[str, np.ndarray]:
+        """{channel: signal at output_rate_hz, duration_s long} of one run; `seed` drives any
+        randomness of the model, `step_refinement` divides the time step. Raises SimulationError
+        when the run fails or diverges, ValueError never (invalid drawn values are a failed run)."""
+
+    @abstractmethod
+    def diverging(self, parameters: dict) -> dict:
+        """`parameters` changed so the run must diverge (the contract test and calibration
+        tests check that this raises SimulationError and is handled)."""
+
+    def sample_load(self, speed_rpm: float, parameters: dict) -> float:
+        """The `load` column of a simulated record (its operating condition besides speed)."""
+        return 0.0
+
+    # -- features ----------------------------------------------------------------------------
+    def defect_orders(self) -> dict | None:
+        """Envelope lines the statistical features measure, in orders of the shaft speed, or None
+        (no envelope features)."""
+        return None
+
+
+def kept_records(frame: pd.DataFrame) -> pd.DataFrame:
+    """One line per record of a signal-table frame, marked kept."""
+    return (frame[["record_id", "health_state", "speed_rpm", "load"]].drop_duplicates("record_id")
+            .assign(status="kept", reason="").reset_index(drop=True))
+
+
+def schema_defaults(schema: dict) -> dict:
+    """The defaults a JSON schema object declares, nested (what validation would fill in)."""
+    out = {}
+    for name, sub in (schema.get("properties") or {}).items():
+        if "default" in sub:
+            out[name] = sub["default"]
+            if isinstance(sub["default"], dict) and sub.get("properties"):
+                out[name] = {**schema_defaults(sub), **sub["default"]}
+        elif sub.get("type") == "object" and sub.get("properties"):
+            out[name] = schema_defaults(sub)
+    return out

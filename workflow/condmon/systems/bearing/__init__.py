@@ -1,0 +1,212 @@
+"""The ball-bearing rig (`system: bearing`): the exudyn rotor on two ball bearings of
+`condmon.models.bearing_rig`, calibrated on healthy records and simulated under domain
+randomisation. Measured data: the original CWRU `.mat` files of `measured_dir` (cwru.py), or a
+user's signal table (`measured_table`) from any bearing rig.
+
+Config sections (schema.yaml beside this file): `bearing` (acquisition, geometry of the tested
+and the other bearing, labels and their defects, load-speed table, nominal model, numerics,
+randomisation), `cwru` (the task and manifest of the CWRU reader), `measured_dir`, `rig`
+(simulated speeds).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from condmon.models.bearing_rig import CHANNELS, simulate_rig
+from condmon.models.numerics import SimulationError
+from condmon.seeds import job_rng
+from condmon.systems.base import System
+from condmon.systems.bearing.model import (SCALES, build_rig_parameters, defect_of_label, feature_orders,
+                                           load_of_speed, rig_settings, sample_values)
+
+
+class BearingSystem(System):
+    name = "bearing"
+    schema_file = Path(__file__).with_name("schema.yaml")
+    sections = ("rig", "bearing", "cwru", "measured_dir")
+    # CWRU records at one load differ by a few rpm: the operating condition is the load
+    default_condition = "load"
+
+    # -- layout ------------------------------------------------------------------------------
+    @property
+    def bearing(self) -> dict:
+        return self.config["bearing"]
+
+    @property
+    def labels(self) -> dict | None:
+        """`bearing.health_states` ({label: defect}), or None for the CWRU task's labels."""
+        return self.bearing["health_states"]
+
+    @property
+    def health_states(self) -> list[str]:
+        if self.labels is not None:
+            return list(self.labels)
+        from condmon.systems.bearing.cwru import task_labels
+
+        return task_labels(self.config["cwru"]["task"])
+
+    @property
+    def healthy_state(self) -> str:
+        return self.bearing["healthy_state"]
+
+    @property
+    def channels(self) -> list[str]:
+        return list(CHANNELS)  # the model's sensor; the files may hold more (bearing.channels)
+
+    @property
+    def output_rate_hz(self) -> float:
+        return float(self.bearing["fs_hz"])
+
+    @property
+    def segment_length(self) -> int:
+        return int(self.bearing["segment_length"])
+
+    @property
+    def speeds_rpm(self) -> list[float]:
+        return [float(s) for s in self.config["rig"]["speeds_rpm"]]
+
+    @property
+    def settle_seconds(self) -> float:
+        return float(self.bearing["numerics"]["settle_time"])
+
+    @property
+    def model(self) -> dict:
+        return self.bearing["model"]
+
+    @property
+    def calibratable(self) -> tuple[str, ...]:
+        return tuple(sorted(set(self.model) | set(SCALES)))
+
+    @property
+    def numerics(self) -> dict:
+        return dict(self.bearing["numerics"], output_rate_hz=self.output_rate_hz)
+
+    @property
+    def geometries(self) -> tuple[dict, dict]:
+        return self.bearing["geometry"], self.bearing["fan_end_geometry"]
+
+    def measured_files(self) -> list[str]:
+        if self.measured_table:
+            return [self.measured_table]
+        folder = Path(self.config["measured_dir"])
+        files = sorted(folder.glob("*.mat"))
+        if not files:
+            raise ValueError(f"measured_dir: no .mat files in {folder}")
+        manifest = self.config["cwru"]["manifest"]
+        if manifest == "auto":
+            manifest = folder / "index.csv" if (folder / "index.csv").exists() else None
+        return [str(f) for f in files] + ([str(manifest)] if manifest else [])
+
+    def job_config(self, stage: str, variant: str | None = None) -> dict:
+        config = super().job_config(stage, variant)
+        if stage == "features":
+            return {"bearing": {"geometry": self.bearing["geometry"]}}
+        if stage != "measured":
+            config.pop("measured_dir", None)
+        return config
+
+    # -- checks ------------------------------------------------------------------------------
+    def problems(self) -> list[str]:
+        config, bearing = self.config, self.bearing
+        problems = super().problems()
+        if not config["measured_table"] and not Path(config["measured_dir"]).is_dir():
+            problems.append(f"measured_dir: {config['measured_dir']} is not a folder (point it at your CWRU "
+                            ".mat files with --config measured_dir=PATH, or give a measured_table)")
+        extra = sorted(set(config["features"]["channels"]) - set(bearing["channels"]))
+        if extra:
+            problems.append(f"features.channels: {extra} not among the measured bearing.channels "
+                            f"{bearing['channels']}")
+        low, high = config["features"]["statistical"]["band_hz"]
+        if not 0 < low < high < self.output_rate_hz / 2:
+            problems.append(f"features.statistical.band_hz: {[low, high]} must satisfy 0 < low < high < "
+                            f"bearing.fs_hz / 2 = {self.output_rate_hz / 2:g}")
+        for key in ("geometry", "fan_end_geometry"):
+            g = bearing[key]
+            if not g["ball_diameter"] < g["pitch_diameter"]:
+                problems.append(f"bearing.{key}: ball_diameter must be below pitch_diameter")
+        if self.labels is not None:
+            for label, spec in self.labels.items():
+                if spec["defect"] != "none" and "diameter_mm" not in spec:
+                    problems.append(f"bearing.health_states.{label}: a {spec['defect']} defect needs "
+                                    "diameter_mm: [low, high]")
+                elif "diameter_mm" in spec and not 0 <= spec["diameter_mm"][0] <= spec["diameter_mm"][1]:
+                    problems.append(f"bearing.health_states.{label}.diameter_mm: need 0 <= low <= high")
+            if self.healthy_state in self.labels and self.labels[self.healthy_state]["defect"] != "none":
+                problems.append(f"bearing.healthy_state: {self.healthy_state!r} has a defect in "
+                                "bearing.health_states")
+            if not config["measured_table"]:
+                problems.append("bearing.health_states: CWRU files are labelled by cwru.task; own labels "
+                                "need a measured_table")
+        if config["hybrid"]["condition"] == "speed_rpm" and "condition_holdout" in config["hybrid"]["protocols"]:
+            problems.append("hybrid.condition: CWRU records of one load differ by a few rpm; hold out "
+                            "loads (condition: load)")
+        return problems
+
+    # -- measured ----------------------------------------------------------------------------
+    def read_measured(self, files, parts, channels, on_bad_record):
+        if self.measured_table:
+            return super().read_measured(files, parts, channels, on_bad_record)
+        import pandas as pd
+
+        from condmon.systems.bearing.cwru import cwru_rows
+
+        ingest = cwru_rows(self.config["measured_dir"], task=self.config["cwru"]["task"],
+                           channels=tuple(self.bearing["channels"]), fs_hz=self.output_rate_hz,
+                           segment_length=self.segment_length, manifest=self.config["cwru"]["manifest"],
+                           on_bad_record=on_bad_record)
+        records = pd.concat([ingest.records.assign(status="kept", reason=""),
+                             ingest.excluded.assign(status="left out")], ignore_index=True)
+        return pd.DataFrame(ingest.rows), records
+
+    # -- calibration -------------------------------------------------------------------------
+    def calibrate(self, frame, variant, calibration, spectrum, channels, processes=1):
+        from condmon.systems.bearing.calibration import calibrate_rig
+
+        return calibrate_rig(self, frame, calibration, spectrum, processes=processes)
+
+    def simulate_healthy(self, contact_law, values, speed_rpm, duration_s, seed):
+        if contact_law != "hertz":
+            raise ValueError(f"the bearing rig has the Hertz contact only, not {contact_law!r}")
+        params = self._parameters(values, self.healthy_state, speed_rpm)
+        return simulate_rig(params, rig_settings(self.numerics, duration=duration_s),
+                            job_rng(seed, "calibrate", float(speed_rpm)))
+
+    # -- simulation --------------------------------------------------------------------------
+    def _parameters(self, values: dict, health_state: str, speed_rpm: float):
+        try:
+            return build_rig_parameters(self.model, health_state, float(speed_rpm), labels=self.labels,
+                                        geometries=self.geometries, **values)
+        except ValueError as exc:  # a drawn value outside the model's domain
+            raise SimulationError(f"invalid parameters: {exc}") from exc
+
+    nominal_law = "hertz"
+
+    def nominal_values(self) -> dict:
+        return {**{scale: 1.0 for scale in SCALES}, **self.model}
+
+    def sample_parameters(self, calibrated, health_state, rng, simulation) -> dict:
+        # the rig model draws its own domain randomisation (bearing.randomisation) around the calibration
+        return sample_values(self.bearing, calibrated, health_state, rng, self.labels)
+
+    def simulate_sample(self, parameters, health_state, speed_rpm, duration_s, seed, step_refinement=1):
+        numerics = self.numerics
+        numerics["steps_per_sensor_sample"] *= int(step_refinement)
+        return simulate_rig(self._parameters(parameters, health_state, speed_rpm),
+                            rig_settings(numerics, duration=duration_s), np.random.default_rng(seed))
+
+    def diverging(self, parameters: dict) -> dict:
+        # balls a million times stiffer: a contact mode far beyond what RK44 at this step can hold
+        stiffness = parameters.get("contact_stiffness", self.model["contact_stiffness"])
+        return dict(parameters, contact_stiffness=float(stiffness) * 1e6)
+
+    def sample_load(self, speed_rpm, parameters) -> float:
+        return load_of_speed(speed_rpm, self.bearing["load_speeds"])
+
+    def defect_orders(self) -> dict:
+        return feature_orders(self.bearing["geometry"])
+
+    def defect(self, health_state: str):
+        """(defect kind, (low, high) diameter in inches) of a label."""
+        return defect_of_label(health_state, self.labels)

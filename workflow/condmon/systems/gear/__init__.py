@@ -1,0 +1,169 @@
+"""The helical-gear drivetrain (`system: gear`): the exudyn model of `condmon.models.gear_drivetrain`
+on the virtual bench (`measured_parts`) or on a user's signal table (`measured_table`).
+
+Config sections (schema.yaml beside this file): `rig` (speeds, health states, output rate,
+segment length), `model` (geometry and nominal parameters), `numerics`, `virtual_bench`
+(hidden truth and the effects the model lacks; never passed to a calibration job). One
+calibration per mesh stiffness model (`calibration.mesh_stiffness_models`), the simulation's
+(`model.mesh_stiffness_model`) first.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from condmon.calibrate import calibrate_on_spectra
+from condmon.models.gear_drivetrain import CHANNELS, SimulationSettings, operating_mesh_stiffness, simulate
+from condmon.systems.base import System
+from condmon.systems.gear.parameters import CALIBRATABLE, build_parameters, perturb
+
+
+def speed_label(speed) -> str:
+    return f"{float(speed):g}"
+
+
+class GearSystem(System):
+    name = "gear"
+    schema_file = Path(__file__).with_name("schema.yaml")
+    sections = ("rig", "model", "numerics", "virtual_bench")
+    default_condition = "speed_rpm"
+
+    # -- layout ------------------------------------------------------------------------------
+    @property
+    def health_states(self) -> list[str]:
+        return list(self.config["rig"]["health_states"])
+
+    @property
+    def healthy_state(self) -> str:
+        return "healthy"
+
+    @property
+    def channels(self) -> list[str]:
+        return list(CHANNELS)
+
+    @property
+    def output_rate_hz(self) -> float:
+        return float(self.config["rig"]["output_rate_hz"])
+
+    @property
+    def segment_length(self) -> int:
+        return int(round(self.config["rig"]["segment_seconds"] * self.output_rate_hz))
+
+    @property
+    def speeds_rpm(self) -> list[float]:
+        return [float(s) for s in self.config["rig"]["speeds_rpm"]]
+
+    @property
+    def settle_seconds(self) -> float:
+        return float(self.config["numerics"]["settle_time"])
+
+    @property
+    def calibratable(self) -> tuple[str, ...]:
+        return CALIBRATABLE
+
+    @property
+    def numerics(self) -> dict:
+        return dict(self.config["numerics"], output_rate=self.output_rate_hz)
+
+    def calibration_variants(self) -> list[str]:
+        simulated = self.config["model"]["mesh_stiffness_model"]
+        return [simulated] + [m for m in self.config["calibration"]["mesh_stiffness_models"] if m != simulated]
+
+    def measured_parts(self) -> list[str]:
+        if self.measured_table:
+            return []
+        return [f"{health}_{speed_label(speed)}rpm" for health in self.health_states for speed in self.speeds_rpm]
+
+    def job_config(self, stage: str, variant: str | None = None) -> dict:
+        config = super().job_config(stage, variant)
+        if stage != "bench":
+            config.pop("virtual_bench", None)  # the hidden truth reaches the bench jobs only
+        if stage == "bench":
+            # the bench's mesh is virtual_bench.true_parameters.mesh_stiffness_model, not the model's
+            config["model"] = {k: v for k, v in config["model"].items() if k != "mesh_stiffness_model"}
+        elif stage == "calibrate":
+            config["model"] = dict(config["model"], mesh_stiffness_model=variant)
+        elif stage == "measured":
+            config = {key: config[key] for key in ("rig", "measured_table") if key in config}
+        elif stage == "features":
+            config = {}
+        return config
+
+    # -- checks ------------------------------------------------------------------------------
+    def problems(self) -> list[str]:
+        config = self.config
+        problems = super().problems()
+        rig, spectrum = config["rig"], config["features"]["spectrum"]
+        nyquist = rig["output_rate_hz"] / 2
+        span = spectrum["f_max_hz"] - spectrum["f_min_hz"]
+        for key, resolution in (("features.spectrum.resolution_hz", spectrum["resolution_hz"]),
+                                ("calibration.resolution_hz", config["calibration"]["resolution_hz"])):
+            if abs(span / resolution - round(span / resolution)) > 1e-6:
+                problems.append(f"{key}: the range f_min_hz..f_max_hz ({span:g} Hz) is not a whole number "
+                                f"of {resolution:g} Hz bands")
+        segment_resolution = 1.0 / rig["segment_seconds"]
+        if spectrum["resolution_hz"] < segment_resolution:
+            problems.append(f"features.spectrum.resolution_hz: {spectrum['resolution_hz']} Hz is finer than "
+                            f"the {segment_resolution:g} Hz a {rig['segment_seconds']} s segment resolves")
+        gmf = max(rig["speeds_rpm"]) / 60 * config["model"]["geometry"]["teeth_pinion"]
+        if gmf >= nyquist:
+            problems.append(f"rig.output_rate_hz: the gear mesh frequency {gmf:.0f} Hz at the highest speed "
+                            f"is above the Nyquist frequency {nyquist} Hz")
+        if config["measured_table"] is None and config["virtual_bench"]["record_seconds"] < rig["segment_seconds"]:
+            problems.append("virtual_bench.record_seconds: shorter than rig.segment_seconds")
+        if config["calibration"]["sim_seconds"] < rig["segment_seconds"]:
+            problems.append("calibration.sim_seconds: shorter than rig.segment_seconds")
+        if "condition_holdout" in config["hybrid"]["protocols"] and len(rig["speeds_rpm"]) < 2:
+            problems.append("hybrid.protocols: condition_holdout needs at least two rig.speeds_rpm")
+        if config["calibration"]["cost"] == "features_eq6":
+            problems.append("calibration.cost: features_eq6 is the bearing rig's cost; the gear model "
+                            "uses cfrp_eq4 or helical_eq14")
+        return problems
+
+    # -- measured: the virtual bench ---------------------------------------------------------
+    def measured_part_rows(self, part: str) -> list[dict]:
+        from condmon.systems.gear.bench import virtual_bench_rows
+
+        health, speed = part.rsplit("_", 1)
+        return virtual_bench_rows(self.config["model"], self.config["virtual_bench"], [health],
+                                  [float(speed.removesuffix("rpm"))], self.numerics,
+                                  self.config["rig"]["segment_seconds"])
+
+    # -- calibration -------------------------------------------------------------------------
+    def calibrate(self, frame, variant, calibration, spectrum, channels, processes=1):
+        model = self.config["model"]
+        result, history, spectra = calibrate_on_spectra(self, frame, calibration, spectrum, channels,
+                                                        nominal=model, nominal_law=model["contact_law"],
+                                                        processes=processes)
+        # K and n trade off at one load; the stiffness the vibration sees is what the data pin down.
+        best = build_parameters(model, contact_law=result["contact_law"], **result["parameters"])
+        result = dict(result, mesh_stiffness_model=model["mesh_stiffness_model"],
+                      operating_mesh_stiffness=operating_mesh_stiffness(best))
+        return result, history, spectra
+
+    # -- simulation --------------------------------------------------------------------------
+    @property
+    def nominal_law(self) -> str:
+        return self.config["model"]["contact_law"]
+
+    def nominal_values(self) -> dict:
+        return {name: self.config["model"][name] for name in CALIBRATABLE}
+
+    def sample_parameters(self, calibrated, health_state, rng, simulation) -> dict:
+        values = perturb(calibrated["parameters"], list(calibrated["parameters"]),
+                         simulation["perturbation_sigma"], rng)
+        return {"contact_law": calibrated["contact_law"], **values}
+
+    def simulate_sample(self, parameters, health_state, speed_rpm, duration_s, seed, step_refinement=1):
+        numerics = self.numerics
+        numerics["steps_per_sensor_sample"] *= int(step_refinement)
+        params = build_parameters(self.config["model"], speed_rpm=float(speed_rpm), health_state=health_state,
+                                  **parameters)
+        return simulate(params, SimulationSettings(duration=duration_s, **numerics))
+
+    def diverging(self, parameters: dict) -> dict:
+        # a mesh a million times stiffer puts its mode far beyond what RK44 at this step can hold
+        stiffness = parameters.get("mesh_stiffness", self.config["model"]["mesh_stiffness"])
+        return dict(parameters, mesh_stiffness=float(stiffness) * 1e6)
+
+    def sample_load(self, speed_rpm, parameters) -> float:
+        return float(self.config["model"]["load_torque"])
