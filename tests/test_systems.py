@@ -212,7 +212,9 @@ def test_a_bearing_run_from_another_rigs_signal_table(tmp_path):
                                        "contact_angle_deg": 15.0},
                              load_speeds=[[2.0, 1500.0], [5.0, 1450.0]])
     config["rig"] = {"speeds_rpm": [1500, 1450]}
-    config["hybrid"].update(protocols=["unseen_fault", "record_split"], measured_classes=["ok"])
+    config["hybrid"].update(protocols=["unseen_fault", "record_split"], measured_classes=["ok"],
+                            measured_percent=[0, 100])
+    config["classifiers"]["knn"]["enabled"] = False  # the plumbing is the point; one classifier will do
     config["calibration"].update(sim_seconds=0.4)
     validated = config_of(json.loads(json.dumps(config)))
     rig_signal_table(tmp_path / "rig2.parquet", get_system(validated), labels, [(1500.0, 2.0), (1450.0, 5.0)])
@@ -237,3 +239,38 @@ def test_the_default_profile_is_loaded():
     assert "Using workflow specific profile profiles/default" in result.stdout + result.stderr
     profile = yaml.safe_load((ROOT / "profiles" / "default" / "config.yaml").read_text())
     assert profile["rerun-incomplete"] and profile["show-failed-logs"]
+
+
+def test_the_library_has_no_import_cycle():
+    """Imports between condmon modules, lazy ones included, form no cycle (features <->
+    stat_features once did)."""
+    import ast
+
+    package = ROOT / "workflow" / "condmon"
+    modules = {}
+    for path in package.rglob("*.py"):
+        parts = path.relative_to(package.parent).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        modules[name] = path
+    graph = {}
+    for name, path in modules.items():
+        imported = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("condmon"):
+                imported.add(node.module)
+            elif isinstance(node, ast.Import):
+                imported |= {a.name for a in node.names if a.name.startswith("condmon")}
+        graph[name] = {m for m in imported if m in modules and m != name}
+    state = {}
+
+    def visit(name, trail):
+        state[name] = "open"
+        for other in sorted(graph[name]):
+            assert state.get(other) != "open", f"import cycle: {' -> '.join(trail + [name, other])}"
+            if other not in state:
+                visit(other, trail + [name])
+        state[name] = "done"
+
+    for name in sorted(graph):
+        if name not in state:
+            visit(name, [])
