@@ -19,6 +19,8 @@ rule calibrate:
         spectrum=config["features"]["spectrum"],
         data_source=data_source(),
     threads: workflow.cores
+    conda:
+        "../envs/simulation.yaml"
     log:
         f"{LOGS}/calibrate_{{variant}}.log",
     script:

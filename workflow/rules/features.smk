@@ -12,6 +12,8 @@ rule features_measured:
         kind=config["features"]["kind"],
         statistical=statistical_feature_params(),
         system=SYSTEM.job_spec("features"),
+    conda:
+        "../envs/learning.yaml"
     log:
         f"{LOGS}/features_measured.log",
     script:
@@ -29,6 +31,8 @@ rule features_simulated:
         kind=config["features"]["kind"],
         statistical=statistical_feature_params(),
         system=SYSTEM.job_spec("features"),
+    conda:
+        "../envs/learning.yaml"
     log:
         f"{LOGS}/features_simulated.log",
     script:

@@ -15,6 +15,8 @@ rule hybrid:
         condition=CONDITION,
         measured_classes=lambda wc: (config["hybrid"]["measured_classes"]
                                      if wc.protocol == "unseen_fault" else None),
+    conda:
+        "../envs/learning.yaml"
     log:
         f"{LOGS}/hybrid/{{protocol}}.log",
     script:

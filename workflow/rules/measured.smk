@@ -7,6 +7,8 @@ rule measured_part:
         temp(f"{RESULTS}/measured/parts/{{part}}.parquet"),
     params:
         system=SYSTEM.job_spec("bench"),
+    conda:
+        "../envs/simulation.yaml"
     log:
         f"{LOGS}/measured_part/{{part}}.log",
     script:
@@ -24,6 +26,8 @@ rule measured:
         parts=len(MEASURED_PARTS),  # the last inputs are the bench parts
         channels=config["features"]["channels"],
         on_bad_record=config["on_bad_record"],
+    conda:
+        "../envs/simulation.yaml"
     log:
         f"{LOGS}/measured.log",
     script:

@@ -17,6 +17,8 @@ rule track:
         data_source=data_source(),
         classifier_params={name: classifier_params(name) for name in CLASSIFIERS},
         healthy_state=SYSTEM.healthy_state,
+    conda:
+        "../envs/report.yaml"
     log:
         f"{LOGS}/track.log",
     script:
@@ -45,6 +47,8 @@ rule report:
         confusion_percent=config["report"]["confusion_percent"],
         healthy_state=SYSTEM.healthy_state,
         calibrations=CALIBRATIONS,  # the first one's calibration made the simulated data
+    conda:
+        "../envs/report.yaml"
     log:
         f"{LOGS}/report.log",
     script:

@@ -11,6 +11,8 @@ rule simulate:
         system=SYSTEM.job_spec("simulate"),
         simulation=config["simulation"],
         samples=lambda wc: batch_samples(wc.batch),
+    conda:
+        "../envs/simulation.yaml"
     log:
         f"{LOGS}/simulate/{{health}}_{{speed}}rpm_batch{{batch}}.log",
     script:

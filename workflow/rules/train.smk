@@ -21,6 +21,8 @@ rule train:
         measured_only_baseline=config["hybrid"]["measured_only_baseline"],
     # the CNN's intra-op threads (classifiers.cnn.threads), so Snakemake reserves the cores
     threads: lambda wc: config["classifiers"][wc.classifier].get("threads", 1)
+    conda:
+        "../envs/learning.yaml"
     log:
         f"{LOGS}/train/{{classifier}}_{{protocol}}.log",
     script:
