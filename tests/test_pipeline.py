@@ -90,6 +90,10 @@ def test_every_design_output_is_written(smoke):
     assert accuracy["accuracy"].between(0, 1).all()
     measured = read_signal_table(results / "measured" / "signals.parquet")
     assert set(measured["source"]) == {"virtual_bench"}  # synthetic data is never labelled measured
+    timings = pd.read_csv(results / "report" / "job_timings.csv").set_index("rule")
+    assert {"measured_part", "calibrate", "simulate", "train"} <= set(timings.index)
+    assert timings.loc["simulate", "jobs"] == 6 and (timings["peak_rss_mb_max"] > 0).all()
+    assert set(summary["job_timings"]) == set(timings.index)
 
 
 def test_mlflow_has_one_parent_and_nested_runs(smoke):
@@ -112,13 +116,20 @@ def test_editing_a_classifier_setting_reruns_only_training_and_report(smoke):
     assert jobs["train"] == len(config["hybrid"]["protocols"])  # the SVM's jobs only
 
 
+def test_choosing_which_models_mlflow_logs_reruns_only_the_tracking(smoke):
+    workdir, _ = smoke
+    config = smoke_config()
+    config["tracking"]["log_models"] = "first_repeat"
+    assert set(planned_jobs(workdir, config)) == {"track", "all"}
+
+
 def test_editing_a_simulation_setting_reruns_simulation_and_downstream_not_calibration(smoke):
     workdir, _ = smoke
     config = smoke_config()
     config["simulation"]["perturbation_sigma"] = 0.05
     jobs = planned_jobs(workdir, config)
     assert {"simulate", "features_simulated", "train", "track", "report"} <= set(jobs)
-    assert not {"calibrate", "measured", "virtual_bench", "features_measured", "hybrid"} & set(jobs)
+    assert not {"calibrate", "measured", "measured_part", "features_measured", "hybrid"} & set(jobs)
 
 
 def test_switching_the_mesh_stiffness_model_reruns_simulation_not_the_bench_or_calibration(smoke):
@@ -129,7 +140,7 @@ def test_switching_the_mesh_stiffness_model_reruns_simulation_not_the_bench_or_c
     config["model"]["mesh_stiffness_model"] = "simple" if model == "potential_energy" else "potential_energy"
     jobs = planned_jobs(workdir, config)
     assert {"simulate", "features_simulated", "train", "track", "report"} <= set(jobs)
-    assert not {"calibrate", "measured", "virtual_bench", "features_measured", "hybrid"} & set(jobs)
+    assert not {"calibrate", "measured", "measured_part", "features_measured", "hybrid"} & set(jobs)
 
 
 def mean_spectrum(results, health, speed, channel="A1_y"):

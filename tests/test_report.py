@@ -198,3 +198,20 @@ def test_simulation_gain_recall_and_protocol_labels(train_outputs, tmp_path):
     assert row["recall_per_class"][label] == pytest.approx(expected)
     assert "LEAKY" in report.PROTOCOL_LABELS["segment_share"]
     assert set(summary["protocols"]) == {"record_split", "condition_holdout"}
+
+
+def test_job_timings_summarise_snakemake_benchmark_files(tmp_path):
+    from condmon.job_timings import summarise
+
+    header = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
+    for name, seconds, rss in (("simulate/healthy_450rpm_batch000", 6.5, 310.2),
+                               ("simulate/healthy_775rpm_batch000", 8.5, 290.0), ("track", 20.0, 800.5)):
+        path = tmp_path / f"{name}.tsv"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(header + f"{seconds}\t0:00:06\t{rss}\t1\t1\t1\t0\t0\t90\t{seconds - 0.5}\n")
+    timings = summarise(tmp_path).set_index("rule")
+    assert list(timings.index) == ["simulate", "track"]
+    assert timings.loc["simulate", "jobs"] == 2 and timings.loc["simulate", "wall_seconds_total"] == 15.0
+    assert timings.loc["simulate", "wall_seconds_median"] == 7.5 and timings.loc["simulate", "peak_rss_mb_max"] == 310.2
+    assert timings.loc["track", "cpu_seconds_total"] == 19.5
+    assert summarise(tmp_path / "none").empty

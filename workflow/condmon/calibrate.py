@@ -249,6 +249,14 @@ class Calibrator:
                                         cost=cost, seconds=seconds, error=error, **values))
                 return [r[0] for r in results]
 
+            started = time.perf_counter()
+
+            def progress(done, total, costs, law=None):
+                best = min(h["cost"] for h in history)
+                left = (time.perf_counter() - started) / done * (total - done)
+                log.info("%sgeneration %d of %d: best %.4g (so far %.4g), %d evaluations, about %.0f s left",
+                         f"{law} " if law else "", done, total, min(costs), best, len(history), left)
+
             if self.strategy == "catcma" and len(self.laws) > 1:
                 optimizer = CatCMA(mean=self._mean0(), sigma=self.sigma0, cat_num=np.array([len(self.laws)]),
                                    bounds=unit_bounds, seed=self.seed, population_size=self.population)
@@ -257,7 +265,7 @@ class Calibrator:
                     candidates = [(self.laws[int(np.argmax(c[0]))], x) for x, c in asked]
                     costs = evaluate(generation, candidates)
                     optimizer.tell([(a, cost) for a, cost in zip(asked, costs)])
-                    log.info("generation %d: best %.4g", generation, min(costs))
+                    progress(generation + 1, self.generations, costs)
             else:
                 for law_index, law in enumerate(self.laws):
                     optimizer = CMA(mean=self._mean0(), sigma=self.sigma0, bounds=unit_bounds,
@@ -266,7 +274,8 @@ class Calibrator:
                         asked = [optimizer.ask() for _ in range(optimizer.population_size)]
                         costs = evaluate(generation, [(law, x) for x in asked])
                         optimizer.tell(list(zip(asked, costs)))
-                        log.info("%s generation %d: best %.4g", law, generation, min(costs))
+                        progress(law_index * self.generations + generation + 1,
+                                 len(self.laws) * self.generations, costs, law)
         finally:
             # after an error or SIGTERM only the evaluations already running finish
             pool.shutdown(wait=True, cancel_futures=True)

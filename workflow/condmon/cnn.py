@@ -393,7 +393,9 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
                 "best_epoch": best[1] if has_val else len(history),
                 "best_val_loss": float(best[0]) if has_val else None,
                 "n_train": int(len(y_train)), "n_val": int(len(y_val))}
-        log.debug("member %d: %d epochs, best %s", member, len(history), info["best_epoch"])
+        log.info("CNN member %d of %d: %d epochs (best epoch %s, validation loss %s)", member + 1, int(self.members),
+                 len(history), info["best_epoch"],
+                 "n/a" if info["best_val_loss"] is None else f"{info['best_val_loss']:.4g}")
         return state, history, info
 
     # -- prediction -----------------------------------------------------------------------

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from condmon import plots
+from condmon import job_timings, plots
 from condmon.atomic import staging_directory, write_text
 from condmon.hybrid import format_speed
 
@@ -443,7 +443,7 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
                  calibration_history, accuracy_path, summary_path, plots_dir, run_name: str,
                  data_source: str, confusion_percent=(0,), simulation_reports=(),
                  baseline_paths=(), measured_records=None, record_recall_path=None,
-                 healthy_state: str | None = None) -> dict:
+                 healthy_state: str | None = None, benchmarks_dir=None, job_timings_path=None) -> dict:
     """Build the whole report; returns the summary dict. Every output is written atomically.
 
     calibration_params, calibration_spectra, calibration_history: the files of one calibration,
@@ -486,6 +486,11 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
         summary["simulation"] = simulation_summary(simulation_reports)
         if measured_records is not None:
             summary["measured_records"] = measured_records_summary(measured_records)
+        if benchmarks_dir is not None:  # the jobs that finished before this one
+            timings = job_timings.summarise(benchmarks_dir)
+            summary["job_timings"] = {row.pop("rule"): row for row in timings.to_dict("records")}
+            if job_timings_path is not None:
+                write_text(timings.to_csv(index=False), job_timings_path)
         write_text(accuracy.to_csv(index=False), accuracy_path)
         if record_recall_path is not None:
             write_text(recall_per_record(predictions).to_csv(index=False), record_recall_path)

@@ -61,7 +61,8 @@ def simulate_batch(system, calibrated: dict, health_state: str, speed_rpm: float
         if signals is None:
             failures.append({"record_id": record_id, "errors": errors, "params": values})
             continue
-        log.info("%s: %.2f s (%d of %d)", record_id, seconds[-1], i + 1, samples)
+        log.info("%s: %.2f s (%d of %d, about %.0f s left)", record_id, seconds[-1], i + 1, samples,
+                 sum(seconds) / (i + 1) * (samples - i - 1))
         if sensor_noise > 0:
             noise = job_rng(sample_seed, "noise")
             signals = {name: signal + noise.normal(0.0, sensor_noise, size=signal.shape)

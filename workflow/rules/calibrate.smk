@@ -21,6 +21,8 @@ rule calibrate:
     threads: workflow.cores
     conda:
         "../envs/simulation.yaml"
+    benchmark:
+        f"{BENCHMARKS}/calibrate/{{variant}}.tsv"
     log:
         f"{LOGS}/calibrate_{{variant}}.log",
     script:

@@ -15,6 +15,8 @@ def canonical(section):
 config = canonical(config)
 RESULTS = f"results/{config['run_name']}"
 LOGS = f"{RESULTS}/logs"
+# wall time and peak memory of every job (Snakemake benchmark files), summarised in the report
+BENCHMARKS = f"{RESULTS}/benchmarks"
 
 
 def speed_label(speed):

@@ -14,6 +14,8 @@ rule features_measured:
         system=SYSTEM.job_spec("features"),
     conda:
         "../envs/learning.yaml"
+    benchmark:
+        f"{BENCHMARKS}/features_measured.tsv"
     log:
         f"{LOGS}/features_measured.log",
     script:
@@ -33,6 +35,8 @@ rule features_simulated:
         system=SYSTEM.job_spec("features"),
     conda:
         "../envs/learning.yaml"
+    benchmark:
+        f"{BENCHMARKS}/features_simulated.tsv"
     log:
         f"{LOGS}/features_simulated.log",
     script:

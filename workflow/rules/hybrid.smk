@@ -17,6 +17,8 @@ rule hybrid:
                                      if wc.protocol == "unseen_fault" else None),
     conda:
         "../envs/learning.yaml"
+    benchmark:
+        f"{BENCHMARKS}/hybrid/{{protocol}}.tsv"
     log:
         f"{LOGS}/hybrid/{{protocol}}.log",
     script:

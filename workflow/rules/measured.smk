@@ -9,6 +9,8 @@ rule measured_part:
         system=SYSTEM.job_spec("bench"),
     conda:
         "../envs/simulation.yaml"
+    benchmark:
+        f"{BENCHMARKS}/measured_part/{{part}}.tsv"
     log:
         f"{LOGS}/measured_part/{{part}}.log",
     script:
@@ -28,6 +30,8 @@ rule measured:
         on_bad_record=config["on_bad_record"],
     conda:
         "../envs/simulation.yaml"
+    benchmark:
+        f"{BENCHMARKS}/measured.tsv"
     log:
         f"{LOGS}/measured.log",
     script:

@@ -12,6 +12,7 @@ rule track:
         run_info=f"{RESULTS}/report/mlflow_run.json",
     params:
         tracking_uri=config["tracking"]["uri"],
+        log_models=config["tracking"]["log_models"],
         run_name=config["run_name"],
         config_hash=config_hash,
         data_source=data_source(),
@@ -19,6 +20,8 @@ rule track:
         healthy_state=SYSTEM.healthy_state,
     conda:
         "../envs/report.yaml"
+    benchmark:
+        f"{BENCHMARKS}/track.tsv"
     log:
         f"{LOGS}/track.log",
     script:
@@ -40,15 +43,19 @@ rule report:
         accuracy=f"{RESULTS}/report/accuracy.csv",
         summary=f"{RESULTS}/report/summary.json",
         recall_per_record=f"{RESULTS}/report/recall_per_record.csv",
+        job_timings=f"{RESULTS}/report/job_timings.csv",
         plots=directory(f"{RESULTS}/report/plots"),
     params:
         run_name=config["run_name"],
         data_source=data_source(),
         confusion_percent=config["report"]["confusion_percent"],
+        benchmarks=BENCHMARKS,
         healthy_state=SYSTEM.healthy_state,
         calibrations=CALIBRATIONS,  # the first one's calibration made the simulated data
     conda:
         "../envs/report.yaml"
+    benchmark:
+        f"{BENCHMARKS}/report.tsv"
     log:
         f"{LOGS}/report.log",
     script:

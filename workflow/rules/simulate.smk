@@ -13,6 +13,8 @@ rule simulate:
         samples=lambda wc: batch_samples(wc.batch),
     conda:
         "../envs/simulation.yaml"
+    benchmark:
+        f"{BENCHMARKS}/simulate/{{health}}_{{speed}}rpm_batch{{batch}}.tsv"
     log:
         f"{LOGS}/simulate/{{health}}_{{speed}}rpm_batch{{batch}}.log",
     script:

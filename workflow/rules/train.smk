@@ -23,6 +23,8 @@ rule train:
     threads: lambda wc: config["classifiers"][wc.classifier].get("threads", 1)
     conda:
         "../envs/learning.yaml"
+    benchmark:
+        f"{BENCHMARKS}/train/{{classifier}}_{{protocol}}.tsv"
     log:
         f"{LOGS}/train/{{classifier}}_{{protocol}}.log",
     script:

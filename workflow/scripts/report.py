@@ -32,6 +32,8 @@ summary = write_report(
     measured_records=snakemake.input.measured_records,
     record_recall_path=snakemake.output.recall_per_record,
     healthy_state=snakemake.params.get("healthy_state"),
+    benchmarks_dir=snakemake.params.get("benchmarks"),
+    job_timings_path=snakemake.output.get("job_timings"),
 )
 log.info("report of run %s: %d result rows, %d plots", summary["run_name"],
          len(summary["results"]), len(summary["plots"]))
