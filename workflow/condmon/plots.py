@@ -185,6 +185,24 @@ def accuracy_per_speed(speed_rows, percents, chance: float, note: str):
                         "repeats)", note, legend_from=axes[0, 0])
 
 
+def _confusion_panel(ax, counts, labels, fontsize: int, aspect=None):
+    """One confusion matrix on `ax`: colour = row-normalised share (recall per true class), text =
+    share and count; a class absent from the test set leaves its row blank. Returns the image."""
+    n = len(labels)
+    totals = counts.sum(axis=1, keepdims=True)
+    shares = np.where(totals > 0, counts / np.maximum(totals, 1), np.nan)
+    image = ax.imshow(shares, cmap="Blues", vmin=0, vmax=1, aspect=aspect)
+    for r in range(n):
+        if totals[r, 0] == 0:
+            continue
+        for c in range(n):
+            ax.text(c, r, f"{shares[r, c]:.2f}\n({counts[r, c]})", ha="center", va="center",
+                    fontsize=fontsize, color="white" if shares[r, c] > 0.6 else "black")
+    ax.set_xticks(range(n), labels, rotation=35, ha="right", fontsize=fontsize)
+    ax.set_yticks(range(n), labels, fontsize=fontsize)
+    return image
+
+
 def confusion_matrices(matrices: dict, labels, classifier: str, protocol: str,
                        speed: str | None, note: str):
     """One panel per measured percentage; ``matrices`` maps percent -> (counts, n_repeats).
@@ -198,18 +216,7 @@ def confusion_matrices(matrices: dict, labels, classifier: str, protocol: str,
                              sharey=True)
     image = None
     for ax, (percent, (counts, n_repeats)) in zip(axes[0], sorted(matrices.items())):
-        totals = counts.sum(axis=1, keepdims=True)
-        shares = np.where(totals > 0, counts / np.maximum(totals, 1), np.nan)
-        image = ax.imshow(shares, cmap="Blues", vmin=0, vmax=1)
-        for r in range(n):
-            if totals[r, 0] == 0:
-                continue  # class absent from this test set: leave the row blank
-            for c in range(n):
-                colour = "white" if shares[r, c] > 0.6 else "black"
-                ax.text(c, r, f"{shares[r, c]:.2f}\n({counts[r, c]})", ha="center",
-                        va="center", fontsize=8, color=colour)
-        ax.set_xticks(range(n), labels, rotation=35, ha="right", fontsize=8)
-        ax.set_yticks(range(n), labels, fontsize=8)
+        image = _confusion_panel(ax, counts, labels, fontsize=8)
         ax.set_xlabel("predicted state")
         training = "simulation only" if percent == 0 else f"{percent} % measured"
         ax.set_title(f"training: {training}\n{int(counts.sum())} test segments, "
@@ -237,16 +244,7 @@ def confusion_matrix_small(counts, labels, title: str, note: str):
     fig = plt.figure(figsize=(size, size))
     # margins in inches: 1.5 left for labels, 0.4 right, 1.4 below, 0.7 above for the title
     ax = fig.add_axes((1.5 / size, 1.4 / size, (size - 1.9) / size, (size - 2.1) / size))
-    totals = counts.sum(axis=1, keepdims=True)
-    shares = np.where(totals > 0, counts / np.maximum(totals, 1), np.nan)
-    ax.imshow(shares, cmap="Blues", vmin=0, vmax=1, aspect="auto")
-    for r in range(n):
-        for c in range(n):
-            if totals[r, 0] > 0:
-                ax.text(c, r, f"{shares[r, c]:.2f}\n({counts[r, c]})", ha="center", va="center",
-                        fontsize=7, color="white" if shares[r, c] > 0.6 else "black")
-    ax.set_xticks(range(n), labels, rotation=35, ha="right", fontsize=7)
-    ax.set_yticks(range(n), labels, fontsize=7)
+    _confusion_panel(ax, counts, labels, fontsize=7, aspect="auto")
     ax.set_xlabel("predicted state", fontsize=8)
     ax.set_ylabel("true state", fontsize=8)
     fig.suptitle(title, fontsize=9)

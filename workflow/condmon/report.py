@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from sklearn.metrics import confusion_matrix
 
 from condmon import job_timings, plots
 from condmon.atomic import staging_directory, write_text
@@ -191,11 +192,7 @@ def label_order(labels, healthy_state: str | None = None) -> list[str]:
 
 def confusion_counts(true_labels, predicted_labels, labels) -> np.ndarray:
     """Counts, rows = true label, columns = predicted label, in the order of ``labels``."""
-    index = {label: i for i, label in enumerate(labels)}
-    counts = np.zeros((len(labels), len(labels)), dtype=int)
-    for true, predicted in zip(true_labels, predicted_labels):
-        counts[index[true], index[predicted]] += 1
-    return counts
+    return confusion_matrix(list(true_labels), list(predicted_labels), labels=list(labels))
 
 
 def per_repeat_accuracy(accuracy: pd.DataFrame) -> pd.DataFrame:

@@ -21,6 +21,7 @@ diagnostics - a tutorial", MSSP 25, 485-520; Smith, Randall (2015), MSSP 64-65, 
 from __future__ import annotations
 
 import numpy as np
+import scipy.stats
 from scipy.signal import butter, hilbert, sosfiltfilt
 from sklearn.base import BaseEstimator, TransformerMixin
 
@@ -120,17 +121,13 @@ def peak(x):
 
 def skewness(x):
     """Skewness = 1/N sum (x_n - mu)^3 / sigma^3 (0 for any symmetric distribution)."""
-    x = _x(x)
-    d = x - x.mean(axis=-1, keepdims=True)
-    return np.mean(d ** 3, axis=-1) / np.mean(d ** 2, axis=-1) ** 1.5
+    return scipy.stats.skew(_x(x), axis=-1, bias=True)
 
 
 def kurtosis(x):
     """Kurtosis = 1/N sum (x_n - mu)^4 / sigma^4 (not the excess: 3 for Gaussian noise, 1.5 for
     a sine)."""
-    x = _x(x)
-    d = x - x.mean(axis=-1, keepdims=True)
-    return np.mean(d ** 4, axis=-1) / np.mean(d ** 2, axis=-1) ** 2
+    return scipy.stats.kurtosis(_x(x), axis=-1, fisher=False, bias=True)
 
 
 def crest_factor(x):

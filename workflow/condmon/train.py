@@ -29,6 +29,7 @@ from pathlib import Path
 import joblib
 import numpy as np
 import pandas as pd
+from sklearn.dummy import DummyClassifier
 import pyarrow as pa
 from sklearn.metrics import accuracy_score, f1_score
 
@@ -152,19 +153,6 @@ def segment_roles(split: pd.DataFrame, measured_features: pd.DataFrame) -> np.nd
     return roles
 
 
-class ConstantClassifier:
-    """What a classifier trained on one class can say: that class (measured-only baseline)."""
-
-    def __init__(self, label):
-        self.classes_ = np.array([label])
-
-    def fit(self, X, y):
-        return self
-
-    def predict(self, X):
-        return np.full(len(X), self.classes_[0])
-
-
 def build_model(classifier_name, classifier_params, seed, feature_selection=None):
     """The configured classifier, behind a sequential backward selection if one is asked for."""
     model = classifiers.make_classifier(classifier_name, classifier_params, seed)
@@ -234,7 +222,8 @@ def run_protocol(classifier_name: str, classifier_params: dict | None,
         if measured_only and len(set(y_train)) < 2:
             if not len(y_train):
                 continue  # nothing measured trains: no baseline at this split
-            model = ConstantClassifier(y_train[0])
+            # what a classifier trained on one class can say: that class
+            model = DummyClassifier(strategy="constant", constant=y_train[0])
         elif len(set(y_train)) < 2:
             raise ValueError(f"{where}: training data has only class(es) {sorted(set(y_train))}; "
                              "a classifier needs at least two")
