@@ -51,6 +51,9 @@ def test_cwru_run_writes_every_protocol_labelled_with_gain_and_recall(cwru_run):
     assert set(summary["protocols"]) == {"unseen_fault", "condition_holdout", "record_split",
                                          "segment_share"}
     assert "LEAKY" in summary["protocols"]["segment_share"]
+    accuracy = pd.read_csv(results / "report" / "accuracy.csv")
+    assert (accuracy["leaky"] == (accuracy["protocol"] == "segment_share")).all()
+    assert accuracy.loc[accuracy["n_test"] < 30, "small_test_set"].all()
     rows = {(r["classifier"], r["protocol"], r["measured_percent"]): r for r in summary["results"]}
     # every result carries its protocol's label and a recall per tested class
     assert all(r["protocol_label"] == summary["protocols"][r["protocol"]] for r in rows.values())

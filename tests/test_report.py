@@ -33,7 +33,9 @@ def test_accuracy_csv_is_the_sorted_concatenation_of_metrics(built_report):
     table = pd.read_csv(out / "accuracy.csv")
     assert list(table.columns) == ["classifier", "protocol", "measured_percent", "repeat",
                                    "speed_rpm", "accuracy", "macro_f1", "holdout",
-                                   "n_train_simulated", "n_train_measured", "n_test"]
+                                   "n_train_simulated", "n_train_measured", "n_test", "leaky",
+                                   "accuracy_ci_low", "accuracy_ci_high", "small_test_set"]
+    assert (table["accuracy_ci_low"] <= table["accuracy"]).all() and (table["accuracy"] <= table["accuracy_ci_high"]).all()
     metrics = pd.concat(pd.read_csv(p) for p in paths["metrics"])
     assert len(table) == len(metrics)
     # speed_rpm empty on the all-speeds rows; one per evaluation
@@ -215,3 +217,17 @@ def test_job_timings_summarise_snakemake_benchmark_files(tmp_path):
     assert timings.loc["simulate", "wall_seconds_median"] == 7.5 and timings.loc["simulate", "peak_rss_mb_max"] == 310.2
     assert timings.loc["track", "cpu_seconds_total"] == 19.5
     assert summarise(tmp_path / "none").empty
+
+
+def test_accuracy_rows_carry_leaky_wilson_interval_and_small_test_flag():
+    import pandas as pd
+
+    accuracy = pd.DataFrame({"protocol": ["record_split", "segment_share", "record_split"],
+                             "accuracy": [0.9, 1.0, 0.5], "n_test": [100, 4, 0]})
+    out = report.labelled_accuracy(accuracy)
+    assert list(out["leaky"]) == [False, True, False]
+    assert list(out["small_test_set"]) == [False, True, True]
+    # Wilson 95 % for 90/100: 0.8256-0.9448; for 4/4: 0.5101-1
+    assert (out.loc[0, "accuracy_ci_low"], out.loc[0, "accuracy_ci_high"]) == (0.8256, 0.9448)
+    assert out.loc[1, "accuracy_ci_low"] == 0.5101 and out.loc[1, "accuracy_ci_high"] == 1.0
+    assert np.isnan(out.loc[2, "accuracy_ci_low"])

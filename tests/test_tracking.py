@@ -71,6 +71,7 @@ def test_nested_run_values_match_metrics_csv(logged):
     assert run.data.metrics["accuracy_600rpm"] == pytest.approx(at_600.accuracy)
     assert run.data.params["classifier.C"] == "1.0"
     assert run.data.params["n_train_measured"] == str(overall.n_train_measured)
+    assert run.data.tags["leaky"] == "false"  # "true" only on segment_share runs
 
     client = mlflow.MlflowClient(uri)
     artifacts = {a.path for a in client.list_artifacts(run.info.run_id)}

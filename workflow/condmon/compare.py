@@ -14,6 +14,7 @@ import sys
 
 import pandas as pd
 
+from condmon.hybrid import protocol_title
 from condmon.tracking import DEFAULT_TRACKING_URI, TrackingError, check_tracking_server, \
     resolve_tracking_uri
 
@@ -64,7 +65,7 @@ def comparison_table(runs: pd.DataFrame, experiment_names: dict, percents=None,
     nested = pd.DataFrame({
         "parent_run_id": children["tags.mlflow.parentRunId"],
         "classifier": children["params.classifier"],
-        "protocol": children["params.protocol"],
+        "protocol": children["params.protocol"].map(protocol_title),  # leaky ones say so
         "measured_percent": children["params.measured_percent"].astype(int),
         "repeat": children["params.repeat"].astype(int),
         "accuracy": children["metrics.accuracy"],

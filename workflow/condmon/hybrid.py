@@ -42,6 +42,13 @@ from condmon.seeds import derive_seed, stable_int
 log = logging.getLogger(__name__)
 
 PROTOCOLS = ("record_split", "condition_holdout", "segment_share", "unseen_fault")
+# segments of one record on both sides of the split: never a headline, labelled wherever it appears
+LEAKY_PROTOCOLS = ("segment_share",)
+
+
+def protocol_title(protocol: str) -> str:
+    """A protocol's name as every output shows it: leaky ones say so."""
+    return f"{protocol} (LEAKY)" if protocol in LEAKY_PROTOCOLS else protocol
 CONDITIONS = ("speed_rpm", "load")
 WHOLE_RECORD = -1
 ROLES = ("train", "test", "unused")

@@ -12,6 +12,7 @@ matplotlib.use("Agg")  # batch jobs have no display
 import matplotlib.pyplot as plt  # noqa: E402
 
 from condmon.atomic import temporary_path  # noqa: E402
+from condmon.hybrid import protocol_title  # noqa: E402
 import numpy as np  # noqa: E402
 
 ACCURACY_LABEL = "accuracy on held-out measured records"
@@ -65,7 +66,7 @@ def accuracy_vs_measured_percent(per_repeat, chance: float, note: str):
             ax.fill_between(stats.index, stats["min"], stats["max"], alpha=0.2,
                             color=colours[classifier], linewidth=0)
         ax.axhline(chance, linestyle="--", color="0.4", label=f"chance ({chance:.2f})")
-        ax.set_title(protocol)
+        ax.set_title(protocol_title(protocol))
         ax.set_xlabel(PERCENT_LABEL)
         ax.set_ylim(0, 1.05)
         ax.grid(alpha=0.3)
@@ -174,7 +175,7 @@ def accuracy_per_speed(speed_rows, percents, chance: float, note: str):
                        error_kw={"elinewidth": 0.8})
             ax.axhline(chance, linestyle="--", color="0.4", label="chance")
             ax.set_xticks(x, [f"{s:g}" for s in speeds])
-            ax.set_title(f"{protocol}, {percent} % measured in training", fontsize=10)
+            ax.set_title(f"{protocol_title(protocol)}, {percent} % measured in training", fontsize=10)
             ax.set_ylim(0, 1.05)
             ax.grid(axis="y", alpha=0.3)
             if i == len(protocols) - 1:
@@ -223,7 +224,7 @@ def confusion_matrices(matrices: dict, labels, classifier: str, protocol: str,
                      f"{n_repeats} repeat(s)", fontsize=9)
     axes[0, 0].set_ylabel("true state")
     where = "all speeds" if speed is None else f"{speed} rpm"
-    fig.suptitle(f"Confusion matrix: {classifier}, {protocol}, {where}", fontsize=12)
+    fig.suptitle(f"Confusion matrix: {classifier}, {protocol_title(protocol)}, {where}", fontsize=12)
     fig.text(0.01, 0.005, note + " | counts summed over repeats", fontsize=8, color="0.3")
     # fixed margins in inches: title on top, footnote below, colour bar on the right
     right = 1 - 1.3 / width

@@ -25,11 +25,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy.stats import binomtest
 from sklearn.metrics import confusion_matrix
 
 from condmon import job_timings, plots
 from condmon.atomic import staging_directory, write_text
-from condmon.hybrid import format_speed
+from condmon.hybrid import LEAKY_PROTOCOLS, format_speed
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +45,7 @@ OPTIONAL_PREDICTION_COLUMNS = ["uncertainty"]
 SORT_KEYS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "speed_rpm"]
 
 # What each protocol's test set is: every number the report gives is labelled with it.
+SMALL_TEST_SET = 30  # segments: fewer, and an accuracy says little (flagged in accuracy.csv)
 PROTOCOL_LABELS = {
     "record_split": "whole measured records held out (records never seen in training)",
     "condition_holdout": "a whole operating condition held out (speed or load never seen)",
@@ -181,6 +183,28 @@ def read_table(path, required: list[str], what: str) -> pd.DataFrame:
 
 
 # --------------------------------------------------------------------------- aggregation
+
+def labelled_accuracy(accuracy: pd.DataFrame) -> pd.DataFrame:
+    """accuracy.csv as written: every row with `leaky` (segments of one record on both sides of
+    the split), a 95 % Wilson interval of the accuracy over its test segments (segments of one
+    record are not independent, so the interval is optimistic) and `small_test_set` (under
+    SMALL_TEST_SET segments)."""
+    out = accuracy.copy()
+    out["leaky"] = out["protocol"].isin(LEAKY_PROTOCOLS)
+    bounds = [wilson_interval(int(round(a * n)), int(n)) for a, n in zip(out["accuracy"], out["n_test"])]
+    out["accuracy_ci_low"] = [low for low, _ in bounds]
+    out["accuracy_ci_high"] = [high for _, high in bounds]
+    out["small_test_set"] = out["n_test"] < SMALL_TEST_SET
+    return out
+
+
+def wilson_interval(correct: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """The Wilson score interval of a proportion `correct / n` (NaN for n = 0)."""
+    if n <= 0:
+        return float("nan"), float("nan")
+    interval = binomtest(correct, n).proportion_ci(confidence_level=confidence, method="wilson")
+    return round(float(interval.low), 4), round(float(interval.high), 4)
+
 
 def label_order(labels, healthy_state: str | None = None) -> list[str]:
     """Class labels sorted, the system's healthy state first so confusion matrices read from it.
@@ -488,7 +512,7 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
             summary["job_timings"] = {row.pop("rule"): row for row in timings.to_dict("records")}
             if job_timings_path is not None:
                 write_text(timings.to_csv(index=False), job_timings_path)
-        write_text(accuracy.to_csv(index=False), accuracy_path)
+        write_text(labelled_accuracy(accuracy).to_csv(index=False), accuracy_path)
         if record_recall_path is not None:
             write_text(recall_per_record(predictions).to_csv(index=False), record_recall_path)
         write_text(json.dumps(summary, indent=2) + "\n", summary_path)

@@ -53,7 +53,7 @@ import pyarrow.parquet as pq
 
 from condmon import classifiers, plots, report
 from condmon.atomic import write_json
-from condmon.hybrid import format_speed, sorted_holdouts
+from condmon.hybrid import LEAKY_PROTOCOLS, format_speed, sorted_holdouts
 
 log = logging.getLogger(__name__)
 
@@ -464,7 +464,8 @@ def log_evaluation(experiment_id: str, key: dict, overall, speed_rows, counts, l
     name += f"/{key['holdout']}" if key["holdout"] else ""
     tags = {"classifier": clf, "protocol": protocol,
             "measured_percent": str(key["measured_percent"]), "repeat": str(key["repeat"]),
-            "holdout": key["holdout"], "config_hash": config_hash, "superseded": "false"}
+            "holdout": key["holdout"], "config_hash": config_hash, "superseded": "false",
+            "leaky": str(protocol in LEAKY_PROTOCOLS).lower()}
     params = {"classifier": clf, "protocol": protocol,
               "measured_percent": key["measured_percent"], "repeat": key["repeat"],
               "holdout": key["holdout"] or "none",
@@ -486,7 +487,8 @@ def log_evaluation(experiment_id: str, key: dict, overall, speed_rows, counts, l
         mlflow.log_metrics(values)
         mlflow.log_text(confusion_csv(counts, labels), "confusion_matrix.csv")
         figure = plots.confusion_matrix_small(
-            counts, labels, f"Confusion matrix (share of true class, count)\n{name}",
+            counts, labels, f"Confusion matrix (share of true class, count)\n{name}"
+            + (" (LEAKY protocol)" if protocol in LEAKY_PROTOCOLS else ""),
             f"Data: {report.data_source_label(data_source)}")
         mlflow.log_figure(figure, "confusion_matrix.png")
         plots.plt.close(figure)
