@@ -231,3 +231,9 @@ def test_accuracy_rows_carry_leaky_wilson_interval_and_small_test_flag():
     assert (out.loc[0, "accuracy_ci_low"], out.loc[0, "accuracy_ci_high"]) == (0.8256, 0.9448)
     assert out.loc[1, "accuracy_ci_low"] == 0.5101 and out.loc[1, "accuracy_ci_high"] == 1.0
     assert np.isnan(out.loc[2, "accuracy_ci_low"])
+
+
+def test_confusion_counts_in_label_order_and_empty_when_nothing_was_predicted():
+    counts = report.confusion_counts(["a", "b", "b"], ["a", "a", "b"], ["b", "a", "c"])
+    assert counts.tolist() == [[1, 1, 0], [0, 1, 0], [0, 0, 0]]
+    assert report.confusion_counts([], [], ["a", "b"]).tolist() == [[0, 0], [0, 0]]

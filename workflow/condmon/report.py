@@ -215,8 +215,12 @@ def label_order(labels, healthy_state: str | None = None) -> list[str]:
 
 
 def confusion_counts(true_labels, predicted_labels, labels) -> np.ndarray:
-    """Counts, rows = true label, columns = predicted label, in the order of ``labels``."""
-    return confusion_matrix(list(true_labels), list(predicted_labels), labels=list(labels))
+    """Counts, rows = true label, columns = predicted label, in the order of ``labels``; all zero
+    when nothing was predicted (sklearn refuses empty input)."""
+    true_labels, predicted_labels = list(true_labels), list(predicted_labels)
+    if not true_labels:
+        return np.zeros((len(labels), len(labels)), dtype=int)
+    return confusion_matrix(true_labels, predicted_labels, labels=list(labels))
 
 
 def per_repeat_accuracy(accuracy: pd.DataFrame) -> pd.DataFrame:
