@@ -13,12 +13,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-import yaml
-
 from sklearn.neighbors import KNeighborsClassifier
 from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
+
+from condmon.config import load_schema, schema_defaults
 
 
 @dataclass(frozen=True)
@@ -54,17 +54,12 @@ SCHEMA_PATH = Path(__file__).resolve().parents[2] / "config" / "schema.yaml"
 SELECTION_KEYS = ("enabled", "measured_percent", "repeats")
 
 
-def schema_defaults(name: str) -> dict:
-    """The parameter defaults of classifiers.<name> in config/schema.yaml."""
-    schema = yaml.safe_load(SCHEMA_PATH.read_text())
-    section = schema["properties"]["classifiers"]["properties"][name]["properties"]
-    return {key: spec["default"] for key, spec in section.items() if key not in SELECTION_KEYS}
-
-
+_DEFAULTS = {name: {key: value for key, value in section.items() if key not in SELECTION_KEYS}
+             for name, section in schema_defaults(load_schema(SCHEMA_PATH)["properties"]["classifiers"]).items()}
 CLASSIFIERS: dict[str, ClassifierSpec] = {
-    "svm": ClassifierSpec(_svm, schema_defaults("svm")),
-    "knn": ClassifierSpec(_knn, schema_defaults("knn")),
-    "cnn": ClassifierSpec(_cnn, schema_defaults("cnn")),
+    "svm": ClassifierSpec(_svm, _DEFAULTS["svm"]),
+    "knn": ClassifierSpec(_knn, _DEFAULTS["knn"]),
+    "cnn": ClassifierSpec(_cnn, _DEFAULTS["cnn"]),
 }
 
 

@@ -60,6 +60,19 @@ def load_schema(path) -> dict:
     return yaml.safe_load(Path(path).read_text())
 
 
+def schema_defaults(schema: dict) -> dict:
+    """The defaults a JSON schema object declares, nested (what validation would fill in)."""
+    out = {}
+    for name, sub in (schema.get("properties") or {}).items():
+        if "default" in sub:
+            out[name] = sub["default"]
+            if isinstance(sub["default"], dict) and sub.get("properties"):
+                out[name] = {**schema_defaults(sub), **sub["default"]}
+        elif sub.get("type") == "object" and sub.get("properties"):
+            out[name] = schema_defaults(sub)
+    return out
+
+
 def merge_schema(base: dict, fragment: dict) -> dict:
     """`base` with a system's schema fragment merged in, key by key (the fragment's `properties`
     and `definitions` join the base's; its values win where both set one)."""

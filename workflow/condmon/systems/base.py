@@ -42,6 +42,7 @@ class System(ABC):
     sections: ClassVar[tuple[str, ...]]  # the top-level config keys it owns
     default_condition: ClassVar[str] = "speed_rpm"  # hybrid.condition when the config leaves it null
     synthetic_source: ClassVar[str] = "virtual_bench"  # source label of its bench records
+    calibrates_on_spectra: ClassVar[bool] = True  # its calibration compares features.spectrum bands
 
     def __init__(self, config: dict):
         self.config = config
@@ -161,8 +162,6 @@ class System(ABC):
                 problems.append("features.spectrum.f_min_hz: must be below features.spectrum.f_max_hz")
         return problems
 
-    calibrates_on_spectra: ClassVar[bool] = True  # the calibration compares features.spectrum bands
-
     # -- measured stage ----------------------------------------------------------------------
     def measured_part_rows(self, part: str) -> list[dict]:
         """Signal-table rows of one bench part (`measured_parts`)."""
@@ -251,16 +250,3 @@ def kept_records(frame: pd.DataFrame) -> pd.DataFrame:
     """One line per record of a signal-table frame, marked kept."""
     return (frame[["record_id", "health_state", "speed_rpm", "load"]].drop_duplicates("record_id")
             .assign(status="kept", reason="").reset_index(drop=True))
-
-
-def schema_defaults(schema: dict) -> dict:
-    """The defaults a JSON schema object declares, nested (what validation would fill in)."""
-    out = {}
-    for name, sub in (schema.get("properties") or {}).items():
-        if "default" in sub:
-            out[name] = sub["default"]
-            if isinstance(sub["default"], dict) and sub.get("properties"):
-                out[name] = {**schema_defaults(sub), **sub["default"]}
-        elif sub.get("type") == "object" and sub.get("properties"):
-            out[name] = schema_defaults(sub)
-    return out

@@ -112,16 +112,13 @@ def calibrate_rig(system, frame: pd.DataFrame, calibration: dict, spectrum: dict
                                      seconds=0.0, error="not calibrated", **nominal)])
         return result, history, _spectra_frame(list(fallback_speeds), freqs, None, model_only)
 
-    def measured_rig_spectra():
-        return measured_spectra(frame, speeds, [CHANNEL], spectrum, calibration["resolution_hz"], fs,
+    measured = measured_spectra(frame, speeds, [CHANNEL], spectrum, calibration["resolution_hz"], fs,
                                 label=healthy, tolerance_rpm=5.0)
-
     if cost_kind == "features_eq6":
         evaluated = RigFeatureModel(system, speeds, **spectrum_args)
         target = measured_features(frame, speeds, fs, healthy)
     else:
-        evaluated = plot_model
-        target = measured_rig_spectra()
+        evaluated, target = plot_model, measured
     calibrator = Calibrator(bounds, ["hertz"], strategy="per_law", population=calibration["population"],
                             generations=calibration["generations"], sigma0=calibration["sigma0"],
                             seed=calibration["seed"], processes=processes, initial=nominal)
@@ -135,7 +132,7 @@ def calibrate_rig(system, frame: pd.DataFrame, calibration: dict, spectrum: dict
                   seconds=round(time.perf_counter() - start, 1),
                   seconds_per_evaluation=float(history["seconds"].mean()),
                   failed_evaluations=int((history["error"] != "").sum()))
-    return result, history, _spectra_frame(speeds, freqs, measured_rig_spectra(), calibrated_spectra)
+    return result, history, _spectra_frame(speeds, freqs, measured, calibrated_spectra)
 
 
 def _spectra_frame(speeds, freqs, measured, calibrated) -> pd.DataFrame:

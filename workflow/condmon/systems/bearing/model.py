@@ -24,8 +24,8 @@ import re
 from pathlib import Path
 
 import numpy as np
-import yaml
 
+from condmon.config import load_schema, schema_defaults
 from condmon.models.bearing_rig import INCH, BearingGeometry, BearingRigParameters, RigSettings
 
 CHANNEL = "DE"
@@ -33,14 +33,11 @@ SIZES_IN = (0.007, 0.014, 0.021)
 _FIELDS = {f.name for f in dataclasses.fields(BearingRigParameters)} - {"de_geometry", "fe_geometry"}
 SCALES = ("resonance_frequency_scale", "resonance_damping_scale", "resonance_gain_scale",
           "background_level_scale")
-DEFECT_KINDS = ("none", "inner_race", "ball", "outer_race")
 
 
 @functools.cache
 def _schema_defaults() -> dict:
-    from condmon.systems.base import schema_defaults
-
-    schema = yaml.safe_load(Path(__file__).with_name("schema.yaml").read_text())
+    schema = load_schema(Path(__file__).with_name("schema.yaml"))
     return schema_defaults(schema["properties"]["bearing"])
 
 
@@ -107,8 +104,9 @@ def _merged_model(model: dict) -> dict:
 def build_rig_parameters(model: dict, health_state: str, speed_rpm: float, labels: dict | None = None,
                          geometries: tuple[dict, dict] | None = None, **overrides) -> BearingRigParameters:
     """BearingRigParameters from a `bearing.model` section (missing keys take the schema's
-    defaults), the health label (its defect by `defect_of_label(label, labels)`; a pooled or fixed size's mid diameter unless `defect_width` or
-    `defect_diameter_in` is overridden), the speed and overrides (calibrated or drawn values).
+    defaults), the health label (its defect by `defect_of_label(label, labels)`; a pooled or fixed
+    size's mid diameter unless `defect_width` or `defect_diameter_in` is overridden), the speed and
+    overrides (calibrated or drawn values).
 
     Extra keys besides the model fields: the four calibration scales (`SCALES`),
     `defect_diameter_in` (defect width in inches), and for ball labels only (ignored otherwise):
