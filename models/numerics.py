@@ -24,13 +24,15 @@ def decimation_filter(factor: int, passband: float = 0.8, attenuation_db: float 
     return firwin(numtaps, (1.0 + passband) / 2.0 / factor, window=("kaiser", beta))
 
 
-def solve_rk44(mbs, sensor_rate: float, steps_per_sensor_sample: int, end_time: float) -> None:
+def solve_rk44(mbs, sensor_rate: float, steps_per_sensor_sample: int, end_time: float,
+               sparse: bool = False) -> None:
     """Integrate the assembled system `mbs` with RK44 at h = 1 / (sensor_rate x
     steps_per_sensor_sample) up to `end_time` (rounded to whole steps).
 
     Sensors record once per sensor period, a whole multiple of the step (they record at step
     ends); no solution file, which parallel jobs would otherwise share. Solver errors propagate:
-    the caller names its model and parameters.
+    the caller names its model and parameters. sparse: the system's matrices are sparse
+    containers (factorised with Eigen's sparse LU).
     """
     import exudyn as exu  # imported here so the models' pure helpers work without exudyn
 
@@ -41,4 +43,6 @@ def solve_rk44(mbs, sensor_rate: float, steps_per_sensor_sample: int, end_time: 
     sim.timeIntegration.verboseMode = 0
     sim.solution.file.write = False
     sim.solution.sensors.writePeriod = 1.0 / sensor_rate
+    if sparse:
+        sim.linearSolver.solverType = exu.LinearSolverType.EigenSparse
     mbs.SolveDynamic(sim, solverType=exu.DynamicSolverType.RK44)

@@ -23,7 +23,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from condmon.models.contact_laws import CONTACT_LAWS, contact_force, hysteresis_factor, rebound_restitution
-from condmon.models.gear_drivetrain import GearDrivetrainParameters, MeshForce
+from condmon.models.gear_drivetrain import GearDrivetrainParameters
+from condmon.models.mesh_force import MeshForce
 
 
 def impact(law: str, restitution: float, exponent=1.5, stiffness=2.0e9, masses=(0.7, 1.9), speed=0.4):
@@ -129,6 +130,6 @@ def test_gear_mesh_force_rebounds_with_the_law(law, restitution):
     assert sol.status == 1
     e = -sol.y[1, -1] / speed
     assert e == pytest.approx(rebound_restitution(hysteresis_factor(law, restitution)), abs=1e-4)
-    assert len(mesh.contact_start) == 0  # every contact ended
+    assert len(mesh.impacts) == 0  # every contact ended
     if restitution == 1.0:
         assert e == pytest.approx(1.0, abs=1e-6)

@@ -1,14 +1,17 @@
-"""Physics checks of the gear drivetrain model and its contact laws."""
+"""Physics checks of the 3-D gear drivetrain model, its mesh force and its contact laws."""
 import math
 
 import numpy as np
 import pytest
 from scipy.signal import resample_poly
 
+from condmon.features import SpectrumFeatures
 from condmon.models.contact_laws import CONTACT_LAWS, contact_force, hysteresis_factor
-from condmon.models.gear_drivetrain import (HEALTH_STATES, GearDrivetrainParameters, GearGeometry, MeshForce,
-                                    SimulationError, SimulationSettings, TVMSMeshForce, decimation_filter,
-                                    simulate)
+from condmon.models.gear_drivetrain import (Drivetrain, GearDrivetrainParameters, GearGeometry, SimulationSettings,
+                                            simulate)
+from condmon.models.mesh_force import DEFLECTION_REF, HEALTH_STATES, MeshForce, TVMSMeshForce
+from condmon.models.numerics import SimulationError, decimation_filter
+from condmon.models.structure import LinearStructure, Section
 
 SIMPLE = "simple"
 
@@ -81,6 +84,24 @@ def test_simple_surface_fault_lowers_the_stiffness_of_the_affected_teeth_by_15_p
     period = 1.0 / healthy.mesh_frequency
     t = 0.5 * (1 + healthy.contact_ratio - 1) * period  # single contact of pair 0
     assert faulty(t, 1e-6, 0.0) == pytest.approx(0.85 * healthy(t, 1e-6, 0.0))
+
+
+@pytest.mark.parametrize("loss", [0.15, 0.5, 0.9])
+def test_surface_fault_mesh_force_follows_its_stiffness_loss(loss):
+    """Potential-energy mesh, one faulty tooth, at the static deflection and beyond it: the force
+    lost is exactly `loss` x that tooth's pair force, at every phase of its mesh (the studies'
+    -15 % contact stiffness acts, whatever the loaded deflection)."""
+    p = GearDrivetrainParameters(speed_rpm=600.0, transmission_error=0.0, health_state="surface_fault",
+                                 surface_fault_teeth=1, surface_fault_stiffness_loss=loss)
+    healthy, faulty = MeshForce(p.replace(health_state="healthy")), MeshForce(p)
+    period = 1.0 / healthy.mesh_frequency
+    scale = p.mesh_stiffness * DEFLECTION_REF / healthy.tvms.mean_stiffness
+    for deflection in (0.65e-6, 2e-6):
+        for phase in (0.3, 0.9, 1.6, 2.2):
+            t = phase * period
+            pair = float(healthy.tvms.pair_stiffness(phase)) * scale * (deflection / DEFLECTION_REF) ** p.contact_exponent
+            lost = healthy(t, deflection, 0.0) - faulty(t, deflection, 0.0)
+            assert lost == pytest.approx(loss * pair, rel=1e-9)
 
 
 def test_mesh_stiffness_model_switch():
@@ -210,3 +231,186 @@ def test_divergence_is_an_error_that_names_the_run(model):
     params = GearDrivetrainParameters(speed_rpm=450.0, mesh_stiffness=1.0, mesh_stiffness_model=model)
     with pytest.raises(SimulationError, match="450"):
         simulate(params, SimulationSettings(duration=0.2, settle_time=0.05))
+
+
+# -- the 3-D structure --------------------------------------------------------------------------
+def _exudyn_rigid_rig(p: GearDrivetrainParameters, mesh_stiffness: float):
+    """The rigid rig of `p` built independently from exudyn's own items: each shaft assembly one
+    ObjectRigidBody (NodeRigidBodyRxyz) at its centre of mass with its inertia by the parallel-
+    axis theorem, point-mass housings, Cartesian spring-dampers for bushings and mounts, a
+    coordinate spring for the motor coupling and a linear spring along the mesh normal."""
+    import exudyn as exu
+    import exudyn.itemInterface as eii
+
+    g = p.geometry
+    system = exu.SystemContainer()
+    mbs = system.AddSystem()
+    ground = mbs.AddObject(eii.ObjectGround())
+    centre_distance = g.pitch_radius(g.teeth_pinion) + g.pitch_radius(g.teeth_gear)
+    bodies = []
+    for x, layout, gear_mass, gear_inertia, hub_mass, hub_inertia in (
+            (0.0, p.input_shaft, p.pinion_mass, p.pinion_inertia, p.coupling_mass, p.coupling_inertia),
+            (centre_distance, p.output_shaft, p.gear_mass, p.gear_inertia, p.brake_mass, p.brake_inertia)):
+        radius = layout.diameter / 2
+        shaft_mass = 7850.0 * math.pi * radius ** 2 * layout.length
+        parts = [(shaft_mass, layout.length / 2, shaft_mass * (3 * radius ** 2 + layout.length ** 2) / 12,
+                  shaft_mass * radius ** 2 / 2),
+                 (gear_mass, layout.gear, gear_inertia / 2, gear_inertia),
+                 (hub_mass, layout.hub, hub_inertia / 2, hub_inertia)]
+        mass = sum(m for m, *_ in parts)
+        z_c = sum(m * z for m, z, *_ in parts) / mass
+        transverse = sum(i_t + m * (z - z_c) ** 2 for m, z, i_t, _ in parts)
+        polar = sum(i_p for *_, i_p in parts)
+        node = mbs.AddNode(eii.NodeRigidBodyRxyz(referenceCoordinates=[x, 0.0, z_c, 0.0, 0.0, 0.0]))
+        body = mbs.AddObject(eii.ObjectRigidBody(mass=mass, inertia=[transverse, transverse, polar, 0, 0, 0],
+                                                  nodeNumber=node))
+        bodies.append((body, node, x, z_c))
+        for z in layout.bearings:
+            housing = mbs.AddObject(eii.ObjectMassPoint(mass=p.housing_mass, nodeNumber=mbs.AddNode(
+                eii.NodePoint(referenceCoordinates=[x, 0.0, z]))))
+            on_shaft = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=body, localPosition=[0.0, 0.0, z - z_c]))
+            on_housing = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=housing))
+            on_base = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=ground, localPosition=[x, 0.0, z]))
+            mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
+                markerNumbers=[on_shaft, on_housing],
+                stiffness=[p.bushing_stiffness, p.bushing_stiffness, p.bushing_axial_stiffness]))
+            mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
+                markerNumbers=[on_base, on_housing], stiffness=list(p.housing_stiffness)))
+    pinion_node = bodies[0][1]
+    mbs.AddObject(eii.ObjectConnectorCoordinateSpringDamper(
+        markerNumbers=[mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=mbs.AddNode(eii.NodePointGround()),
+                                                              coordinate=0)),
+                       mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=pinion_node, coordinate=5))],
+        stiffness=p.coupling_stiffness))
+    # Mesh: a spring along the unit normal n of the helical flank, between the pitch point on the
+    # pinion and a point one unit length along n on the gear. Along n its stiffness is
+    # k_transverse / cos^2(beta_b): the transverse-equivalent deflection is delta_n / cos(beta_b).
+    alpha, beta_b = g.transverse_pressure_angle, g.base_helix_angle
+    normal = np.array([math.sin(alpha) * math.cos(beta_b), math.cos(alpha) * math.cos(beta_b), math.sin(beta_b)])
+    pitch = np.array([g.pitch_radius(g.teeth_pinion), 0.0, p.input_shaft.gear])
+    (pinion, _, x1, z1), (gear, _, x2, z2) = bodies
+    on_pinion = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=pinion, localPosition=list(pitch - [x1, 0, z1])))
+    on_gear = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=gear, localPosition=list(pitch + normal - [x2, 0, z2])))
+    mbs.AddObject(eii.ObjectConnectorSpringDamper(markerNumbers=[on_pinion, on_gear], referenceLength=1.0,
+                                                  stiffness=mesh_stiffness / math.cos(beta_b) ** 2))
+    mbs.Assemble()
+    values, _ = mbs.ComputeODE2Eigenvalues(useSparseSolver=False)
+    return np.sqrt(np.clip(np.sort(values), 0, None)) / (2 * math.pi)
+
+
+@pytest.mark.parametrize("mesh_stiffness", [0.0, 4.0e8])
+def test_natural_frequencies_match_an_exudyn_rigid_body_model(mesh_stiffness):
+    """The assembled matrices against the same rig built from exudyn's rigid bodies and connectors
+    (an independent route: body frames, parallel-axis inertia, exudyn's own linearisation)."""
+    p = GearDrivetrainParameters()
+    assembled = Drivetrain(p).natural_frequencies(mesh_stiffness)
+    reference = _exudyn_rigid_rig(p, mesh_stiffness)
+    assert len(assembled) == len(reference) == 24
+    np.testing.assert_allclose(assembled, reference, rtol=1e-6, atol=1e-3)  # atol: the free spin without mesh
+
+
+def test_flexible_beam_bends_at_the_analytical_frequency():
+    """A simply supported steel shaft of 12 Timoshenko elements: first bending frequency against
+    the Timoshenko beam solution (Euler-Bernoulli with shear and rotary inertia corrections)."""
+    length, diameter, youngs, poisson, density = 0.5, 0.03, 2.1e11, 0.3, 7850.0
+    section = Section.tube(diameter, 0.0, youngs, poisson, density)
+    structure = LinearStructure()
+    nodes = [structure.add_node((0.0, 0.0, z)) for z in np.linspace(0.0, length, 13)]
+    for a, b in zip(nodes[:-1], nodes[1:]):
+        structure.add_beam(a, b, section)
+    for node in (nodes[0], nodes[-1]):  # pinned: translations held, rotations free
+        structure.add_spring((node, structure.positions[node]), None, [1e13, 1e13, 1e13], [0, 0, 0])
+    structure.add_coordinate_spring(nodes[0], 5, 1e9, 0.0)  # no free spin
+    frequencies = structure.natural_frequencies()
+    euler = (math.pi / length) ** 2 * math.sqrt(section.bending / section.mass_per_length) / (2 * math.pi)
+    # Timoshenko's first-order correction for mode 1: 1 - (pi r_g / L)^2 (1 + E / (kappa G)) / 2
+    gyration = section.bending / section.axial
+    correction = 1 - 0.5 * (math.pi / length) ** 2 * gyration * (1 + section.axial / section.shear)
+    bending = frequencies[frequencies > 1.0][0]  # the two planes: a double root
+    assert bending == pytest.approx(euler * correction, rel=2e-3)
+    assert frequencies[frequencies > 1.0][1] == pytest.approx(bending, rel=1e-9)
+
+
+def test_flexible_shafts_run_and_soften_the_rig():
+    rigid = GearDrivetrainParameters(speed_rpm=775.0)
+    flexible = rigid.replace(shaft_model="flexible")
+    assert Drivetrain(flexible).natural_frequencies()[:12].sum() < Drivetrain(rigid).natural_frequencies()[:12].sum()
+    signals = simulate(flexible, SimulationSettings(duration=0.1, settle_time=0.05))
+    assert all(np.isfinite(s).all() and s.std() > 0 for s in signals.values())
+
+
+def test_static_mesh_deflection_follows_load_over_stiffness():
+    """Linear mesh law (n = 1), no excitation but the TVMS: the mean mesh deflection carries the
+    load torque, delta = (T / r_b2) / k_mean + the static TE's mean, at two loads."""
+    deflections = []
+    for load in (10.0, 20.0):
+        p = GearDrivetrainParameters(speed_rpm=450.0, contact_exponent=1.0, load_torque=load, transmission_error=0.0)
+        diagnostics = {}
+        simulate(p, SimulationSettings(duration=0.3, settle_time=0.1), diagnostics)
+        mean = diagnostics["deflection"][len(diagnostics["deflection"]) // 3:].mean()
+        force = load / p.geometry.base_radius(p.geometry.teeth_gear)
+        assert mean == pytest.approx(force / p.mesh_stiffness, rel=0.02)
+        deflections.append(mean)
+    assert deflections[1] / deflections[0] == pytest.approx(2.0, rel=0.01)
+
+
+def _line(signal, frequency, fs=5120.0, half_width=0.6):
+    spectrum = np.abs(np.fft.rfft(signal * np.hanning(len(signal))))
+    freqs = np.fft.rfftfreq(len(signal), 1 / fs)
+    return spectrum[np.abs(freqs - frequency) < half_width].max()
+
+
+@pytest.fixture(scope="module")
+def rig_runs():
+    """Healthy and missing-tooth runs of one drivetrain (run-out and pitch errors drawn as for a
+    training sample) at the three study speeds."""
+    rng = np.random.default_rng(3)
+    geometry = GearGeometry()
+    effects = dict(runout_pinion=2e-6, runout_gear=2e-6, runout_phase_gear=1.0,
+                   pitch_errors_pinion=tuple(rng.normal(0, 0.3e-6, 29)),
+                   pitch_errors_gear=tuple(rng.normal(0, 0.3e-6, 44)))
+    runs = {}
+    for speed in (450.0, 775.0, 1100.0):
+        for state in ("healthy", "missing_tooth"):
+            p = GearDrivetrainParameters(geometry=geometry, speed_rpm=speed, health_state=state, **effects)
+            runs[speed, state] = simulate(p, SimulationSettings(duration=1.0, settle_time=0.1))
+    return runs
+
+
+@pytest.mark.parametrize("speed", [450.0, 775.0, 1100.0])
+def test_missing_tooth_raises_the_mesh_sidebands_at_every_speed(rig_runs, speed):
+    shaft = speed / 60
+    gmf = 29 * shaft
+
+    def sidebands(signals):
+        return sum(_line(signals[c], gmf + s * shaft) ** 2 for c in ("A1_x", "A1_y") for s in (-1, 1))
+
+    assert sidebands(rig_runs[speed, "missing_tooth"]) > 2.0 * sidebands(rig_runs[speed, "healthy"])
+
+
+def test_housing_x_and_y_are_not_collinear(rig_runs):
+    """The 3-D rig's housings move in x and y through different paths (anisotropic mounts, tilt,
+    the axial mesh force): the channels are far from collinear and their y/x ratio at the mesh
+    harmonics changes with harmonic and speed."""
+    ratios = []
+    for speed in (450.0, 775.0, 1100.0):
+        signals = rig_runs[speed, "healthy"]
+        assert abs(np.corrcoef(signals["A1_x"], signals["A1_y"])[0, 1]) < 0.9
+        gmf = 29 * speed / 60
+        ratios += [_line(signals["A1_y"], k * gmf) / _line(signals["A1_x"], k * gmf) for k in (1, 2, 3, 4)]
+    assert max(ratios) / min(ratios) > 1.5
+
+
+def test_the_step_has_converged():
+    """The spectral features the classifiers see (2 Hz log bands to 2 kHz, every channel) within
+    0.5 dB of a run with a four times smaller step, in every band within 40 dB of the strongest."""
+    p = GearDrivetrainParameters(speed_rpm=1100.0, health_state="missing_tooth")
+    features = SpectrumFeatures(channels=["A1_x", "A1_y", "A2_x", "A2_y"], f_max_hz=2000.0, resolution_hz=2.0,
+                                band_statistic="rms")
+    levels = []
+    for steps in (1, 4):
+        signals = simulate(p, SimulationSettings(duration=0.5, settle_time=0.1, steps_per_sensor_sample=steps))
+        segment = np.stack([signals[c] for c in features.channels])[None]
+        levels.append(20 * np.log10(features.transform(segment, fs_hz=5120.0)[0] + 1e-12))
+    strong = levels[1] > levels[1].max() - 40.0
+    assert np.abs(levels[0] - levels[1])[strong].max() < 0.5

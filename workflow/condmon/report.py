@@ -384,9 +384,12 @@ def confusion_percents(accuracy: pd.DataFrame, requested) -> list[int]:
 
 def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: Path,
                run_name: str, data_source: str, confusion_percent, baseline=None,
-               healthy_state: str | None = None) -> list[str]:
-    """Write every report plot into ``plots_dir``; returns the file names."""
+               healthy_state: str | None = None, bench_effects: int = 0) -> list[str]:
+    """Write every report plot into ``plots_dir``; returns the file names. bench_effects: how many
+    effects the bench has that the model lacks (the note says so; summary.json lists them)."""
     note = f"Data: {data_source_label(data_source)} | run {run_name}"
+    if bench_effects:
+        note += f" | bench differs from the model in form: {bench_effects} effects (summary.json)"
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
     chance = 1.0 / len(labels)
     percents = confusion_percents(accuracy, confusion_percent)
@@ -468,8 +471,12 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
                  calibration_history, accuracy_path, summary_path, plots_dir, run_name: str,
                  data_source: str, confusion_percent=(0,), simulation_reports=(),
                  baseline_paths=(), measured_records=None, record_recall_path=None,
-                 healthy_state: str | None = None, benchmarks_dir=None, job_timings_path=None) -> dict:
+                 healthy_state: str | None = None, benchmarks_dir=None, job_timings_path=None,
+                 bench_effects=()) -> dict:
     """Build the whole report; returns the summary dict. Every output is written atomically.
+
+    bench_effects: what the virtual bench has and the model lacks (its difference in form),
+    labelled in summary.json and on every plot.
 
     calibration_params, calibration_spectra, calibration_history: the files of one calibration,
     or {mesh stiffness model: file} of one calibration per model, the simulation's first (its
@@ -503,9 +510,11 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
 
     with staging_directory(plots_dir) as staging:
         plot_names = make_plots(accuracy, predictions, spectra, history, calibrations, staging,
-                                run_name, data_source, confusion_percent, baseline, healthy_state)
+                                run_name, data_source, confusion_percent, baseline, healthy_state,
+                                len(bench_effects))
         summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names,
                             baseline, healthy_state)
+        summary["data_source"]["bench_effects_the_model_lacks"] = list(bench_effects)
         if per_model:
             summary["calibration_by_mesh_stiffness_model"] = calibrations
         summary["simulation"] = simulation_summary(simulation_reports)

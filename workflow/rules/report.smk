@@ -48,6 +48,7 @@ rule report:
     params:
         run_name=config["run_name"],
         data_source=data_source(),
+        bench_effects=SYSTEM.bench_effects(),
         confusion_percent=config["report"]["confusion_percent"],
         benchmarks=BENCHMARKS,
         healthy_state=SYSTEM.healthy_state,

@@ -34,6 +34,7 @@ summary = write_report(
     healthy_state=snakemake.params.get("healthy_state"),
     benchmarks_dir=snakemake.params.get("benchmarks"),
     job_timings_path=snakemake.output.get("job_timings"),
+    bench_effects=list(snakemake.params.get("bench_effects", [])),
 )
 log.info("report of run %s: %d result rows, %d plots", summary["run_name"],
          len(summary["results"]), len(summary["plots"]))

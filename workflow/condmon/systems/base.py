@@ -115,6 +115,11 @@ class System(ABC):
         """`measured`, or `synthetic_source` when the records come from a bench."""
         return self.synthetic_source if self.measured_parts() else "measured"
 
+    def bench_effects(self) -> list[str]:
+        """What the bench that makes the measured data has and the model lacks (none for real
+        measurements); the report labels them."""
+        return []
+
     def job_config(self, stage: str, variant: str | None = None) -> dict:
         """The config a job of `stage` ("bench", "measured", "calibrate", "simulate",
         "features") depends on: by default every section the system owns and the measured

@@ -2,8 +2,9 @@
 on the virtual bench (`measured_parts`) or on a user's signal table (`measured_table`).
 
 Config sections (schema.yaml beside this file): `rig` (speeds, health states, output rate,
-segment length), `model` (geometry and nominal parameters), `numerics`, `virtual_bench`
-(hidden truth and the effects the model lacks; never passed to a calibration job). One
+segment length), `model` (geometry, shafts, bearings, housings, mesh, faults and the per-sample
+`variability`), `numerics`, `virtual_bench` (hidden truth and the effects the model lacks; never
+passed to a calibration job). One
 calibration per mesh stiffness model (`calibration.mesh_stiffness_models`), the simulation's
 (`model.mesh_stiffness_model`) first.
 """
@@ -11,10 +12,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from condmon.calibrate import calibrate_on_spectra
-from condmon.models.gear_drivetrain import CHANNELS, SimulationSettings, operating_mesh_stiffness, simulate
+from condmon.models.gear_drivetrain import (CHANNELS, Drivetrain, SimulationSettings, operating_mesh_stiffness,
+                                            simulate)
 from condmon.systems.base import System
-from condmon.systems.gear.parameters import CALIBRATABLE, build_parameters, perturb
+from condmon.systems.gear.parameters import CALIBRATABLE, build_parameters, perturb, sample_effects
 
 
 def speed_label(speed) -> str:
@@ -114,6 +118,10 @@ class GearSystem(System):
             problems.append("calibration.sim_seconds: shorter than rig.segment_seconds")
         if "condition_holdout" in config["hybrid"]["protocols"] and len(rig["speeds_rpm"]) < 2:
             problems.append("hybrid.protocols: condition_holdout needs at least two rig.speeds_rpm")
+        try:
+            Drivetrain(build_parameters(config["model"]))
+        except (ValueError, TypeError) as exc:
+            problems.append(f"model: {exc}")
         if config["calibration"]["cost"] == "features_eq6":
             problems.append("calibration.cost: features_eq6 is the bearing rig's cost; the gear model "
                             "uses cfrp_eq4 or helical_eq14")
@@ -127,6 +135,11 @@ class GearSystem(System):
         return virtual_bench_rows(self.config["model"], self.config["virtual_bench"], [health],
                                   [float(speed.removesuffix("rpm"))], self.numerics,
                                   self.config["rig"]["segment_seconds"])
+
+    def bench_effects(self) -> list[str]:
+        from condmon.systems.gear.bench import bench_form
+
+        return bench_form(self.config["virtual_bench"]).active_effects() if self.measured_parts() else []
 
     # -- calibration -------------------------------------------------------------------------
     def calibrate(self, frame, variant, calibration, spectrum, channels, processes=1):
@@ -154,10 +167,15 @@ class GearSystem(System):
         return {"contact_law": calibrated["contact_law"], **values}
 
     def simulate_sample(self, parameters, health_state, speed_rpm, duration_s, seed, step_refinement=1):
+        """One run; `seed` draws this drivetrain's run-out, pitch errors and fluctuations
+        (`model.variability`)."""
         numerics = self.numerics
         numerics["steps_per_sensor_sample"] *= int(step_refinement)
-        params = build_parameters(self.config["model"], speed_rpm=float(speed_rpm), health_state=health_state,
-                                  **parameters)
+        model = self.config["model"]
+        nominal = build_parameters(model)
+        effects = sample_effects(model["variability"], nominal.geometry, np.random.default_rng(seed))
+        params = build_parameters(model, speed_rpm=float(speed_rpm), health_state=health_state,
+                                  **parameters, **effects)
         return simulate(params, SimulationSettings(duration=duration_s, **numerics))
 
     def diverging(self, parameters: dict) -> dict:

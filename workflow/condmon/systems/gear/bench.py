@@ -4,33 +4,40 @@ from __future__ import annotations
 import logging
 import time
 
-from condmon.models.virtual_bench import bench_record
+from condmon.models.virtual_bench import BenchForm, bench_gears, bench_record
 from condmon.seeds import job_rng
 from condmon.signals import make_rows
 from condmon.systems.gear.parameters import build_parameters, simulation_settings
 
 log = logging.getLogger(__name__)
+FORM_KEYS = tuple(BenchForm.__dataclass_fields__)
+
+
+def bench_form(bench: dict) -> BenchForm:
+    """The `virtual_bench` config section's effects the model lacks."""
+    return BenchForm(**{k: tuple(v) if isinstance(v, list) else v for k, v in bench.items() if k in FORM_KEYS})
 
 
 def virtual_bench_rows(model: dict, bench: dict, health_states, speeds_rpm, numerics: dict,
                        segment_seconds: float) -> list[dict]:
     """Records of the virtual bench: `records_per_state` acquisitions per health state and speed,
     each `record_seconds` long, cut into segments. Source is always `virtual_bench`."""
-    true = dict(bench["true_parameters"])
-    effects = {k: bench[k] for k in ("speed_fluctuation", "speed_fluctuation_hz")}
-    effects["runout_pinion"] = effects["runout_gear"] = bench["runout"]
+    form = bench_form(bench)
     settings = simulation_settings(numerics, duration=bench["record_seconds"])
     segment_length = int(round(segment_seconds * settings.output_rate))
+    geometry = build_parameters(model).geometry
+    gears = bench_gears(form, geometry.teeth_pinion, geometry.teeth_gear, bench["seed"])
     rows = []
     for health_state in health_states:
         for speed in speeds_rpm:
             rng = job_rng(bench["seed"], "virtual_bench", health_state, float(speed))
-            params = build_parameters(model, speed_rpm=float(speed), health_state=health_state, **true, **effects)
+            params = build_parameters(model, speed_rpm=float(speed), health_state=health_state,
+                                      **bench["true_parameters"])
             for k in range(bench["records_per_state"]):
                 start = time.perf_counter()
-                signals = bench_record(params, settings, bench["sensor_noise"], rng)
-                log.info("virtual bench %s %s rpm record %d: %.1f s", health_state, speed, k,
-                         time.perf_counter() - start)
+                signals = bench_record(params, form, settings, rng, gears)
+                log.info("virtual bench %s %s rpm record %d of %d: %.1f s", health_state, speed, k + 1,
+                         bench["records_per_state"], time.perf_counter() - start)
                 rows += make_rows(f"vb-{health_state}-{speed:g}rpm-r{k:02d}", "virtual_bench", health_state,
                                   speed, params.load_torque, settings.output_rate, signals,
                                   segment_length=segment_length)

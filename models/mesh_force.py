@@ -1,0 +1,338 @@
+"""The gear mesh force along the transverse line of action: a function of (time, mesh deflection,
+deflection rate) summing the tooth-pair contact forces (Algorithm 1 of the helical-gear study).
+
+Pure: parameters in, a force function out (no exudyn; the drivetrain calls it from a connector).
+
+Per tooth pair j (pinion tooth j mod z1, gear tooth j mod z2) at pair phase u = phase - j:
+    F_j = K_j(u) (d_j / d_ref)^n  +  c K_j(u) / K_mean d_j'  [+ impact term]
+with the pair deflection d_j = mesh deflection - profile deviation e(u) + pitch errors of both
+teeth - (outside the contact window) the tip gap s^2 / (2 rho). The steady mesh damping is viscous,
+from a damping ratio (`mesh_damping_ratio`, calibrated), shared by the pairs in proportion to their
+stiffness, so it vanishes with contact. The Table-1 contact laws (`contact_laws.py`) act where
+they were built for, impacts: a contact that closes after the whole mesh lost contact (a missing
+tooth's gap, rattle) or on the back flank carries K d^n f(c_r) d' / d'(-) with d'(-) its real
+approach speed, for as long as that contact lasts.
+
+Two stiffness models (`mesh_stiffness_model`): `potential_energy` (`TVMSMeshForce`, the pair
+stiffness over the mesh phase from `gear_mesh.py`, precomputed as tables) and `simple`
+(`MeshForce`: equal pairs in rectangular contact windows). Health: a surface fault scales the
+contact stiffness of its pinion teeth by (1 - loss) over the whole flank; a missing tooth, spall,
+chipped tooth and root crack are tooth geometry (`gear_mesh.ToothDamage`).
+
+Effects of a real drivetrain, per sample: a slow speed fluctuation (in the mesh phase), shaft
+run-out (eccentricity along the line of action at the shaft frequencies) and tooth pitch errors.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from condmon.models.contact_laws import hysteresis_factor
+from condmon.models.gear_mesh import GearMesh, ProfileDeviation, ToothDamage
+
+HEALTH_STATES = ("healthy", "surface_fault", "missing_tooth", "spall", "chipped_tooth", "root_crack")
+MESH_STIFFNESS_MODELS = ("potential_energy", "simple")
+DEFLECTION_REF = 1.0e-6  # m; K = mesh stiffness at this deflection keeps K's unit N/m for any n
+
+
+def tooth_damage(p) -> ToothDamage | None:
+    """The health state of `p` as tooth geometry (None when healthy or a pure stiffness loss)."""
+    if p.health_state not in HEALTH_STATES:
+        raise ValueError(f"unknown health state {p.health_state!r}; choose one of {list(HEALTH_STATES)}")
+    tooth = p.faulty_tooth
+    if p.health_state == "missing_tooth":
+        return ToothDamage("missing", teeth=(tooth,))
+    if p.health_state == "spall":
+        # the pit: `spall_depth` below the flank, its pitted surface softer like a surface fault
+        return ToothDamage("spall", teeth=(tooth,), profile=tuple(p.spall_profile), face=tuple(p.spall_face),
+                           depth=p.spall_depth, stiffness_loss=p.surface_fault_stiffness_loss)
+    if p.health_state == "chipped_tooth":
+        return ToothDamage("chip", teeth=(tooth,), profile=(p.chip_profile, 1.0), face=tuple(p.chip_face))
+    if p.health_state == "root_crack":
+        return ToothDamage("crack", teeth=(tooth,), crack_depth=p.crack_depth)
+    return None
+
+
+def contact_stiffness_factors(p) -> list[float]:
+    """Factor on the contact stiffness of every pinion tooth: 1 - surface_fault_stiffness_loss on
+    the surface fault's teeth, 1 elsewhere."""
+    factors = [1.0] * p.geometry.teeth_pinion
+    if p.health_state == "surface_fault":
+        for k in range(p.surface_fault_teeth):
+            factors[(p.faulty_tooth + k) % p.geometry.teeth_pinion] = 1.0 - p.surface_fault_stiffness_loss
+    return factors
+
+
+def gear_mesh(p) -> GearMesh:
+    """The potential-energy TVMS tables of `p` (geometry, slices, profile deviations, damage)."""
+    return GearMesh(p.geometry, slices=p.helix_slices, damage=tooth_damage(p),
+                    profile_deviation=ProfileDeviation(tip_relief=p.tip_relief),
+                    transmission_error=p.transmission_error)
+
+
+class MeshForce:
+    """The `simple` mesh: pair j nominally in contact while its phase is in [0, contact ratio),
+    all pairs equally stiff, the extended contact (tip gap) outside the window; the chipped tooth
+    and root crack scale their pair by the loss the potential-energy model gives for the tooth's
+    mean stiffness. `MeshForce(p, damping)` builds the model `p.mesh_stiffness_model` names.
+
+    damping: the steady viscous mesh damping (N s/m) at the mean mesh stiffness.
+    """
+
+    def __new__(cls, p, damping: float = 0.0):
+        if p.mesh_stiffness_model not in MESH_STIFFNESS_MODELS:
+            raise ValueError(f"unknown mesh_stiffness_model {p.mesh_stiffness_model!r}; "
+                             f"choose one of {list(MESH_STIFFNESS_MODELS)}")
+        if cls is MeshForce and p.mesh_stiffness_model == "potential_energy":
+            cls = TVMSMeshForce
+        return super().__new__(cls)
+
+    def _common(self, p, damping: float):
+        g = p.geometry
+        self.teeth, self.teeth_gear = g.teeth_pinion, g.teeth_gear
+        self.contact_ratio = g.contact_ratio
+        self.mesh_frequency = p.speed_rpm / 60.0 * g.teeth_pinion
+        self.base_pitch = g.base_pitch
+        self.tip_radius = g.base_radius(g.teeth_pinion)  # rho of the tip gap s^2 / (2 rho)
+        self.gear_ratio = g.teeth_pinion / g.teeth_gear
+        self.mean_force_ref = p.mesh_stiffness * DEFLECTION_REF
+        self.exponent = p.contact_exponent
+        self.hysteresis = hysteresis_factor(p.contact_law, p.restitution)
+        # viscous damping per unit of pair stiffness (pair stiffness in force-at-d_ref units)
+        self.damping_per_stiffness = damping / self.mean_force_ref
+        self.backlash = p.backlash
+        self.te_amplitude = p.transmission_error
+        self.fluct = p.speed_fluctuation
+        self.fluct_w = 2 * math.pi * p.speed_fluctuation_hz
+        self.fluct_phase = p.speed_fluctuation_phase
+        self.runout = (p.runout_pinion, p.runout_gear)
+        self.runout_phase = (p.runout_phase_pinion, p.runout_phase_gear)
+        pinion = _pitch_errors(p.pitch_errors_pinion, g.teeth_pinion, "pinion")
+        gear = _pitch_errors(p.pitch_errors_gear, g.teeth_gear, "gear")
+        # pair j meets pinion tooth j mod z1 and gear tooth j mod z2: periodic in lcm(z1, z2)
+        self.pitch_period = math.lcm(g.teeth_pinion, g.teeth_gear)
+        self.pair_pitch_error = [pinion[j % g.teeth_pinion] + gear[j % g.teeth_gear]
+                                 for j in range(self.pitch_period)]
+        self.stiffness_factor = contact_stiffness_factors(p)
+        self.impacts = {}       # contact key -> approach speed d'(-) of an impact still in contact
+        self.separated = False  # the whole mesh was out of contact at the last call
+
+    def __init__(self, p, damping: float = 0.0):
+        self._common(p, damping)
+        self.pair_force_ref = p.mesh_stiffness * DEFLECTION_REF / self.contact_ratio
+        if p.health_state == "missing_tooth":
+            self.stiffness_factor[p.faulty_tooth % self.teeth] = 0.0
+        elif p.health_state in ("chipped_tooth", "root_crack", "spall"):
+            tvms = GearMesh(p.geometry, slices=p.helix_slices, damage=tooth_damage(p))
+            self.stiffness_factor[p.faulty_tooth % self.teeth] = (
+                sum(grp.stiffness.sum() for grp in tvms.groups(p.faulty_tooth))
+                / sum(grp.stiffness.sum() for grp in tvms.healthy_groups))
+
+    # -- excitation --------------------------------------------------------------------------
+    def phase(self, t):
+        """Mesh phase in mesh periods and its rate, with the speed fluctuation."""
+        if self.fluct:
+            angle = self.fluct_w * t + self.fluct_phase
+            return (self.mesh_frequency * (t + self.fluct * (math.cos(self.fluct_phase) - math.cos(angle))
+                                           / self.fluct_w),
+                    self.mesh_frequency * (1.0 + self.fluct * math.sin(angle)))
+        return self.mesh_frequency * t, self.mesh_frequency
+
+    def runout_excitation(self, phase, phase_rate):
+        """Run-out of both shafts along the line of action (m) and its rate."""
+        e = e_t = 0.0
+        w = 2 * math.pi
+        for amplitude, ratio, offset in ((self.runout[0], 1.0, self.runout_phase[0]),
+                                          (self.runout[1], self.gear_ratio, self.runout_phase[1])):
+            if amplitude:
+                angle = w * phase / self.teeth * ratio + offset
+                e += amplitude * math.sin(angle)
+                e_t += amplitude * w * phase_rate / self.teeth * ratio * math.cos(angle)
+        return e, e_t
+
+    def pitch_error(self, j) -> float:
+        """Pitch errors of the pinion and gear teeth of pair j (m; > 0 closes the pair earlier)."""
+        return self.pair_pitch_error[j % self.pitch_period]
+
+    # -- contact -----------------------------------------------------------------------------
+    # The hot path: called four times per RK44 step, so plain floats and few calls. `touching`
+    # collects the keys in contact only while an impact is tracked (a list, or None).
+    def _contact(self, key, stiffness_ref, d, d_t, touching):
+        """Force of one contact (pair group) at deflection d > 0."""
+        elastic = stiffness_ref * (d / DEFLECTION_REF) ** self.exponent
+        force = elastic + self.damping_per_stiffness * stiffness_ref * d_t
+        if touching is not None:
+            touching.append(key)
+            if self.separated and d_t > 0.0:
+                self.impacts[key] = d_t  # closes after the whole mesh lost contact: an impact
+            v_minus = self.impacts.get(key)
+            if v_minus is not None:
+                force += elastic * self.hysteresis * d_t / v_minus
+        return force if force > 0.0 else 0.0
+
+    def _back_flank(self, back, d_t):
+        """Back-flank contact closing the backlash by `back` > 0 (rattle): always an impact."""
+        if "back" not in self.impacts and -d_t > 0.0:
+            self.impacts["back"] = -d_t
+        elastic = self.mean_force_ref * (back / DEFLECTION_REF) ** self.exponent
+        v_minus = self.impacts.get("back")
+        force = elastic * (1.0 + (self.hysteresis * -d_t / v_minus if v_minus else 0.0))
+        self._finish(["back"], True)
+        return -force if force > 0.0 else 0.0
+
+    def _finish(self, touching, touched):
+        """Remember whether the mesh is in contact; forget impacts whose contact has ended."""
+        if touching is not None:
+            for key in [k for k in self.impacts if k not in touching]:
+                del self.impacts[key]
+        self.separated = not touched
+
+    def __call__(self, t, deflection, rate):
+        phase, phase_rate = self.phase(t)
+        e, e_t = self.runout_excitation(phase, phase_rate)
+        if self.te_amplitude:
+            w = 2 * math.pi
+            e += self.te_amplitude * math.sin(w * phase)
+            e_t += self.te_amplitude * w * phase_rate * math.cos(w * phase)
+        d, d_t = deflection - e, rate - e_t
+        if -d - self.backlash > 0.0:
+            return self._back_flank(-d - self.backlash, d_t)
+        touching = [] if (self.impacts or self.separated) else None
+        total = 0.0
+        pitch_rate = self.base_pitch * phase_rate
+        for j in range(math.floor(phase - self.contact_ratio), math.floor(phase) + 2):
+            u = phase - j
+            if u < 0.0:            # approaching: the gap closes as the pair nears its start of contact
+                s = -u * self.base_pitch
+                gap, gap_t = s * s / (2 * self.tip_radius), -s * pitch_rate / self.tip_radius
+            elif u > self.contact_ratio:  # receding
+                s = (u - self.contact_ratio) * self.base_pitch
+                gap, gap_t = s * s / (2 * self.tip_radius), s * pitch_rate / self.tip_radius
+            else:
+                gap, gap_t = 0.0, 0.0
+            stiffness = self.stiffness_factor[j % self.teeth] * self.pair_force_ref
+            pair_d = d - gap + self.pair_pitch_error[j % self.pitch_period]
+            if pair_d > 0.0 and stiffness > 0.0:
+                total += self._contact(j, stiffness, pair_d, d_t - gap_t, touching)
+        self._finish(touching, total > 0.0)
+        return total
+
+    def static_deflection(self, force):
+        """Deflection that carries `force` with the mean mesh stiffness (for initial conditions)."""
+        return DEFLECTION_REF * (force / self.mean_force_ref) ** (1.0 / self.exponent)
+
+
+def _pitch_errors(values, teeth: int, name: str) -> list[float]:
+    if not values:
+        return [0.0] * teeth
+    if len(values) != teeth:
+        raise ValueError(f"pitch_errors_{name}: {len(values)} values for {teeth} teeth")
+    return [float(v) for v in values]
+
+
+class TVMSMeshForce(MeshForce):
+    """The `potential_energy` mesh: every pair's contact groups (one per pair; a spall adds the
+    pit, `depth` below the flank) carry the table stiffness K(u) (linear interpolation on a uniform
+    grid, no energy integral at run time). The tables are scaled so the healthy mean mesh
+    stiffness at 1 um is `mesh_stiffness` (the calibrated quantity keeps its meaning; the
+    potential-energy method sets the shape over the mesh cycle, the load sharing and the damage).
+    A pair whose stiffness does not vanish at its window's edge (spur gears) keeps the extended
+    contact beyond it; a helical pair enters and leaves slice by slice."""
+
+    def __init__(self, p, damping: float = 0.0):
+        self._common(p, damping)
+        self.te_amplitude = 0.0  # the static TE comes from the profile deviation tables
+        tvms = gear_mesh(p)
+        self.tvms = tvms
+        self.window = tvms.window
+        self.points_per_pitch = tvms.points_per_pitch
+        scale = p.mesh_stiffness * DEFLECTION_REF / tvms.mean_stiffness
+        edge = int(math.floor(self.window * self.points_per_pitch))
+
+        def compile_group(group, factor):
+            k = (group.stiffness * scale * factor).tolist()
+            e = group.deviation.tolist()
+            rows = [(k[i], k[i + 1] - k[i], e[i], e[i + 1] - e[i]) for i in range(len(k) - 1)]
+            return rows, (k[0], e[0], k[edge], e[edge])
+
+        compiled = {}
+        self.tooth_groups = []
+        for tooth in range(self.teeth):
+            groups, factor = tvms.groups(tooth), self.stiffness_factor[tooth]
+            if (id(groups), factor) not in compiled:
+                compiled[id(groups), factor] = tuple(compile_group(g, factor) for g in groups)
+            self.tooth_groups.append(compiled[id(groups), factor])
+        self.extended = any(edges[0] > 0 or edges[2] > 0 for groups in self.tooth_groups for _, edges in groups)
+        healthy = tvms.healthy_groups[0]
+        self.mean_deviation = float((healthy.stiffness * healthy.deviation).sum() / healthy.stiffness.sum())
+
+    def __call__(self, t, deflection, rate):
+        phase, phase_rate = self.phase(t)
+        e, e_t = self.runout_excitation(phase, phase_rate)
+        d, d_t = deflection - e, rate - e_t
+        if -d - self.backlash > 0.0:
+            return self._back_flank(-d - self.backlash, d_t)
+        touching = [] if (self.impacts or self.separated) else None
+        window, ppp, pitch, rho = self.window, self.points_per_pitch, self.base_pitch, self.tip_radius
+        n, ref_inv, damping = self.exponent, 1.0 / DEFLECTION_REF, self.damping_per_stiffness
+        pitch_errors, period = self.pair_pitch_error, self.pitch_period
+        ext = math.sqrt(2.0 * rho * d) / pitch if (self.extended and d > 0.0) else 0.0
+        total = 0.0
+        for j in range(math.floor(phase - window - ext) + 1, math.floor(phase + ext) + 1):
+            u = phase - j
+            key = 4 * j
+            pitch_error = pitch_errors[j % period]
+            for rows, edges in self.tooth_groups[j % self.teeth]:
+                if 0.0 <= u < window:
+                    x = u * ppp
+                    i = int(x)
+                    k0, dk, e0, de = rows[i]
+                    k = k0 + (x - i) * dk
+                    gd = d - e0 - (x - i) * de + pitch_error
+                    gd_t = d_t - de * ppp * phase_rate
+                else:  # extended contact beyond the window: tip gap s^2 / (2 rho)
+                    s = (-u if u < 0.0 else u - window) * pitch
+                    k, e0 = (edges[0], edges[1]) if u < 0.0 else (edges[2], edges[3])
+                    gd = d - e0 - s * s / (2 * rho) + pitch_error
+                    gd_t = d_t + (s if u < 0.0 else -s) * pitch * phase_rate / rho
+                if k > 0.0 and gd > 0.0:
+                    if touching is None:  # steady mesh: elastic plus viscous, inline
+                        force = k * ((gd * ref_inv) ** n + damping * gd_t)
+                        if force > 0.0:
+                            total += force
+                    else:
+                        total += self._contact(key, k, gd, gd_t, touching)
+                key += 1
+        self._finish(touching, total > 0.0)
+        return total
+
+    def static_deflection(self, force):
+        return super().static_deflection(force) + self.mean_deviation
+
+
+def mesh_equivalent_mass(geometry, pinion_polar_inertia: float, gear_polar_inertia: float) -> float:
+    """Equivalent mass of the pair along the transverse line of action (torsional)."""
+    rb1, rb2 = geometry.base_radius(geometry.teeth_pinion), geometry.base_radius(geometry.teeth_gear)
+    return 1.0 / (rb1 ** 2 / pinion_polar_inertia + rb2 ** 2 / gear_polar_inertia)
+
+
+def operating_stiffness(p) -> float:
+    """dF/d(delta) of the mean mesh at the deflection that carries the static load of `p`: the
+    stiffness the vibration sees. K and n trade off against each other at one load; this does not."""
+    g = p.geometry
+    force_ref = p.mesh_stiffness * DEFLECTION_REF
+    deflection = DEFLECTION_REF * (p.load_torque / g.base_radius(g.teeth_gear) / force_ref) ** (1.0 / p.contact_exponent)
+    return p.contact_exponent * force_ref / DEFLECTION_REF * (deflection / DEFLECTION_REF) ** (p.contact_exponent - 1.0)
+
+
+def mesh_damping(p, pinion_polar_inertia: float, gear_polar_inertia: float) -> float:
+    """Viscous mesh damping c = 2 zeta sqrt(k_op m_eq) (N s/m) of the damping ratio
+    `p.mesh_damping_ratio` at the operating mesh stiffness."""
+    return 2.0 * p.mesh_damping_ratio * math.sqrt(operating_stiffness(p) * mesh_equivalent_mass(
+        p.geometry, pinion_polar_inertia, gear_polar_inertia))
+
+
+def random_pitch_errors(rng: np.random.Generator, teeth: int, rms: float) -> list[float]:
+    """Independent Gaussian single pitch deviations of every tooth, `rms` (m) each."""
+    return (rng.normal(0.0, rms, teeth) if rms > 0 else np.zeros(teeth)).tolist()
