@@ -1,4 +1,5 @@
-"""Cost per simulated sample of the two mesh stiffness models (issue 3: within 2x of `simple`).
+"""Cost per simulated second of the gear drivetrain: both mesh stiffness models (issue 3: within
+2x of `simple`) and, with `--shaft-model flexible`, the flexible-shaft variant.
 
 Method: one process pinned to one core (`os.sched_setaffinity`, BLAS threads 1), the default
 model of config/config.yaml and the default numerics (RK44, h = 19.5 us, sensors at 51.2 kHz,
@@ -11,6 +12,7 @@ disturbed run), the median alongside. Cost per simulated second divides by settl
 seconds (both are integrated); per output sample by the recorded samples.
 
     python3 benchmarks/mesh_stiffness_cost.py [--seconds 1.0] [--repeats 3] [--core 0] [--out FILE]
+        [--shaft-model rigid|flexible]
 """
 from __future__ import annotations
 
@@ -29,7 +31,8 @@ ROOT = Path(__file__).resolve().parents[1]
 import yaml  # noqa: E402
 
 from condmon.systems.gear.parameters import build_parameters, simulation_settings  # noqa: E402
-from condmon.models.gear_drivetrain import MeshForce, simulate  # noqa: E402
+from condmon.models.gear_drivetrain import simulate  # noqa: E402
+from condmon.models.mesh_force import MeshForce  # noqa: E402
 
 MODELS = ("simple", "potential_energy")
 
@@ -42,6 +45,7 @@ def main(argv=None):
     parser.add_argument("--speeds", type=float, nargs="+", default=[450.0, 775.0, 1100.0])
     parser.add_argument("--health", nargs="+", default=["healthy", "missing_tooth"])
     parser.add_argument("--out", type=Path, default=None, help="write the results as JSON here")
+    parser.add_argument("--shaft-model", default="rigid", choices=["rigid", "flexible"])
     args = parser.parse_args(argv)
     os.sched_setaffinity(0, {args.core})
 
@@ -58,7 +62,7 @@ def main(argv=None):
             for _ in range(args.repeats):
                 for model in MODELS:
                     params = build_parameters(config["model"], mesh_stiffness_model=model,
-                                              speed_rpm=speed, health_state=health)
+                                              speed_rpm=speed, health_state=health, shaft_model=args.shaft_model)
                     wall, cpu = time.perf_counter(), time.process_time()
                     simulate(params, settings)
                     times[model].append((time.perf_counter() - wall, time.process_time() - cpu))
@@ -70,7 +74,7 @@ def main(argv=None):
                 build = time.perf_counter() - start
                 walls = [w for w, _ in times[model]]
                 cpus = [c for _, c in times[model]]
-                rows.append(dict(model=model, health_state=health, speed_rpm=speed,
+                rows.append(dict(model=model, shaft_model=args.shaft_model, health_state=health, speed_rpm=speed,
                                  wall_s=min(walls), wall_median_s=statistics.median(walls),
                                  cpu_s=min(cpus), mesh_build_s=build,
                                  wall_per_simulated_second=min(walls) / simulated,
