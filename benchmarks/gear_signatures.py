@@ -2,7 +2,7 @@
 
 For every housing (A1, A2) and speed: the y/x amplitude ratio at the gear mesh harmonics 1..4 of
 the healthy records (mean line amplitudes over the records; a line is the largest Hann-windowed
-FFT bin within 0.6 Hz), and their max/min per housing over harmonics and speeds. For every speed:
+FFT bin within 0.55 bins), and their max/min per housing over harmonics and speeds. For every speed:
 the sideband energy at GMF +/- shaft frequency (all four channels) of the missing-tooth records
 over the healthy ones. The same for the measured (virtual bench) table with --measured.
 
@@ -20,10 +20,11 @@ import pandas as pd
 from condmon.signals import read_signal_table
 
 
-def line(signal: np.ndarray, frequency: float, fs: float, half_width: float = 0.6) -> float:
+def line(signal: np.ndarray, frequency: float, fs: float) -> float:
+    """Amplitude of the line at `frequency`: the largest Hann-windowed bin within 0.55 bins."""
     spectrum = np.abs(np.fft.rfft(signal * np.hanning(len(signal)))) * 2 / len(signal)
     freqs = np.fft.rfftfreq(len(signal), 1 / fs)
-    return float(spectrum[np.abs(freqs - frequency) < half_width].max())
+    return float(spectrum[np.abs(freqs - frequency) <= 0.55 * fs / len(signal)].max())
 
 
 def signatures(frame: pd.DataFrame, teeth: int) -> dict:

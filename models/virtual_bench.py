@@ -41,8 +41,8 @@ class BenchForm:
     housing_model: str = "block"
     shaft_model: str = "rigid"
     housing_stiffness: tuple = (5.0e7, 1.5e8, 8.0e7)
-    sensor_noise: float = 0.003          # white, m/s^2 rms
-    coloured_noise: float = 0.005        # m/s^2 rms
+    sensor_noise: float = 0.001          # white, m/s^2 rms
+    coloured_noise: float = 0.002        # m/s^2 rms
     runout: float = 1.5e-6
     pitch_error: float = 5.0e-8          # single pitch deviations, rms
     cumulative_pitch_error: float = 3.0e-7  # once-per-revolution amplitude
