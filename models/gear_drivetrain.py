@@ -181,11 +181,11 @@ class Drivetrain:
         g = p.geometry
         self.center_distance = g.pitch_radius(g.teeth_pinion) + g.pitch_radius(g.teeth_gear)
         s = self.structure = LinearStructure()
-        self.shaft_nodes = []
-        for x, layout in ((0.0, p.input_shaft), (self.center_distance, p.output_shaft)):
-            self.shaft_nodes.append(self._add_shaft(x, layout))
+        shafts = ((0.0, p.input_shaft, (p.pinion_mass, p.pinion_inertia), (p.coupling_mass, p.coupling_inertia)),
+                  (self.center_distance, p.output_shaft, (p.gear_mass, p.gear_inertia), (p.brake_mass, p.brake_inertia)))
+        self.shaft_nodes = [self._add_shaft(x, layout, gear, hub) for x, layout, gear, hub in shafts]
         self.housings = []
-        for shaft, (x, layout) in enumerate(((0.0, p.input_shaft), (self.center_distance, p.output_shaft))):
+        for shaft, (x, layout, _, _) in enumerate(shafts):
             for z in layout.bearings:
                 housing = self._add_housing((x, 0.0, z))
                 self.housings.append(housing)
@@ -214,13 +214,12 @@ class Drivetrain:
             self.sensor_rows[name] = s.point_rows(node, top)[:2]  # x, y
 
     # -- building --------------------------------------------------------------------------
-    def _add_shaft(self, x: float, layout: ShaftLayout) -> dict:
-        """Nodes of one shaft {z: node}; masses of the shaft, its gear and hub."""
+    def _add_shaft(self, x: float, layout: ShaftLayout, gear: tuple, hub: tuple) -> dict:
+        """Nodes of one shaft {z: node}; masses of the shaft, its gear and hub ((mass, polar
+        inertia) each)."""
         p, s = self.p, self.structure
         section = Section.tube(layout.diameter, 0.0, p.shaft_youngs_modulus, p.shaft_poisson_ratio, p.shaft_density)
-        is_pinion = x == 0.0
-        gear_mass, gear_inertia = (p.pinion_mass, p.pinion_inertia) if is_pinion else (p.gear_mass, p.gear_inertia)
-        hub_mass, hub_inertia = (p.coupling_mass, p.coupling_inertia) if is_pinion else (p.brake_mass, p.brake_inertia)
+        (gear_mass, gear_inertia), (hub_mass, hub_inertia) = gear, hub
         if p.shaft_model == "rigid":
             node = s.add_node((x, 0.0, layout.gear))
             mass = section.mass_per_length * layout.length

@@ -90,7 +90,7 @@ class MeshForce:
 
     def _common(self, p, damping: float):
         g = p.geometry
-        self.teeth, self.teeth_gear = g.teeth_pinion, g.teeth_gear
+        self.teeth = g.teeth_pinion
         self.contact_ratio = g.contact_ratio
         self.mesh_frequency = p.speed_rpm / 60.0 * g.teeth_pinion
         self.base_pitch = g.base_pitch

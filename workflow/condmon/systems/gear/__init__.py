@@ -172,14 +172,12 @@ class GearSystem(System):
         numerics = self.numerics
         numerics["steps_per_sensor_sample"] *= int(step_refinement)
         model = self.config["model"]
-        nominal = build_parameters(model)
-        effects = sample_effects(model["variability"], nominal.geometry, np.random.default_rng(seed))
-        params = build_parameters(model, speed_rpm=float(speed_rpm), health_state=health_state,
-                                  **parameters, **effects)
+        params = build_parameters(model, speed_rpm=float(speed_rpm), health_state=health_state, **parameters)
+        params = params.replace(**sample_effects(model["variability"], params.geometry, np.random.default_rng(seed)))
         return simulate(params, SimulationSettings(duration=duration_s, **numerics))
 
     def diverging(self, parameters: dict) -> dict:
-        # a mesh a million times stiffer puts its mode far beyond what RK44 at this step can hold
+        # a mesh a million times stiffer needs a step far below any physical range: SimulationError
         stiffness = parameters.get("mesh_stiffness", self.config["model"]["mesh_stiffness"])
         return dict(parameters, mesh_stiffness=float(stiffness) * 1e6)
 
