@@ -39,13 +39,25 @@ from condmon.models.gear_mesh import GearGeometry
 from condmon.models.mesh_force import (HEALTH_STATES, MESH_STIFFNESS_MODELS, MeshForce, mesh_damping,
                                        operating_stiffness)
 from condmon.models.numerics import SimulationError, decimation_filter, solve_rk44
-from condmon.models.structure import LinearStructure, Section
+from condmon.models.shaft_damage import (RELATIVE_ROTATION, SHAFT_HEALTH_STATES, DamagedElement, ShaftDamageForce,
+                                         crack_section_ratios, delamination_section_ratios,
+                                         removed_rotational_stiffness)
+from condmon.models.structure import BENDING_PLANES, LinearStructure, Section
 
-CHANNELS = ("A1_x", "A1_y", "A2_x", "A2_y")
 SHAFT_MODELS = ("rigid", "flexible")
 HOUSING_MODELS = ("point", "block")
-# A1 on the housing of the pinion shaft's drive-side bearing, A2 on the gear shaft's first bearing.
-SENSOR_HOUSINGS = {"A1": 0, "A2": 2}
+# Accelerometers: (name, bearing housing), housings 0 and 1 carry the pinion shaft's bearings, 2 and
+# 3 the gear shaft's. The helical rig: A1 on the pinion shaft's drive-side bearing, A2 on the gear
+# shaft's first bearing.
+SENSORS = (("A1", 0), ("A2", 2))
+
+
+def sensor_channels(sensors=SENSORS) -> tuple[str, ...]:
+    """The channels a set of accelerometers records: x and y of each."""
+    return tuple(f"{name}_{axis}" for name, _ in sensors for axis in "xy")
+
+
+CHANNELS = sensor_channels()
 
 __all__ = ["CHANNELS", "HEALTH_STATES", "MESH_STIFFNESS_MODELS", "GearDrivetrainParameters", "ShaftLayout",
            "SimulationSettings", "PeriodicLoad", "Drivetrain", "simulate", "operating_mesh_stiffness"]
@@ -60,6 +72,7 @@ class ShaftLayout:
     bearings: tuple
     gear: float
     hub: float
+    inner_diameter: float = 0.0  # a tube's bore (0: solid)
 
     def check(self, name: str) -> None:
         for label, z in (("bearings", self.bearings[0]), ("bearings", self.bearings[1]), ("gear", self.gear),
@@ -68,6 +81,9 @@ class ShaftLayout:
                 raise ValueError(f"{name}.{label}: position {z} m outside the shaft (0..{self.length} m)")
         if len(self.bearings) != 2 or self.bearings[0] >= self.bearings[1]:
             raise ValueError(f"{name}.bearings: two increasing axial positions, got {self.bearings}")
+        if not 0.0 <= self.inner_diameter < self.diameter:
+            raise ValueError(f"{name}.inner_diameter: {self.inner_diameter} m must lie in [0, diameter "
+                             f"{self.diameter} m)")
 
 
 @dataclass(frozen=True)
@@ -88,6 +104,9 @@ class GearDrivetrainParameters:
     input_shaft: ShaftLayout = ShaftLayout(0.24, 0.025, (0.04, 0.16), 0.12, 0.0)
     output_shaft: ShaftLayout = ShaftLayout(0.26, 0.030, (0.04, 0.18), 0.12, 0.26)
     shaft_model: str = "rigid"
+    # Sections (structure.Section) of the input and output shafts when not steel tubes of the
+    # layouts' diameters (the CFRP rig's laminate tubes); empty: steel.
+    shaft_sections: tuple = ()
     shaft_youngs_modulus: float = 2.1e11
     shaft_poisson_ratio: float = 0.3
     shaft_density: float = 7850.0
@@ -116,6 +135,7 @@ class GearDrivetrainParameters:
     housing_foot_height: float = 0.06      # bearing centre above the feet, m
     housing_foot_span: tuple = (0.05, 0.03)  # half distances of the four feet in x and z, m
     sensor_height: float = 0.04            # accelerometer above the bearing centre, m
+    sensors: tuple = SENSORS
     # Drive and load.
     coupling_stiffness: float = 2.0e3      # N m/rad, motor to pinion shaft
     coupling_damping: float = 0.5          # N m s/rad
@@ -157,6 +177,18 @@ class GearDrivetrainParameters:
     chip_profile: float = 0.6
     chip_face: tuple = (0.0, 0.5)
     crack_depth: float = 0.5
+    # Shaft damage (flexible shafts, `shaft_damage.py`) on shaft 0 (pinion) or 1 (gear): a
+    # breathing crack of relative depth a / D at an axial position, its mouth at an angle from x at
+    # t = 0; a delamination over a length, at a depth of the wall (fraction from the outside) and
+    # over an arc of the circumference.
+    damaged_shaft: int = 0
+    shaft_crack_position: float = 0.08
+    shaft_crack_depth: float = 0.3
+    shaft_crack_angle_deg: float = 0.0
+    delamination_start: float = 0.06
+    delamination_length: float = 0.04
+    delamination_interface_depth: float = 0.5
+    delamination_arc_deg: float = 120.0
 
     def replace(self, **changes) -> "GearDrivetrainParameters":
         return dataclasses.replace(self, **changes)
@@ -183,7 +215,11 @@ class Drivetrain:
         s = self.structure = LinearStructure()
         shafts = ((0.0, p.input_shaft, (p.pinion_mass, p.pinion_inertia), (p.coupling_mass, p.coupling_inertia)),
                   (self.center_distance, p.output_shaft, (p.gear_mass, p.gear_inertia), (p.brake_mass, p.brake_inertia)))
-        self.shaft_nodes = [self._add_shaft(x, layout, gear, hub) for x, layout, gear, hub in shafts]
+        self.sections = self._shaft_sections()
+        self.damage = self._damage_zone()
+        self.damaged_elements = []  # (node a, node b, DamagedElement)
+        self.shaft_nodes = [self._add_shaft(shaft, x, layout, gear, hub)
+                            for shaft, (x, layout, gear, hub) in enumerate(shafts)]
         self.housings = []
         for shaft, (x, layout, _, _) in enumerate(shafts):
             for z in layout.bearings:
@@ -208,34 +244,90 @@ class Drivetrain:
         # motor and brake torques and the bench's bearing forces stay on plain coordinates).
         self.mesh_dof = s.dof(self.node_at(0, p.input_shaft.gear), 0)
         self.sensor_rows = {}
-        for name, housing in SENSOR_HOUSINGS.items():
+        for name, housing in p.sensors:
+            if not 0 <= housing < len(self.housings):
+                raise ValueError(f"sensors: {name} on housing {housing}; the rig has housings 0..{len(self.housings) - 1}")
             node = self.housings[housing]
             top = s.positions[node] + np.array([0.0, p.sensor_height if p.housing_model == "block" else 0.0, 0.0])
             self.sensor_rows[name] = s.point_rows(node, top)[:2]  # x, y
 
     # -- building --------------------------------------------------------------------------
-    def _add_shaft(self, x: float, layout: ShaftLayout, gear: tuple, hub: tuple) -> dict:
+    def _shaft_sections(self) -> list[Section]:
+        p = self.p
+        if p.shaft_sections:
+            if len(p.shaft_sections) != 2:
+                raise ValueError(f"shaft_sections: one Section per shaft (2), got {len(p.shaft_sections)}")
+            return list(p.shaft_sections)
+        return [Section.tube(layout.diameter, layout.inner_diameter, p.shaft_youngs_modulus, p.shaft_poisson_ratio,
+                             p.shaft_density) for layout in (p.input_shaft, p.output_shaft)]
+
+    def _damage_zone(self):
+        """(shaft, z from, z to, damaged section, element factory) of a shaft_crack or delamination
+        state, else None. The damaged section carries the shear loss (the same in every direction)."""
+        p = self.p
+        if p.health_state not in SHAFT_HEALTH_STATES:
+            return None
+        if p.shaft_model != "flexible":
+            raise ValueError(f"health state {p.health_state}: a damaged shaft needs shaft_model: flexible")
+        if p.damaged_shaft not in (0, 1):
+            raise ValueError(f"damaged_shaft: 0 (pinion shaft) or 1 (gear shaft), got {p.damaged_shaft}")
+        layout = (p.input_shaft, p.output_shaft)[p.damaged_shaft]
+        section = self.sections[p.damaged_shaft]
+        g = p.geometry
+        spin_hz = p.speed_rpm / 60 * (1.0 if p.damaged_shaft == 0 else g.teeth_pinion / g.teeth_gear)
+        if p.health_state == "shaft_crack":
+            start = p.shaft_crack_position - layout.diameter / 2
+            end = p.shaft_crack_position + layout.diameter / 2
+            ratios = crack_section_ratios(layout.diameter, layout.inner_diameter, p.shaft_crack_depth)
+            breathing, angle = True, math.radians(p.shaft_crack_angle_deg)
+        else:
+            start, end = p.delamination_start, p.delamination_start + p.delamination_length
+            ratios = delamination_section_ratios(layout.diameter, layout.inner_diameter,
+                                                 p.delamination_interface_depth, p.delamination_arc_deg)
+            breathing, angle = False, 0.0
+        if not (0.0 <= start < end <= layout.length):
+            raise ValueError(f"{p.health_state}: the damaged stretch {start:.4g}..{end:.4g} m lies outside the "
+                             f"shaft (0..{layout.length} m)")
+        bending_xi, bending_eta, area = ratios
+        # a crack's shear loss exists only while it is open: its bending flexibility is the model
+        damaged_section = section if breathing else dataclasses.replace(section, shear=section.shear * area)
+
+        def element(length: float) -> DamagedElement:
+            return DamagedElement(removed_rotational_stiffness(length, section.bending, bending_xi),
+                                  removed_rotational_stiffness(length, section.bending, bending_eta),
+                                  breathing, angle, spin_hz)
+
+        return p.damaged_shaft, start, end, damaged_section, element
+
+    def _add_shaft(self, shaft: int, x: float, layout: ShaftLayout, gear: tuple, hub: tuple) -> dict:
         """Nodes of one shaft {z: node}; masses of the shaft, its gear and hub ((mass, polar
-        inertia) each)."""
+        inertia) each); its damaged elements, if any, in `damaged_elements`."""
         p, s = self.p, self.structure
-        section = Section.tube(layout.diameter, 0.0, p.shaft_youngs_modulus, p.shaft_poisson_ratio, p.shaft_density)
+        section = self.sections[shaft]
         (gear_mass, gear_inertia), (hub_mass, hub_inertia) = gear, hub
+        damage = self.damage if self.damage is not None and self.damage[0] == shaft else None
         if p.shaft_model == "rigid":
             node = s.add_node((x, 0.0, layout.gear))
             mass = section.mass_per_length * layout.length
-            transverse = mass * (3 * (layout.diameter / 2) ** 2 + layout.length ** 2) / 12
+            radius_of_gyration2 = section.rotary_inertia_per_length / section.mass_per_length
+            transverse = mass * (radius_of_gyration2 + layout.length ** 2 / 12)
             s.add_rigid_mass(node, mass, (x, 0.0, layout.length / 2),
                              (transverse, transverse, section.polar_inertia_per_length * layout.length))
             nodes = {None: node}
         else:
-            stations = sorted({0.0, layout.length, layout.gear, layout.hub, *layout.bearings})
+            damaged = () if damage is None else damage[1:3]
+            stations = sorted({0.0, layout.length, layout.gear, layout.hub, *layout.bearings, *damaged})
             points = [stations[0]]
             for a, b in zip(stations[:-1], stations[1:]):
                 pieces = max(1, math.ceil((b - a) / p.shaft_element_length - 1e-9))
                 points += [a + (b - a) * (k + 1) / pieces for k in range(pieces)]
             nodes = {z: s.add_node((x, 0.0, z)) for z in points}
             for a, b in zip(points[:-1], points[1:]):
-                s.add_beam(nodes[a], nodes[b], section, damping_ratio_per_hz=p.shaft_damping * math.pi)
+                damaged = damage is not None and damage[1] - 1e-12 <= a and b <= damage[2] + 1e-12
+                s.add_beam(nodes[a], nodes[b], damage[3] if damaged else section,
+                           damping_ratio_per_hz=p.shaft_damping * math.pi)
+                if damaged:
+                    self.damaged_elements.append((nodes[a], nodes[b], damage[4](b - a)))
         s.add_rigid_mass(self._node(nodes, layout.gear), gear_mass, (x, 0.0, layout.gear),
                          (gear_inertia / 2, gear_inertia / 2, gear_inertia))
         s.add_rigid_mass(self._node(nodes, layout.hub), hub_mass, (x, 0.0, layout.hub),
@@ -279,6 +371,20 @@ class Drivetrain:
         transform[i, i] = 1.0 / self.mesh_row[i]
         return transform
 
+    def damage_rows(self) -> np.ndarray:
+        """(2 per damaged element) x n: the elements' relative rotations (d_x, d_y;
+        `shaft_damage.py`) as functions of the physical coordinates."""
+        s = self.structure
+        rows = []
+        for node_a, node_b, _ in self.damaged_elements:
+            for plane, sign in BENDING_PLANES:
+                plane_rows = np.zeros((4, s.n))
+                for r, (local, factor) in enumerate(zip(plane, (1.0, sign, 1.0, sign))):
+                    node, coordinate = (node_a, local) if local < 6 else (node_b, local - 6)
+                    plane_rows[r, s.dof(node, coordinate)] = factor
+                rows.append(RELATIVE_ROTATION @ plane_rows)
+        return np.array(rows).reshape(-1, s.n)
+
     def natural_frequencies(self, mesh_stiffness: float | None = None) -> np.ndarray:
         """Undamped natural frequencies (Hz) with a linear mesh of `mesh_stiffness` (default: the
         operating stiffness under the static load)."""
@@ -306,6 +412,10 @@ class SimulationSettings:
     oversampling: int = 10           # sensors record at output_rate * oversampling
     steps_per_sensor_sample: int = 1  # RK44 steps per sensor sample at least (h = 19.5 us at the defaults)
     max_deflection: float = 1.0e-3   # |mesh deflection| beyond this is divergence, m
+    # Craig-Bampton reduction: keep the structure's fixed-interface modes up to this frequency
+    # (None: every coordinate). Flexible shafts' axial and torsion modes of short elements reach
+    # tens of kHz and would set the step; they carry nothing below the output Nyquist frequency.
+    modal_cutoff_hz: float | None = None
 
 
 # RK44 is stable for omega h up to 2.78; keep a margin for the mesh stiffness peaks.
@@ -313,10 +423,128 @@ STABLE_OMEGA_STEP = 2.0
 MAX_STEPS_PER_SENSOR_SAMPLE = 16  # beyond this a parameter is out of any physical range
 
 
-def steps_per_sensor_sample(drivetrain: Drivetrain, settings: SimulationSettings) -> int:
+@dataclass
+class ModelMatrices:
+    """The linear structure in the coordinates exudyn integrates: q_physical = transform q.
+    The mesh deflection is coordinate `mesh`; `plain` maps a physical coordinate that loads act on
+    to its model coordinate; the last `n_damage` coordinates are the damaged shaft elements'
+    deformations (`shaft_damage.py`)."""
+    transform: np.ndarray
+    mass: np.ndarray
+    stiffness: np.ndarray
+    damping: np.ndarray
+    mesh: int
+    plain: dict
+    n_damage: int
+
+    @property
+    def n(self) -> int:
+        return self.transform.shape[1]
+
+    def highest_frequency(self, mesh_stiffness: float) -> float:
+        """Highest undamped natural frequency (Hz) with a linear mesh of `mesh_stiffness`."""
+        from scipy.linalg import eigh
+
+        stiffness = self.stiffness.copy()
+        stiffness[self.mesh, self.mesh] += mesh_stiffness
+        return math.sqrt(max(eigh(stiffness, self.mass, eigvals_only=True)[-1], 0.0)) / (2 * math.pi)
+
+
+def model_matrices(drivetrain: Drivetrain, load_dofs, modal_cutoff_hz: float | None = None) -> ModelMatrices:
+    """The structure in model coordinates: the mesh deflection (mesh_row . q) in place of the
+    pinion's x, the loaded coordinates, and each damaged element's relative rotations d_x, d_y
+    (`damage_rows`) as coordinates of their own, last.
+
+    Without a cutoff every coordinate stays (the relative rotations replace the tilts of the
+    element's node away from the mesh). With one, Craig-Bampton: the mesh deflection and the
+    loaded coordinates stay (boundary), the rest become the static shapes they drag along plus
+    fixed-interface modes up to `modal_cutoff_hz`. A damaged shaft needs more than the intact
+    modes: a crack's kink is not in them (they put an open 30 % crack's second mode 12 % high).
+    So the basis also holds the modes with the damage open, and is cut again at the cutoff by the
+    Ritz modes of the mean of intact and open stiffness (open-crack modes below 2.5 kHz within
+    5 %): the combined basis alone holds local shapes near 80 kHz that would need five steps per
+    sensor sample. The relative rotations are then made coordinates of that basis."""
+
+    s, n = drivetrain.structure, drivetrain.structure.n
+    damage_rows = drivetrain.damage_rows()
+    if modal_cutoff_hz is None:
+        rows = np.eye(n)
+        rows[drivetrain.mesh_dof] = drivetrain.mesh_row
+        damage_dofs = []
+        for k, (node_a, node_b, _) in enumerate(drivetrain.damaged_elements):
+            node = node_b if all(s.dof(node_b, c) != drivetrain.mesh_dof for c in range(6)) else node_a
+            # d_x (x-z plane) replaces the node's ry, d_y (y-z plane) its rx
+            for row, coordinate in zip(damage_rows[2 * k:2 * k + 2], (4, 3)):
+                rows[s.dof(node, coordinate)] = row
+                damage_dofs.append(s.dof(node, coordinate))
+        if np.linalg.cond(rows) > 1e12:
+            raise ValueError("the damaged shaft element's coordinates clash with the mesh's: move the damage "
+                             "away from the gear")
+        to_physical = np.linalg.inv(rows)
+        first = [drivetrain.mesh_dof] + [dof for dof in dict.fromkeys(load_dofs) if dof != drivetrain.mesh_dof]
+        order = first + [i for i in range(n) if i not in set(first) | set(damage_dofs)] + damage_dofs
+        transform = to_physical[:, order]
+    else:
+        transform, first = _craig_bampton(drivetrain, load_dofs, modal_cutoff_hz, damage_rows)
+    mass, stiffness, damping = (transform.T @ m @ transform for m in
+                                (s.mass_matrix(), s.stiffness_matrix(), s.damping_matrix()))
+    return ModelMatrices(transform, mass, stiffness, damping, 0, {dof: first.index(dof) for dof in load_dofs},
+                         len(damage_rows))
+
+
+def _craig_bampton(drivetrain: Drivetrain, load_dofs, cutoff_hz: float, damage_rows: np.ndarray):
+    """(transform, boundary coordinates) of `model_matrices` with a cutoff."""
+    from scipy.linalg import eigh, null_space
+
+    s = drivetrain.structure
+    mesh_t = drivetrain.mesh_transform()
+    mass, stiffness = mesh_t.T @ s.mass_matrix() @ mesh_t, mesh_t.T @ s.stiffness_matrix() @ mesh_t
+    damage = damage_rows @ mesh_t
+    first = [drivetrain.mesh_dof] + [dof for dof in dict.fromkeys(load_dofs) if dof != drivetrain.mesh_dof]
+    interior = [i for i in range(s.n) if i not in set(first)]
+    ii, ib = np.ix_(interior, interior), np.ix_(interior, first)
+    static_shapes = -np.linalg.solve(stiffness[ii], stiffness[ib])
+
+    def modes(k):
+        values, vectors = eigh(k[ii], mass[ii])
+        return vectors[:, np.sqrt(np.clip(values, 0.0, None)) / (2 * math.pi) <= cutoff_hz]
+
+    basis = modes(stiffness)
+    if len(damage):
+        # the damage open in both planes (a crack at its most flexible)
+        open_stiffness = stiffness.copy()
+        for k, (_, _, element) in enumerate(drivetrain.damaged_elements):
+            removed = max(element.removed_xi, element.removed_eta)
+            open_stiffness -= removed * (np.outer(damage[2 * k], damage[2 * k])
+                                         + np.outer(damage[2 * k + 1], damage[2 * k + 1]))
+        basis = np.hstack([basis, modes(open_stiffness)])
+        gram_values, gram_vectors = eigh(basis.T @ mass[ii] @ basis)
+        independent = gram_values > 1e-10 * gram_values.max()
+        basis = basis @ gram_vectors[:, independent] / np.sqrt(gram_values[independent])
+        values, vectors = eigh(basis.T @ (stiffness[ii] + open_stiffness[ii]) @ basis / 2, basis.T @ mass[ii] @ basis)
+        basis = basis @ vectors[:, np.sqrt(np.clip(values, 0.0, None)) / (2 * math.pi) <= cutoff_hz]
+        # make the relative rotations coordinates: boundary shapes free of them, then a basis
+        # change inside the modes whose last coordinates are d_x, d_y
+        damage_modes = damage[:, interior] @ basis
+        damage_boundary = damage[:, first] + damage[:, interior] @ static_shapes
+        to_damage = np.linalg.pinv(damage_modes)
+        static_shapes = static_shapes - basis @ to_damage @ damage_boundary
+        basis = np.hstack([basis @ null_space(damage_modes), basis @ to_damage])
+    reduction = np.zeros((s.n, len(first) + basis.shape[1]))
+    reduction[first, range(len(first))] = 1.0
+    reduction[np.ix_(interior, range(len(first)))] = static_shapes
+    reduction[np.ix_(interior, range(len(first), reduction.shape[1]))] = basis
+    return mesh_t @ reduction, first
+
+
+def steps_per_sensor_sample(drivetrain: Drivetrain, settings: SimulationSettings,
+                            matrices: ModelMatrices | None = None) -> int:
     """RK44 steps per sensor sample: the setting, or more where the highest mode (with the
     mesh at twice its operating stiffness, the peaks of the TVMS) needs a smaller step."""
-    omega_max = 2 * math.pi * drivetrain.natural_frequencies(2 * operating_stiffness(drivetrain.p))[-1]
+    mesh_stiffness = 2 * operating_stiffness(drivetrain.p)
+    f_max = (drivetrain.natural_frequencies(mesh_stiffness)[-1] if matrices is None
+             else matrices.highest_frequency(mesh_stiffness))
+    omega_max = 2 * math.pi * f_max
     needed = math.ceil(omega_max / (settings.output_rate * settings.oversampling) / STABLE_OMEGA_STEP)
     if needed > MAX_STEPS_PER_SENSOR_SAMPLE:
         raise SimulationError(
@@ -338,34 +566,54 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
     from exudyn.utilities import CreateSymbolicUserFunction
 
     drivetrain = Drivetrain(params)
-    steps = steps_per_sensor_sample(drivetrain, settings)  # fails fast on an out-of-range stiffness
     structure = drivetrain.structure
-    n = structure.n
+    # Loads: the brake torque (with its slow fluctuation) and any extra periodic loads; their
+    # coordinates stay plain coordinates of the model.
+    loads = [(drivetrain.load_dof, params.load_torque, params.load_torque * params.load_fluctuation,
+              params.load_fluctuation_hz, params.load_fluctuation_phase)]
+    for extra in extra_loads:
+        kind, index = extra.target
+        dof = (structure.dof(drivetrain.coupling_node, 5) if kind == "motor"
+               else structure.dof(drivetrain.housings[index], 1))
+        loads.append((dof, 0.0, extra.amplitude, extra.frequency_hz, extra.phase))
+    if any(dof == drivetrain.mesh_dof for dof, *_ in loads):
+        raise ValueError("a load acts on the pinion's x, which the model replaces by the mesh deflection")
+    matrices = model_matrices(drivetrain, [dof for dof, *_ in loads], settings.modal_cutoff_hz)
+    steps = steps_per_sensor_sample(drivetrain, settings, matrices)  # fails fast on an out-of-range stiffness
+    n, mesh_dof, transform = matrices.n, matrices.mesh, matrices.transform
     pinion_polar, gear_polar = drivetrain.polar_inertias()
     mesh = MeshForce(params, mesh_damping(params, pinion_polar, gear_polar))
-    transform = drivetrain.mesh_transform()
-    mass_m = transform.T @ structure.mass_matrix() @ transform
-    stiffness_m = transform.T @ structure.stiffness_matrix() @ transform
-    damping_m = transform.T @ structure.damping_matrix() @ transform
-    load_dof = drivetrain.load_dof  # a resisting load presses the gear onto the pinion
-    mesh_dof = drivetrain.mesh_dof
 
     # Static equilibrium under the mean mesh force as initial condition (short transient).
     rb2 = params.geometry.base_radius(params.geometry.teeth_gear)
     delta0 = mesh.static_deflection(params.load_torque / rb2)
     load = np.zeros(n)
-    load[load_dof] = params.load_torque
+    load[matrices.plain[drivetrain.load_dof]] = params.load_torque  # a resisting load presses the gear onto the pinion
     free = [i for i in range(n) if i != mesh_dof]
+    stiffness = matrices.stiffness
     q0 = np.zeros(n)
     q0[mesh_dof] = delta0
-    q0[free] = np.linalg.solve(stiffness_m[np.ix_(free, free)], load[free] - stiffness_m[free, mesh_dof] * delta0)
+    q0[free] = np.linalg.solve(stiffness[np.ix_(free, free)], load[free] - stiffness[free, mesh_dof] * delta0)
 
     system = exu.SystemContainer()
     mbs = system.AddSystem()
-    node = mbs.AddNode(eii.NodeGenericODE2(referenceCoordinates=[0.0] * n, initialCoordinates=q0.tolist(),
-                                           initialCoordinates_t=[0.0] * n, numberOfODE2Coordinates=n))
-    mbs.AddObject(eii.ObjectGenericODE2(nodeNumbers=[node], massMatrix=_sparse(mass_m),
-                                        stiffnessMatrix=_sparse(stiffness_m), dampingMatrix=_sparse(damping_m)))
+    # The damaged shaft elements' deformation coordinates (the last ones) get a node of their own,
+    # so that their Python force function sees those two per element only.
+    n_damage = matrices.n_damage
+    nodes = [mbs.AddNode(eii.NodeGenericODE2(referenceCoordinates=[0.0] * size,
+                                             initialCoordinates=q0[first:first + size].tolist(),
+                                             initialCoordinates_t=[0.0] * size, numberOfODE2Coordinates=size))
+             for first, size in ((0, n - n_damage), (n - n_damage, n_damage)) if size]
+    node = nodes[0]
+    mbs.AddObject(eii.ObjectGenericODE2(nodeNumbers=nodes, massMatrix=_sparse(matrices.mass),
+                                        stiffnessMatrix=_sparse(stiffness), dampingMatrix=_sparse(matrices.damping)))
+    if n_damage:
+        damage = ShaftDamageForce([element for *_, element in drivetrain.damaged_elements])
+
+        def damage_force(mbs_, t, item, q, q_t):
+            return damage(t, q)
+
+        mbs.AddObject(eii.ObjectGenericODE2(nodeNumbers=[nodes[1]], forceUserFunction=damage_force))
     ground = mbs.AddNode(eii.NodePointGround())
     ground_marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=ground, coordinate=0))
     mesh_marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=mesh_dof))
@@ -382,20 +630,9 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
         markerNumbers=[ground_marker, mesh_marker],
         springForceUserFunction=mesh_force if diagnostics is None else counted_mesh_force))
 
-    # Loads: the brake torque (with its slow fluctuation) and any extra periodic loads, each a
-    # compiled symbolic function of time (no Python call per step).
-    keep = []
-    loads = [(load_dof, params.load_torque, params.load_torque * params.load_fluctuation,
-              params.load_fluctuation_hz, params.load_fluctuation_phase)]
-    for extra in extra_loads:
-        kind, index = extra.target
-        dof = (structure.dof(drivetrain.coupling_node, 5) if kind == "motor"
-               else structure.dof(drivetrain.housings[index], 1))
-        loads.append((dof, 0.0, extra.amplitude, extra.frequency_hz, extra.phase))
-    for dof, mean, amplitude, frequency, phase in loads:
-        if dof == mesh_dof:
-            raise ValueError(f"load on coordinate {dof}: not a plain coordinate of the model")
-        marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=dof))
+    keep = []  # the symbolic load functions live as long as the system
+    for dof, mean, amplitude, frequency, phase in loads:  # compiled symbolic functions of time
+        marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=matrices.plain[dof]))
         item = mbs.AddLoad(eii.LoadCoordinate(markerNumber=marker, load=mean))
         if amplitude:
             function = CreateSymbolicUserFunction(mbs, _sine_load(mean, amplitude, frequency, phase),
@@ -403,8 +640,9 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
             mbs.SetLoadParameter(item, 'loadUserFunction', function)
             keep.append(function)
 
-    sensor = mbs.AddSensor(eii.SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
-                                          outputVariableType=exu.OutputVariableType.Coordinates_tt))
+    sensors = [mbs.AddSensor(eii.SensorNode(nodeNumber=each, storeInternal=True, writeToFile=False,
+                                            outputVariableType=exu.OutputVariableType.Coordinates_tt))
+               for each in nodes]
     if diagnostics is not None:
         position_sensor = mbs.AddSensor(eii.SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
                                                        outputVariableType=exu.OutputVariableType.Coordinates))
@@ -416,7 +654,7 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
     except Exception as exc:
         raise SimulationError(f"exudyn solver failed: {exc}") from exc
 
-    acc = mbs.GetSensorStoredData(sensor)[:, 1:] @ transform.T  # physical accelerations
+    acc = np.hstack([mbs.GetSensorStoredData(each)[:, 1:] for each in sensors]) @ transform.T  # physical
     deflection = mbs.GetNodeOutput(node, exu.OutputVariableType.Coordinates)[mesh_dof]
     if diagnostics is not None:
         positions = mbs.GetSensorStoredData(position_sensor)

@@ -31,7 +31,10 @@ import numpy as np
 from condmon.models.contact_laws import hysteresis_factor
 from condmon.models.gear_mesh import GearMesh, ProfileDeviation, ToothDamage
 
-HEALTH_STATES = ("healthy", "surface_fault", "missing_tooth", "spall", "chipped_tooth", "root_crack")
+MESH_HEALTH_STATES = ("healthy", "surface_fault", "missing_tooth", "spall", "chipped_tooth", "root_crack")
+# States of a drivetrain whose mesh is healthy: the damage is in a shaft (gear_drivetrain.py).
+SHAFT_HEALTH_STATES = ("shaft_crack", "delamination")
+HEALTH_STATES = MESH_HEALTH_STATES + SHAFT_HEALTH_STATES
 MESH_STIFFNESS_MODELS = ("potential_energy", "simple")
 DEFLECTION_REF = 1.0e-6  # m; K = mesh stiffness at this deflection keeps K's unit N/m for any n
 

@@ -67,18 +67,30 @@ class Section:
                    polar_inertia_per_length=density * 2 * second_moment)
 
 
+# The element coordinates of each bending plane, (w1, w1', w2, w2') = sign pattern x coordinates:
+# x-z plane (x, ry; dx/dz = ry) and y-z plane (y, rx; dy/dz = -rx).
+BENDING_PLANES = (((0, 4, 6, 10), 1.0), ((1, 3, 7, 9), -1.0))
+
+
+def bending_stiffness(length: float, bending: float, shear: float) -> np.ndarray:
+    """4 x 4 Timoshenko bending stiffness in one plane, coordinates (w1, w1', w2, w2') with
+    bending stiffness EI and shear stiffness kappa G A (Przemieniecki 1968)."""
+    L = length
+    phi = 12 * bending / (shear * L * L)  # shear flexibility
+    return bending / ((1 + phi) * L ** 3) * np.array([
+        [12, 6 * L, -12, 6 * L],
+        [6 * L, (4 + phi) * L * L, -6 * L, (2 - phi) * L * L],
+        [-12, -6 * L, 12, -6 * L],
+        [6 * L, (2 - phi) * L * L, -6 * L, (4 + phi) * L * L]])
+
+
 def timoshenko_beam(length: float, section: Section) -> tuple[np.ndarray, np.ndarray]:
     """12 x 12 stiffness and mass matrices of a Timoshenko beam element along z, coordinates
     (x, y, z, rx, ry, rz) of node 1 then node 2 (Przemieniecki 1968; consistent translational
     mass plus rotary inertia). Bending in the x-z plane pairs x with ry (dx/dz = ry), in the y-z
     plane y with -rx."""
     L = length
-    phi = 12 * section.bending / (section.shear * L * L)  # shear flexibility
-    kb = section.bending / ((1 + phi) * L ** 3) * np.array([
-        [12, 6 * L, -12, 6 * L],
-        [6 * L, (4 + phi) * L * L, -6 * L, (2 - phi) * L * L],
-        [-12, -6 * L, 12, -6 * L],
-        [6 * L, (2 - phi) * L * L, -6 * L, (4 + phi) * L * L]])
+    kb = bending_stiffness(L, section.bending, section.shear)
     mt = section.mass_per_length * L / 420 * np.array([
         [156, 22 * L, 54, -13 * L],
         [22 * L, 4 * L * L, 13 * L, -3 * L * L],
@@ -90,7 +102,7 @@ def timoshenko_beam(length: float, section: Section) -> tuple[np.ndarray, np.nda
         [-36, -3 * L, 36, -3 * L],
         [3 * L, -L * L, -3 * L, 4 * L * L]])
     stiffness, mass = np.zeros((12, 12)), np.zeros((12, 12))
-    for dofs, sign in (((0, 4, 6, 10), 1.0), ((1, 3, 7, 9), -1.0)):  # x-z plane; y-z plane
+    for dofs, sign in BENDING_PLANES:
         flip = np.diag([1.0, sign, 1.0, sign])
         stiffness[np.ix_(dofs, dofs)] += flip @ kb @ flip
         mass[np.ix_(dofs, dofs)] += flip @ (mt + mr) @ flip

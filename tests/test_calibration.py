@@ -85,7 +85,8 @@ NO_VARIABILITY = dict(runout=0.0, pitch_error=0.0, speed_fluctuation=0.0, load_f
 
 def _bench_spectra(config, bench, speeds, channels):
     numerics = dict(config["numerics"], output_rate=config["rig"]["output_rate_hz"])
-    frame = pd.DataFrame(virtual_bench_rows(config["model"], bench, ["healthy"], speeds, numerics, 0.5))
+    frame = pd.DataFrame(virtual_bench_rows(lambda **overrides: build_parameters(config["model"], **overrides),
+                                            bench, ["healthy"], speeds, numerics, 0.5))
     spectrum, resolution = config["features"]["spectrum"], config["calibration"]["resolution_hz"]
     return measured_spectra(frame, speeds, channels, spectrum, resolution, 5120.0)
 

@@ -82,10 +82,12 @@ def test_plots_exist_are_listed_and_are_real_images(built_report):
     assert plots == sorted(summary["plots"])
     expected = {"accuracy_vs_measured_percent.png", "accuracy_per_speed.png",
                 "spectra_measured_vs_calibrated.png", "calibration_convergence.png",
-                "confusion_knn_record_split_all.png", "confusion_logreg_condition_holdout_600rpm.png"}
+                "confusion_knn_record_split_all.png", "confusion_logreg_condition_holdout_600rpm.png",
+                "prediction_shares_knn_record_split.png",
+                "prediction_shares_logreg_condition_holdout.png"}
     assert expected <= set(plots)
-    # classifiers x protocols x (all + 2 speeds) confusion figures, 5 others
-    assert len(plots) == 2 * 2 * 3 + 5
+    # classifiers x protocols x (all + 2 speeds confusion figures + prediction shares), 5 others
+    assert len(plots) == 2 * 2 * 4 + 5
     for name in plots:
         data = (out / "plots" / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n", name

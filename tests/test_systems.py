@@ -42,6 +42,7 @@ def toy_config(run_name="toy-smoke") -> dict:
 CONFIGS = {
     "gear": lambda: config_of("config/smoke.yaml"),
     "bearing": lambda: config_of("config/cwru-smoke.yaml"),
+    "cfrp": lambda: config_of("config/cfrp-smoke.yaml"),
     "toy": lambda: config_of(toy_config()),
 }
 

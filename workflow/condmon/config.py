@@ -75,10 +75,11 @@ def schema_defaults(schema: dict) -> dict:
 
 def merge_schema(base: dict, fragment: dict) -> dict:
     """`base` with a system's schema fragment merged in, key by key (the fragment's `properties`
-    and `definitions` join the base's; its values win where both set one)."""
+    and `definitions` join the base's; its values win where both set one). A `default` is one
+    value: the fragment's replaces the base's whole."""
     merged = copy.deepcopy(base)
     for key, value in fragment.items():
-        if isinstance(value, dict) and isinstance(merged.get(key), dict):
+        if key != "default" and isinstance(value, dict) and isinstance(merged.get(key), dict):
             merged[key] = merge_schema(merged[key], value)
         else:
             merged[key] = copy.deepcopy(value)

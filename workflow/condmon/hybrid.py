@@ -2,7 +2,9 @@
 
 A split table lists, per (measured_percent, repeat, holdout), the role of every measured record
 (see ARCHITECTURE.md, "Split table"), or of every segment (`segment` >= 0) for segment_share;
-`segment` = -1 means the whole record. Simulated records are not listed: they always train.
+`segment` = -1 means the whole record. Simulated records always train, except those held out as
+the simulated validation set (`simulated_validation_share` > 0): only these are listed, with role
+"simulated_validation" (whole records), in every split; an unlisted simulated record trains.
 
 An operating condition is the value of the `condition` column (speed_rpm on the gear bench,
 load on the CWRU rig, whose records at one load differ by a few rpm). Strata are
@@ -25,6 +27,12 @@ Protocols
 The record order within a stratum is a random permutation seeded by (seed, repeat, stratum) only,
 and the first n_train records of it train. So a higher percentage's training set contains the
 lower one's (nested shares), and both protocols draw the same records from a stratum.
+
+Simulated validation (the CFRP study's 70/30 split of the simulated data): per simulated stratum
+(health_state x condition) round(share x n) whole records, drawn by a permutation seeded by
+(seed, stratum) only, so the held-out set is the same for every protocol, measured percentage,
+repeat and holdout (and a larger share holds out a superset). Every stratum must keep at least
+one simulated training record.
 """
 from __future__ import annotations
 
@@ -51,7 +59,11 @@ def protocol_title(protocol: str) -> str:
     return f"{protocol} (LEAKY)" if protocol in LEAKY_PROTOCOLS else protocol
 CONDITIONS = ("speed_rpm", "load")
 WHOLE_RECORD = -1
-ROLES = ("train", "test", "unused")
+# a simulated record held out of training as the simulated validation set (the only role, and the
+# only rows, of simulated records in a split table)
+SIMULATED_VALIDATION = "simulated_validation"
+SHARE_KEY = "hybrid.simulated_validation_share"
+ROLES = ("train", "test", "unused", SIMULATED_VALIDATION)
 SPLIT_SCHEMA = pa.schema([
     ("protocol", pa.string()),
     ("measured_percent", pa.int32()),
@@ -98,21 +110,22 @@ def n_train_records(n_records: int, percent: float, min_test_records: int) -> in
     return max(0, min(wanted, n_records - min_test_records))
 
 
-def unique_records(records: pd.DataFrame, condition: str = "speed_rpm") -> pd.DataFrame:
+def unique_records(records: pd.DataFrame, condition: str = "speed_rpm",
+                   what: str = "measured") -> pd.DataFrame:
     """One row per record_id (per-segment rows are fine) with its health_state and condition
-    (renamed `condition`); each record has one of each."""
+    (renamed `condition`); each record has one of each. `what` names the records in errors."""
     if condition not in CONDITIONS:
         raise SplitError(f"unknown condition {condition!r}; choose one of {list(CONDITIONS)}")
     missing = [c for c in ("record_id", "health_state", condition) if c not in records.columns]
     if missing:
-        raise SplitError(f"records lack column(s) {missing}")
+        raise SplitError(f"{what} records lack column(s) {missing}")
     records = records[["record_id", "health_state", condition]].drop_duplicates()
     mixed = records["record_id"][records["record_id"].duplicated()]
     if len(mixed):
         raise SplitError(f"record(s) {sorted(set(mixed))[:5]} have several health_state or "
                          f"{condition} values")
     if records.empty:
-        raise SplitError("no measured records to split")
+        raise SplitError(f"no {what} records to split")
     records = records.rename(columns={condition: "condition"}).astype(
         {"record_id": str, "health_state": str, "condition": float})
     return records.sort_values("record_id").reset_index(drop=True)
@@ -169,7 +182,8 @@ def class_segment_orders(segments: pd.DataFrame, seed: int, repeat: int) -> dict
 
 def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats: int, seed: int,
                 min_test_records: int = 1, condition: str = "speed_rpm",
-                measured_classes=None) -> pd.DataFrame:
+                measured_classes=None, simulated_records: pd.DataFrame | None = None,
+                simulated_validation_share: float = 0.0) -> pd.DataFrame:
     """The split table for one protocol (columns SPLIT_COLUMNS, one row per record, or per
     segment for segment_share, and split).
 
@@ -177,11 +191,26 @@ def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats:
     (segment_share needs the `segment` column, one row per segment). `min_test_records`: records
     per stratum (record_split) or segments per class (segment_share) kept for testing.
     `measured_classes`: the health states with measured training data under unseen_fault.
+    `simulated_records` (same columns) and `simulated_validation_share` > 0: the held-out
+    simulated records (simulated_validation_records) join every split with role
+    "simulated_validation"; with share 0 the table is exactly the measured one.
     """
     percents = _check_arguments(protocol, measured_percent, repeats, seed, min_test_records)
     unique = unique_records(records, condition)
+    held_out = []
+    if simulated_validation_share:
+        if simulated_records is None:
+            raise SplitError(f"{SHARE_KEY} = {simulated_validation_share} needs the simulated "
+                             "records")
+        held_out = simulated_validation_records(simulated_records, simulated_validation_share,
+                                                seed, condition)
+        both = sorted(set(held_out) & set(unique["record_id"]))
+        if both:
+            raise SplitError(f"record id(s) {both[:5]} are both measured and simulated")
     if protocol == "segment_share":
-        return _segment_share_splits(records, unique, percents, repeats, seed, min_test_records)
+        return with_simulated_validation(
+            _segment_share_splits(records, unique, percents, repeats, seed, min_test_records),
+            held_out)
     conditions = sorted(unique["condition"].unique())
     if protocol == "condition_holdout" and len(conditions) < 2:
         raise SplitError(f"condition_holdout needs at least two values of {condition}; the "
@@ -211,7 +240,68 @@ def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats:
             else:
                 for value in conditions:
                     rows += _holdout_rows(orders, percent, repeat, value, condition)
-    return _typed(_frame(rows, protocol))
+    return with_simulated_validation(_typed(_frame(rows, protocol)), held_out)
+
+
+def n_validation_records(n_records: int, share: float) -> int:
+    """Simulated records of a stratum held out for validation: floor(share x n + 0.5)."""
+    return math.floor(share * n_records + 0.5)
+
+
+def simulated_validation_records(records: pd.DataFrame, share: float, seed: int,
+                                 condition: str = "speed_rpm") -> list[str]:
+    """The simulated record ids held out of training as the simulated validation set, sorted.
+
+    `records`: record_id, health_state and the `condition` column of the simulated features
+    (one or more rows per record). Per stratum (health_state x condition) the first
+    n_validation_records of a permutation seeded by (seed, stratum) only: the same set for every
+    protocol, percentage, repeat and holdout. A stratum left without a training record is an
+    error naming the key and the stratum.
+    """
+    if isinstance(share, bool) or not 0 <= share < 1:
+        raise SplitError(f"{SHARE_KEY} must be a number in [0, 1), got {share!r}")
+    if share == 0:
+        return []
+    unique = unique_records(records, condition, what="simulated")
+    held_out = []
+    for (health, value), group in unique.groupby(["health_state", "condition"], sort=True):
+        ids = sorted(group["record_id"])
+        n_held = n_validation_records(len(ids), share)
+        stratum = f"health_state={health}, {condition}={format_speed(value)}"
+        if n_held >= len(ids):
+            raise SplitError(f"{SHARE_KEY} = {share} holds out all {len(ids)} simulated "
+                             f"record(s) of stratum {stratum}: none of them would train; lower "
+                             "the share or simulate more samples (simulation.samples_per_state)")
+        if n_held == 0:
+            log.warning("%s = %s: stratum %s (%d simulated records) has no simulated validation "
+                        "record", SHARE_KEY, share, stratum, len(ids))
+        rng = np.random.default_rng(derive_seed(
+            seed, stable_int(SIMULATED_VALIDATION, health, format_speed(value))))
+        held_out += [ids[i] for i in rng.permutation(len(ids))[:n_held]]
+    return sorted(held_out)
+
+
+def with_simulated_validation(splits: pd.DataFrame, held_out) -> pd.DataFrame:
+    """`splits` plus one row per held-out simulated record (whole record, role
+    "simulated_validation") in every (measured_percent, repeat, holdout); unchanged without any."""
+    held_out = sorted(held_out)
+    if not held_out:
+        return splits
+    keys = splits[["measured_percent", "repeat", "holdout"]].drop_duplicates()
+    rows = [(percent, repeat, holdout, rid, WHOLE_RECORD, SIMULATED_VALIDATION)
+            for percent, repeat, holdout in keys.itertuples(index=False) for rid in held_out]
+    added = _frame(rows, str(splits["protocol"].iloc[0]))
+    return _typed(pd.concat([splits, added], ignore_index=True))
+
+
+def simulated_validation_ids(splits: pd.DataFrame) -> set[str]:
+    """The simulated records a split table (or one split) holds out of training."""
+    return set(splits["record_id"][splits["role"] == SIMULATED_VALIDATION])
+
+
+def measured_rows(splits: pd.DataFrame) -> pd.DataFrame:
+    """The rows of a split table that list measured records (all but simulated validation)."""
+    return splits[splits["role"] != SIMULATED_VALIDATION]
 
 
 def _frame(rows, protocol) -> pd.DataFrame:
@@ -294,6 +384,11 @@ def validate_splits(splits: pd.DataFrame, where: str = "split table") -> None:
     protocols = sorted(set(splits["protocol"]))
     if len(protocols) != 1:
         raise SplitError(f"{where}: expected one protocol, found {protocols}")
+    if "segment" in splits.columns:
+        cut = splits[(splits["role"] == SIMULATED_VALIDATION) & (splits["segment"] != WHOLE_RECORD)]
+        if len(cut):
+            raise SplitError(f"{where}: simulated validation record {cut['record_id'].iloc[0]!r} "
+                             "is listed by segment; it must be a whole record (segment -1)")
     keys = ["measured_percent", "repeat", "holdout", "record_id"]
     dup = splits.duplicated(keys + ["segment"] if "segment" in splits.columns else keys)
     if dup.any():

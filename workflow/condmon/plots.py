@@ -234,6 +234,61 @@ def confusion_matrices(matrices: dict, labels, classifier: str, protocol: str,
     return fig
 
 
+def prediction_shares(shares, labels, classifier: str, protocol: str, percents, note: str):
+    """The CFRP study's Fig. 9 for one classifier and protocol: a panel per (measured percentage,
+    true class), in it per speed a stacked bar of the percentage of that class's test segments
+    predicted as each class (text: shares of 8 % and more; tick: speed and test segments).
+
+    ``shares``: rows of report.prediction_shares (classifier, protocol, measured_percent,
+    speed_rpm, true_label, predicted_label, share, n) of this classifier and protocol.
+    """
+    true_labels = [label for label in labels if label in set(shares["true_label"])]
+    colours = _colours(labels)
+    n_cols = max(1, min(len(true_labels), 4))
+    blocks = max(1, -(-len(true_labels) // n_cols))  # rows of panels per percentage
+    fig, axes = plt.subplots(len(percents) * blocks, n_cols,
+                             figsize=(3.3 * n_cols + 0.6, 3.1 * len(percents) * blocks + 1.4),
+                             sharey=True, squeeze=False)
+    for ax in axes.flat:
+        ax.set_visible(False)
+    legend_ax = None
+    for a, percent in enumerate(percents):
+        training = "simulation only" if percent == 0 else f"{percent} % measured"
+        for k, true in enumerate(true_labels):
+            ax = axes[a * blocks + k // n_cols, k % n_cols]
+            ax.set_visible(True)
+            ax.set_title(f"true: {true}\ntraining: {training}", fontsize=9)
+            ax.set_ylim(0, 100)
+            ax.grid(axis="y", alpha=0.3)
+            rows = shares[(shares["measured_percent"] == percent) & (shares["true_label"] == true)]
+            if rows.empty:
+                ax.text(0.5, 0.5, "not tested", ha="center", va="center", transform=ax.transAxes)
+                ax.set_xticks([])
+                continue
+            legend_ax = legend_ax or ax
+            speeds = sorted(rows["speed_rpm"].unique())
+            counts = rows.groupby("speed_rpm")["n"].first().reindex(speeds)
+            x = np.arange(len(speeds))
+            bottom = np.zeros(len(speeds))
+            for predicted in labels:
+                percent_of = 100 * (rows[rows["predicted_label"] == predicted]
+                                    .set_index("speed_rpm")["share"].reindex(speeds)
+                                    .fillna(0.0).to_numpy())
+                ax.bar(x, percent_of, 0.6, bottom=bottom, color=colours[predicted],
+                       label=predicted, edgecolor="white", linewidth=0.5)
+                for xi, low, value in zip(x, bottom, percent_of):
+                    if value >= 8:
+                        ax.text(xi, low + value / 2, f"{value:.0f}", ha="center", va="center",
+                                fontsize=7)
+                bottom += percent_of
+            ax.set_xticks(x, [f"{s:g}\nn={int(c)}" for s, c in zip(speeds, counts)], fontsize=7)
+            ax.set_xlabel("speed (rpm)", fontsize=8)
+        axes[a * blocks, 0].set_ylabel("predicted as (% of true class)")
+    title = (f"Prediction shares per speed: {classifier}, {protocol_title(protocol)}\n"
+             "(bar: a true class's test segments by predicted class, pooled over repeats)")
+    return _finish(fig, title, note, legend_from=legend_ax)
+
+
 def confusion_matrix_small(counts, labels, title: str, note: str):
     """A single, cheap confusion matrix (fixed margins, no layout pass) for per-run artifacts.
 

@@ -10,7 +10,14 @@ history.parquet) and writes
   evaluations and seconds under ``calibration_by_mesh_stiffness_model``), per classifier x
   protocol x measured percentage the mean and spread of accuracy over repeats, per-speed means,
   record counts, plot list;
+- ``prediction_shares.csv``: per classifier, protocol, measured percentage and speed, the share of
+  each true class's test predictions per predicted class (the CFRP study's Fig. 9); plotted per
+  classifier and protocol at the confusion percentages (``prediction_shares_<clf>_<protocol>.png``);
 - ``plots/*.png``: see ``condmon.plots``.
+
+With hybrid.simulated_validation_share > 0 the train stage's ``simulated_validation.csv`` files
+(accuracy on held-out SIMULATED records) go to ``summary.json`` under ``simulated_validation``,
+aggregated like the measured results but never mixed into them (nor into accuracy.csv or plots).
 
 Aggregation over repeats: for ``condition_holdout`` one repeat has one evaluation per held-out
 condition; these are first averaged per repeat (every condition weighs the same), then mean,
@@ -30,7 +37,7 @@ from sklearn.metrics import confusion_matrix
 
 from condmon import job_timings, plots
 from condmon.atomic import staging_directory, write_text
-from condmon.hybrid import LEAKY_PROTOCOLS, format_speed
+from condmon.hybrid import LEAKY_PROTOCOLS, SIMULATED_VALIDATION, format_speed
 
 log = logging.getLogger(__name__)
 
@@ -43,6 +50,12 @@ PREDICTION_COLUMNS = ["protocol", "measured_percent", "repeat", "holdout", "reco
 # optional: the CNN ensemble's member spread per prediction (NaN for the other classifiers)
 OPTIONAL_PREDICTION_COLUMNS = ["uncertainty"]
 SORT_KEYS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "speed_rpm"]
+# prediction_shares.csv: per (classifier, protocol, percent, speed), true class x predicted class
+SHARE_KEYS = ["classifier", "protocol", "measured_percent", "speed_rpm"]
+SHARE_COLUMNS = SHARE_KEYS + ["true_label", "predicted_label", "share", "n"]
+SIMULATED_VALIDATION_LABEL = (
+    "accuracy on SIMULATED records held out of training (hybrid.simulated_validation_share), "
+    "not on measured data: never part of the measured results")
 
 # What each protocol's test set is: every number the report gives is labelled with it.
 SMALL_TEST_SET = 30  # segments: fewer, and an accuracy says little (flagged in accuracy.csv)
@@ -150,6 +163,21 @@ def load_predictions(paths) -> pd.DataFrame:
     return table
 
 
+def load_simulated_validation(paths) -> pd.DataFrame | None:
+    """The train stage's simulated_validation.csv files as one table (columns ACCURACY_COLUMNS
+    and test_source), or None when no file has a row (no simulated record was held out)."""
+    with_rows = [p for p in paths if len(pd.read_csv(p))]
+    if not with_rows:
+        return None
+    table = load_metrics(with_rows, extra_columns=("test_source",))
+    sources = set(table["test_source"]) if "test_source" in table.columns else {None}
+    if sources != {SIMULATED_VALIDATION}:
+        raise ReportInputError(f"simulated validation files {[str(p) for p in with_rows]}: "
+                               f"test_source {sorted(map(str, sources))}, expected "
+                               f"only {SIMULATED_VALIDATION!r}")
+    return table
+
+
 def load_calibration(params_path) -> dict:
     """The calibration summary: contact law, cost, evaluations, parameters."""
     params_path = Path(params_path)
@@ -221,6 +249,30 @@ def confusion_counts(true_labels, predicted_labels, labels) -> np.ndarray:
     if not true_labels:
         return np.zeros((len(labels), len(labels)), dtype=int)
     return confusion_matrix(true_labels, predicted_labels, labels=list(labels))
+
+
+def share_rows(key: tuple, counts: np.ndarray, labels) -> list[tuple]:
+    """Rows (*key, true, predicted, share, n) of one confusion matrix (rows = true labels in the
+    order of ``labels``): every predicted label of every true label that was tested (n > 0),
+    share = count / n, so a true label's shares sum to 1."""
+    totals = counts.sum(axis=1)
+    return [(*key, true, predicted, counts[i, j] / totals[i], int(totals[i]))
+            for i, true in enumerate(labels) if totals[i] > 0
+            for j, predicted in enumerate(labels)]
+
+
+def prediction_shares(predictions: pd.DataFrame, labels) -> pd.DataFrame:
+    """The study's prediction percentages (Fig. 9): per (classifier, protocol, measured percent,
+    speed), the share of each true class's test segments predicted as each class, counts pooled
+    over repeats and holdouts as in the confusion matrices and recall (with equal test sets per
+    repeat, the mean over repeats). ``labels``: the class order (label_order). Columns
+    SHARE_COLUMNS; n = the true class's test segments at that speed."""
+    rows = []
+    for key, group in predictions.groupby(SHARE_KEYS, sort=True):
+        counts = confusion_counts(group["true_label"], group["predicted_label"], labels)
+        rows += share_rows(key, counts, labels)
+    shares = pd.DataFrame(rows, columns=SHARE_COLUMNS)
+    return shares.astype({"measured_percent": int, "speed_rpm": float, "share": float, "n": int})
 
 
 def per_repeat_accuracy(accuracy: pd.DataFrame) -> pd.DataFrame:
@@ -301,6 +353,44 @@ def simulation_gain(accuracy: pd.DataFrame, baseline: pd.DataFrame) -> pd.DataFr
     return gain
 
 
+def accuracy_entry(row, speeds: pd.DataFrame) -> dict:
+    """The accuracy part of a summary entry: one row of over_repeats and its per_speed rows."""
+    speed_rows = speeds[(speeds["classifier"] == row.classifier)
+                        & (speeds["protocol"] == row.protocol)
+                        & (speeds["measured_percent"] == row.measured_percent)]
+    return {
+        "classifier": row.classifier,
+        "protocol": row.protocol,
+        "measured_percent": int(row.measured_percent),
+        "n_repeats": int(row.n_repeats),
+        "accuracy_mean": _json_number(row.accuracy_mean),
+        "accuracy_std": _json_number(row.accuracy_std),
+        "accuracy_min": _json_number(row.accuracy_min),
+        "accuracy_max": _json_number(row.accuracy_max),
+        "macro_f1_mean": _json_number(row.macro_f1_mean),
+        "macro_f1_std": _json_number(row.macro_f1_std),
+        "accuracy_mean_per_speed": {format_speed(s.speed_rpm): _json_number(s.accuracy_mean)
+                                    for s in speed_rows.itertuples(index=False)},
+    }
+
+
+def simulated_validation_summary(validation: pd.DataFrame) -> dict:
+    """summary.json's ``simulated_validation``: per classifier, protocol and measured percent the
+    accuracy on the held-out simulated records (mean, spread over repeats, per speed), labelled
+    as simulated; ``validation`` is the table of load_simulated_validation."""
+    segments = (validation[validation["speed_rpm"].isna()]
+                .groupby(["classifier", "protocol", "measured_percent"])["n_test"].max())
+    speeds = per_speed(validation)
+    results = [{**accuracy_entry(row, speeds),
+                "n_validation_segments": int(segments[(row.classifier, row.protocol,
+                                                       row.measured_percent)])}
+               for row in over_repeats(validation).itertuples(index=False)]
+    return {"test_source": SIMULATED_VALIDATION, "label": SIMULATED_VALIDATION_LABEL,
+            "aggregation": "as the measured results: mean and sample std over repeats, "
+                           "condition_holdout's holdouts averaged within a repeat first",
+            "results": results}
+
+
 def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: dict,
               run_name: str, data_source: str, plot_names: list[str],
               baseline: pd.DataFrame | None = None, healthy_state: str | None = None) -> dict:
@@ -316,22 +406,8 @@ def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: di
     results = []
     for row in over_repeats(accuracy).itertuples(index=False):
         key = (row.classifier, row.protocol, row.measured_percent)
-        speed_rows = speeds[(speeds["classifier"] == row.classifier)
-                            & (speeds["protocol"] == row.protocol)
-                            & (speeds["measured_percent"] == row.measured_percent)]
         results.append({
-            "classifier": row.classifier,
-            "protocol": row.protocol,
-            "measured_percent": int(row.measured_percent),
-            "n_repeats": int(row.n_repeats),
-            "accuracy_mean": _json_number(row.accuracy_mean),
-            "accuracy_std": _json_number(row.accuracy_std),
-            "accuracy_min": _json_number(row.accuracy_min),
-            "accuracy_max": _json_number(row.accuracy_max),
-            "macro_f1_mean": _json_number(row.macro_f1_mean),
-            "macro_f1_std": _json_number(row.macro_f1_std),
-            "accuracy_mean_per_speed": {format_speed(s.speed_rpm): _json_number(s.accuracy_mean)
-                                        for s in speed_rows.itertuples(index=False)},
+            **accuracy_entry(row, speeds),
             "n_test_records_per_repeat": _json_number(test_records.get(key)),
             "n_test_segments_per_repeat": _json_number(row.n_test_segments),
             "protocol_label": PROTOCOL_LABELS.get(row.protocol, row.protocol),
@@ -384,15 +460,19 @@ def confusion_percents(accuracy: pd.DataFrame, requested) -> list[int]:
 
 def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: Path,
                run_name: str, data_source: str, confusion_percent, baseline=None,
-               healthy_state: str | None = None, bench_effects: int = 0) -> list[str]:
+               healthy_state: str | None = None, bench_effects: int = 0,
+               shares: pd.DataFrame | None = None) -> list[str]:
     """Write every report plot into ``plots_dir``; returns the file names. bench_effects: how many
-    effects the bench has that the model lacks (the note says so; summary.json lists them)."""
+    effects the bench has that the model lacks (the note says so; summary.json lists them).
+    ``shares``: prediction_shares of the predictions (computed here if not given)."""
     note = f"Data: {data_source_label(data_source)} | run {run_name}"
     if bench_effects:
         note += f" | bench differs from the model in form: {bench_effects} effects (summary.json)"
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
     chance = 1.0 / len(labels)
     percents = confusion_percents(accuracy, confusion_percent)
+    if shares is None:
+        shares = prediction_shares(predictions, labels)
     names = []
 
     def save(fig, name):
@@ -426,6 +506,12 @@ def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: 
             save(plots.confusion_matrices(matrices, labels, classifier, protocol,
                                           None if speed is None else format_speed(speed), note),
                  f"confusion_{classifier}_{protocol}_{speed_name}.png")
+        # the study's Fig. 9 at the same percentages: per speed, where each true class's
+        # predictions go
+        own_shares = shares[(shares["classifier"] == classifier)
+                            & (shares["protocol"] == protocol)]
+        save(plots.prediction_shares(own_shares, labels, classifier, protocol, own_percents, note),
+             f"prediction_shares_{classifier}_{protocol}.png")
     if not isinstance(spectra, dict):  # one calibration
         save(plots.spectra_grid(spectra, note), "spectra_measured_vs_calibrated.png")
         save(plots.calibration_convergence(history, calibration["contact_law"], note),
@@ -472,8 +558,13 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
                  data_source: str, confusion_percent=(0,), simulation_reports=(),
                  baseline_paths=(), measured_records=None, record_recall_path=None,
                  healthy_state: str | None = None, benchmarks_dir=None, job_timings_path=None,
-                 bench_effects=()) -> dict:
+                 bench_effects=(), prediction_shares_path=None,
+                 simulated_validation_paths=()) -> dict:
     """Build the whole report; returns the summary dict. Every output is written atomically.
+
+    prediction_shares_path: where prediction_shares.csv goes (None: not written).
+    simulated_validation_paths: the train stage's simulated_validation.csv files (given only
+    with hybrid.simulated_validation_share > 0): summary.json's ``simulated_validation``.
 
     bench_effects: what the virtual bench has and the model lacks (its difference in form),
     labelled in summary.json and on every plot.
@@ -486,6 +577,10 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     with_rows = [p for p in baseline_paths if len(pd.read_csv(p))]
     baseline = load_metrics(with_rows) if with_rows else None
     predictions = load_predictions(predictions_paths)
+    simulated_validation = load_simulated_validation(simulated_validation_paths)
+    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
+                         healthy_state)
+    shares = prediction_shares(predictions, labels)
     per_model = isinstance(calibration_params, dict)
     params_paths = calibration_params if per_model else {None: calibration_params}
     spectra_paths = calibration_spectra if per_model else {None: calibration_spectra}
@@ -511,7 +606,7 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     with staging_directory(plots_dir) as staging:
         plot_names = make_plots(accuracy, predictions, spectra, history, calibrations, staging,
                                 run_name, data_source, confusion_percent, baseline, healthy_state,
-                                len(bench_effects))
+                                len(bench_effects), shares)
         summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names,
                             baseline, healthy_state)
         summary["data_source"]["bench_effects_the_model_lacks"] = list(bench_effects)
@@ -520,6 +615,13 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
         summary["simulation"] = simulation_summary(simulation_reports)
         if measured_records is not None:
             summary["measured_records"] = measured_records_summary(measured_records)
+        if list(simulated_validation_paths):  # hybrid.simulated_validation_share > 0
+            summary["simulated_validation"] = (
+                simulated_validation_summary(simulated_validation)
+                if simulated_validation is not None else
+                {"test_source": SIMULATED_VALIDATION, "label": SIMULATED_VALIDATION_LABEL,
+                 "results": [], "note": "no simulated record was held out (every stratum's "
+                                        "share rounds to zero records)"})
         if benchmarks_dir is not None:  # the jobs that finished before this one
             timings = job_timings.summarise(benchmarks_dir)
             summary["job_timings"] = {row.pop("rule"): row for row in timings.to_dict("records")}
@@ -528,6 +630,8 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
         write_text(labelled_accuracy(accuracy).to_csv(index=False), accuracy_path)
         if record_recall_path is not None:
             write_text(recall_per_record(predictions).to_csv(index=False), record_recall_path)
+        if prediction_shares_path is not None:
+            write_text(shares.to_csv(index=False), prediction_shares_path)
         write_text(json.dumps(summary, indent=2) + "\n", summary_path)
     log.info("wrote %s, %s and %d plots in %s", accuracy_path, summary_path, len(plot_names),
              plots_dir)

@@ -6,6 +6,12 @@ segment_share); the test set is the measured segments with role "test". Labels a
 health_state strings. With `feature_selection` (n_features, cv) a sequential backward selection
 is fitted on each training set (never on test data) before the classifier.
 
+Simulated validation: the simulated records a split lists with role "simulated_validation"
+(hybrid.simulated_validation_share) are left out of that split's training set, and every fitted
+model is evaluated on them too: ``fit_and_evaluate`` returns these metrics apart
+(``simulated_validation.csv``, ``test_source`` = "simulated_validation"), never in the measured
+predictions and metrics.
+
 The measured-only baseline (`run_protocol` without simulated features) fits the same
 classifier on the same measured training segments alone, so the report can give the
 simulation's gain. With one measured class it predicts that class; with none, it is skipped.
@@ -25,6 +31,7 @@ import json
 import logging
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import joblib
 import numpy as np
@@ -35,7 +42,8 @@ from sklearn.metrics import accuracy_score, f1_score
 
 from condmon import classifiers
 from condmon.atomic import staging_directory, write_frame, write_table, write_text
-from condmon.hybrid import sorted_holdouts, validate_splits
+from condmon.hybrid import (SIMULATED_VALIDATION, measured_rows, simulated_validation_ids,
+                            sorted_holdouts, validate_splits)
 from condmon.seeds import derive_seed, stable_int
 from condmon.selection import SelectThenClassify, SequentialBackwardSelector
 from condmon.signals import package_versions
@@ -59,6 +67,8 @@ PREDICTION_COLUMNS = PREDICTION_SCHEMA.names
 METRIC_COLUMNS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "speed_rpm",
                   "accuracy", "macro_f1", "n_train_simulated", "n_train_measured", "n_test",
                   "fit_seconds"]
+# simulated_validation.csv: the metrics of every fit on the held-out simulated records, labelled
+SIMULATED_VALIDATION_COLUMNS = METRIC_COLUMNS[:2] + ["test_source"] + METRIC_COLUMNS[2:]
 REQUIRED_COLUMNS = ["record_id", "segment", "health_state", "speed_rpm"]
 HISTORY_FILE = "history.parquet"  # in models/, beside the model files
 
@@ -164,16 +174,55 @@ def build_model(classifier_name, classifier_params, seed, feature_selection=None
     return SelectThenClassify(selector, model)
 
 
+class ProtocolResult(NamedTuple):
+    predictions: pd.DataFrame  # measured test predictions (PREDICTION_COLUMNS)
+    metrics: pd.DataFrame  # on the measured test records (METRIC_COLUMNS)
+    models: dict  # fitted estimators keyed by (measured_percent, repeat, holdout)
+    # on the held-out simulated records (SIMULATED_VALIDATION_COLUMNS)
+    simulated_validation: pd.DataFrame
+
+
 def run_protocol(classifier_name: str, classifier_params: dict | None,
                  simulated_features: pd.DataFrame | None, measured_features: pd.DataFrame,
                  splits: pd.DataFrame, feature_names, seed: int, measured_percent=None,
                  repeats=None, feature_selection: dict | None = None):
+    """(predictions, metrics, models) of ``fit_and_evaluate``: the measured-data results."""
+    return fit_and_evaluate(classifier_name, classifier_params, simulated_features,
+                            measured_features, splits, feature_names, seed, measured_percent,
+                            repeats, feature_selection)[:3]
+
+
+def _predict(model, x) -> tuple[np.ndarray, np.ndarray | float]:
+    """Predicted labels (str) and the ensemble's uncertainty where the model gives one (else NaN)."""
+    if hasattr(model, "predict_with_uncertainty"):
+        y_pred, uncertainty = model.predict_with_uncertainty(x)
+        return y_pred.astype(str), uncertainty
+    return model.predict(x).astype(str), np.nan
+
+
+def metric_rows(common: dict, y_true, y_pred, speeds) -> list[dict]:
+    """One metrics row over all speeds (speed_rpm NaN) and one per speed, each with `common`."""
+    y_true, y_pred, speeds = np.asarray(y_true), np.asarray(y_pred), np.asarray(speeds, float)
+    rows = [{**common, "speed_rpm": np.nan, **evaluation_metrics(y_true, y_pred),
+             "n_test": len(y_true)}]
+    for speed in sorted(set(speeds)):
+        at_speed = speeds == speed
+        rows.append({**common, "speed_rpm": speed,
+                     **evaluation_metrics(y_true[at_speed], y_pred[at_speed]),
+                     "n_test": int(at_speed.sum())})
+    return rows
+
+
+def fit_and_evaluate(classifier_name: str, classifier_params: dict | None,
+                     simulated_features: pd.DataFrame | None, measured_features: pd.DataFrame,
+                     splits: pd.DataFrame, feature_names, seed: int, measured_percent=None,
+                     repeats=None, feature_selection: dict | None = None) -> ProtocolResult:
     """Fit and evaluate one classifier on every split of a split table.
 
     ``measured_percent``/``repeats`` restrict the splits (see select_splits).
-    ``simulated_features`` None: the measured-only baseline (see the module docstring).
-    Returns (predictions, metrics, models): predictions and metrics per the train contract, and
-    the fitted estimators keyed by (measured_percent, repeat, holdout).
+    ``simulated_features`` None: the measured-only baseline (see the module docstring; it has no
+    simulated validation). Returns predictions and metrics per the train contract, the fitted
+    estimators, and the metrics on the split's held-out simulated records (empty without any).
     """
     feature_names = list(feature_names)
     build_model(classifier_name, classifier_params, seed, feature_selection)  # fail early if bad
@@ -188,11 +237,18 @@ def run_protocol(classifier_name: str, classifier_params: dict | None,
     protocol = str(splits["protocol"].iloc[0])
 
     measured_ids = set(measured_features["record_id"].astype(str))
-    unknown = sorted(set(splits["record_id"]) - measured_ids)
+    sim_records = simulated_features["record_id"].astype(str).to_numpy()
+    if not measured_only:
+        absent = sorted(simulated_validation_ids(splits) - set(sim_records))
+        if absent:
+            raise ValueError(f"split table holds out simulated record(s) {absent[:5]} absent "
+                             "from the simulated features (hybrid.simulated_validation_share): "
+                             "is the split table older than the simulated features?")
+    unknown = sorted(set(measured_rows(splits)["record_id"]) - measured_ids)
     if unknown:
         raise ValueError(f"split table names record(s) {unknown[:5]} absent from the measured "
                          "features")
-    unlisted = sorted(measured_ids - set(splits["record_id"]))
+    unlisted = sorted(measured_ids - set(measured_rows(splits)["record_id"]))
     if unlisted:
         log.warning("measured record(s) %s are in no split and are never used", unlisted[:5])
 
@@ -202,22 +258,24 @@ def run_protocol(classifier_name: str, classifier_params: dict | None,
     y_meas = measured_features["health_state"].astype(str).to_numpy()
     meas_records = measured_features["record_id"].astype(str)
     meas_speed = measured_features["speed_rpm"].to_numpy(float)
-    sim_records = simulated_features["record_id"].astype(str).to_numpy()
+    sim_speed = simulated_features["speed_rpm"].to_numpy(float)
 
     holdout_index = {h: i for i, h in enumerate(sorted_holdouts(splits["holdout"]))}
-    predictions, metrics, models = [], [], {}
+    predictions, metrics, validation, models = [], [], [], {}
     for percent, repeat, holdout in _split_keys(splits):
         split = splits[(splits["measured_percent"] == percent) & (splits["repeat"] == repeat)
                        & (splits["holdout"] == holdout)]
-        role = segment_roles(split, measured_features)
+        role = segment_roles(measured_rows(split), measured_features)
         train, test = role == "train", role == "test"
+        # the simulated records this split holds out (none for the measured-only baseline)
+        held_out = np.isin(sim_records, list(simulated_validation_ids(split)))
         where = f"measured_percent={percent} repeat={repeat} holdout={holdout!r}"
         if not test.any():
             log.warning("%s: no test records, skipped", where)
             continue
-        x_train = np.concatenate([x_sim, x_meas[train]])
-        y_train = np.concatenate([y_sim, y_meas[train]])
-        groups = np.concatenate([sim_records, meas_records.to_numpy()[train]])
+        x_train = np.concatenate([x_sim[~held_out], x_meas[train]])
+        y_train = np.concatenate([y_sim[~held_out], y_meas[train]])
+        groups = np.concatenate([sim_records[~held_out], meas_records.to_numpy()[train]])
         fit_seed = derive_seed(seed, stable_int(protocol), percent, repeat, holdout_index[holdout])
         if measured_only and len(set(y_train)) < 2:
             if not len(y_train):
@@ -232,11 +290,7 @@ def run_protocol(classifier_name: str, classifier_params: dict | None,
         start = time.perf_counter()
         model.fit(x_train, y_train, **_fit_kwargs(model, feature_names, groups))
         fit_seconds = time.perf_counter() - start
-        if hasattr(model, "predict_with_uncertainty"):
-            y_pred, uncertainty = model.predict_with_uncertainty(x_meas[test])
-            y_pred = y_pred.astype(str)
-        else:
-            y_pred, uncertainty = model.predict(x_meas[test]).astype(str), np.nan
+        y_pred, uncertainty = _predict(model, x_meas[test])
         y_true = y_meas[test]
         models[(percent, repeat, holdout)] = model
 
@@ -249,18 +303,20 @@ def run_protocol(classifier_name: str, classifier_params: dict | None,
 
         common = {"classifier": classifier_name, "protocol": protocol,
                   "measured_percent": percent, "repeat": repeat, "holdout": holdout,
-                  "n_train_simulated": len(x_sim), "n_train_measured": int(train.sum()),
-                  "fit_seconds": fit_seconds}
-        overall = evaluation_metrics(y_true, y_pred)
-        metrics.append({**common, "speed_rpm": np.nan, **overall, "n_test": len(y_true)})
-        for speed in sorted(set(meas_speed[test])):
-            at_speed = meas_speed[test] == speed
-            metrics.append({**common, "speed_rpm": speed,
-                            **evaluation_metrics(y_true[at_speed], y_pred[at_speed]),
-                            "n_test": int(at_speed.sum())})
+                  "n_train_simulated": int((~held_out).sum()),
+                  "n_train_measured": int(train.sum()), "fit_seconds": fit_seconds}
+        rows = metric_rows(common, y_true, y_pred, meas_speed[test])
+        metrics += rows
         log.info("%s: %d simulated + %d measured training segments, %d test segments, "
-                 "accuracy %.3f, fit %.1f s", where, len(x_sim), train.sum(), len(y_true),
-                 overall["accuracy"], fit_seconds)
+                 "accuracy %.3f, fit %.1f s", where, (~held_out).sum(), train.sum(), len(y_true),
+                 rows[0]["accuracy"], fit_seconds)
+        if held_out.any():
+            sim_pred, _ = _predict(model, x_sim[held_out])
+            rows = metric_rows({**common, "test_source": SIMULATED_VALIDATION}, y_sim[held_out],
+                               sim_pred, sim_speed[held_out])
+            validation += rows
+            log.info("%s: simulated validation on %d held-out simulated segments, accuracy "
+                     "%.3f", where, held_out.sum(), rows[0]["accuracy"])
 
     predictions = (pd.concat(predictions, ignore_index=True) if predictions
                    else pd.DataFrame(columns=PREDICTION_COLUMNS))
@@ -268,7 +324,8 @@ def run_protocol(classifier_name: str, classifier_params: dict | None,
                                       "segment": "int32", "speed_rpm": float,
                                       "uncertainty": float})
     metrics = pd.DataFrame(metrics, columns=METRIC_COLUMNS)
-    return predictions[PREDICTION_COLUMNS], metrics, models
+    validation = pd.DataFrame(validation, columns=SIMULATED_VALIDATION_COLUMNS)
+    return ProtocolResult(predictions[PREDICTION_COLUMNS], metrics, models, validation)
 
 
 # -- outputs --------------------------------------------------------------------------------
@@ -336,6 +393,12 @@ def write_predictions(predictions: pd.DataFrame, path) -> None:
 def write_metrics(metrics: pd.DataFrame, path) -> None:
     """metrics.csv; speed_rpm is empty on the all-speeds rows."""
     write_text(metrics[METRIC_COLUMNS].to_csv(index=False), path)
+
+
+def write_simulated_validation(validation: pd.DataFrame, path) -> None:
+    """simulated_validation.csv: metrics.csv's columns plus test_source ("simulated_validation");
+    n_test counts held-out simulated segments."""
+    write_text(validation[SIMULATED_VALIDATION_COLUMNS].to_csv(index=False), path)
 
 
 def train_info(classifier_name: str, params: dict | None, seed: int, protocol: str,

@@ -39,8 +39,12 @@ rule report:
         simulation_reports=simulated_batches("json"),
         measured_only=train_outputs("measured_only.csv"),
         measured_records=rules.measured.output.records,
+        # accuracy on the held-out simulated records (hybrid.simulated_validation_share > 0)
+        simulated_validation=(train_outputs("simulated_validation.csv")
+                              if SIMULATED_VALIDATION_SHARE else []),
     output:
         accuracy=f"{RESULTS}/report/accuracy.csv",
+        prediction_shares=f"{RESULTS}/report/prediction_shares.csv",
         summary=f"{RESULTS}/report/summary.json",
         recall_per_record=f"{RESULTS}/report/recall_per_record.csv",
         job_timings=f"{RESULTS}/report/job_timings.csv",

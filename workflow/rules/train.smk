@@ -12,6 +12,10 @@ rule train:
         models=directory(f"{RESULTS}/train/{{classifier}}/{{protocol}}/models"),
         info=f"{RESULTS}/train/{{classifier}}/{{protocol}}/info.json",
         measured_only=f"{RESULTS}/train/{{classifier}}/{{protocol}}/measured_only.csv",
+        # metrics on the held-out simulated records: only with hybrid.simulated_validation_share > 0
+        **({"simulated_validation":
+            f"{RESULTS}/train/{{classifier}}/{{protocol}}/simulated_validation.csv"}
+           if SIMULATED_VALIDATION_SHARE else {}),
     params:
         classifier=lambda wc: wc.classifier,
         classifier_params=lambda wc: classifier_params(wc.classifier),

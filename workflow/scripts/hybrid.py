@@ -2,6 +2,8 @@
 
 `snakemake` is injected by Snakemake's script directive.
 """
+import pandas as pd
+
 from condmon.features import read_feature_table
 from condmon.hybrid import make_splits, write_split_table
 from condmon.runlog import setup_logging
@@ -11,6 +13,10 @@ params = snakemake.params
 
 measured, _ = read_feature_table(snakemake.input.features)
 condition = getattr(params, "condition", "speed_rpm")
+# hybrid.simulated_validation_share > 0: the rule also gives the simulated features (record list)
+share = float(getattr(params, "simulated_validation_share", 0.0))
+simulated = (pd.read_parquet(snakemake.input.simulated,
+                             columns=["record_id", "health_state", condition]) if share else None)
 splits = make_splits(measured[["record_id", "segment", "health_state", condition]],
                      protocol=params.protocol,
                      measured_percent=list(params.measured_percent),
@@ -18,7 +24,8 @@ splits = make_splits(measured[["record_id", "segment", "health_state", condition
                      seed=int(params.seed),
                      min_test_records=int(params.min_test_records),
                      condition=condition,
-                     measured_classes=getattr(params, "measured_classes", None))
+                     measured_classes=getattr(params, "measured_classes", None),
+                     simulated_records=simulated, simulated_validation_share=share)
 write_split_table(splits, snakemake.output.splits)
 log.info("%s: %d rows, %d records, roles %s", params.protocol, len(splits),
          splits["record_id"].nunique(), splits["role"].value_counts().to_dict())

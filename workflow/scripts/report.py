@@ -35,6 +35,8 @@ summary = write_report(
     benchmarks_dir=snakemake.params.get("benchmarks"),
     job_timings_path=snakemake.output.get("job_timings"),
     bench_effects=list(snakemake.params.get("bench_effects", [])),
+    prediction_shares_path=snakemake.output.get("prediction_shares"),
+    simulated_validation_paths=list(snakemake.input.get("simulated_validation", [])),
 )
 log.info("report of run %s: %d result rows, %d plots", summary["run_name"],
          len(summary["results"]), len(summary["plots"]))

@@ -9,8 +9,9 @@ from condmon.atomic import write_json
 from condmon.features import read_feature_table
 from condmon.hybrid import read_split_table
 from condmon.runlog import setup_logging
-from condmon.train import (matching_feature_names, run_protocol, train_info, write_metrics, write_models,
-                           write_predictions)
+from condmon.train import (fit_and_evaluate, matching_feature_names, run_protocol, train_info,
+                           write_metrics, write_models, write_predictions,
+                           write_simulated_validation)
 
 log = setup_logging(snakemake)  # to snakemake.log[0]
 start = time.perf_counter()
@@ -29,8 +30,9 @@ splits = read_split_table(snakemake.input.splits)
 feature_selection = snakemake.params.feature_selection
 subset = dict(measured_percent=selection.get("measured_percent"), repeats=selection.get("repeats"),
               feature_selection=feature_selection)
-predictions, metrics, models = run_protocol(name, params, simulated, measured, splits,
-                                            feature_names, seed, **subset)
+# also the metrics on the held-out simulated records (hybrid.simulated_validation_share > 0)
+predictions, metrics, models, validation = fit_and_evaluate(name, params, simulated, measured,
+                                                            splits, feature_names, seed, **subset)
 if snakemake.params.measured_only_baseline:
     # the same classifier on the same measured training data alone: the simulation's gain
     _, baseline, _ = run_protocol(name, params, None, measured, splits, feature_names, seed, **subset)
@@ -42,6 +44,13 @@ out = snakemake.output
 write_predictions(predictions, out.predictions)
 write_metrics(metrics, out.metrics)
 write_metrics(baseline, out.measured_only)
+# declared by the rule only when hybrid.simulated_validation_share > 0
+validation_path = getattr(out, "simulated_validation", None)
+if validation_path is not None:
+    write_simulated_validation(validation, validation_path)
+elif len(validation):
+    log.warning("the split table holds out simulated records but the rule declares no "
+                "simulated_validation output: their %d metric rows are not written", len(validation))
 model_files = write_models(models, out.models)
 labels = set(simulated["health_state"]) | set(measured["health_state"])
 peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # Linux: KiB

@@ -20,6 +20,7 @@ from condmon.systems.base import System
 BUILT_IN = {
     "gear": "condmon.systems.gear:GearSystem",
     "bearing": "condmon.systems.bearing:BearingSystem",
+    "cfrp": "condmon.systems.cfrp:CfrpSystem",
 }
 _REGISTERED: dict[str, type[System]] = {}
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from condmon.calibrate import calibrate_on_spectra
-from condmon.models.gear_drivetrain import (CHANNELS, Drivetrain, SimulationSettings, operating_mesh_stiffness,
+from condmon.models.gear_drivetrain import (Drivetrain, SimulationSettings, operating_mesh_stiffness, sensor_channels,
                                             simulate)
 from condmon.systems.base import System
 from condmon.systems.gear.parameters import CALIBRATABLE, build_parameters, perturb, sample_effects
@@ -42,7 +42,11 @@ class GearSystem(System):
 
     @property
     def channels(self) -> list[str]:
-        return list(CHANNELS)
+        return list(sensor_channels(self.parameters().sensors))
+
+    def parameters(self, **overrides):
+        """The drivetrain's GearDrivetrainParameters: the `model` section plus overrides."""
+        return build_parameters(self.config["model"], **overrides)
 
     @property
     def output_rate_hz(self) -> float:
@@ -119,7 +123,7 @@ class GearSystem(System):
         if "condition_holdout" in config["hybrid"]["protocols"] and len(rig["speeds_rpm"]) < 2:
             problems.append("hybrid.protocols: condition_holdout needs at least two rig.speeds_rpm")
         try:
-            Drivetrain(build_parameters(config["model"]))
+            Drivetrain(self.parameters())
         except (ValueError, TypeError) as exc:
             problems.append(f"model: {exc}")
         if config["calibration"]["cost"] == "features_eq6":
@@ -132,7 +136,7 @@ class GearSystem(System):
         from condmon.systems.gear.bench import virtual_bench_rows
 
         health, speed = part.rsplit("_", 1)
-        return virtual_bench_rows(self.config["model"], self.config["virtual_bench"], [health],
+        return virtual_bench_rows(self.parameters, self.config["virtual_bench"], [health],
                                   [float(speed.removesuffix("rpm"))], self.numerics,
                                   self.config["rig"]["segment_seconds"])
 
@@ -148,7 +152,7 @@ class GearSystem(System):
                                                         nominal=model, nominal_law=model["contact_law"],
                                                         processes=processes)
         # K and n trade off at one load; the stiffness the vibration sees is what the data pin down.
-        best = build_parameters(model, contact_law=result["contact_law"], **result["parameters"])
+        best = self.parameters(contact_law=result["contact_law"], **result["parameters"])
         result = dict(result, mesh_stiffness_model=model["mesh_stiffness_model"],
                       operating_mesh_stiffness=operating_mesh_stiffness(best))
         return result, history, spectra
@@ -172,7 +176,7 @@ class GearSystem(System):
         numerics = self.numerics
         numerics["steps_per_sensor_sample"] *= int(step_refinement)
         model = self.config["model"]
-        params = build_parameters(model, speed_rpm=float(speed_rpm), health_state=health_state, **parameters)
+        params = self.parameters(speed_rpm=float(speed_rpm), health_state=health_state, **parameters)
         params = params.replace(**sample_effects(model["variability"], params.geometry, np.random.default_rng(seed)))
         return simulate(params, SimulationSettings(duration=duration_s, **numerics))
 

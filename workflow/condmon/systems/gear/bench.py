@@ -7,7 +7,7 @@ import time
 from condmon.models.virtual_bench import BenchForm, bench_gears, bench_record
 from condmon.seeds import job_rng
 from condmon.signals import make_rows
-from condmon.systems.gear.parameters import build_parameters, simulation_settings
+from condmon.systems.gear.parameters import simulation_settings
 
 log = logging.getLogger(__name__)
 FORM_KEYS = tuple(BenchForm.__dataclass_fields__)
@@ -18,21 +18,21 @@ def bench_form(bench: dict) -> BenchForm:
     return BenchForm(**{k: tuple(v) if isinstance(v, list) else v for k, v in bench.items() if k in FORM_KEYS})
 
 
-def virtual_bench_rows(model: dict, bench: dict, health_states, speeds_rpm, numerics: dict,
+def virtual_bench_rows(parameters, bench: dict, health_states, speeds_rpm, numerics: dict,
                        segment_seconds: float) -> list[dict]:
     """Records of the virtual bench: `records_per_state` acquisitions per health state and speed,
-    each `record_seconds` long, cut into segments. Source is always `virtual_bench`."""
+    each `record_seconds` long, cut into segments. Source is always `virtual_bench`.
+    `parameters(**overrides)` builds the rig's GearDrivetrainParameters (the system's)."""
     form = bench_form(bench)
     settings = simulation_settings(numerics, duration=bench["record_seconds"])
     segment_length = int(round(segment_seconds * settings.output_rate))
-    geometry = build_parameters(model).geometry
+    geometry = parameters().geometry
     gears = bench_gears(form, geometry.teeth_pinion, geometry.teeth_gear, bench["seed"])
     rows = []
     for health_state in health_states:
         for speed in speeds_rpm:
             rng = job_rng(bench["seed"], "virtual_bench", health_state, float(speed))
-            params = build_parameters(model, speed_rpm=float(speed), health_state=health_state,
-                                      **bench["true_parameters"])
+            params = parameters(speed_rpm=float(speed), health_state=health_state, **bench["true_parameters"])
             for k in range(bench["records_per_state"]):
                 start = time.perf_counter()
                 signals = bench_record(params, form, settings, rng, gears)

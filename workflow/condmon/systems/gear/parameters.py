@@ -29,6 +29,8 @@ def build_parameters(model: dict, **overrides) -> GearDrivetrainParameters:
     for key in ("input_shaft", "output_shaft"):
         if isinstance(values.get(key), dict):
             values[key] = ShaftLayout(**{k: tuple(v) if isinstance(v, list) else v for k, v in values[key].items()})
+    if isinstance(values.get("sensors"), dict):
+        values["sensors"] = tuple(values["sensors"].items())
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
     return GearDrivetrainParameters(geometry=GearGeometry(**model.get("geometry", {})), **values)
 
