@@ -9,7 +9,7 @@ from condmon.features import SpectrumFeatures
 from condmon.models.contact_laws import CONTACT_LAWS, contact_force, hysteresis_factor
 from condmon.models.gear_drivetrain import (Drivetrain, GearDrivetrainParameters, GearGeometry, SimulationSettings,
                                             simulate)
-from condmon.models.mesh_force import DEFLECTION_REF, HEALTH_STATES, MeshForce, TVMSMeshForce
+from condmon.models.mesh_force import DEFLECTION_REF, MESH_HEALTH_STATES, MeshForce, TVMSMeshForce
 from condmon.models.numerics import SimulationError, decimation_filter
 from condmon.models.structure import LinearStructure, Section
 
@@ -154,7 +154,7 @@ def test_every_health_state_runs_in_both_models():
         healthy = MeshForce(p)
         t = np.arange(29 * 40) / 40 / healthy.mesh_frequency  # one pinion revolution
         reference = np.array([healthy(x, 1e-6, 0.0) for x in t])
-        for state in HEALTH_STATES[1:]:
+        for state in MESH_HEALTH_STATES[1:]:  # the shaft states leave the mesh healthy
             faulty = MeshForce(p.replace(health_state=state))
             force = np.array([faulty(x, 1e-6, 0.0) for x in t])
             assert np.all(force <= reference + 1e-9) and force.sum() < reference.sum(), (model, state)

@@ -134,3 +134,11 @@ def final_outputs():
 from condmon.signals import config_hash as _config_hash
 
 config_hash = _config_hash(config)
+
+
+# hybrid.simulated_validation_share > 0: the split table also lists the simulated records held out
+# as the simulated validation set, so the hybrid jobs read the simulated record list and the train
+# jobs score them. At 0 (default) neither gets that input, param or output: the jobs are those of
+# a run without the key.
+SIMULATED_VALIDATION_SHARE = config["hybrid"]["simulated_validation_share"]
+
