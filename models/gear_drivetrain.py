@@ -23,8 +23,15 @@ exudyn holds the linear structure in one sparse ObjectGenericODE2 (why not one i
 mesh (`mesh_force.py`: potential-energy TVMS, damping ratio, impact laws, damage, pitch errors,
 run-out, speed fluctuation) is one scalar ObjectConnectorCoordinateSpringDamper. Angles are
 deviations from the nominal rotation, so the mesh stiffness is a function of time. Sensors record
-all accelerations above the output rate; the housing channels are low-pass filtered and
-decimated to the output rate (no aliasing) and checked finite.
+all accelerations above the output rate; the housing channels (`sensors`: which housings carry an
+accelerometer) are low-pass filtered and decimated to the output rate (no aliasing) and checked
+finite.
+
+The same model is the CFRP rig (`systems/cfrp`): tube shafts of a laminate (`shaft_sections`,
+`laminate.py`), spur gears, four accelerometers, and shaft damage (`shaft_crack`,
+`delamination`; `shaft_damage.py`) on flexible shafts. `numerics.modal_cutoff_hz` reduces the
+structure by Craig-Bampton (`model_matrices`), which the flexible shafts need to keep one step
+per sensor sample.
 """
 from __future__ import annotations
 

@@ -21,9 +21,8 @@ local rotational flexibility of the classical cracked-rotor models (Dimarogonas;
   inner one and carries no axial stress ("free mode"), over the delaminated length, always. Its
   shear stiffness loss (the area ratio) is the same in every direction, so the structure carries
   it directly (`Drivetrain`); only the bending loss turns.
-Only the relative rotations become coordinates of their own (the drivetrain's Craig-Bampton
-boundary): the kink they describe lies at a few kHz, where the explicit step is still one per
-sensor sample; the stiff relative deflection would need five.
+The relative rotations are coordinates of the drivetrain's reduced model
+(`gear_drivetrain.model_matrices`), so this force sees two numbers per element.
 """
 from __future__ import annotations
 
