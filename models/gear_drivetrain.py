@@ -38,6 +38,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
+from typing import Callable, NamedTuple
 
 import numpy as np
 from scipy.signal import resample_poly
@@ -91,6 +92,16 @@ class ShaftLayout:
         if not 0.0 <= self.inner_diameter < self.diameter:
             raise ValueError(f"{name}.inner_diameter: {self.inner_diameter} m must lie in [0, diameter "
                              f"{self.diameter} m)")
+
+
+class DamageZone(NamedTuple):
+    """The damaged stretch of a shaft: its section (with the damage's shear loss) and the
+    `DamagedElement` of an element of a given length in it."""
+    shaft: int
+    start: float
+    end: float
+    section: Section
+    element: Callable[[float], DamagedElement]
 
 
 @dataclass(frozen=True)
@@ -268,9 +279,9 @@ class Drivetrain:
         return [Section.tube(layout.diameter, layout.inner_diameter, p.shaft_youngs_modulus, p.shaft_poisson_ratio,
                              p.shaft_density) for layout in (p.input_shaft, p.output_shaft)]
 
-    def _damage_zone(self):
-        """(shaft, z from, z to, damaged section, element factory) of a shaft_crack or delamination
-        state, else None. The damaged section carries the shear loss (the same in every direction)."""
+    def _damage_zone(self) -> DamageZone | None:
+        """The `DamageZone` of a shaft_crack or delamination state, else None. Its section carries
+        the shear loss, the same in every direction."""
         p = self.p
         if p.health_state not in SHAFT_HEALTH_STATES:
             return None
@@ -304,7 +315,7 @@ class Drivetrain:
                                   removed_rotational_stiffness(length, section.bending, bending_eta),
                                   breathing, angle, spin_hz)
 
-        return p.damaged_shaft, start, end, damaged_section, element
+        return DamageZone(p.damaged_shaft, start, end, damaged_section, element)
 
     def _add_shaft(self, shaft: int, x: float, layout: ShaftLayout, gear: tuple, hub: tuple) -> dict:
         """Nodes of one shaft {z: node}; masses of the shaft, its gear and hub ((mass, polar
@@ -312,7 +323,7 @@ class Drivetrain:
         p, s = self.p, self.structure
         section = self.sections[shaft]
         (gear_mass, gear_inertia), (hub_mass, hub_inertia) = gear, hub
-        damage = self.damage if self.damage is not None and self.damage[0] == shaft else None
+        damage = self.damage if self.damage is not None and self.damage.shaft == shaft else None
         if p.shaft_model == "rigid":
             node = s.add_node((x, 0.0, layout.gear))
             mass = section.mass_per_length * layout.length
@@ -322,7 +333,7 @@ class Drivetrain:
                              (transverse, transverse, section.polar_inertia_per_length * layout.length))
             nodes = {None: node}
         else:
-            damaged = () if damage is None else damage[1:3]
+            damaged = () if damage is None else (damage.start, damage.end)
             stations = sorted({0.0, layout.length, layout.gear, layout.hub, *layout.bearings, *damaged})
             points = [stations[0]]
             for a, b in zip(stations[:-1], stations[1:]):
@@ -330,11 +341,11 @@ class Drivetrain:
                 points += [a + (b - a) * (k + 1) / pieces for k in range(pieces)]
             nodes = {z: s.add_node((x, 0.0, z)) for z in points}
             for a, b in zip(points[:-1], points[1:]):
-                damaged = damage is not None and damage[1] - 1e-12 <= a and b <= damage[2] + 1e-12
-                s.add_beam(nodes[a], nodes[b], damage[3] if damaged else section,
+                damaged = damage is not None and damage.start - 1e-12 <= a and b <= damage.end + 1e-12
+                s.add_beam(nodes[a], nodes[b], damage.section if damaged else section,
                            damping_ratio_per_hz=p.shaft_damping * math.pi)
                 if damaged:
-                    self.damaged_elements.append((nodes[a], nodes[b], damage[4](b - a)))
+                    self.damaged_elements.append((nodes[a], nodes[b], damage.element(b - a)))
         s.add_rigid_mass(self._node(nodes, layout.gear), gear_mass, (x, 0.0, layout.gear),
                          (gear_inertia / 2, gear_inertia / 2, gear_inertia))
         s.add_rigid_mass(self._node(nodes, layout.hub), hub_mass, (x, 0.0, layout.hub),
