@@ -30,6 +30,7 @@ import numpy as np
 
 from condmon.models.contact_laws import hysteresis_factor
 from condmon.models.gear_mesh import GearMesh, ProfileDeviation, ToothDamage
+from condmon.models.numerics import SimulationError
 
 MESH_HEALTH_STATES = ("healthy", "surface_fault", "missing_tooth", "spall", "chipped_tooth", "root_crack")
 # States of a drivetrain whose mesh is healthy: the damage is in a shaft (gear_drivetrain.py).
@@ -37,6 +38,7 @@ SHAFT_HEALTH_STATES = ("shaft_crack", "delamination")
 HEALTH_STATES = MESH_HEALTH_STATES + SHAFT_HEALTH_STATES
 MESH_STIFFNESS_MODELS = ("potential_energy", "simple")
 DEFLECTION_REF = 1.0e-6  # m; K = mesh stiffness at this deflection keeps K's unit N/m for any n
+MAX_DEFLECTION = 1.0e-3  # m; a mesh deflection beyond this is divergence
 
 
 def tooth_damage(p) -> ToothDamage | None:
@@ -271,6 +273,10 @@ class TVMSMeshForce(MeshForce):
         self.mean_deviation = float((healthy.stiffness * healthy.deviation).sum() / healthy.stiffness.sum())
 
     def __call__(self, t, deflection, rate):
+        if not abs(deflection) < MAX_DEFLECTION:
+            # a diverging run: stop at once (the extended contact's pair range grows with the
+            # deflection and would eat the memory before the run's end check)
+            raise SimulationError(f"mesh deflection {deflection:.3g} m at t = {t:.4g} s: the simulation diverged")
         phase, phase_rate = self.phase(t)
         e, e_t = self.runout_excitation(phase, phase_rate)
         d, d_t = deflection - e, rate - e_t
