@@ -55,7 +55,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import bilinear, lfilter, resample_poly
 
-from condmon.models.numerics import SimulationError, decimation_filter, solve_rk44
+from condmon.models.numerics import SimulationError, decimation_filter, exudyn_system, solve_rk44
 
 SPEED_NOTE = ("1.2-1.35 s of CPU per simulated second on one core (defaults, oversampling 4, "
               "h = 20.8 us, load-zone ball sums, post-processing included); wall time the same on an idle "
@@ -419,72 +419,71 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
     h_de = -(load_de + p.housing_mass * g) / p.housing_stiffness
     h_fe = -(load_fe + p.housing_mass * g) / p.housing_stiffness
 
-    system = exu.SystemContainer()
-    mbs = system.AddSystem()
-    eii = exu.itemInterface
+    with exudyn_system() as mbs:
+        eii = exu.itemInterface
 
-    def point(mass, y0, force_y):
-        node = mbs.AddNode(eii.NodePoint2D(referenceCoordinates=[0.0, 0.0], initialCoordinates=[0.0, y0]))
-        mbs.AddObject(eii.ObjectMassPoint2D(mass=mass, nodeNumber=node))
-        marker = mbs.AddMarker(eii.MarkerNodePosition(nodeNumber=node))
-        mbs.AddLoad(eii.LoadForceVector(markerNumber=marker, loadVector=[0.0, force_y, 0.0]))
-        return node, marker
+        def point(mass, y0, force_y):
+            node = mbs.AddNode(eii.NodePoint2D(referenceCoordinates=[0.0, 0.0], initialCoordinates=[0.0, y0]))
+            mbs.AddObject(eii.ObjectMassPoint2D(mass=mass, nodeNumber=node))
+            marker = mbs.AddMarker(eii.MarkerNodePosition(nodeNumber=node))
+            mbs.AddLoad(eii.LoadForceVector(markerNumber=marker, loadVector=[0.0, force_y, 0.0]))
+            return node, marker
 
-    hde_node, hde = point(p.housing_mass, h_de, -p.housing_mass * g)
-    _, hfe = point(p.housing_mass, h_fe, -p.housing_mass * g)
-    _, rde = point(m_de, h_de + sag_de, -m_de * g - p.radial_load)
-    _, rfe = point(m_fe, h_fe + sag_fe, -m_fe * g)
-    ground = mbs.AddObject(eii.ObjectGround())
-    ground_marker = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=ground, localPosition=[0.0, 0.0, 0.0]))
-    for marker in (hde, hfe):
+        hde_node, hde = point(p.housing_mass, h_de, -p.housing_mass * g)
+        _, hfe = point(p.housing_mass, h_fe, -p.housing_mass * g)
+        _, rde = point(m_de, h_de + sag_de, -m_de * g - p.radial_load)
+        _, rfe = point(m_fe, h_fe + sag_fe, -m_fe * g)
+        ground = mbs.AddObject(eii.ObjectGround())
+        ground_marker = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=ground, localPosition=[0.0, 0.0, 0.0]))
+        for marker in (hde, hfe):
+            mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
+                markerNumbers=[ground_marker, marker], stiffness=[p.housing_stiffness] * 2 + [0.0],
+                damping=[c_h] * 2 + [0.0]))
         mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
-            markerNumbers=[ground_marker, marker], stiffness=[p.housing_stiffness] * 2 + [0.0],
-            damping=[c_h] * 2 + [0.0]))
-    mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
-        markerNumbers=[rde, rfe], stiffness=[p.shaft_stiffness] * 2 + [0.0], damping=[c_shaft] * 2 + [0.0],
-        offset=[0.0, (h_fe + sag_fe) - (h_de + sag_de), 0.0]))
-    # Rotating unbalance, split over the journals: symbolic load functions (compiled).
-    w_s = 2 * np.pi * p.shaft_hz
-    f_unb = p.unbalance * w_s ** 2 / 2
-    keep = []  # symbolic functions must live as long as the system
+            markerNumbers=[rde, rfe], stiffness=[p.shaft_stiffness] * 2 + [0.0], damping=[c_shaft] * 2 + [0.0],
+            offset=[0.0, (h_fe + sag_fe) - (h_de + sag_de), 0.0]))
+        # Rotating unbalance, split over the journals: symbolic load functions (compiled).
+        w_s = 2 * np.pi * p.shaft_hz
+        f_unb = p.unbalance * w_s ** 2 / 2
+        keep = []  # symbolic functions must live as long as the system
 
-    def unbalance_load(mbs_, t, load):
-        esym = exu.symbolic
-        return esym.Vector([esym.cos(t * w_s + unbalance_phase) * f_unb,
-                            esym.sin(t * w_s + unbalance_phase) * f_unb, esym.Real(0.0)])
+        def unbalance_load(mbs_, t, load):
+            esym = exu.symbolic
+            return esym.Vector([esym.cos(t * w_s + unbalance_phase) * f_unb,
+                                esym.sin(t * w_s + unbalance_phase) * f_unb, esym.Real(0.0)])
 
-    if f_unb > 0:
-        for marker in (rde, rfe):
-            load = mbs.AddLoad(eii.LoadForceVector(markerNumber=marker, loadVector=[0.0, 0.0, 0.0]))
-            fn = CreateSymbolicUserFunction(mbs, unbalance_load, 'loadVectorUserFunction', load)
-            mbs.SetLoadParameter(load, 'loadVectorUserFunction', fn)
+        if f_unb > 0:
+            for marker in (rde, rfe):
+                load = mbs.AddLoad(eii.LoadForceVector(markerNumber=marker, loadVector=[0.0, 0.0, 0.0]))
+                fn = CreateSymbolicUserFunction(mbs, unbalance_load, 'loadVectorUserFunction', load)
+                mbs.SetLoadParameter(load, 'loadVectorUserFunction', fn)
+                keep.append(fn)
+        defect = _DefectProfile(p, hash_seed) if p.defect_kind != "none" else None
+        bearings = []
+        for housing, journal, geometry, stiffness, dfct in ((hde, rde, p.de_geometry, p.contact_stiffness, defect),
+                                                            (hfe, rfe, p.fe_geometry, k_fe, None)):
+            item = mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
+                markerNumbers=[housing, journal], stiffness=[0.0, 0.0, 0.0], damping=[0.0, 0.0, 0.0]))
+            fn = CreateSymbolicUserFunction(
+                mbs, _bearing_force_function(geometry, stiffness, p.radial_clearance, p.bearing_damping,
+                                             p.shaft_hz, dfct, zone_only), 'springForceUserFunction', item)
+            mbs.SetObjectParameter(item, 'springForceUserFunction', fn)
             keep.append(fn)
-    defect = _DefectProfile(p, hash_seed) if p.defect_kind != "none" else None
-    bearings = []
-    for housing, journal, geometry, stiffness, dfct in ((hde, rde, p.de_geometry, p.contact_stiffness, defect),
-                                                        (hfe, rfe, p.fe_geometry, k_fe, None)):
-        item = mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
-            markerNumbers=[housing, journal], stiffness=[0.0, 0.0, 0.0], damping=[0.0, 0.0, 0.0]))
-        fn = CreateSymbolicUserFunction(
-            mbs, _bearing_force_function(geometry, stiffness, p.radial_clearance, p.bearing_damping,
-                                         p.shaft_hz, dfct, zone_only), 'springForceUserFunction', item)
-        mbs.SetObjectParameter(item, 'springForceUserFunction', fn)
-        keep.append(fn)
-        bearings.append(item)
+            bearings.append(item)
 
-    sensors = [mbs.AddSensor(eii.SensorNode(nodeNumber=hde_node, storeInternal=True, writeToFile=False,
-                                            outputVariableType=exu.OutputVariableType.Acceleration))]
-    for variable in (exu.OutputVariableType.Force, exu.OutputVariableType.Displacement):
-        sensors.append(mbs.AddSensor(eii.SensorObject(objectNumber=bearings[0], storeInternal=True,
-                                                      writeToFile=False, outputVariableType=variable)))
-    mbs.Assemble()
+        sensors = [mbs.AddSensor(eii.SensorNode(nodeNumber=hde_node, storeInternal=True, writeToFile=False,
+                                                outputVariableType=exu.OutputVariableType.Acceleration))]
+        for variable in (exu.OutputVariableType.Force, exu.OutputVariableType.Displacement):
+            sensors.append(mbs.AddSensor(eii.SensorObject(objectNumber=bearings[0], storeInternal=True,
+                                                          writeToFile=False, outputVariableType=variable)))
+        mbs.Assemble()
 
-    try:
-        solve_rk44(mbs, s.output_rate_hz * s.oversampling, s.steps_per_sensor_sample,
-                   s.settle_time + s.duration)
-    except Exception as exc:
-        raise SimulationError(f"exudyn solver failed ({where}): {exc}") from exc
-    acc, force, disp = (mbs.GetSensorStoredData(sensor) for sensor in sensors)
+        try:
+            solve_rk44(mbs, s.output_rate_hz * s.oversampling, s.steps_per_sensor_sample,
+                       s.settle_time + s.duration)
+        except Exception as exc:
+            raise SimulationError(f"exudyn solver failed ({where}): {exc}") from exc
+        acc, force, disp = (mbs.GetSensorStoredData(sensor) for sensor in sensors)
     del keep
     if not (np.isfinite(acc).all() and np.isfinite(force).all() and np.isfinite(disp).all()):
         raise SimulationError(f"simulation diverged ({where}): non-finite states")

@@ -46,7 +46,7 @@ from scipy.signal import resample_poly
 from condmon.models.gear_mesh import GearGeometry
 from condmon.models.mesh_force import (HEALTH_STATES, MESH_STIFFNESS_MODELS, MeshForce, mesh_damping,
                                        operating_stiffness)
-from condmon.models.numerics import SimulationError, decimation_filter, solve_rk44
+from condmon.models.numerics import SimulationError, decimation_filter, exudyn_system, solve_rk44
 from condmon.models.shaft_damage import (RELATIVE_ROTATION, SHAFT_HEALTH_STATES, DamagedElement, ShaftDamageForce,
                                          crack_section_ratios, delamination_section_ratios,
                                          removed_rotational_stiffness)
@@ -619,76 +619,77 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
     q0[mesh_dof] = delta0
     q0[free] = np.linalg.solve(stiffness[np.ix_(free, free)], load[free] - stiffness[free, mesh_dof] * delta0)
 
-    system = exu.SystemContainer()
-    mbs = system.AddSystem()
-    # The damaged shaft elements' deformation coordinates (the last ones) get a node of their own,
-    # so that their Python force function sees those two per element only.
-    n_damage = matrices.n_damage
-    nodes = [mbs.AddNode(eii.NodeGenericODE2(referenceCoordinates=[0.0] * size,
-                                             initialCoordinates=q0[first:first + size].tolist(),
-                                             initialCoordinates_t=[0.0] * size, numberOfODE2Coordinates=size))
-             for first, size in ((0, n - n_damage), (n - n_damage, n_damage)) if size]
-    node = nodes[0]
-    mbs.AddObject(eii.ObjectGenericODE2(nodeNumbers=nodes, massMatrix=_sparse(matrices.mass),
-                                        stiffnessMatrix=_sparse(stiffness), dampingMatrix=_sparse(matrices.damping)))
-    if n_damage:
-        damage = ShaftDamageForce([element for *_, element in drivetrain.damaged_elements])
+    with exudyn_system() as mbs:
+        # The damaged shaft elements' deformation coordinates (the last ones) get a node of their own,
+        # so that their Python force function sees those two per element only.
+        n_damage = matrices.n_damage
+        nodes = [mbs.AddNode(eii.NodeGenericODE2(referenceCoordinates=[0.0] * size,
+                                                 initialCoordinates=q0[first:first + size].tolist(),
+                                                 initialCoordinates_t=[0.0] * size, numberOfODE2Coordinates=size))
+                 for first, size in ((0, n - n_damage), (n - n_damage, n_damage)) if size]
+        node = nodes[0]
+        mbs.AddObject(eii.ObjectGenericODE2(nodeNumbers=nodes, massMatrix=_sparse(matrices.mass),
+                                            stiffnessMatrix=_sparse(stiffness), dampingMatrix=_sparse(matrices.damping)))
+        if n_damage:
+            damage = ShaftDamageForce([element for *_, element in drivetrain.damaged_elements])
 
-        def damage_force(mbs_, t, item, q, q_t):
-            return damage(t, q)
+            def damage_force(mbs_, t, item, q, q_t):
+                return damage(t, q)
 
-        mbs.AddObject(eii.ObjectGenericODE2(nodeNumbers=[nodes[1]], forceUserFunction=damage_force))
-    ground = mbs.AddNode(eii.NodePointGround())
-    ground_marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=ground, coordinate=0))
-    mesh_marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=mesh_dof))
-    calls = [0]
+            mbs.AddObject(eii.ObjectGenericODE2(nodeNumbers=[nodes[1]], forceUserFunction=damage_force))
+        ground = mbs.AddNode(eii.NodePointGround())
+        ground_marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=ground, coordinate=0))
+        mesh_marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=mesh_dof))
+        calls = [0]
 
-    def mesh_force(mbs_, t, item, displacement, velocity, k, d, offset):
-        return mesh(t, displacement, velocity)
+        def mesh_force(mbs_, t, item, displacement, velocity, k, d, offset):
+            return mesh(t, displacement, velocity)
 
-    def counted_mesh_force(mbs_, t, item, displacement, velocity, k, d, offset):
-        calls[0] += 1
-        return mesh(t, displacement, velocity)
+        def counted_mesh_force(mbs_, t, item, displacement, velocity, k, d, offset):
+            calls[0] += 1
+            return mesh(t, displacement, velocity)
 
-    mbs.AddObject(eii.ObjectConnectorCoordinateSpringDamper(
-        markerNumbers=[ground_marker, mesh_marker],
-        springForceUserFunction=mesh_force if diagnostics is None else counted_mesh_force))
+        mbs.AddObject(eii.ObjectConnectorCoordinateSpringDamper(
+            markerNumbers=[ground_marker, mesh_marker],
+            springForceUserFunction=mesh_force if diagnostics is None else counted_mesh_force))
 
-    keep = []  # the symbolic load functions live as long as the system
-    for dof, mean, amplitude, frequency, phase in loads:  # compiled symbolic functions of time
-        marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=matrices.plain[dof]))
-        item = mbs.AddLoad(eii.LoadCoordinate(markerNumber=marker, load=mean))
-        if amplitude:
-            function = CreateSymbolicUserFunction(mbs, _sine_load(mean, amplitude, frequency, phase),
-                                                  'loadUserFunction', item)
-            mbs.SetLoadParameter(item, 'loadUserFunction', function)
-            keep.append(function)
+        keep = []  # the symbolic load functions live as long as the system
+        for dof, mean, amplitude, frequency, phase in loads:  # compiled symbolic functions of time
+            marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=matrices.plain[dof]))
+            item = mbs.AddLoad(eii.LoadCoordinate(markerNumber=marker, load=mean))
+            if amplitude:
+                function = CreateSymbolicUserFunction(mbs, _sine_load(mean, amplitude, frequency, phase),
+                                                      'loadUserFunction', item)
+                mbs.SetLoadParameter(item, 'loadUserFunction', function)
+                keep.append(function)
 
-    sensors = [mbs.AddSensor(eii.SensorNode(nodeNumber=each, storeInternal=True, writeToFile=False,
-                                            outputVariableType=exu.OutputVariableType.Coordinates_tt))
-               for each in nodes]
-    if diagnostics is not None:
-        position_sensor = mbs.AddSensor(eii.SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
-                                                       outputVariableType=exu.OutputVariableType.Coordinates))
-    mbs.Assemble()
+        sensors = [mbs.AddSensor(eii.SensorNode(nodeNumber=each, storeInternal=True, writeToFile=False,
+                                                outputVariableType=exu.OutputVariableType.Coordinates_tt))
+                   for each in nodes]
+        if diagnostics is not None:
+            position_sensor = mbs.AddSensor(eii.SensorNode(
+                nodeNumber=node, storeInternal=True, writeToFile=False,
+                outputVariableType=exu.OutputVariableType.Coordinates))
+        mbs.Assemble()
 
-    try:
-        solve_rk44(mbs, settings.output_rate * settings.oversampling, steps,
-                   settings.settle_time + settings.duration, sparse=True)
-    except Exception as exc:
-        message = " ".join(str(exc).split())  # one line: exudyn appends the Python traceback
-        raise SimulationError(f"exudyn solver failed ({params.health_state}, {params.speed_rpm} rpm): {message}") from exc
+        try:
+            solve_rk44(mbs, settings.output_rate * settings.oversampling, steps,
+                       settings.settle_time + settings.duration, sparse=True)
+        except Exception as exc:
+            message = " ".join(str(exc).split())  # one line: exudyn appends the Python traceback
+            raise SimulationError(
+                f"exudyn solver failed ({params.health_state}, {params.speed_rpm} rpm): {message}") from exc
 
-    acc = np.hstack([mbs.GetSensorStoredData(each)[:, 1:] for each in sensors]) @ transform.T  # physical
-    deflection = mbs.GetNodeOutput(node, exu.OutputVariableType.Coordinates)[mesh_dof]
-    if diagnostics is not None:
-        positions = mbs.GetSensorStoredData(position_sensor)
-        diagnostics.update(time=positions[:, 0], deflection=positions[:, 1 + mesh_dof], mesh_calls=calls[0],
-                           steps_per_sensor_sample=steps, accelerations=acc, drivetrain=drivetrain)
-    if not np.isfinite(acc).all() or abs(deflection) > settings.max_deflection:
-        raise SimulationError(
-            f"simulation diverged ({params.health_state}, {params.speed_rpm} rpm): "
-            f"non-finite accelerations or mesh deflection {deflection:.3g} m")
+        acc = np.hstack([mbs.GetSensorStoredData(each)[:, 1:] for each in sensors]) @ transform.T  # physical
+        deflection = mbs.GetNodeOutput(node, exu.OutputVariableType.Coordinates)[mesh_dof]
+        if diagnostics is not None:
+            positions = mbs.GetSensorStoredData(position_sensor)
+            diagnostics.update(time=positions[:, 0], deflection=positions[:, 1 + mesh_dof], mesh_calls=calls[0],
+                               steps_per_sensor_sample=steps, accelerations=acc, drivetrain=drivetrain)
+        if not np.isfinite(acc).all() or abs(deflection) > settings.max_deflection:
+            raise SimulationError(
+                f"simulation diverged ({params.health_state}, {params.speed_rpm} rpm): "
+                f"non-finite accelerations or mesh deflection {deflection:.3g} m")
     lowpass = decimation_filter(settings.oversampling)
     first = int(round(settings.settle_time * settings.output_rate))
     n_out = int(round(settings.duration * settings.output_rate))

@@ -7,7 +7,9 @@ the same signal; a sample's parameters round-trip through JSON; a diverging samp
 SimulationError, and a calibration scores such a candidate and goes on; its health states and
 features agree with the config.
 """
+import gc
 import json
+import os
 import re
 
 import numpy as np
@@ -86,6 +88,26 @@ def test_same_seed_same_signal_and_parameters_round_trip_through_json(system_and
     second = system.simulate_sample(through_json, health, speed, duration, seed=11)
     for name in first:
         np.testing.assert_array_equal(first[name], second[name])
+
+
+def _resident_mb() -> float:
+    with open("/proc/self/statm") as statm:
+        return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2 ** 20
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/statm"), reason="needs Linux /proc to read the resident memory")
+def test_repeated_runs_do_not_keep_memory(system_and_config):
+    # a batch job or a calibration worker runs hundreds of samples in one process: exudyn keeps a
+    # run's system (items, stored sensor data) until its container is reset, 3-4 MB per 0.1-s gear run
+    system, config = system_and_config
+    parameters, duration = one_sample(system, config, system.healthy_state)
+    system.simulate_sample(parameters, system.healthy_state, system.speeds_rpm[0], duration, seed=3)  # warm-up
+    gc.collect()
+    before = _resident_mb()
+    for seed in range(4):
+        system.simulate_sample(parameters, system.healthy_state, system.speeds_rpm[0], duration, seed=seed)
+    gc.collect()
+    assert _resident_mb() - before < 4.0
 
 
 def test_a_diverging_sample_raises_the_one_simulation_error(system_and_config):
