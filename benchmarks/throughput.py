@@ -3,7 +3,7 @@
 For each config: a warm-up sample, then `--repeats` timed samples of the pipeline's own length
 (settling plus `segments_per_sample` segments), in a fresh worker process; then the same on
 `--workers` processes at once. Every worker runs with one BLAS/OpenMP thread, as pipeline jobs do.
-Also the step convergence check: the features of a noise-free healthy run (the config's spectrum
+A cProfile of one sample says where the time goes. Also the step convergence check: the features of a noise-free healthy run (the config's spectrum
 bands, every channel) at the configured step against a step four times smaller, in dB; and, with
 --dag, the job count of `snakemake -n` for the given configs.
 
@@ -88,6 +88,26 @@ def time_samples(spec: str, repeats: int, seed: int) -> dict:
             seconds.append(time.perf_counter() - start)
     return {"seconds": seconds, "simulated_seconds": system.settle_seconds + duration,
             "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def profile_sample(spec: str, top: int = 6) -> list[dict]:
+    """Where one sample's time goes: the `top` functions by own time under cProfile, as shares of
+    the total (the profiler inflates Python-side time, so read the shares, not the seconds)."""
+    import cProfile
+    import pstats
+
+    system, config = load_system(spec)
+    values = system.sample_parameters(system.nominal_calibration(), system.healthy_state,
+                                      np.random.default_rng(0), config["simulation"])
+    duration, speed = sample_duration(system, config), _speed(system)
+    system.simulate_sample(values, system.healthy_state, speed, duration, 5)  # warm-up
+    profiler = cProfile.Profile()
+    profiler.runcall(system.simulate_sample, values, system.healthy_state, speed, duration, 5)
+    stats = pstats.Stats(profiler).stats  # {(file, line, name): (calls, _, own, cumulative, _)}
+    total = sum(own for _, _, own, _, _ in stats.values())
+    rows = sorted(stats.items(), key=lambda item: -item[1][2])[:top]
+    return [{"function": f"{Path(file).name}:{line}({name})", "calls": calls, "share": round(own / total, 3)}
+            for (file, line, name), (calls, _, own, _, _) in rows]
 
 
 def run_workers(spec: str, repeats: int, workers: int) -> list[dict]:
@@ -215,6 +235,7 @@ def main(argv=None) -> None:
         print(f"{spec}: {args.workers} cores ...", flush=True)
         parallel = run_workers(spec, args.repeats, args.workers)
         entry = summarise(one_core, parallel, args.workers)
+        entry["profile"] = profile_sample(spec)
         if not args.no_convergence:
             entry["convergence"] = convergence(spec)
         results["systems"][spec] = entry
