@@ -434,6 +434,9 @@ class SimulationSettings:
     # (None: every coordinate). Flexible shafts' axial and torsion modes of short elements reach
     # tens of kHz and would set the step; they carry nothing below the output Nyquist frequency.
     modal_cutoff_hz: float | None = None
+    # a step this many times smaller than the run would otherwise take (convergence checks, the
+    # retry of a failed sample): it divides the chosen step, whatever set it
+    step_refinement: int = 1
 
 
 # RK44 is stable for omega h up to 2.78; keep a margin for the mesh stiffness peaks.
@@ -565,7 +568,7 @@ def steps_per_sensor_sample(drivetrain: Drivetrain, settings: SimulationSettings
                             matrices: ModelMatrices | None = None) -> int:
     """RK44 steps per sensor sample: the setting, or more where the highest mode (with the
     mesh at twice its operating stiffness, the peaks of the TVMS; with `matrices`, the damped
-    system's fastest eigenvalue) needs a smaller step."""
+    system's fastest eigenvalue) needs a smaller step; times `step_refinement`."""
     mesh_stiffness = 2 * operating_stiffness(drivetrain.p)
     omega_max = (2 * math.pi * drivetrain.natural_frequencies(mesh_stiffness)[-1] if matrices is None
                  else matrices.highest_rate(mesh_stiffness))
@@ -575,7 +578,7 @@ def steps_per_sensor_sample(drivetrain: Drivetrain, settings: SimulationSettings
             f"the fastest mode ({omega_max / 2 / math.pi:.3g} Hz) needs {needed} RK44 steps per sensor sample "
             f"(at most {MAX_STEPS_PER_SENSOR_SAMPLE}): a stiffness is out of range "
             f"(mesh_stiffness {drivetrain.p.mesh_stiffness:.3g} N/m)")
-    return max(int(settings.steps_per_sensor_sample), needed)
+    return max(int(settings.steps_per_sensor_sample), needed) * int(settings.step_refinement)
 
 
 def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = SimulationSettings(),

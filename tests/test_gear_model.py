@@ -8,7 +8,7 @@ from scipy.signal import resample_poly
 from condmon.features import SpectrumFeatures
 from condmon.models.contact_laws import CONTACT_LAWS, contact_force, hysteresis_factor
 from condmon.models.gear_drivetrain import (Drivetrain, GearDrivetrainParameters, GearGeometry, SimulationSettings,
-                                            simulate)
+                                            simulate, steps_per_sensor_sample)
 from condmon.models.mesh_force import DEFLECTION_REF, MESH_HEALTH_STATES, MeshForce, TVMSMeshForce
 from condmon.models.numerics import SimulationError, decimation_filter
 from condmon.models.structure import LinearStructure, Section
@@ -417,3 +417,13 @@ def test_the_step_has_converged():
         levels.append(20 * np.log10(features.transform(segment, fs_hz=5120.0)[0] + 1e-12))
     strong = levels[1] > levels[1].max() - 40.0
     assert np.abs(levels[0] - levels[1])[strong].max() < 0.5
+
+
+def test_step_refinement_divides_the_step_the_run_would_take():
+    """A refined run (the convergence check, the retry of a failed sample) takes a smaller step
+    than the run it checks, also where the model's fastest mode and not the setting chose it."""
+    flexible = GearDrivetrainParameters(speed_rpm=775.0, shaft_model="flexible")
+    drivetrain = Drivetrain(flexible)
+    chosen = steps_per_sensor_sample(drivetrain, SimulationSettings())
+    assert chosen > SimulationSettings().steps_per_sensor_sample  # the flexible shafts' modes chose it
+    assert steps_per_sensor_sample(drivetrain, SimulationSettings(step_refinement=4)) == 4 * chosen

@@ -173,12 +173,11 @@ class GearSystem(System):
     def simulate_sample(self, parameters, health_state, speed_rpm, duration_s, seed, step_refinement=1):
         """One run; `seed` draws this drivetrain's run-out, pitch errors and fluctuations
         (`model.variability`)."""
-        numerics = self.numerics
-        numerics["steps_per_sensor_sample"] *= int(step_refinement)
         model = self.config["model"]
         params = self.parameters(speed_rpm=float(speed_rpm), health_state=health_state, **parameters)
         params = params.replace(**sample_effects(model["variability"], params.geometry, np.random.default_rng(seed)))
-        return simulate(params, SimulationSettings(duration=duration_s, **numerics))
+        return simulate(params, SimulationSettings(duration=duration_s, step_refinement=int(step_refinement),
+                                                   **self.numerics))
 
     def diverging(self, parameters: dict) -> dict:
         # a mesh a million times stiffer needs a step far below any physical range: SimulationError
