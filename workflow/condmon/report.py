@@ -60,12 +60,20 @@ SIMULATED_VALIDATION_LABEL = (
 # What each protocol's test set is: every number the report gives is labelled with it.
 SMALL_TEST_SET = 30  # segments: fewer, and an accuracy says little (flagged in accuracy.csv)
 PROTOCOL_LABELS = {
-    "record_split": "whole measured records held out (records never seen in training)",
-    "condition_holdout": "a whole operating condition held out (speed or load never seen)",
+    "record_split": ("whole measured records held out; the same fault specimen may be trained "
+                     "on at another condition (a lone healthy record: its time blocks)"),
+    "condition_holdout": ("a whole operating condition held out (speed or load never seen); the "
+                          "same fault specimen may be trained on at another condition; where the "
+                          "held-out condition has no healthy record, healthy records of another "
+                          "condition test"),
     "segment_share": ("LEAKY (the bearing study's protocol): segments of the same records on "
                       "both sides of the split"),
     "unseen_fault": ("faults never measured: measured training data holds only the configured "
-                     "measured classes; the other classes come from simulation alone"),
+                     "measured classes (healthy records always keep a test share); the other "
+                     "classes come from simulation alone"),
+    "specimen_holdout": ("whole fault specimens held out: every specimen of one group (fault "
+                         "size) tests at every condition, the share trains from the other "
+                         "groups; healthy records only test: no specimen on both sides"),
 }
 
 # Data-source kinds that are not real measurements; anything labelled with them must say so.
