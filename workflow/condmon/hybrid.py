@@ -21,8 +21,16 @@ Protocols
   segments trains and the rest tests. Segments of one record land on both sides (leaky: the
   report labels its numbers so).
 - unseen_fault: only the `measured_classes` (e.g. healthy) have measured records in training:
-  per stratum of those classes a share of whole records trains; every other record tests, so
-  every other class is learnt from simulation alone.
+  per stratum of those classes a share of whole records trains (the healthy state keeps
+  `min_test_records` back); every other record tests, so every other class is learnt from
+  simulation alone.
+- specimen_holdout: each specimen group (CWRU: fault size) in turn tests whole, at every
+  condition; the share trains from the other groups; healthy records always test, so no
+  specimen is on both sides.
+
+With `healthy_state` every test set holds healthy data (false alarms are measured). With
+`reserve` (calibration.reserve) the calibration set is cut out first (measured_layout): role
+"calibration" in every split; a lone healthy record's time blocks are split like records.
 
 The record order within a stratum is a random permutation seeded by (seed, repeat, stratum) only,
 and the first n_train records of it train. So a higher percentage's training set contains the

@@ -438,7 +438,9 @@ def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: di
         "protocols": {p: PROTOCOL_LABELS.get(p, p) for p in sorted(accuracy["protocol"].unique())},
         "simulation_gain": ("accuracy with the simulated data minus accuracy of the same "
                             "classifier on the same measured training data alone (null: no "
-                            "measured-only baseline, or no measured training data)"),
+                            "measured-only baseline, or no measured training data); the "
+                            "headline is gain_vs_strongest_mean, against the strongest of "
+                            "chance, majority class and the best measured-only classifier"),
         "results": results,
         "plots": plot_names,
     }
