@@ -4,8 +4,11 @@ import math
 import pandas as pd
 import pytest
 
-from condmon.hybrid import (SPLIT_COLUMNS, SplitError, make_splits, n_train_records,
-                            read_split_table, sorted_holdouts, write_split_table)
+from conftest import CWRU
+from condmon.hybrid import (PROTOCOLS, SPLIT_COLUMNS, SplitError, calibration_frame,
+                            check_healthy_tested, make_splits, measured_layout, n_train_records,
+                            read_split_table, sorted_holdouts, time_blocks, write_split_table)
+from condmon.systems.bearing.cwru import cwru_rows
 
 HEALTH = ("healthy", "surface_fault", "missing_tooth")
 SPEEDS = (450.0, 775.0, 1100.0)
@@ -227,3 +230,108 @@ def test_condition_holdout_by_load():
     # per-record speeds differ within a load: strata by load keep one stratum per class and load
     split = make_splits(segments, "record_split", [0], repeats=1, seed=0, condition="load")
     assert (split.role == "test").all() and split.record_id.nunique() == 6
+
+
+# -- honest evaluation: calibration set, healthy test data, whole specimens -----------------------
+RESERVE = {"records": [], "calibration_segments": 4, "guard_segments": 1, "blocks": 2}
+
+
+def with_healthy(protocol, segments, **kwargs):
+    return make_splits(segments, protocol, [0, 30, 60, 100], repeats=2, seed=5, condition="load",
+                       measured_classes=["normal"] if protocol == "unseen_fault" else None,
+                       healthy_state="normal", **kwargs)
+
+
+def test_a_lone_healthy_record_is_split_in_time_with_guard_gaps():
+    units, roles = time_blocks("n", 14, 4, 1, 2)
+    assert roles == ["calibration"] * 4 + ["unused"] + [""] * 4 + ["unused"] + [""] * 4
+    assert units[5:9] == ["n@block0"] * 4 and units[10:] == ["n@block1"] * 4
+    units, roles = time_blocks("n", 15, 4, 1, 2)
+    assert roles[-1] == "unused"  # left over at the end
+    with pytest.raises(SplitError, match="calibration.reserve: record 'n' has 6 segments"):
+        time_blocks("n", 6, 4, 1, 2)
+
+
+def test_reserved_records_calibrate_whole_and_never_join_a_split():
+    segments = bearing_segments()
+    layout = measured_layout(segments, "normal", "load", dict(RESERVE, records=["normal-1"]))
+    assert set(layout.record_id[layout.fixed_role == "calibration"]) == {"normal-1"}
+    splits = with_healthy("record_split", segments, reserve=dict(RESERVE, records=["normal-1"]))
+    assert set(splits.role[splits.record_id == "normal-1"]) == {"calibration"}
+    with pytest.raises(SplitError, match=r"reserve.records: \['inner_race-0'\] are not 'normal'"):
+        measured_layout(segments, "normal", "load", dict(RESERVE, records=["inner_race-0"]))
+    with pytest.raises(SplitError, match=r"reserve.records: \['nope'\] are not measured"):
+        measured_layout(segments, "normal", "load", dict(RESERVE, records=["nope"]))
+
+
+def test_of_several_healthy_records_per_condition_the_first_calibrates():
+    segments = bearing_segments()
+    second = segments[segments.record_id == "normal-0"].assign(record_id="normal-0b")
+    layout = measured_layout(pd.concat([segments, second]), "normal", "load", RESERVE)
+    calibrating = layout[layout.fixed_role == "calibration"]
+    whole = calibrating.groupby("record_id").size()
+    assert whole["normal-0"] == 10  # the first of two: whole
+    assert whole["normal-1"] == 4  # load 1's lone record: a calibration block, then time blocks
+    assert set(layout.unit[layout.record_id == "normal-1"]) >= {"normal-1@block0",
+                                                                "normal-1@block1"}
+
+
+def test_a_split_without_healthy_test_data_is_an_error():
+    segments = bearing_segments()
+    # unseen_fault at 100 %: every healthy record would train; with healthy_state one stays back
+    splits = with_healthy("unseen_fault", segments)
+    tested = splits[(splits.role == "test") & splits.record_id.str.startswith("normal")]
+    assert len(tested.groupby(["measured_percent", "repeat"])) == 8
+    split = pd.DataFrame({"protocol": "p", "measured_percent": [0], "repeat": [0], "holdout": [""],
+                          "record_id": ["inner_race-0"], "segment": [-1], "role": ["test"]})
+    with pytest.raises(SplitError, match=r"\(0, 0, ''\) of protocol 'p' tests no 'normal' data"):
+        check_healthy_tested(split, pd.DataFrame({"record_id": ["normal-0"],
+                                                  "health_state": ["normal"]}), "normal")
+
+
+def test_condition_holdout_tests_healthy_data_of_another_load_where_the_held_out_has_none():
+    segments = bearing_segments()
+    segments = segments[segments.record_id != "normal-1"]
+    splits = with_healthy("condition_holdout", segments)
+    load1 = splits[splits.holdout == "load=1"]
+    for _, split in load1.groupby(["measured_percent", "repeat"]):
+        assert "test" in set(split.role[split.record_id == "normal-0"])
+
+
+@pytest.fixture(scope="module")
+def shared_cwru():
+    if not CWRU.is_dir():
+        pytest.skip(f"CWRU data folder {CWRU} not present")
+    ingest = cwru_rows(CWRU, task="location")
+    segments = pd.DataFrame(ingest.rows)[["record_id", "segment", "health_state", "load"]]
+    return segments.drop_duplicates(["record_id", "segment"]), ingest.records
+
+
+@pytest.mark.parametrize("protocol", PROTOCOLS)
+def test_shared_cwru_splits_are_honest(shared_cwru, protocol):
+    """The splits of the shared CWRU files: no calibration segment in any test (or training)
+    set, healthy data in every test set, calibration and test segments apart by a guard gap,
+    and under specimen_holdout no fault specimen on both sides."""
+    segments, records = shared_cwru
+    calibration = calibration_frame(segments, "normal", "load", RESERVE)
+    assert set(calibration.record_id) == {"cwru-97"} and list(calibration.segment) == [0, 1, 2, 3]
+    splits = with_healthy(protocol, segments, reserve=RESERVE, specimens=records)
+    specimen = dict(zip(records.record_id, records.specimen))
+    calibrating = set(zip(calibration.record_id, calibration.segment))
+    for key, split in splits.groupby(["measured_percent", "repeat", "holdout"]):
+        roles = split.groupby("role")
+        test, train = roles.get_group("test"), split[split.role == "train"]
+        pairs = set(zip(test.record_id, test.segment)) | set(zip(train.record_id, train.segment))
+        assert not pairs & calibrating, key
+        assert set(split.role[split.segment.isin([0, 1, 2, 3]) & (split.record_id == "cwru-97")]) \
+            == {"calibration"}
+        healthy_test = test[test.record_id == "cwru-97"]
+        assert len(healthy_test), key  # false alarms are measured in every split
+        assert healthy_test.segment.min() > 4  # guard gap after the calibration block
+        if protocol != "segment_share":  # whole records (or time blocks) per side
+            assert not set(test.record_id) & set(train.record_id) - {"cwru-97"}, key
+        if protocol == "specimen_holdout":
+            assert not {specimen[r] for r in test.record_id} & {specimen[r] for r in train.record_id}
+            held = key[2].partition("=")[2]
+            assert set(records.set_index("record_id").loc[
+                test.record_id[test.record_id != "cwru-97"].unique(), "specimen_group"]) == {held}

@@ -24,8 +24,14 @@ def built_report(train_outputs):
         paths["calibration_spectra"], paths["calibration_history"],
         accuracy_path=out / "accuracy.csv", summary_path=out / "summary.json",
         plots_dir=out / "plots", run_name="demo", data_source="virtual_bench",
-        confusion_percent=[0])
+        confusion_percent=[0], healthy_state="healthy",
+        measured_features_path=paths["features_measured"], condition="speed_rpm",
+        design_records=DESIGN, evaluation_path=out / "evaluation.csv",
+        evaluation_summary_path=out / "evaluation_summary.csv")
     return out, paths, summary
+
+
+DESIGN = ["virtual_bench_healthy_600_0", "virtual_bench_missing_tooth_600_0"]
 
 
 def test_accuracy_csv_is_the_sorted_concatenation_of_metrics(built_report):
@@ -239,3 +245,67 @@ def test_confusion_counts_in_label_order_and_empty_when_nothing_was_predicted():
     counts = report.confusion_counts(["a", "b", "b"], ["a", "a", "b"], ["b", "a", "c"])
     assert counts.tolist() == [[1, 1, 0], [0, 1, 0], [0, 0, 0]]
     assert report.confusion_counts([], [], ["a", "b"]).tolist() == [[0, 0], [0, 0]]
+
+
+# -- honest evaluation: per-record, balanced, false alarms, baselines, conditions, design ------
+def test_test_set_figures_by_hand():
+    from condmon.evaluation import test_set_figures
+
+    test = pd.DataFrame({
+        "record_id": ["h1", "h1", "h1", "f1", "f1", "f2"],
+        "true_label": ["ok", "ok", "ok", "ball", "ball", "inner"],
+        "predicted_label": ["ok", "ball", "ball", "ball", "inner", "inner"]})
+    figures = test_set_figures(test, "ok")
+    assert figures["accuracy"] == pytest.approx(3 / 6)
+    # votes: h1 -> ball (2 of 3, wrong), f1 -> ball/inner tie -> "ball" (right), f2 -> inner
+    assert figures["n_records"] == 3 and figures["record_accuracy"] == pytest.approx(2 / 3)
+    assert figures["balanced_accuracy"] == pytest.approx((1 / 3 + 1 / 2 + 1) / 3)
+    assert figures["n_healthy"] == 3 and figures["false_alarm_rate"] == pytest.approx(2 / 3)
+    assert figures["small_test_set"]
+    assert figures["accuracy_ci_low"] < 0.5 < figures["accuracy_ci_high"]
+
+
+def test_identical_repeats_count_as_one():
+    from condmon.evaluation import distinct_repeats
+
+    rows = pd.DataFrame({"classifier": "svm", "protocol": "p", "measured_percent": 0,
+                         "holdout": "", "record_id": "r", "segment": [0, 1, 0, 1],
+                         "repeat": [0, 0, 1, 1], "predicted_label": ["a", "b", "a", "b"]})
+    assert distinct_repeats(rows).tolist() == [1]
+    rows.loc[3, "predicted_label"] = "a"
+    assert distinct_repeats(rows).tolist() == [2]
+
+
+def test_evaluation_tables_per_condition_design_records_and_baselines(built_report):
+    out, paths, summary = built_report
+    table = pd.read_csv(out / "evaluation.csv", dtype={"holdout": str})
+    table["holdout"] = table["holdout"].fillna("")
+    assert set(table["condition"]) == {"all", "speed_rpm=600", "speed_rpm=900"}
+    assert set(table["records"]) == {"all", "design", "evaluation"}
+    predictions = report.load_predictions(paths["predictions"])
+    whole = table[(table.condition == "all") & (table.records == "all")]
+    for row in whole.itertuples():
+        test = predictions[(predictions.classifier == row.classifier)
+                           & (predictions.protocol == row.protocol)
+                           & (predictions.measured_percent == row.measured_percent)
+                           & (predictions.repeat == row.repeat)
+                           & (predictions.holdout == row.holdout)]
+        healthy = test[test.true_label == "healthy"]
+        assert row.n_test == len(test) and row.n_healthy == len(healthy)
+        assert row.false_alarm_rate == pytest.approx((healthy.predicted_label != "healthy").mean())
+        assert row.majority_class == pytest.approx(
+            test.true_label.value_counts(normalize=True).max())
+    assert np.allclose(whole.chance, 1 / 3)
+    assert (whole.strongest_baseline_accuracy >= whole[["chance", "majority_class"]].max(axis=1)).all()
+    assert np.allclose(whole.gain_vs_strongest, whole.accuracy - whole.strongest_baseline_accuracy)
+    assert (table[table.records == "design"].n_records <= len(DESIGN)).all()
+    result = summary["results"][0]
+    for key in ("record_accuracy_mean", "balanced_accuracy_mean", "false_alarm_rate_mean",
+                "gain_vs_strongest_mean", "strongest_baseline", "accuracy_ci_low",
+                "distinct_repeats", "accuracy_mean_per_condition", "accuracy_mean_by_records"):
+        assert key in result, key
+    assert set(result["accuracy_mean_per_condition"]) == {"speed_rpm=600", "speed_rpm=900"}
+    assert set(result["accuracy_mean_by_records"]) == {"design", "evaluation"}
+    assert "design" in summary["design_records"]["note"]
+    overall = pd.read_csv(out / "evaluation_summary.csv")
+    assert {"accuracy_ci_low", "false_alarm_ci_high", "distinct_repeats", "leaky"} <= set(overall)

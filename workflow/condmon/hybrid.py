@@ -21,8 +21,16 @@ Protocols
   segments trains and the rest tests. Segments of one record land on both sides (leaky: the
   report labels its numbers so).
 - unseen_fault: only the `measured_classes` (e.g. healthy) have measured records in training:
-  per stratum of those classes a share of whole records trains; every other record tests, so
-  every other class is learnt from simulation alone.
+  per stratum of those classes a share of whole records trains (the healthy state keeps
+  `min_test_records` back); every other record tests, so every other class is learnt from
+  simulation alone.
+- specimen_holdout: each specimen group (CWRU: fault size) in turn tests whole, at every
+  condition; the share trains from the other groups; healthy records always test, so no
+  specimen is on both sides.
+
+With `healthy_state` every test set holds healthy data (false alarms are measured). With
+`reserve` (calibration.reserve) the calibration set is cut out first (measured_layout): role
+"calibration" in every split; a lone healthy record's time blocks are split like records.
 
 The record order within a stratum is a random permutation seeded by (seed, repeat, stratum) only,
 and the first n_train records of it train. So a higher percentage's training set contains the
@@ -49,7 +57,8 @@ from condmon.seeds import derive_seed, stable_int
 
 log = logging.getLogger(__name__)
 
-PROTOCOLS = ("record_split", "condition_holdout", "segment_share", "unseen_fault")
+PROTOCOLS = ("record_split", "condition_holdout", "segment_share", "unseen_fault",
+             "specimen_holdout")
 # segments of one record on both sides of the split: never a headline, labelled wherever it appears
 LEAKY_PROTOCOLS = ("segment_share",)
 
@@ -63,7 +72,9 @@ WHOLE_RECORD = -1
 # only rows, of simulated records in a split table)
 SIMULATED_VALIDATION = "simulated_validation"
 SHARE_KEY = "hybrid.simulated_validation_share"
-ROLES = ("train", "test", "unused", SIMULATED_VALIDATION)
+# measured segments that calibrate the model: never trained on, never tested
+CALIBRATION = "calibration"
+ROLES = ("train", "test", "unused", SIMULATED_VALIDATION, CALIBRATION)
 SPLIT_SCHEMA = pa.schema([
     ("protocol", pa.string()),
     ("measured_percent", pa.int32()),
@@ -183,7 +194,9 @@ def class_segment_orders(segments: pd.DataFrame, seed: int, repeat: int) -> dict
 def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats: int, seed: int,
                 min_test_records: int = 1, condition: str = "speed_rpm",
                 measured_classes=None, simulated_records: pd.DataFrame | None = None,
-                simulated_validation_share: float = 0.0) -> pd.DataFrame:
+                simulated_validation_share: float = 0.0, healthy_state: str | None = None,
+                reserve: dict | None = None,
+                specimens: pd.DataFrame | None = None) -> pd.DataFrame:
     """The split table for one protocol (columns SPLIT_COLUMNS, one row per record, or per
     segment for segment_share, and split).
 
@@ -194,8 +207,22 @@ def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats:
     `simulated_records` (same columns) and `simulated_validation_share` > 0: the held-out
     simulated records (simulated_validation_records) join every split with role
     "simulated_validation"; with share 0 the table is exactly the measured one.
+    `healthy_state`: every test set must hold healthy data (false alarms are always measured):
+    each protocol keeps healthy records back for testing, and a split without any is an error.
+    `reserve` (calibration.reserve; needs the `segment` column): the calibration set and the time
+    blocks of lone healthy records (measured_layout); calibration segments get the role
+    "calibration" and guard gaps "unused" in every split, blocks are split like records.
+    `specimens`: record_id, specimen, specimen_group of the measured records (specimen_holdout).
     """
     percents = _check_arguments(protocol, measured_percent, repeats, seed, min_test_records)
+    layout = None
+    if reserve is not None:
+        if "segment" not in records.columns:
+            raise SplitError("calibration.reserve needs the segment column of the measured records")
+        layout = measured_layout(records, healthy_state, condition, reserve)
+        free = layout[layout["fixed_role"] == ""]
+        records = (free.assign(record_id=free["unit"]) if protocol != "segment_share" else free)
+        records = records.rename(columns={"condition": condition})
     unique = unique_records(records, condition)
     held_out = []
     if simulated_validation_share:
@@ -208,9 +235,8 @@ def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats:
         if both:
             raise SplitError(f"record id(s) {both[:5]} are both measured and simulated")
     if protocol == "segment_share":
-        return with_simulated_validation(
-            _segment_share_splits(records, unique, percents, repeats, seed, min_test_records),
-            held_out)
+        splits = _segment_share_splits(records, unique, percents, repeats, seed, min_test_records)
+        return with_simulated_validation(_finish(splits, layout, unique, healthy_state), held_out)
     conditions = sorted(unique["condition"].unique())
     if protocol == "condition_holdout" and len(conditions) < 2:
         raise SplitError(f"condition_holdout needs at least two values of {condition}; the "
@@ -229,6 +255,8 @@ def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats:
         log.warning("strata with <= min_test_records=%d records never train: %s",
                     min_test_records, [(h, format_speed(s)) for h, s in small.index])
 
+    group_of = _specimen_groups(unique, specimens, healthy_state) \
+        if protocol == "specimen_holdout" else {}
     rows = []
     for repeat in range(int(repeats)):
         orders = stratum_orders(unique, seed, repeat)
@@ -236,11 +264,179 @@ def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats:
             if protocol == "record_split":
                 rows += _record_split_rows(orders, percent, repeat, min_test_records)
             elif protocol == "unseen_fault":
-                rows += _unseen_fault_rows(orders, percent, repeat, set(measured_classes))
+                rows += _unseen_fault_rows(orders, percent, repeat, set(measured_classes),
+                                           healthy_state, min_test_records)
+            elif protocol == "specimen_holdout":
+                for group in sorted({g for g in group_of.values() if g}):
+                    rows += _specimen_rows(orders, percent, repeat, group, group_of)
             else:
+                healthy_there = {value for health, value in orders if health == healthy_state}
                 for value in conditions:
-                    rows += _holdout_rows(orders, percent, repeat, value, condition)
-    return with_simulated_validation(_typed(_frame(rows, protocol)), held_out)
+                    keep = (max(1, min_test_records)
+                            if healthy_state is not None and value not in healthy_there else 0)
+                    rows += _holdout_rows(orders, percent, repeat, value, condition,
+                                          healthy_state, keep)
+    splits = _finish(_typed(_frame(rows, protocol)), layout, unique, healthy_state)
+    return with_simulated_validation(splits, held_out)
+
+
+# -- the calibration set, time blocks, specimens -------------------------------------------
+RESERVE_KEY = "calibration.reserve"
+BLOCK_MARK = "@block"  # the split unit of a record's time block: "<record_id>@block<k>"
+
+
+def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition: str,
+                    reserve: dict) -> pd.DataFrame:
+    """Per measured segment: the split unit it belongs to and a fixed role.
+
+    Columns record_id, segment, health_state, condition, unit, fixed_role: CALIBRATION (the
+    calibration set: never trained on, never tested), "unused" (a guard gap) or "" (the
+    protocol decides, per unit). `reserve` is calibration.reserve:
+    - `records` listed: those healthy records, whole, are the calibration set;
+    - none listed: per condition, the first (by id) of several healthy records is reserved
+      whole; a condition's only healthy record is split in time: its first
+      `calibration_segments` segments calibrate, then `blocks` blocks of equal length follow,
+      each after a guard gap of `guard_segments`; every block is a split unit (a record to the
+      protocols), so healthy data can train and test without a segment on both sides.
+    The same table rows in, the same layout out: the calibrate and hybrid jobs agree.
+    """
+    missing = [c for c in ("record_id", "segment", "health_state", condition)
+               if c not in segments.columns]
+    if missing:
+        raise SplitError(f"{RESERVE_KEY}: the measured records lack column(s) {missing}")
+    frame = (segments[["record_id", "segment", "health_state", condition]]
+             .drop_duplicates(["record_id", "segment"])
+             .rename(columns={condition: "condition"})
+             .astype({"record_id": str, "segment": int, "health_state": str,
+                      "condition": float})
+             .sort_values(["record_id", "segment"]).reset_index(drop=True))
+    frame["unit"] = frame["record_id"]
+    frame["fixed_role"] = ""
+    listed = [str(r) for r in reserve.get("records") or []]
+    if listed:
+        unknown = sorted(set(listed) - set(frame["record_id"]))
+        if unknown:
+            raise SplitError(f"{RESERVE_KEY}.records: {unknown} are not measured records")
+        labels = frame.drop_duplicates("record_id").set_index("record_id")["health_state"]
+        faulty = [r for r in listed if labels[r] != healthy_state]
+        if faulty:
+            raise SplitError(f"{RESERVE_KEY}.records: {faulty} are not {healthy_state!r} "
+                             "records; only healthy records calibrate")
+        frame.loc[frame["record_id"].isin(listed), "fixed_role"] = CALIBRATION
+        return frame
+    if healthy_state is None:
+        raise SplitError(f"{RESERVE_KEY} needs the healthy state")
+    healthy = frame[frame["health_state"] == healthy_state]
+    for _, group in healthy.groupby("condition", sort=True):
+        ids = sorted(group["record_id"].unique())
+        if len(ids) > 1:
+            frame.loc[frame["record_id"] == ids[0], "fixed_role"] = CALIBRATION
+            continue
+        rows = group.index  # sorted by segment
+        units, roles = time_blocks(ids[0], len(rows), int(reserve["calibration_segments"]),
+                                   int(reserve["guard_segments"]), int(reserve["blocks"]))
+        frame.loc[rows, "unit"] = units
+        frame.loc[rows, "fixed_role"] = roles
+    return frame
+
+
+def time_blocks(record_id: str, n_segments: int, calibration: int, guard: int,
+                blocks: int) -> tuple[list[str], list[str]]:
+    """(unit, fixed role) of each segment of a lone healthy record, in time order:
+    `calibration` segments, then `blocks` equal blocks, each after `guard` unused segments;
+    segments left over at the end are unused."""
+    size = (n_segments - calibration - blocks * guard) // blocks
+    if size < 1:
+        raise SplitError(f"{RESERVE_KEY}: record {record_id!r} has {n_segments} segments, too "
+                         f"few for {calibration} calibration segments and {blocks} blocks after "
+                         f"guard gaps of {guard}; lower them, or list reserved records")
+    units, roles = [record_id] * calibration, [CALIBRATION] * calibration
+    for k in range(blocks):
+        units += [record_id] * guard + [f"{record_id}{BLOCK_MARK}{k}"] * size
+        roles += ["unused"] * guard + [""] * size
+    rest = n_segments - len(units)
+    return units + [record_id] * rest, roles + ["unused"] * rest
+
+
+def calibration_segments(layout: pd.DataFrame) -> pd.DataFrame:
+    """record_id, segment of the calibration set."""
+    return layout.loc[layout["fixed_role"] == CALIBRATION, ["record_id", "segment"]]
+
+
+def calibration_frame(frame: pd.DataFrame, healthy_state: str, condition: str,
+                      reserve: dict) -> pd.DataFrame:
+    """The rows of a measured table (signals or features) in the calibration set: all the
+    calibrate job may see, and what no split ever trains on or tests."""
+    layout = measured_layout(frame, healthy_state, condition, reserve)
+    chosen = pd.MultiIndex.from_frame(calibration_segments(layout))
+    keys = pd.MultiIndex.from_arrays([frame["record_id"].astype(str),
+                                      frame["segment"].astype(int)])
+    return frame[keys.isin(chosen)]
+
+
+def _finish(splits: pd.DataFrame, layout, unique, healthy_state) -> pd.DataFrame:
+    """Time blocks back to their record's segments, the calibration and guard segments added
+    to every split, then the check that every test set holds healthy data."""
+    if layout is not None:
+        blocks = layout[layout["unit"] != layout["record_id"]]
+        segments_of = {u: g for u, g in blocks.groupby("unit")}
+        expanded = []
+        for row in splits.itertuples(index=False):
+            if row.record_id in segments_of:
+                part = segments_of[row.record_id]
+                expanded += [(row.measured_percent, row.repeat, row.holdout, rid, seg, row.role)
+                             for rid, seg in zip(part["record_id"], part["segment"])]
+            else:
+                expanded.append(tuple(row)[1:])
+        fixed = layout[layout["fixed_role"] != ""]
+        keys = splits[["measured_percent", "repeat", "holdout"]].drop_duplicates()
+        expanded += [(p, r, h, rid, seg, role) for p, r, h in keys.itertuples(index=False)
+                     for rid, seg, role in zip(fixed["record_id"], fixed["segment"],
+                                               fixed["fixed_role"])]
+        splits = _typed(_frame(expanded, str(splits["protocol"].iloc[0])))
+    if healthy_state is not None:
+        check_healthy_tested(splits, unique, healthy_state)
+    return splits
+
+
+def check_healthy_tested(splits: pd.DataFrame, unique: pd.DataFrame, healthy_state: str) -> None:
+    """Every split tests healthy data, or an error naming the first that does not (a warning
+    when no measured record is healthy: false alarms cannot be measured at all)."""
+    healthy = {r.partition(BLOCK_MARK)[0]
+               for r in unique.loc[unique["health_state"] == healthy_state, "record_id"]}
+    if not healthy:
+        log.warning("no measured %r record: no test set measures false alarms", healthy_state)
+        return
+    tested = splits[(splits["role"] == "test") & splits["record_id"].isin(healthy)]
+    keys = splits[["measured_percent", "repeat", "holdout"]].drop_duplicates()
+    covered = set(tested[["measured_percent", "repeat", "holdout"]].itertuples(index=False,
+                                                                              name=None))
+    for key in keys.itertuples(index=False, name=None):
+        if key not in covered:
+            raise SplitError(f"split (measured_percent, repeat, holdout) = {key} of protocol "
+                             f"{splits['protocol'].iloc[0]!r} tests no {healthy_state!r} data")
+
+
+def _specimen_groups(unique: pd.DataFrame, specimens, healthy_state) -> dict[str, str]:
+    """{unit: specimen group} for specimen_holdout; healthy units get "" (never held out by
+    group: they test in every split)."""
+    if specimens is None or not {"record_id", "specimen", "specimen_group"} <= set(specimens):
+        raise SplitError("specimen_holdout needs the specimen and specimen_group of every "
+                         "measured record (measured/records.csv: the CWRU reader writes them)")
+    group = dict(zip(specimens["record_id"].astype(str),
+                     specimens["specimen_group"].fillna("").astype(str)))
+    groups = {}
+    for unit, health in zip(unique["record_id"], unique["health_state"]):
+        record = unit.partition(BLOCK_MARK)[0]
+        if health == healthy_state:
+            groups[unit] = ""
+        elif not group.get(record):
+            raise SplitError(f"specimen_holdout: record {record!r} has no specimen_group")
+        else:
+            groups[unit] = group[record]
+    if len({g for g in groups.values() if g}) < 2:
+        raise SplitError("specimen_holdout needs fault specimens of at least two groups (sizes)")
+    return groups
 
 
 def n_validation_records(n_records: int, share: float) -> int:
@@ -320,28 +516,52 @@ def _record_split_rows(orders, percent, repeat, min_test_records) -> list[tuple]
     return rows
 
 
-def _unseen_fault_rows(orders, percent, repeat, measured_classes) -> list[tuple]:
-    # At 100 % every record of a measured class trains: the other classes still test.
+def _unseen_fault_rows(orders, percent, repeat, measured_classes, healthy_state=None,
+                       min_test_records=1) -> list[tuple]:
+    # At 100 % every record of a measured class trains, but the healthy state keeps
+    # min_test_records per stratum back: false alarms are measured at every share.
     rows = []
     for (health, _), ids in orders.items():
-        n_train = n_train_records(len(ids), percent, 0) if health in measured_classes else 0
+        keep = min_test_records if health == healthy_state else 0
+        n_train = n_train_records(len(ids), percent, keep) if health in measured_classes else 0
         rows += [(percent, repeat, "", rid, WHOLE_RECORD, "train" if i < n_train else "test")
                  for i, rid in enumerate(ids)]
     return rows
 
 
-def _holdout_rows(orders, percent, repeat, held_out, condition) -> list[tuple]:
-    # The held-out condition supplies the whole test set, so no record of the other conditions
-    # needs to stay back for testing: at 100 % all of them train.
+def _holdout_rows(orders, percent, repeat, held_out, condition, healthy_state=None,
+                  keep_healthy=0) -> list[tuple]:
+    # The held-out condition supplies the test set, so no record of the other conditions needs
+    # to stay back for testing (at 100 % all of them train), except where it has no healthy
+    # record: then `keep_healthy` healthy records per other stratum test, so false alarms are
+    # measured (at another condition: the report's protocol label says so).
     label = holdout_label(held_out, condition)
     rows = []
-    for (_, value), ids in orders.items():
+    for (health, value), ids in orders.items():
         if value == held_out:
             rows += [(percent, repeat, label, rid, WHOLE_RECORD, "test") for rid in ids]
-        else:
-            n_train = n_train_records(len(ids), percent, 0)
-            rows += [(percent, repeat, label, rid, WHOLE_RECORD,
-                      "train" if i < n_train else "unused") for i, rid in enumerate(ids)]
+            continue
+        keep = keep_healthy if health == healthy_state else 0
+        n_train = n_train_records(len(ids), percent, keep)
+        rows += [(percent, repeat, label, rid, WHOLE_RECORD,
+                  "train" if i < n_train else "test" if i >= len(ids) - keep else "unused")
+                 for i, rid in enumerate(ids)]
+    return rows
+
+
+def _specimen_rows(orders, percent, repeat, group, group_of) -> list[tuple]:
+    # Every fault specimen of the held-out group (a fault size) tests, at every condition; the
+    # share trains from the other groups' records; healthy units (group "") always test, so
+    # no specimen is ever on both sides.
+    label = f"specimen_group={group}"
+    rows = []
+    for ids in orders.values():
+        rows += [(percent, repeat, label, rid, WHOLE_RECORD, "test")
+                 for rid in ids if group_of[rid] in ("", group)]
+        others = [rid for rid in ids if group_of[rid] not in ("", group)]
+        n_train = n_train_records(len(others), percent, 0)
+        rows += [(percent, repeat, label, rid, WHOLE_RECORD, "train" if i < n_train else "unused")
+                 for i, rid in enumerate(others)]
     return rows
 
 

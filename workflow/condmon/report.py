@@ -32,10 +32,10 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.stats import binomtest
 from sklearn.metrics import confusion_matrix
 
-from condmon import job_timings, plots
+from condmon import evaluation, job_timings, plots
+from condmon.evaluation import SMALL_TEST_SET, wilson_interval
 from condmon.atomic import staging_directory, write_text
 from condmon.hybrid import LEAKY_PROTOCOLS, SIMULATED_VALIDATION, format_speed
 
@@ -58,14 +58,21 @@ SIMULATED_VALIDATION_LABEL = (
     "not on measured data: never part of the measured results")
 
 # What each protocol's test set is: every number the report gives is labelled with it.
-SMALL_TEST_SET = 30  # segments: fewer, and an accuracy says little (flagged in accuracy.csv)
 PROTOCOL_LABELS = {
-    "record_split": "whole measured records held out (records never seen in training)",
-    "condition_holdout": "a whole operating condition held out (speed or load never seen)",
+    "record_split": ("whole measured records held out; the same fault specimen may be trained "
+                     "on at another condition (a lone healthy record: its time blocks)"),
+    "condition_holdout": ("a whole operating condition held out (speed or load never seen); the "
+                          "same fault specimen may be trained on at another condition; where the "
+                          "held-out condition has no healthy record, healthy records of another "
+                          "condition test"),
     "segment_share": ("LEAKY (the bearing study's protocol): segments of the same records on "
                       "both sides of the split"),
     "unseen_fault": ("faults never measured: measured training data holds only the configured "
-                     "measured classes; the other classes come from simulation alone"),
+                     "measured classes (healthy records always keep a test share); the other "
+                     "classes come from simulation alone"),
+    "specimen_holdout": ("whole fault specimens held out: every specimen of one group (fault "
+                         "size) tests at every condition, the share trains from the other "
+                         "groups; healthy records only test: no specimen on both sides"),
 }
 
 # Data-source kinds that are not real measurements; anything labelled with them must say so.
@@ -224,14 +231,6 @@ def labelled_accuracy(accuracy: pd.DataFrame) -> pd.DataFrame:
     out["accuracy_ci_high"] = [high for _, high in bounds]
     out["small_test_set"] = out["n_test"] < SMALL_TEST_SET
     return out
-
-
-def wilson_interval(correct: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
-    """The Wilson score interval of a proportion `correct / n` (NaN for n = 0)."""
-    if n <= 0:
-        return float("nan"), float("nan")
-    interval = binomtest(correct, n).proportion_ci(confidence_level=confidence, method="wilson")
-    return round(float(interval.low), 4), round(float(interval.high), 4)
 
 
 def label_order(labels, healthy_state: str | None = None) -> list[str]:
@@ -439,7 +438,9 @@ def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: di
         "protocols": {p: PROTOCOL_LABELS.get(p, p) for p in sorted(accuracy["protocol"].unique())},
         "simulation_gain": ("accuracy with the simulated data minus accuracy of the same "
                             "classifier on the same measured training data alone (null: no "
-                            "measured-only baseline, or no measured training data)"),
+                            "measured-only baseline, or no measured training data); the "
+                            "headline is gain_vs_strongest_mean, against the strongest of "
+                            "chance, majority class and the best measured-only classifier"),
         "results": results,
         "plots": plot_names,
     }
@@ -531,6 +532,78 @@ def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: 
     return names
 
 
+def evaluation_tables(predictions, baseline, labels, healthy_state, measured_features_path,
+                      condition, design_records) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """condmon.evaluation's tables: per evaluation, and over repeats."""
+    features = pd.read_parquet(measured_features_path, columns=["record_id", condition])
+    conditions = dict(zip(features["record_id"].astype(str), features[condition].astype(float)))
+    table = evaluation.evaluation_table(predictions, healthy_state, labels, conditions, condition,
+                                        design_records, baseline)
+    return table, evaluation.summarise(table, predictions)
+
+
+def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFrame,
+                   measured_records, design_records) -> None:
+    """summary.json: each result's honest figures (all test data), its accuracy per condition,
+    design and evaluation records apart, and recall per specimen where records.csv names them."""
+    figures = ["n_repeats", "distinct_repeats", "accuracy_ci_low", "accuracy_ci_high",
+               "record_accuracy_mean", "record_accuracy_ci_low", "record_accuracy_ci_high",
+               "balanced_accuracy_mean", "false_alarm_rate_mean", "false_alarm_ci_low",
+               "false_alarm_ci_high", "small_test_set", "strongest_baseline",
+               "strongest_baseline_accuracy_mean", "gain_vs_strongest_mean"]
+    specimens = {}
+    if measured_records is not None:
+        records = pd.read_csv(measured_records, dtype=str, keep_default_na=False)
+        if "specimen" in records.columns:
+            specimens = dict(zip(records["record_id"], records["specimen"]))
+    recalls = {}
+    if specimens:
+        hits = predictions.assign(hit=predictions["true_label"] == predictions["predicted_label"],
+                                  specimen=predictions["record_id"].map(specimens))
+        recalls = (hits.groupby(["classifier", "protocol", "measured_percent", "specimen"])["hit"]
+                   .mean())
+    keys = ["classifier", "protocol", "measured_percent"]
+    for result in summary["results"]:
+        key = tuple(result[k] for k in keys)
+        mine = overall[(overall["classifier"] == key[0]) & (overall["protocol"] == key[1])
+                       & (overall["measured_percent"] == key[2])]
+        everything = mine[(mine["condition"] == evaluation.ALL) & (mine["records"] == evaluation.ALL)]
+        if everything.empty:
+            continue
+        row = everything.iloc[0]
+        for name in figures:
+            value = row[name]
+            result[name] = value if isinstance(value, str) else (
+                bool(value) if isinstance(value, (bool, np.bool_)) else _json_number(value))
+        if result["distinct_repeats"] == 1 and result["n_repeats"] > 1:
+            result["repeats_note"] = "the repeats predicted alike: one repeat, no spread"
+        result["accuracy_mean_per_condition"] = {
+            r.condition: _json_number(r.accuracy_mean)
+            for r in mine[(mine["condition"] != evaluation.ALL)
+                          & (mine["records"] == evaluation.ALL)].itertuples()}
+        result["accuracy_mean_by_records"] = {
+            r.records: _json_number(r.accuracy_mean)
+            for r in mine[(mine["condition"] == evaluation.ALL)
+                          & (mine["records"] != evaluation.ALL)].itertuples()}
+        if len(recalls):
+            result["recall_per_specimen"] = {s: _json_number(v)
+                                             for s, v in recalls.loc[key].items()}
+    summary["design_records"] = {
+        "records": sorted(map(str, design_records)),
+        "note": ("results on the records design choices were tuned on (report.design_records) "
+                 "are given apart ('design') from the others ('evaluation')"
+                 + ("" if set(predictions["record_id"]) - set(map(str, design_records)) else
+                    "; every tested record is a design record: no result here is on records "
+                    "never used in design") if design_records else
+                 "report.design_records is empty: no record is declared as used in design")}
+    summary["evaluation"] = (
+        "per-segment, per-record (majority vote) and balanced accuracy with 95 % Wilson "
+        "intervals over pooled test segments/records (optimistic: segments of a record are not "
+        "independent), false-alarm rate (healthy test segments called faulty), gain against "
+        "the strongest of chance, the test set's majority class and the best measured-only "
+        "classifier; evaluation.csv per evaluation, evaluation_summary.csv over repeats")
+
+
 def simulation_summary(report_paths) -> dict:
     """Samples, failures (with their parameters) and cost of the simulation jobs."""
     reports = [json.loads(Path(p).read_text()) for p in report_paths]
@@ -559,12 +632,19 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
                  baseline_paths=(), measured_records=None, record_recall_path=None,
                  healthy_state: str | None = None, benchmarks_dir=None, job_timings_path=None,
                  bench_effects=(), prediction_shares_path=None,
-                 simulated_validation_paths=()) -> dict:
+                 simulated_validation_paths=(), measured_features_path=None,
+                 condition: str = "speed_rpm", design_records=(), evaluation_path=None,
+                 evaluation_summary_path=None) -> dict:
     """Build the whole report; returns the summary dict. Every output is written atomically.
 
     prediction_shares_path: where prediction_shares.csv goes (None: not written).
     simulated_validation_paths: the train stage's simulated_validation.csv files (given only
     with hybrid.simulated_validation_share > 0): summary.json's ``simulated_validation``.
+
+    measured_features_path, condition: the measured features (each record's value of the
+    operating condition); with them, evaluation_path and evaluation_summary_path get
+    condmon.evaluation's tables (per evaluation; over repeats), `design_records` apart, and
+    summary.json's results the per-record, balanced, false-alarm and baseline figures.
 
     bench_effects: what the virtual bench has and the model lacks (its difference in form),
     labelled in summary.json and on every plot.
@@ -627,6 +707,14 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
             summary["job_timings"] = {row.pop("rule"): row for row in timings.to_dict("records")}
             if job_timings_path is not None:
                 write_text(timings.to_csv(index=False), job_timings_path)
+        if measured_features_path is not None:
+            table, overall = evaluation_tables(predictions, baseline, labels, healthy_state,
+                                               measured_features_path, condition, design_records)
+            add_evaluation(summary, overall, predictions, measured_records, design_records)
+            if evaluation_path is not None:
+                write_text(table.to_csv(index=False), evaluation_path)
+            if evaluation_summary_path is not None:
+                write_text(overall.to_csv(index=False), evaluation_summary_path)
         write_text(labelled_accuracy(accuracy).to_csv(index=False), accuracy_path)
         if record_recall_path is not None:
             write_text(recall_per_record(predictions).to_csv(index=False), record_recall_path)

@@ -18,6 +18,7 @@ rule calibrate:
         channels=config["features"]["channels"],
         spectrum=config["features"]["spectrum"],
         data_source=data_source(),
+        condition=CONDITION,  # calibration.reserve: a lone healthy record per condition
     threads: workflow.cores
     conda:
         "../envs/simulation.yaml"

@@ -3,6 +3,7 @@
 rule hybrid:
     input:
         features=rules.features_measured.output.features,
+        records=rules.measured.output.records,  # specimens (specimen_holdout)
         # the simulated record list, only with hybrid.simulated_validation_share > 0 (common.smk)
         **({"simulated": rules.features_simulated.output.features} if SIMULATED_VALIDATION_SHARE else {}),
     output:
@@ -14,6 +15,8 @@ rule hybrid:
         seed=config["hybrid"]["seed"],
         min_test_records=config["hybrid"]["min_test_records"],
         condition=CONDITION,
+        healthy_state=SYSTEM.healthy_state,
+        reserve=config["calibration"]["reserve"],  # the calibration set: never in a split
         measured_classes=lambda wc: (config["hybrid"]["measured_classes"]
                                      if wc.protocol == "unseen_fault" else None),
         **({"simulated_validation_share": SIMULATED_VALIDATION_SHARE} if SIMULATED_VALIDATION_SHARE else {}),

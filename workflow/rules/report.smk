@@ -39,6 +39,7 @@ rule report:
         simulation_reports=simulated_batches("json"),
         measured_only=train_outputs("measured_only.csv"),
         measured_records=rules.measured.output.records,
+        measured_features=rules.features_measured.output.features,  # each record's condition
         # accuracy on the held-out simulated records (hybrid.simulated_validation_share > 0)
         simulated_validation=(train_outputs("simulated_validation.csv")
                               if SIMULATED_VALIDATION_SHARE else []),
@@ -47,6 +48,8 @@ rule report:
         prediction_shares=f"{RESULTS}/report/prediction_shares.csv",
         summary=f"{RESULTS}/report/summary.json",
         recall_per_record=f"{RESULTS}/report/recall_per_record.csv",
+        evaluation=f"{RESULTS}/report/evaluation.csv",
+        evaluation_summary=f"{RESULTS}/report/evaluation_summary.csv",
         job_timings=f"{RESULTS}/report/job_timings.csv",
         plots=directory(f"{RESULTS}/report/plots"),
     params:
@@ -57,6 +60,8 @@ rule report:
         benchmarks=BENCHMARKS,
         healthy_state=SYSTEM.healthy_state,
         calibrations=CALIBRATIONS,  # the first one's calibration made the simulated data
+        condition=CONDITION,
+        design_records=config["report"]["design_records"],
     conda:
         "../envs/report.yaml"
     benchmark:

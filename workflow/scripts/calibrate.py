@@ -1,6 +1,7 @@
 """Calibrate the system's model on the healthy measured records with CMA-ES (one calibration
 variant: the wildcard's, e.g. the gear's mesh stiffness model)."""
 from condmon.atomic import write_frame, write_json
+from condmon.hybrid import calibration_frame
 from condmon.plots import calibration_convergence, save_figure
 from condmon.report import data_source_label
 from condmon.runlog import setup_logging
@@ -11,6 +12,8 @@ log = setup_logging(snakemake)
 p = snakemake.params
 system = load_system(p.system)
 frame = read_signal_table(snakemake.input.measured)
+# only the calibration set (calibration.reserve): segments no split ever tests or trains on
+frame = calibration_frame(frame, system.healthy_state, p.condition, p.calibration["reserve"])
 result, history, spectra = system.calibrate(frame, p.variant, p.calibration, p.spectrum, list(p.channels),
                                             processes=snakemake.threads)
 write_frame(spectra, snakemake.output.spectra)

@@ -17,6 +17,9 @@ condition = getattr(params, "condition", "speed_rpm")
 share = float(getattr(params, "simulated_validation_share", 0.0))
 simulated = (pd.read_parquet(snakemake.input.simulated,
                              columns=["record_id", "health_state", condition]) if share else None)
+# the physical specimen of every record, where the measured stage knows it (CWRU files)
+records = pd.read_csv(snakemake.input.records, dtype=str, keep_default_na=False)
+specimens = records if {"specimen", "specimen_group"} <= set(records.columns) else None
 splits = make_splits(measured[["record_id", "segment", "health_state", condition]],
                      protocol=params.protocol,
                      measured_percent=list(params.measured_percent),
@@ -25,7 +28,9 @@ splits = make_splits(measured[["record_id", "segment", "health_state", condition
                      min_test_records=int(params.min_test_records),
                      condition=condition,
                      measured_classes=getattr(params, "measured_classes", None),
-                     simulated_records=simulated, simulated_validation_share=share)
+                     simulated_records=simulated, simulated_validation_share=share,
+                     healthy_state=params.healthy_state, reserve=dict(params.reserve),
+                     specimens=specimens)
 write_split_table(splits, snakemake.output.splits)
 log.info("%s: %d rows, %d records, roles %s", params.protocol, len(splits),
          splits["record_id"].nunique(), splits["role"].value_counts().to_dict())

@@ -37,6 +37,11 @@ summary = write_report(
     bench_effects=list(snakemake.params.get("bench_effects", [])),
     prediction_shares_path=snakemake.output.get("prediction_shares"),
     simulated_validation_paths=list(snakemake.input.get("simulated_validation", [])),
+    measured_features_path=snakemake.input.measured_features,
+    condition=snakemake.params.condition,
+    design_records=list(snakemake.params.design_records),
+    evaluation_path=snakemake.output.evaluation,
+    evaluation_summary_path=snakemake.output.evaluation_summary,
 )
 log.info("report of run %s: %d result rows, %d plots", summary["run_name"],
          len(summary["results"]), len(summary["plots"]))

@@ -470,6 +470,17 @@ def _bad_file(path: Path, number, table: pd.DataFrame, error: CwruError) -> dict
     return entry
 
 
+def specimen_of(info) -> dict:
+    """The physical bearing a record was taken from, and its group (the fault size): CWRU made
+    each fault (class, size, outer-race position) once and recorded it at every load, so the
+    records of one specimen are not independent; the healthy bearing is one specimen, group ""."""
+    if info["fault"] == "normal":
+        return {"specimen": "normal", "specimen_group": ""}
+    size = f"{float(info['diameter_in']):.3f}"
+    position = f" at {info['or_position']}" if str(info["or_position"] or "") else ""
+    return {"specimen": f"{info['fault']} {size} in{position}", "specimen_group": size}
+
+
 def _ingest_file(path: Path, number: int, table: pd.DataFrame, task: str, channels, fs_hz: float,
                  segment_length: int, excluded: list):
     """(rows, record line) of one file, or None when its class is outside the task (then a line
@@ -491,7 +502,7 @@ def _ingest_file(path: Path, number: int, table: pd.DataFrame, task: str, channe
     label = health_label(task, info["fault"], info["diameter_in"])
     description = dict(file=path.name, cwru_number=record.number, fault=info["fault"],
                        or_position=info["or_position"], diameter_in=float(info["diameter_in"]),
-                       load_hp=float(info["load_hp"]))
+                       load_hp=float(info["load_hp"]), **specimen_of(info))
     if label is None:  # number known only from the file's variables
         excluded.append({**description, "reason": f"class not in task {task!r}",
                          "bad_record": False})

@@ -1,0 +1,193 @@
+"""Evaluation figures a reviewer can trust, from the test predictions of the train stage.
+
+Per evaluation (classifier, protocol, measured percentage, repeat, holdout), for all test data,
+per operating condition (`hybrid.condition`, e.g. load: never a file's stored rpm) and, with
+`report.design_records`, for the records design choices were tuned on and for the others apart:
+- per-segment accuracy, per-record accuracy (majority vote of a record's test segments) and
+  balanced accuracy (mean recall over the tested classes: a class of few segments weighs as much);
+- the false-alarm rate: the share of healthy test segments called faulty;
+- a 95 % Wilson interval on every accuracy and rate (segments of one record are not independent:
+  the per-segment interval is optimistic) and `small_test_set` under 30 test segments;
+- baselines that can lose: chance (1 / classes), the majority class of the test set, and the best
+  measured-only classifier the split allows (any classifier's `measured_only.csv`); the gain is
+  taken against the strongest of them.
+Aggregated over repeats and holdouts (`summarise`): means, pooled Wilson intervals, and how many
+repeats differ (identical repeats are one repeat, and said so).
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pandas as pd
+from scipy.stats import binomtest
+from sklearn.metrics import balanced_accuracy_score
+
+from condmon.hybrid import LEAKY_PROTOCOLS, format_speed
+
+KEYS = ["classifier", "protocol", "measured_percent", "repeat", "holdout"]
+SMALL_TEST_SET = 30  # segments: fewer, and an accuracy says little
+ALL = "all"
+EVALUATION_COLUMNS = KEYS + [
+    "condition", "records", "n_test", "accuracy", "accuracy_ci_low", "accuracy_ci_high",
+    "n_records", "record_accuracy", "record_accuracy_ci_low", "record_accuracy_ci_high",
+    "balanced_accuracy", "n_healthy", "false_alarm_rate", "false_alarm_ci_low",
+    "false_alarm_ci_high", "small_test_set", "leaky", "chance", "majority_class",
+    "measured_only_best", "strongest_baseline", "strongest_baseline_accuracy",
+    "gain_vs_strongest"]
+
+
+def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """The Wilson score interval of a proportion `successes / n` (NaN for n = 0)."""
+    if n <= 0:
+        return float("nan"), float("nan")
+    interval = binomtest(int(successes), int(n)).proportion_ci(confidence_level=confidence,
+                                                                method="wilson")
+    return round(float(interval.low), 4), round(float(interval.high), 4)
+
+
+def record_votes(test: pd.DataFrame) -> pd.DataFrame:
+    """Per record: its true label and the majority vote of its predicted segments (ties: the
+    alphabetically first of the most voted labels, so the vote is deterministic)."""
+    counts = test.groupby(["record_id", "true_label", "predicted_label"]).size().rename("n")
+    counts = counts.reset_index().sort_values(["record_id", "n", "predicted_label"],
+                                              ascending=[True, False, True])
+    return counts.drop_duplicates("record_id")[["record_id", "true_label", "predicted_label"]]
+
+
+def balanced_accuracy(test: pd.DataFrame) -> float:
+    """Mean recall over the tested classes (predicted-only classes add no term)."""
+    with warnings.catch_warnings():  # "y_pred contains classes not in y_true": expected here
+        warnings.simplefilter("ignore", UserWarning)
+        return float(balanced_accuracy_score(test["true_label"], test["predicted_label"]))
+
+
+def test_set_figures(test: pd.DataFrame, healthy_state: str | None) -> dict:
+    """The figures of one test set (rows of the predictions table)."""
+    hits = int((test["true_label"] == test["predicted_label"]).sum())
+    votes = record_votes(test)
+    record_hits = int((votes["true_label"] == votes["predicted_label"]).sum())
+    healthy = test[test["true_label"] == healthy_state]
+    alarms = int((healthy["predicted_label"] != healthy_state).sum())
+    low, high = wilson_interval(hits, len(test))
+    record_low, record_high = wilson_interval(record_hits, len(votes))
+    alarm_low, alarm_high = wilson_interval(alarms, len(healthy))
+    return {"n_test": len(test), "accuracy": hits / len(test), "accuracy_ci_low": low,
+            "accuracy_ci_high": high, "n_records": len(votes),
+            "record_accuracy": record_hits / len(votes), "record_accuracy_ci_low": record_low,
+            "record_accuracy_ci_high": record_high,
+            "balanced_accuracy": balanced_accuracy(test),
+            "n_healthy": len(healthy),
+            "false_alarm_rate": alarms / len(healthy) if len(healthy) else np.nan,
+            "false_alarm_ci_low": alarm_low, "false_alarm_ci_high": alarm_high,
+            "small_test_set": len(test) < SMALL_TEST_SET}
+
+
+def evaluation_table(predictions: pd.DataFrame, healthy_state: str | None, labels,
+                     conditions: dict, condition: str, design_records=(),
+                     measured_only: pd.DataFrame | None = None) -> pd.DataFrame:
+    """One row per evaluation and subset (columns EVALUATION_COLUMNS).
+
+    `conditions`: {record_id: value of `condition`}; `labels`: the task's classes (chance);
+    `design_records`: records design choices were tuned on (subsets `design` and `evaluation`
+    besides `all`); `measured_only`: the measured-only metrics rows of every classifier (all
+    speeds rows used). Baselines and the gain are given on the `all` x `all` rows.
+    """
+    design = set(map(str, design_records))
+    predictions = predictions.assign(
+        _condition=predictions["record_id"].map(
+            lambda r: f"{condition}={format_speed(conditions[r])}" if r in conditions else ""))
+    missing = sorted(set(predictions.loc[predictions["_condition"] == "", "record_id"]))
+    if missing:
+        raise ValueError(f"record(s) {missing[:5]} have no {condition} in the measured features")
+    best_alone = _best_measured_only(measured_only)
+    rows = []
+    for key, test in predictions.groupby(KEYS, sort=True):
+        subsets = [(ALL, ALL, test)]
+        subsets += [(value, ALL, part) for value, part in test.groupby("_condition", sort=True)]
+        if design:
+            in_design = test["record_id"].isin(design)
+            subsets += [(ALL, name, test[mask]) for name, mask in
+                        (("design", in_design), ("evaluation", ~in_design)) if mask.any()]
+        for condition_label, records, part in subsets:
+            row = dict(zip(KEYS, key), condition=condition_label, records=records,
+                       **test_set_figures(part, healthy_state),
+                       leaky=key[1] in LEAKY_PROTOCOLS)
+            if condition_label == ALL and records == ALL:
+                row.update(_baselines(part, row["accuracy"], len(labels),
+                                      best_alone.get(key[1:])))
+            rows.append(row)
+    return pd.DataFrame(rows, columns=EVALUATION_COLUMNS)
+
+
+def _best_measured_only(measured_only: pd.DataFrame | None) -> dict:
+    """{(protocol, percent, repeat, holdout): the best measured-only accuracy of any classifier}."""
+    if measured_only is None or measured_only.empty:
+        return {}
+    overall = measured_only[measured_only["speed_rpm"].isna()]
+    best = overall.groupby(KEYS[1:])["accuracy"].max()
+    return {(p, int(m), int(r), h): float(a) for (p, m, r, h), a in best.items()}
+
+
+def _baselines(test: pd.DataFrame, accuracy: float, n_labels: int, measured_only) -> dict:
+    """Chance, majority class of the test set, best measured-only; the strongest and the gain."""
+    candidates = {"chance": 1.0 / n_labels,
+                  "majority_class": float(test["true_label"].value_counts(normalize=True).max())}
+    if measured_only is not None:
+        candidates["measured_only_best"] = measured_only
+    strongest = max(candidates, key=candidates.get)
+    return {"chance": candidates["chance"], "majority_class": candidates["majority_class"],
+            "measured_only_best": measured_only if measured_only is not None else np.nan,
+            "strongest_baseline": strongest,
+            "strongest_baseline_accuracy": candidates[strongest],
+            "gain_vs_strongest": accuracy - candidates[strongest]}
+
+
+def distinct_repeats(predictions: pd.DataFrame) -> pd.Series:
+    """Per (classifier, protocol, measured_percent): how many repeats predicted differently
+    (1: the repeats are one repeat, whatever `hybrid.repeats` says)."""
+    def fingerprint(rows):
+        ordered = rows.sort_values(["holdout", "record_id", "segment"])
+        return hash(tuple(ordered["record_id"]) + tuple(ordered["segment"])
+                    + tuple(ordered["predicted_label"]))
+    prints = (predictions.groupby(["classifier", "protocol", "measured_percent", "repeat"])
+              .apply(fingerprint, include_groups=False))
+    return prints.groupby(level=[0, 1, 2]).nunique().rename("distinct_repeats")
+
+
+SUMMARY_MEANS = ["accuracy", "record_accuracy", "balanced_accuracy", "false_alarm_rate",
+                 "strongest_baseline_accuracy", "gain_vs_strongest"]
+
+
+def summarise(table: pd.DataFrame, predictions: pd.DataFrame) -> pd.DataFrame:
+    """Per (classifier, protocol, measured_percent, condition, records): means over repeats and
+    holdouts, intervals over the pooled test segments (records, healthy segments), the number of
+    repeats and of distinct ones, the strongest baseline named."""
+    group = ["classifier", "protocol", "measured_percent", "condition", "records"]
+    table = table.assign(_hits=(table["accuracy"] * table["n_test"]).round(),
+                         _record_hits=(table["record_accuracy"] * table["n_records"]).round(),
+                         _alarms=(table["false_alarm_rate"].fillna(0) * table["n_healthy"]).round())
+    rows = []
+    for key, part in table.groupby(group, sort=True):
+        n, n_records, n_healthy = (int(part[c].sum()) for c in ("n_test", "n_records",
+                                                                 "n_healthy"))
+        row = dict(zip(group, key), n_repeats=int(part["repeat"].nunique()),
+                   n_evaluations=len(part), n_test_per_evaluation=n / len(part),
+                   **{f"{c}_mean": part[c].mean() for c in SUMMARY_MEANS},
+                   accuracy_std=part.groupby("repeat")["accuracy"].mean().std(),
+                   strongest_baseline=",".join(sorted(set(part["strongest_baseline"].dropna()))))
+        row["accuracy_ci_low"], row["accuracy_ci_high"] = wilson_interval(int(part["_hits"].sum()), n)
+        row["record_accuracy_ci_low"], row["record_accuracy_ci_high"] = wilson_interval(
+            int(part["_record_hits"].sum()), n_records)
+        row["false_alarm_ci_low"], row["false_alarm_ci_high"] = wilson_interval(
+            int(part["_alarms"].sum()), n_healthy)
+        row["small_test_set"] = row["n_test_per_evaluation"] < SMALL_TEST_SET
+        row["leaky"] = bool(part["leaky"].any())
+        rows.append(row)
+    summary = pd.DataFrame(rows)
+    distinct = distinct_repeats(predictions).reset_index()
+    summary = summary.merge(distinct, on=["classifier", "protocol", "measured_percent"],
+                            how="left")
+    # identical repeats are one repeat: no spread to report
+    summary.loc[summary["distinct_repeats"] < 2, "accuracy_std"] = np.nan
+    return summary
