@@ -1,6 +1,14 @@
 # Simulation-trained condition monitoring of gear drivetrains: measured data in, calibrated
 # exudyn model, simulated damage scenarios, features, hybrid training sets, classifiers, report.
 # Run: snakemake --cores all [--configfile config/<run>.yaml]. Stages and files: ARCHITECTURE.md.
+from snakemake.exceptions import WorkflowError
+
+from condmon import python_version_error
+
+# A wrong interpreter stops here, naming the Python the pins need, before any import can fail.
+if python_version_error():
+    raise WorkflowError(python_version_error())
+
 from condmon.config import load_schema, validate_config
 
 
