@@ -30,7 +30,7 @@ def snakemake(workdir, *args, check=True):
 
 def copy_project(target: Path) -> Path:
     target.mkdir(parents=True, exist_ok=True)
-    for name in ("Snakefile", "workflow", "config", "models", "profiles"):
+    for name in ("workflow", "config", "models", "profiles"):
         source = ROOT / name
         if source.is_dir():
             shutil.copytree(source, target / name, ignore=shutil.ignore_patterns("__pycache__"))
@@ -91,8 +91,10 @@ def test_every_design_output_is_written(smoke):
     measured = read_signal_table(results / "measured" / "signals.parquet")
     assert set(measured["source"]) == {"virtual_bench"}  # synthetic data is never labelled measured
     timings = pd.read_csv(results / "report" / "job_timings.csv").set_index("rule")
-    assert {"measured_part", "calibrate", "simulate", "train"} <= set(timings.index)
+    assert set(timings.index) == {"measured_part", "measured", "calibrate", "simulate", "features_measured",
+                                  "features_simulated", "hybrid", "train"}  # every job before the report
     assert timings.loc["simulate", "jobs"] == 6 and (timings["peak_rss_mb_max"] > 0).all()
+    assert "job_timings.png" in summary["plots"] and (results / "report" / "plots" / "job_timings.png").is_file()
     assert set(summary["job_timings"]) == set(timings.index)
 
 
