@@ -19,7 +19,8 @@ rule calibrate:
         channels=config["features"]["channels"],
         spectrum=config["features"]["spectrum"],
         data_source=data_source(),
-    threads: workflow.cores
+    # every core of the run; none are given to `snakemake --report` or `--lint` (workflow.cores would stop them)
+    threads: workflow.resource_settings.cores or 1
     conda:
         "../envs/simulation.yaml"
     benchmark:
