@@ -148,6 +148,7 @@ SIMULATED_VALIDATION_SHARE = config["hybrid"]["simulated_validation_share"]
 
 # -- the report rule (report.smk) ------------------------------------------------------------
 
+
 def upstream_benchmarks():
     """{rule: the benchmark file of each of its jobs} of every job before the report (from the
     rules' `benchmark:` patterns), so the report's job timings cover exactly this run's jobs. The
@@ -170,4 +171,3 @@ def plot_category(wildcards):
         if wildcards.name.startswith(prefix):
             return category
     return "Accuracy"
-
