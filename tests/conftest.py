@@ -2,10 +2,19 @@
 import copy
 from pathlib import Path
 
+import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 CWRU = ROOT.parent / "shared" / "data" / "cwru"
+
+
+def pytest_configure(config):
+    """A wrong interpreter stops the tests at once, naming the Python the pins need."""
+    from condmon import python_version_error
+
+    if python_version_error():
+        pytest.exit(python_version_error(), returncode=4)
 
 
 def deep_update(base: dict, changes: dict) -> dict:

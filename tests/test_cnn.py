@@ -137,6 +137,20 @@ def test_early_stopping_history_and_member_info():
     assert any(info["epochs_run"] < 30 for info in model.member_info_)  # stopped early
 
 
+def test_epochs_are_logged_at_most_every_few_seconds(caplog, monkeypatch):
+    from condmon import cnn
+
+    with caplog.at_level("INFO", logger="condmon.cnn"):
+        fitted(epochs=3, patience=5)
+    lines = [r.getMessage() for r in caplog.records if ", epoch " in r.getMessage()]
+    assert len(lines) == 2 and lines[0].startswith("CNN member 1 of 2, epoch 1 of at most 3: train loss")
+    caplog.clear()
+    monkeypatch.setattr(cnn, "EPOCH_LOG_SECONDS", 0.0)
+    with caplog.at_level("INFO", logger="condmon.cnn"):
+        fitted(epochs=3, patience=5)
+    assert sum(", epoch " in r.getMessage() for r in caplog.records) == 6  # 2 members x 3 epochs
+
+
 def test_joblib_round_trip_and_torch_export(tmp_path):
     model = fitted()
     joblib.dump(model, tmp_path / "model.joblib")

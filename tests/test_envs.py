@@ -1,11 +1,21 @@
-"""The rules' conda environments agree with environment.txt, and `snakemake --lint` is clean."""
+"""The set-up: environment.txt, the rules' conda environments (they pin what environment.txt pins
+and hold every package their rules' code imports), the Python check, and `snakemake --lint`."""
+import ast
 import re
 import subprocess
 import sys
+import tomllib
+from importlib import metadata
 
+import pytest
 import yaml
+from packaging.requirements import Requirement
 
+import condmon
 from conftest import ROOT
+
+ENVS = ROOT / "workflow" / "envs"
+PYTORCH_CPU_INDEX = "--extra-index-url https://download.pytorch.org/whl/cpu"
 
 
 def pins(lines) -> dict:
@@ -17,25 +27,123 @@ def pins(lines) -> dict:
     return out
 
 
+def pip_section(path) -> list[str]:
+    spec = yaml.safe_load(path.read_text())
+    return next(d["pip"] for d in spec["dependencies"] if isinstance(d, dict))
+
+
+def rule_scripts() -> dict:
+    """{rule: (environment name, script path)} from workflow/rules/*.smk."""
+    out = {}
+    for smk in (ROOT / "workflow" / "rules").glob("*.smk"):
+        for block in re.split(r"^rule ", smk.read_text(), flags=re.M)[1:]:
+            name = block.split(":")[0]
+            env = re.search(r'conda:\n\s+"\.\./envs/(\w+)\.yaml"', block)
+            script = re.search(r'script:\n\s+"\.\./scripts/(\w+\.py)"', block)
+            assert env and script, f"rule {name}: a conda: environment and a script:"
+            out[name] = (env.group(1), ROOT / "workflow" / "scripts" / script.group(1))
+    return out
+
+
+def condmon_file(module: str):
+    """The source file of a condmon module (condmon.models lives in models/), or None."""
+    parts = module.split(".")
+    base = ROOT / "models" if parts[:2] == ["condmon", "models"] else ROOT / "workflow" / "condmon"
+    path = base.joinpath(*parts[2 if parts[:2] == ["condmon", "models"] else 1:])
+    for candidate in (path / "__init__.py", path.with_suffix(".py")):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def imported_top_levels(script) -> set[str]:
+    """Third-party top-level modules a script can import: its imports and, through every condmon
+    module it reaches, theirs (lazy ones and the systems' "module:Class" paths too)."""
+    seen, third_party, todo = set(), set(), [script]
+    while todo:
+        tree = ast.parse(todo.pop().read_text())
+        names = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                names |= {alias.name for alias in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names |= {node.module} | {f"{node.module}.{alias.name}" for alias in node.names}
+            elif isinstance(node, ast.Constant) and isinstance(node.value, str) \
+                    and re.fullmatch(r"condmon(\.\w+)+:\w+", node.value):
+                names.add(node.value.split(":")[0])
+        for name in names:
+            parts = name.split(".")
+            if parts[0] != "condmon":
+                if parts[0] not in sys.stdlib_module_names:
+                    third_party.add(parts[0])
+                continue
+            for end in range(1, len(parts) + 1):
+                module = ".".join(parts[:end])
+                path = condmon_file(module)
+                if path is not None and module not in seen:
+                    seen.add(module)
+                    todo.append(path)
+    return third_party
+
+
+def with_dependencies(names) -> set[str]:
+    """The installed distributions `names` pull in (their whole dependency closure)."""
+    closure, todo = set(), [n.lower() for n in names]
+    while todo:
+        name = todo.pop()
+        if name in closure:
+            continue
+        closure.add(name)
+        for requirement in metadata.requires(name) or []:
+            requirement = Requirement(requirement)
+            if requirement.marker is None or requirement.marker.evaluate({"extra": ""}):
+                todo.append(requirement.name.lower().replace("_", "-"))
+    return closure
+
+
 def test_every_rule_environment_pins_what_environment_txt_pins():
-    environment = pins((ROOT / "environment.txt").read_text().splitlines())
-    envs = sorted((ROOT / "workflow" / "envs").glob("*.yaml"))
+    lines = (ROOT / "environment.txt").read_text().splitlines()
+    environment = pins(lines)
+    assert environment["torch"].endswith("+cpu") and PYTORCH_CPU_INDEX in lines, "the CPU torch, chosen explicitly"
+    envs = sorted(ENVS.glob("*.yaml"))
     assert envs
     for path in envs:
         spec = yaml.safe_load(path.read_text())
         assert "python=3.11" in spec["dependencies"], path.name
-        pip = next(d["pip"] for d in spec["dependencies"] if isinstance(d, dict))
-        packages = [p for p in pip if not p.startswith("-e")]
+        pip = pip_section(path)
+        packages = [p for p in pip if not p.startswith("-")]
         assert all("==" in p for p in packages), f"{path.name}: unpinned {packages}"
         for name, version in pins(packages).items():
             assert environment.get(name) == version, f"{path.name}: {name}=={version}, environment.txt {environment.get(name)}"
+        assert ("torch" in pins(packages)) == (PYTORCH_CPU_INDEX in pip), f"{path.name}: torch's CPU index"
         assert "-e ../.." in pip, f"{path.name} must install the project"
 
 
-def test_every_rule_has_an_environment_and_the_linter_is_content():
-    rules = "\n".join(p.read_text() for p in (ROOT / "workflow" / "rules").glob("*.smk"))
-    used = set(re.findall(r'conda:\n\s+"\.\./envs/([a-z_]+)\.yaml"', rules))
-    assert used == {p.stem for p in (ROOT / "workflow" / "envs").glob("*.yaml")}
-    result = subprocess.run([sys.executable, "-m", "snakemake", "--lint", "--configfile", "config/smoke.yaml"],
+def test_every_rule_environment_holds_what_its_code_imports():
+    distributions = metadata.packages_distributions()
+    for rule, (env, script) in sorted(rule_scripts().items()):
+        listed = with_dependencies(pins(pip_section(ENVS / f"{env}.yaml")))
+        needed = {dist.lower().replace("_", "-") for top in imported_top_levels(script)
+                  for dist in distributions.get(top, [top])}
+        assert needed - {"condmon"} <= listed, f"rule {rule}: {env}.yaml lacks {sorted(needed - listed - {'condmon'})}"
+
+
+def test_the_import_scan_finds_the_systems_models():
+    """The scan follows the registry's "module:Class" paths: the features script reaches exudyn."""
+    assert {"exudyn", "sklearn", "numpy"} <= imported_top_levels(ROOT / "workflow" / "scripts" / "features.py")
+
+
+def test_a_wrong_python_is_named(monkeypatch):
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert pyproject["project"]["requires-python"] == ">=3.11,<3.12"
+    assert condmon.python_version_error() is None
+    monkeypatch.setattr(condmon, "REQUIRED_PYTHON", (3, 99))
+    assert "needs Python 3.99" in condmon.python_version_error()
+
+
+@pytest.mark.parametrize("configfile", ["config/config.yaml", "config/smoke.yaml"])
+def test_every_rule_has_an_environment_and_the_linter_is_content(configfile):
+    assert {env for env, _ in rule_scripts().values()} == {p.stem for p in ENVS.glob("*.yaml")}
+    result = subprocess.run([sys.executable, "-m", "snakemake", "--lint", "--configfile", configfile],
                             cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]

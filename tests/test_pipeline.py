@@ -30,7 +30,7 @@ def snakemake(workdir, *args, check=True):
 
 def copy_project(target: Path) -> Path:
     target.mkdir(parents=True, exist_ok=True)
-    for name in ("Snakefile", "workflow", "config", "models", "profiles"):
+    for name in ("workflow", "config", "models", "profiles"):
         source = ROOT / name
         if source.is_dir():
             shutil.copytree(source, target / name, ignore=shutil.ignore_patterns("__pycache__"))
@@ -91,8 +91,10 @@ def test_every_design_output_is_written(smoke):
     measured = read_signal_table(results / "measured" / "signals.parquet")
     assert set(measured["source"]) == {"virtual_bench"}  # synthetic data is never labelled measured
     timings = pd.read_csv(results / "report" / "job_timings.csv").set_index("rule")
-    assert {"measured_part", "calibrate", "simulate", "train"} <= set(timings.index)
+    assert set(timings.index) == {"measured_part", "measured", "calibrate", "simulate", "features_measured",
+                                  "features_simulated", "hybrid", "train"}  # every job before the report
     assert timings.loc["simulate", "jobs"] == 6 and (timings["peak_rss_mb_max"] > 0).all()
+    assert "job_timings.png" in summary["plots"] and (results / "report" / "plots" / "job_timings.png").is_file()
     assert set(summary["job_timings"]) == set(timings.index)
 
 
@@ -290,3 +292,56 @@ def test_a_run_killed_mid_simulation_and_mid_training_resumes_to_the_same_result
     columns = ["classifier", "protocol", "measured_percent", "repeat", "speed_rpm", "holdout", "accuracy", "macro_f1"]
     resumed = pd.read_csv(killed / "report" / "accuracy.csv")[columns]
     pd.testing.assert_frame_equal(resumed, pd.read_csv(results / "report" / "accuracy.csv")[columns])
+
+
+def screenshot(chromium, page: Path, png: Path) -> np.ndarray:
+    """Headless Chromium's screenshot of a local page (its scripts run) as an RGB array."""
+    from PIL import Image
+
+    subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                    "--window-size=1400,1000", "--virtual-time-budget=5000", f"--screenshot={png}",
+                    page.as_uri()], check=True, capture_output=True, timeout=180)
+    return np.asarray(Image.open(png).convert("RGB"), dtype=float)
+
+
+def test_snakemake_report_embeds_the_plots_and_chromium_renders_them(smoke, tmp_path):
+    """`snakemake --report report.html` on the smoke run: every report plot is embedded, byte for
+    byte, in its section; the page renders; and the accuracy plot shows when opened as the
+    report's own buttons open it (its classifiers' line colours fill the screenshot)."""
+    import base64
+    import re
+
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        pytest.skip("headless Chromium is not installed (Debian package `chromium`)")
+    workdir, results = smoke
+    report = tmp_path / "report.html"
+    snakemake(workdir, "--configfile", "config/smoke.yaml", "--report", str(report))
+    html = report.read_text()
+    entries = json.loads(re.search(r"var results = (\{.*?\});\n", html, re.S).group(1))
+    categories = json.loads(re.search(r"var categories = (\{.*?\});\n", html, re.S).group(1))
+    section = {path: name for name, subcategories in categories.items()
+               for paths in subcategories.values() for path in paths}
+    plots = sorted((results / "report" / "plots").glob("*.png"))
+    for plot in plots:
+        key = str(plot.relative_to(workdir))
+        assert entries[key]["data_uri"].startswith("data:image/png")
+        assert base64.b64decode(entries[key]["data_uri"].split("base64,", 1)[1]) == plot.read_bytes()
+        assert entries[key]["caption"], key
+    assert {section[str(p.relative_to(workdir))] for p in plots} == {"Accuracy", "Confusion matrices", "Calibration",
+                                                                      "Job timings"}
+    assert {Path(key).name for key in entries} >= {"accuracy.csv", "job_timings.csv", "params.json"}
+
+    def plot_colour_share(image):  # matplotlib's C0 and C1: the first two classifiers' lines
+        return sum((np.abs(image - colour).max(axis=2) < 30).mean() for colour in ([31, 119, 180], [255, 127, 14]))
+
+    front = screenshot(chromium, report, tmp_path / "front.png")
+    assert front.std() > 10  # not a blank page
+    key = str(results.relative_to(workdir) / "report" / "plots" / "accuracy_vs_measured_percent.png")
+    page, end = html.rsplit("</body>", 1)
+    opened = tmp_path / "report_opened.html"
+    opened.write_text(page + "<script>window.addEventListener('load', () => setTimeout(() => app.setView({content: 'img', "
+                      f"contentPath: results[{json.dumps(key)}].data_uri, resultPath: {json.dumps(key)}}}), 500));"
+                      "</script></body>" + end)
+    shot = screenshot(chromium, opened, tmp_path / "accuracy.png")
+    assert plot_colour_share(shot) > 5e-4 and plot_colour_share(shot) > 10 * plot_colour_share(front)

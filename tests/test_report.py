@@ -212,19 +212,26 @@ def test_simulation_gain_recall_and_protocol_labels(train_outputs, tmp_path):
 
 def test_job_timings_summarise_snakemake_benchmark_files(tmp_path):
     from condmon.job_timings import summarise
+    from condmon.plots import job_timings as timings_plot
 
     header = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
+    paths = []
     for name, seconds, rss in (("simulate/healthy_450rpm_batch000", 6.5, 310.2),
-                               ("simulate/healthy_775rpm_batch000", 8.5, 290.0), ("track", 20.0, 800.5)):
+                               ("simulate/healthy_775rpm_batch000", 8.5, 290.0), ("track", 20.0, 800.5),
+                               ("simulate/healthy_450rpm_batch001", 99.0, 999.0)):
         path = tmp_path / f"{name}.tsv"
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(header + f"{seconds}\t0:00:06\t{rss}\t1\t1\t1\t0\t0\t90\t{seconds - 0.5}\n")
-    timings = summarise(tmp_path).set_index("rule")
+        paths.append(path)
+    timings = summarise({"simulate": paths[:2], "track": paths[2:3]}).set_index("rule")  # not the last one
     assert list(timings.index) == ["simulate", "track"]
     assert timings.loc["simulate", "jobs"] == 2 and timings.loc["simulate", "wall_seconds_total"] == 15.0
     assert timings.loc["simulate", "wall_seconds_median"] == 7.5 and timings.loc["simulate", "peak_rss_mb_max"] == 310.2
     assert timings.loc["track", "cpu_seconds_total"] == 19.5
-    assert summarise(tmp_path / "none").empty
+    assert summarise({"simulate": []}).empty
+    figure = timings_plot(timings.reset_index(), "note")
+    assert [ax.get_xlabel() for ax in figure.axes] == ["wall seconds (all jobs)", "peak memory per job (MB)"]
+    assert [t.get_text() for t in figure.axes[0].get_yticklabels()] == ["simulate", "track"]
 
 
 def test_accuracy_rows_carry_leaky_wilson_interval_and_small_test_flag():

@@ -176,7 +176,7 @@ def test_registry_errors_name_the_culprit():
 def test_no_branch_on_a_system_name_outside_the_registry():
     """Rules, scripts and the stage library ask the system; only condmon/systems/ knows names."""
     pattern = re.compile(r"""(['"](gear|bearing|cwru|toy)['"])|SYSTEM\s*==|\bsystem\s*==""")
-    files = [ROOT / "Snakefile", *(ROOT / "workflow" / "rules").glob("*.smk"),
+    files = [ROOT / "workflow" / "Snakefile", *(ROOT / "workflow" / "rules").glob("*.smk"),
              *(ROOT / "workflow" / "scripts").glob("*.py"), *(ROOT / "workflow" / "condmon").glob("*.py")]
     hits = [f"{path.relative_to(ROOT)}:{n}: {line.strip()}" for path in files
             for n, line in enumerate(path.read_text().splitlines(), 1) if pattern.search(line)]

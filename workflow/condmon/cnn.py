@@ -53,6 +53,9 @@ from torch import nn
 from condmon.seeds import derive_seed
 
 log = logging.getLogger(__name__)
+# An epoch's progress line at most this often (and the first epoch's), so a long fit shows it is
+# alive without thousands of lines in the job log.
+EPOCH_LOG_SECONDS = 10.0
 
 FEATURE_NAME = re.compile(r"fft_(?P<channel>.+)_(?P<band>[0-9.]+)Hz")
 HISTORY_COLUMNS = ["member", "epoch", "train_loss", "train_accuracy", "val_loss",
@@ -354,6 +357,7 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
         has_val = len(y_val) > 0
         best = (np.inf, 0, None)  # validation loss, epoch, state
         history, waited = [], 0
+        last_logged = -np.inf
         for epoch in range(1, int(self.epochs) + 1):
             net.train()
             order = torch.randperm(len(y_train), generator=generator).to(device)
@@ -378,6 +382,11 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
                     row["val_loss"] = float(loss_fn(logits, y_val))
                     row["val_accuracy"] = float((logits.argmax(dim=1) == y_val).float().mean())
             history.append(row)
+            if time.perf_counter() - last_logged >= EPOCH_LOG_SECONDS:
+                last_logged = time.perf_counter()
+                log.info("CNN member %d of %d, epoch %d of at most %d: train loss %.4g, validation loss %.4g, "
+                         "validation accuracy %.3f", member + 1, int(self.members), epoch, int(self.epochs),
+                         row["train_loss"], row["val_loss"], row["val_accuracy"])
             if not has_val:
                 continue
             if row["val_loss"] < best[0]:

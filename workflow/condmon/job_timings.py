@@ -10,24 +10,22 @@ COLUMNS = ["rule", "jobs", "wall_seconds_total", "wall_seconds_median", "wall_se
            "peak_rss_mb_max"]
 
 
-def read_benchmarks(folder) -> pd.DataFrame:
-    """One row per job: `rule` (the first folder or file name under `folder`), `job`, and the
-    benchmark columns. No folder or no file: an empty frame."""
-    folder = Path(folder)
+def read_benchmarks(files_by_rule: dict) -> pd.DataFrame:
+    """One row per job: `rule`, `job` (its file's name) and the benchmark columns, from
+    {rule: its jobs' benchmark files}. An empty file (a job Snakemake could not measure) gives no
+    row; no file: an empty frame."""
     rows = []
-    for path in sorted(folder.rglob("*.tsv")) if folder.is_dir() else []:
-        relative = path.relative_to(folder)
-        frame = pd.read_csv(path, sep="\t")
-        if frame.empty:
-            continue
-        frame = frame.assign(rule=relative.parts[0].removesuffix(".tsv"), job=str(relative.with_suffix("")))
-        rows.append(frame)
+    for rule, paths in files_by_rule.items():
+        for path in map(Path, paths):
+            frame = pd.read_csv(path, sep="\t")
+            if not frame.empty:
+                rows.append(frame.assign(rule=rule, job=path.stem))
     return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=["rule", "job", "s", "max_rss"])
 
 
-def summarise(folder) -> pd.DataFrame:
+def summarise(files_by_rule: dict) -> pd.DataFrame:
     """Per rule: jobs, total / median / longest wall seconds, CPU seconds, largest peak RSS (MB)."""
-    jobs = read_benchmarks(folder)
+    jobs = read_benchmarks(files_by_rule)
     if jobs.empty:
         return pd.DataFrame(columns=COLUMNS)
     numeric = {c: pd.to_numeric(jobs[c], errors="coerce") for c in ("s", "max_rss", "cpu_time") if c in jobs}

@@ -376,3 +376,19 @@ def calibration_convergence(history, chosen_law: str, note: str):
     ax.grid(alpha=0.3)
     ax.legend(title="contact law", fontsize=9)
     return _finish(fig, "Calibration convergence", note)
+
+
+def job_timings(timings, note: str):
+    """Per rule: the wall seconds of all its jobs (the longest job marked) and the largest peak
+    memory of one job. ``timings``: condmon.job_timings.summarise's table."""
+    rules = list(timings["rule"])
+    fig, (wall, memory) = plt.subplots(1, 2, figsize=(10, 1.2 + 0.45 * len(rules)), sharey=True)
+    wall.barh(rules, timings["wall_seconds_total"], color="C0", label="all jobs")
+    wall.plot(timings["wall_seconds_max"], rules, "k|", markersize=14, label="longest job")
+    wall.set_xlabel("wall seconds (all jobs)")
+    memory.barh(rules, timings["peak_rss_mb_max"], color="C1")
+    memory.set_xlabel("peak memory per job (MB)")
+    wall.invert_yaxis()  # rules top to bottom as in the table
+    for ax in (wall, memory):
+        ax.grid(axis="x", alpha=0.3)
+    return _finish(fig, "Job timings per rule (Snakemake benchmark files)", note, legend_from=wall)

@@ -626,11 +626,25 @@ def measured_records_summary(records_path) -> dict:
             "left_out": left_out[columns].to_dict(orient="records")}
 
 
+def write_job_timings(files_by_rule: dict, csv_path, plots_dir, plot_names: list, note: str) -> dict:
+    """Per-rule wall time and peak memory from {rule: its jobs' benchmark files}: a CSV (when
+    csv_path is given), a plot in plots_dir (added to plot_names) and {rule: figures} for
+    summary.json."""
+    timings = job_timings.summarise(files_by_rule)
+    if csv_path is not None:
+        write_text(timings.to_csv(index=False), csv_path)
+    if not timings.empty:
+        plots.save_figure(plots.job_timings(timings, note), Path(plots_dir) / "job_timings.png")
+        plot_names.append("job_timings.png")
+    return {row.pop("rule"): row for row in timings.to_dict("records")}
+
+
 def write_report(metrics_paths, predictions_paths, calibration_params, calibration_spectra,
                  calibration_history, accuracy_path, summary_path, plots_dir, run_name: str,
                  data_source: str, confusion_percent=(0,), simulation_reports=(),
                  baseline_paths=(), measured_records=None, record_recall_path=None,
-                 healthy_state: str | None = None, benchmarks_dir=None, job_timings_path=None,
+                 healthy_state: str | None = None, benchmarks: dict | None = None,
+                 job_timings_path=None,
                  bench_effects=(), prediction_shares_path=None,
                  simulated_validation_paths=(), measured_features_path=None,
                  condition: str = "speed_rpm", design_records=(), evaluation_path=None,
@@ -638,6 +652,8 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     """Build the whole report; returns the summary dict. Every output is written atomically.
 
     prediction_shares_path: where prediction_shares.csv goes (None: not written).
+    benchmarks: {rule: the benchmark files of its jobs} of the jobs before this one (None: no
+    timings): job_timings.csv, summary.json's ``job_timings`` and plots/job_timings.png.
     simulated_validation_paths: the train stage's simulated_validation.csv files (given only
     with hybrid.simulated_validation_share > 0): summary.json's ``simulated_validation``.
 
@@ -702,11 +718,9 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
                 {"test_source": SIMULATED_VALIDATION, "label": SIMULATED_VALIDATION_LABEL,
                  "results": [], "note": "no simulated record was held out (every stratum's "
                                         "share rounds to zero records)"})
-        if benchmarks_dir is not None:  # the jobs that finished before this one
-            timings = job_timings.summarise(benchmarks_dir)
-            summary["job_timings"] = {row.pop("rule"): row for row in timings.to_dict("records")}
-            if job_timings_path is not None:
-                write_text(timings.to_csv(index=False), job_timings_path)
+        if benchmarks is not None:
+            summary["job_timings"] = write_job_timings(benchmarks, job_timings_path, staging, summary["plots"],
+                                                       note=f"run {run_name}")
         if measured_features_path is not None:
             table, overall = evaluation_tables(predictions, baseline, labels, healthy_state,
                                                measured_features_path, condition, design_records)

@@ -6,7 +6,8 @@ rule calibrate:
     input:
         measured=rules.measured.output[0],
     output:
-        params=f"{RESULTS}/calibration/{{variant}}/params.json",
+        params=report(f"{RESULTS}/calibration/{{variant}}/params.json", caption="../report/calibration.rst",
+                      category="Calibration", labels={"name": "calibrated parameters ({variant})"}),
         history=f"{RESULTS}/calibration/{{variant}}/history.parquet",
         spectra=f"{RESULTS}/calibration/{{variant}}/spectra.parquet",
         plot=f"{RESULTS}/calibration/{{variant}}/convergence.png",
@@ -19,7 +20,8 @@ rule calibrate:
         spectrum=config["features"]["spectrum"],
         data_source=data_source(),
         condition=CONDITION,  # calibration.reserve: a lone healthy record per condition
-    threads: workflow.cores
+    # every core of the run; none are given to `snakemake --report` or `--lint` (workflow.cores would stop them)
+    threads: workflow.resource_settings.cores or 1
     conda:
         "../envs/simulation.yaml"
     benchmark:

@@ -57,10 +57,13 @@ def batch_samples(batch):
     return min(sim["samples_per_job"], sim["samples_per_state"] - int(batch) * sim["samples_per_job"])
 
 
+BATCHES = [f"{b:03d}" for b in range(N_BATCHES)]
+
+
 def simulated_batches(extension="parquet"):
     """Every simulation job's signal table (or its .json report)."""
     return expand(f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.{extension}",
-                  health=HEALTH_STATES, speed=SPEEDS, batch=[f"{b:03d}" for b in range(N_BATCHES)])
+                  health=HEALTH_STATES, speed=SPEEDS, batch=BATCHES)
 
 
 def calibration_outputs(name, calibration=None):
@@ -142,3 +145,29 @@ config_hash = _config_hash(config)
 # a run without the key.
 SIMULATED_VALIDATION_SHARE = config["hybrid"]["simulated_validation_share"]
 
+
+# -- the report rule (report.smk) ------------------------------------------------------------
+
+
+def upstream_benchmarks():
+    """{rule: the benchmark file of each of its jobs} of every job before the report (from the
+    rules' `benchmark:` patterns), so the report's job timings cover exactly this run's jobs. The
+    track job runs beside the report."""
+    return {"measured_part": expand(rules.measured_part.benchmark, part=MEASURED_PARTS),
+            "measured": [rules.measured.benchmark],
+            "calibrate": expand(rules.calibrate.benchmark, variant=CALIBRATIONS),
+            "simulate": expand(rules.simulate.benchmark, health=HEALTH_STATES, speed=SPEEDS, batch=BATCHES),
+            "features_measured": [rules.features_measured.benchmark],
+            "features_simulated": [rules.features_simulated.benchmark],
+            "hybrid": expand(rules.hybrid.benchmark, protocol=PROTOCOLS),
+            "train": expand(rules.train.benchmark, classifier=CLASSIFIERS, protocol=PROTOCOLS)}
+
+
+def plot_category(wildcards):
+    """The report section of a plot in report/plots/, by its file name."""
+    for prefix, category in (("confusion", "Confusion matrices"), ("prediction_shares", "Confusion matrices"),
+                             ("spectra", "Calibration"), ("calibration", "Calibration"),
+                             ("job_timings", "Job timings")):
+        if wildcards.name.startswith(prefix):
+            return category
+    return "Accuracy"

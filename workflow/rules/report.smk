@@ -1,4 +1,5 @@
-# Stage 7: MLflow tracking (one writer) and the report.
+# Stage 7: MLflow tracking (one writer) and the report. report(...) marks what
+# `snakemake --report report.html` shows, captioned by workflow/report/*.rst.
 
 
 rule track:
@@ -43,21 +44,30 @@ rule report:
         # accuracy on the held-out simulated records (hybrid.simulated_validation_share > 0)
         simulated_validation=(train_outputs("simulated_validation.csv")
                               if SIMULATED_VALIDATION_SHARE else []),
+        # the benchmark files of every job before this one, named benchmarks_<rule>
+        **{f"benchmarks_{rule}": files for rule, files in upstream_benchmarks().items()},
     output:
-        accuracy=f"{RESULTS}/report/accuracy.csv",
-        prediction_shares=f"{RESULTS}/report/prediction_shares.csv",
+        accuracy=report(f"{RESULTS}/report/accuracy.csv", caption="../report/accuracy.rst",
+                        category="Accuracy", labels={"name": "accuracy table"}),
+        prediction_shares=report(f"{RESULTS}/report/prediction_shares.csv",
+                                 caption="../report/prediction_shares.rst", category="Confusion matrices",
+                                 labels={"name": "prediction shares table"}),
         summary=f"{RESULTS}/report/summary.json",
-        recall_per_record=f"{RESULTS}/report/recall_per_record.csv",
+        recall_per_record=report(f"{RESULTS}/report/recall_per_record.csv",
+                                 caption="../report/recall_per_record.rst", category="Accuracy",
+                                 labels={"name": "recall per record table"}),
         evaluation=f"{RESULTS}/report/evaluation.csv",
         evaluation_summary=f"{RESULTS}/report/evaluation_summary.csv",
-        job_timings=f"{RESULTS}/report/job_timings.csv",
-        plots=directory(f"{RESULTS}/report/plots"),
+        job_timings=report(f"{RESULTS}/report/job_timings.csv", caption="../report/job_timings.rst",
+                           category="Job timings", labels={"name": "job timings table"}),
+        plots=report(directory(f"{RESULTS}/report/plots"), patterns=["{name}.png"],
+                     caption="../report/plots.rst", category=plot_category, labels={"name": "{name}"}),
     params:
         run_name=config["run_name"],
         data_source=data_source(),
         bench_effects=SYSTEM.bench_effects(),
         confusion_percent=config["report"]["confusion_percent"],
-        benchmarks=BENCHMARKS,
+        benchmarked_rules=list(upstream_benchmarks()),
         healthy_state=SYSTEM.healthy_state,
         calibrations=CALIBRATIONS,  # the first one's calibration made the simulated data
         condition=CONDITION,
