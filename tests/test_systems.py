@@ -17,7 +17,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from conftest import CWRU, ROOT, config_of
+from conftest import ROOT, config_of
 from condmon.calibrate import FAILED_COST, Bound, Calibrator, SpectrumModel
 from condmon.config import ConfigError
 from condmon.features import compute_feature_table
