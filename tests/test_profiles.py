@@ -37,13 +37,15 @@ def test_the_slurm_plugin_is_pinned_at_the_installed_version(package):
 
 
 def test_the_slurm_profile_gives_each_rule_its_resources():
-    result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--profile", "profiles/slurm",
+    # --forceall: every job is planned whatever results/ holds
+    result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--forceall", "--profile", "profiles/slurm",
                              "--configfile", "config/smoke.yaml"], cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 0, result.stderr[-3000:]
     jobs = {}  # rule -> its first job's block of the dry run
     for block in result.stdout.split("\nrule ")[1:]:
         jobs.setdefault(block.split(":", 1)[0], block)
     config = profile("slurm")
+    assert set(config["set-resources"]) | set(config["set-threads"]) <= set(jobs), result.stdout[-2000:]
     for rule, block in jobs.items():
         resources = re.search(r"resources: (.*)", block).group(1) + ","
         for key, value in {**config["default-resources"], **config["set-resources"].get(rule, {})}.items():
