@@ -345,3 +345,81 @@ def test_snakemake_report_embeds_the_plots_and_chromium_renders_them(smoke, tmp_
                       "</script></body>" + end)
     shot = screenshot(chromium, opened, tmp_path / "accuracy.png")
     assert plot_colour_share(shot) > 5e-4 and plot_colour_share(shot) > 10 * plot_colour_share(front)
+
+
+def node_profile(workdir: Path, node: dict) -> str:
+    """profiles/slurm as shipped, with every job's threads and memory capped at what the test
+    cluster's one node has (a job asking for more would wait forever); returns its folder."""
+    profile = yaml.safe_load((workdir / "profiles" / "slurm" / "config.yaml").read_text())
+    for rule, threads in profile.get("set-threads", {}).items():
+        profile["set-threads"][rule] = min(threads, node["cpus"])
+    for resources in [profile["default-resources"], *profile.get("set-resources", {}).values()]:
+        if "mem_mb" in resources:
+            resources["mem_mb"] = min(resources["mem_mb"], node["mem_mb"])
+    folder = workdir / "profiles" / "slurm-node"
+    folder.mkdir()
+    (folder / "config.yaml").write_text(yaml.safe_dump(profile))
+    return str(folder.relative_to(workdir))
+
+
+def slurm_test_skip_reason():
+    import os
+    from slurm_cluster import can_install_packages, machine_has_its_own_slurm
+    if os.environ.get("CONDMON_SLURM_TEST") != "1":
+        return "opt-in: CONDMON_SLURM_TEST=1 (installs and starts a SLURM cluster, reruns the smoke pipeline on it)"
+    if not can_install_packages():
+        return "needs SLURM's daemons installed, or root with apt-get to install them"
+    if machine_has_its_own_slurm():
+        return "this machine has a SLURM configuration of its own (/etc/slurm/slurm.conf)"
+    return None
+
+
+@pytest.mark.skipif(slurm_test_skip_reason() is not None, reason=str(slurm_test_skip_reason()))
+def test_the_smoke_run_through_the_slurm_profile_goes_through_slurm_and_equals_the_local_run(smoke, tmp_path):
+    import tempfile
+    import time
+    from slurm_cluster import SlurmCluster
+    _, results = smoke
+    workdir = copy_project(tmp_path / "project")
+    planned = planned_jobs(workdir, smoke_config())
+    # a folder of its own under /tmp: munged wants every folder above its socket open to all
+    cluster_root = Path(tempfile.mkdtemp(prefix="condmon-slurm-"))
+    try:
+        with SlurmCluster(cluster_root) as cluster:
+            start = time.monotonic()
+            result = subprocess.run(
+                SNAKEMAKE + ["--profile", node_profile(workdir, cluster.node()), "--configfile", "config/smoke.yaml",
+                             "--slurm-status-command", "squeue", "--slurm-init-seconds-before-status-checks", "5",
+                             "--slurm-keep-successful-logs"],
+                cwd=workdir, env=cluster.env, capture_output=True, text=True)
+            seconds = time.monotonic() - start
+            assert result.returncode == 0, f"SLURM run failed:\n{result.stderr[-6000:]}"
+            jobs = cluster.sacct()
+            sacct_text = cluster.sacct_text()
+    finally:
+        shutil.rmtree(cluster_root, ignore_errors=True)
+    # the executor's log of each SLURM job: slurm_logs/rule_<rule>[/<wildcards>]/<SLURM job id>.log
+    logs = workdir / ".snakemake" / "slurm_logs"
+    slurm_jobs = {int(log.stem): str(log.parent.relative_to(logs)).removeprefix("rule_") for log in logs.rglob("*.log")}
+    print(f"\nsmoke run through SLURM: {seconds:.0f} s\n{sacct_text}\nSLURM job: rule/wildcards\n"
+          + "\n".join(f"{job}: {slurm_jobs[job]}" for job in sorted(slurm_jobs)))
+    # every job of the run, and nothing else, went through SLURM and completed there
+    assert (jobs["State"] == "COMPLETED").all(), jobs
+    assert sorted(jobs["JobID"].astype(int)) == sorted(slurm_jobs)
+    submitted = pd.Series([job.split("/")[0] for job in slurm_jobs.values()]).value_counts().to_dict()
+    assert submitted == {rule: n for rule, n in planned.items() if rule != "all"}
+    # the same results as the local run
+    run = workdir / "results" / "smoke"
+    for path in sorted((results / "simulated").rglob("*.parquet")):
+        assert sha256(run / path.relative_to(results)) == sha256(path), path
+    for table in ("measured", "simulated"):
+        pd.testing.assert_frame_equal(pd.read_parquet(run / "features" / f"{table}.parquet"),
+                                      pd.read_parquet(results / "features" / f"{table}.parquet"))
+    for params in sorted((results / "calibration").glob("*/params.json")):
+        local, on_slurm = (json.loads(p.read_text()) for p in (params, run / params.relative_to(results)))
+        for timing in ("seconds", "seconds_per_evaluation"):
+            on_slurm.pop(timing), local.pop(timing)
+        assert on_slurm == local, params
+    columns = ["classifier", "protocol", "measured_percent", "repeat", "speed_rpm", "holdout", "accuracy", "macro_f1"]
+    pd.testing.assert_frame_equal(pd.read_csv(run / "report" / "accuracy.csv")[columns],
+                                  pd.read_csv(results / "report" / "accuracy.csv")[columns])
