@@ -147,8 +147,9 @@ def convergence(spec: str, refinement: int = 4) -> dict:
 
 
 def dag_jobs(configfile: str) -> int:
-    """Jobs in the DAG of `snakemake -n --configfile configfile` (from the job-count table)."""
-    out = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--quiet", "rules", "--configfile", configfile],
+    """Jobs in the whole DAG of `configfile` (`snakemake -n --forceall`: whatever results exist)."""
+    out = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--forceall", "--quiet", "rules",
+                          "--configfile", configfile],
                          cwd=ROOT, capture_output=True, text=True)
     if out.returncode:
         raise RuntimeError(f"snakemake -n --configfile {configfile} failed:\n{out.stderr[-2000:]}")
