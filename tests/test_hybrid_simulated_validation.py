@@ -261,12 +261,15 @@ def test_scripts_hold_out_write_and_keep_share_zero_as_before(tmp_path, isolated
     write_features(SIMULATED, tmp_path / "simulated.parquet")
     write_features(MEASURED, tmp_path / "measured.parquet")
     hybrid_params = dict(protocol="record_split", measured_percent=[0, 50], repeats=2, seed=11,
-                         min_test_records=1)
+                         min_test_records=1, healthy_state="healthy", reserve={})
     log = [str(tmp_path / "log.txt")]
-    run_script("hybrid.py", input=SimpleNamespace(features=tmp_path / "measured.parquet"),
+    records = MEASURED[["record_id", "health_state", "speed_rpm"]].drop_duplicates().assign(status="kept")
+    records.to_csv(tmp_path / "records.csv", index=False)  # the measured stage's record list
+    run_script("hybrid.py", input=SimpleNamespace(features=tmp_path / "measured.parquet",
+                                                  records=tmp_path / "records.csv"),
                output=SimpleNamespace(splits=tmp_path / "plain.parquet"),
                params=SimpleNamespace(**hybrid_params), log=log)
-    both = SimpleNamespace(features=tmp_path / "measured.parquet",
+    both = SimpleNamespace(features=tmp_path / "measured.parquet", records=tmp_path / "records.csv",
                            simulated=tmp_path / "simulated.parquet")
     for name, share in (("zero.parquet", 0.0), ("held.parquet", 0.3)):
         run_script("hybrid.py", input=both, output=SimpleNamespace(splits=tmp_path / name),

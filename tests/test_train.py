@@ -248,12 +248,20 @@ def test_scripts_run_end_to_end(tmp_path, isolated_logging):
     assert len(simulated) == 3 * 2 * 3 * 2 and len(names) == 8
     assert list(simulated.columns[:len(ID_COLUMNS)]) == ID_COLUMNS
 
-    run_script("hybrid.py", input=SimpleNamespace(features=tmp_path / "features/measured.parquet"),
+    measured, _ = read_feature_table(tmp_path / "features/measured.parquet")
+    records = measured[["record_id", "health_state", "speed_rpm"]].drop_duplicates().assign(status="kept")
+    records.to_csv(tmp_path / "records.csv", index=False)  # the measured stage's record list
+    run_script("hybrid.py", input=SimpleNamespace(features=tmp_path / "features/measured.parquet",
+                                                  records=tmp_path / "records.csv"),
                output=SimpleNamespace(splits=tmp_path / "hybrid/record_split.parquet"),
                params=SimpleNamespace(protocol="record_split", measured_percent=[0, 50],
-                                      repeats=2, seed=1, min_test_records=1),
+                                      repeats=2, seed=1, min_test_records=1, healthy_state="healthy",
+                                      reserve={}),
                log=[str(tmp_path / "logs/hybrid.log")])
-    assert len(read_split_table(tmp_path / "hybrid/record_split.parquet")) == 2 * 2 * 18
+    splits = read_split_table(tmp_path / "hybrid/record_split.parquet")
+    # every record in every (percentage, repeat); the healthy calibration set is never a test record
+    assert splits.groupby(["measured_percent", "repeat"]).record_id.nunique().eq(18).all()
+    assert (splits.role == "calibration").any() and len(splits.groupby(["measured_percent", "repeat"])) == 2 * 2
 
     out = tmp_path / "train/svm/record_split"
     run_script("train.py",
