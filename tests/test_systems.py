@@ -100,11 +100,12 @@ def test_repeated_runs_do_not_keep_memory(system_and_config):
     # a batch job or a calibration worker runs hundreds of samples in one process: exudyn keeps a
     # run's system (items, stored sensor data) until its container is reset, 3-4 MB per 0.1-s gear run
     system, config = system_and_config
-    parameters, duration = one_sample(system, config, system.healthy_state)
+    parameters, _ = one_sample(system, config, system.healthy_state)
+    duration = system.segment_length / system.output_rate_hz
     system.simulate_sample(parameters, system.healthy_state, system.speeds_rpm[0], duration, seed=3)  # warm-up
     gc.collect()
     before = _resident_mb()
-    for seed in range(4):
+    for seed in range(3):
         system.simulate_sample(parameters, system.healthy_state, system.speeds_rpm[0], duration, seed=seed)
     gc.collect()
     assert _resident_mb() - before < 4.0
