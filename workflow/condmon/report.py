@@ -539,7 +539,8 @@ def evaluation_tables(predictions, baseline, labels, healthy_state, measured_fea
     conditions = dict(zip(features["record_id"].astype(str), features[condition].astype(float)))
     table = evaluation.evaluation_table(predictions, healthy_state, labels, conditions, condition,
                                         design_records, baseline)
-    return table, evaluation.summarise(table, predictions)
+    return table, evaluation.summarise(table, predictions, healthy_state, conditions, condition,
+                                       design_records)
 
 
 def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFrame,
@@ -598,8 +599,9 @@ def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFra
                  "report.design_records is empty: no record is declared as used in design")}
     summary["evaluation"] = (
         "per-segment, per-record (majority vote) and balanced accuracy with 95 % Wilson "
-        "intervals over pooled test segments/records (optimistic: segments of a record are not "
-        "independent), false-alarm rate (healthy test segments called faulty), gain against "
+        "intervals (per evaluation on its test set; over repeats on one repeat's distinct test "
+        "segments/records: repeats and holdouts that test a segment again add no data; still "
+        "optimistic: segments of a record are not independent), false-alarm rate (healthy test segments called faulty), gain against "
         "the strongest of chance, the test set's majority class and the best measured-only "
         "classifier; evaluation.csv per evaluation, evaluation_summary.csv over repeats")
 
