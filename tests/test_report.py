@@ -90,10 +90,11 @@ def test_plots_exist_are_listed_and_are_real_images(built_report):
                 "spectra_measured_vs_calibrated.png", "calibration_convergence.png",
                 "confusion_knn_record_split_all.png", "confusion_logreg_condition_holdout_600rpm.png",
                 "prediction_shares_knn_record_split.png",
-                "prediction_shares_logreg_condition_holdout.png"}
+                "prediction_shares_logreg_condition_holdout.png", "accuracy_per_condition.png",
+                "accuracy_design_vs_evaluation.png"}
     assert expected <= set(plots)
-    # classifiers x protocols x (all + 2 speeds confusion figures + prediction shares), 5 others
-    assert len(plots) == 2 * 2 * 4 + 5
+    # classifiers x protocols x (all + 2 speeds confusion figures + prediction shares), 7 others
+    assert len(plots) == 2 * 2 * 4 + 7
     for name in plots:
         data = (out / "plots" / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n", name
@@ -314,6 +315,12 @@ def test_evaluation_tables_per_condition_design_records_and_baselines(built_repo
     assert set(result["accuracy_mean_per_condition"]) == {"speed_rpm=600", "speed_rpm=900"}
     assert set(result["accuracy_mean_by_records"]) == {"design", "evaluation"}
     assert "design" in summary["design_records"]["note"]
+    # condition_holdout at 0 %: the same test set and deterministic fits in both repeats
+    alike = next(r for r in summary["results"] if r["classifier"] == "knn"
+                 and r["protocol"] == "condition_holdout" and r["measured_percent"] == 0)
+    assert alike["distinct_repeats"] == 1 and alike["n_repeats"] == 2
+    assert alike["accuracy_std"] is None and "one repeat" in alike["repeats_note"]
+    assert "simulated training data are the same in every repeat" in summary["repeats"]
     overall = pd.read_csv(out / "evaluation_summary.csv")
     assert {"accuracy_ci_low", "false_alarm_ci_high", "distinct_repeats", "leaky"} <= set(overall)
 
