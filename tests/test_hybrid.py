@@ -335,3 +335,38 @@ def test_shared_cwru_splits_are_honest(shared_cwru, protocol):
             held = key[2].partition("=")[2]
             assert set(records.set_index("record_id").loc[
                 test.record_id[test.record_id != "cwru-97"].unique(), "specimen_group"]) == {held}
+
+
+def test_design_records_are_reported_apart_on_the_shared_files(shared_cwru):
+    """config/cwru.yaml names every shared record as a design record; a folder with other
+    records gets them reported apart. Simulated here by declaring the load-0 records only: the
+    `design` rows hold exactly the tested load-0 records, the `evaluation` rows the load-1 ones."""
+    import yaml
+    from pathlib import Path
+    from condmon.evaluation import evaluation_table, summarise
+
+    segments, records = shared_cwru
+    config = yaml.safe_load((Path(__file__).parents[1] / "config/cwru.yaml").read_text())
+    assert sorted(config["report"]["design_records"]) == sorted(records.record_id)
+    splits = with_healthy("unseen_fault", segments, reserve=RESERVE, specimens=records)
+    labels = segments.drop_duplicates("record_id").set_index("record_id")
+    tested = splits[splits.role == "test"]
+    whole = tested.segment == -1  # a whole record: all its segments
+    test = pd.concat([tested[whole].drop(columns="segment").merge(segments, on="record_id"),
+                      tested[~whole].merge(segments, on=["record_id", "segment"])])
+    predictions = test.assign(classifier="svm", true_label=test.health_state,
+                              predicted_label="normal")  # any rule: the bookkeeping is tested
+    conditions = labels["load"].to_dict()
+    load0 = sorted(labels.index[labels["load"] == 0])
+    table = evaluation_table(predictions, "normal", sorted(set(labels.health_state)),
+                             conditions, "load", design_records=load0)
+    summary = summarise(table, predictions, "normal", conditions, "load", load0)
+    for subset, load in (("design", 0), ("evaluation", 1)):
+        rows = table[(table.records == subset) & (table.condition == "all")]
+        expected = predictions.groupby(["measured_percent", "repeat"]).apply(
+            lambda p: int((p.load == load).sum()), include_groups=False)
+        assert rows.set_index(["measured_percent", "repeat"]).n_test.to_dict() == expected.to_dict()
+        assert set(summary[summary.records == subset].measured_percent) == {0, 30, 60, 100}
+    # the healthy record (load 0, a design record) measures false alarms only in `design`
+    evaluation_rows = table[table.records == "evaluation"]
+    assert (evaluation_rows.n_healthy == 0).all() and (table[table.records == "design"].n_healthy > 0).all()
