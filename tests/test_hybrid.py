@@ -413,3 +413,20 @@ def test_overlapping_windows_of_a_cwru_file():
     assert (half.rows[2]["signal"] == plain.rows[1]["signal"]).all()
     with pytest.raises(ValueError, match="segment_hop must lie in 1..segment_length"):
         cwru_rows(CWRU, segment_length=2048, segment_hop=4096, files=["105.mat"])
+
+
+def test_the_pdm_bench_config_asks_for_its_split_and_checks_the_guard_gap():
+    import yaml
+    from pathlib import Path
+    from condmon.config import ConfigError, load_schema, validate_config
+
+    root = Path(__file__).parents[1]
+    schema = load_schema(root / "config/schema.yaml")
+    raw = yaml.safe_load((root / "config/cwru-pdm-bench.yaml").read_text())
+    config = validate_config(raw, schema)
+    assert config["hybrid"]["condition_split"] == {"train": [0, 1, 2], "test": [3]}
+    assert (config["bearing"]["segment_length"], config["bearing"]["segment_hop"]) == (2048, 1024)
+    assert config["hybrid"]["protocols"] == ["condition_holdout"]
+    raw["bearing"]["segment_hop"] = 512  # 75 % overlap: one guard segment no longer separates
+    with pytest.raises(ConfigError, match="guard_segments 1 .* use at least 3"):
+        validate_config(raw, schema)
