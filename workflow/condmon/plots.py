@@ -414,9 +414,7 @@ def accuracy_per_subset(summary, column: str, chance: float, note: str, title: s
                         color=colours[value], linestyle=styles[classifier],
                         label=f"{value}, {classifier}")
         ax.axhline(chance, linestyle=":", color="0.4", label=f"chance ({chance:.2f})")
-        ax.set_title(protocol_title(protocol))
-        ax.set_xlabel(PERCENT_LABEL)
-        ax.set_ylim(0, 1.05)
+        ax.set(title=protocol_title(protocol), xlabel=PERCENT_LABEL, ylim=(0, 1.05))
         ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel(f"{ACCURACY_LABEL} (fraction)")
     return _finish(fig, f"{title}\n(mean over repeats; bars: 95 % Wilson interval on one "
