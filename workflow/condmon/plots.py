@@ -401,7 +401,8 @@ def accuracy_per_subset(summary, column: str, chance: float, note: str, title: s
     protocols = sorted(summary["protocol"].unique())
     colours = _colours(sorted(summary[column].unique()))
     styles = dict(zip(sorted(summary["classifier"].unique()), ["-", "--", ":", "-."] * 4))
-    fig, axes = plt.subplots(1, len(protocols), figsize=(5.5 * len(protocols), 4.8),
+    # at least 9 inches: the two-line title must fit over a single panel
+    fig, axes = plt.subplots(1, len(protocols), figsize=(max(5.5 * len(protocols), 9.0), 4.8),
                              sharey=True, squeeze=False)
     for ax, protocol in zip(axes[0], protocols):
         rows = summary[summary["protocol"] == protocol]
