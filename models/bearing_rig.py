@@ -23,8 +23,14 @@ Mechanics (exudyn, plane x horizontal / y vertical, 8 DOF, RK44):
   w^2/(8 R_b) (1 +/- R_b/R_race) into a narrow slot, at most the depth), raised-cosine entry and
   exit ramps (`defect_entry`, `defect_exit` as fractions of the width: a gradual entry/exit is
   far less impulsive than a square pit), and per-passage randomness from a hash of the passage
-  index evaluated inside the symbolic function: slip (passage-time jitter of std `slip_std`
-  periods), depth variation and, for a ball whose spin axis wanders, a strike probability.
+  index evaluated inside the symbolic function: depth variation and, for a ball whose spin axis
+  wanders, a strike probability. Slip is cumulative: the passage rate wanders around the
+  kinematic one (a slow random slip rate of std `slip_std`, `SLIP_COMPONENTS` sinusoids between
+  `SLIP_BAND_HZ`), and the passage phase is its integral, so a passage late once stays late and
+  the defect lines spread around the kinematic frequencies by about the slip instead of sitting
+  exactly on them. The outer-race defect sits at `defect_clock` (CWRU rigs: 3:00, 6:00, 12:00;
+  the load pushes the journal down, so away from 6:00 its balls carry less load and strike
+  weaker).
 
 Measurement chain (post-processing at the sensor rate, before decimation): the vertical housing
 acceleration from the multibody model plus the response of several structural resonances
@@ -136,7 +142,7 @@ class BearingRigParameters:
     defect_depth_variation: float = 0.2     # per-passage depth spread, +/- fraction (uniform)
     defect_strike_probability: float = 1.0  # chance that a passage strikes (ball: spin axis wanders)
     defect_phase: float = 0.0               # rad: inner-race defect angle / ball defect spin angle at t=0
-    slip_std: float = 0.01                  # passage-time jitter, std as a fraction of the period
+    slip_std: float = 0.01                  # std of the wandering slip rate, fraction of the passage rate
     # Rough running of the damaged contact (rough pit floor, debris, a ball pit rubbing obliquely):
     # a random force (N rms, white at the sensor rate) added to the DE bearing force, modulated
     # at the defect's passage rate with depth `defect_roughness_modulation` (0 stationary, 1 gated).
@@ -214,7 +220,9 @@ def _check(p: BearingRigParameters, s: RigSettings) -> None:
         if not 0 <= p.defect_depth_variation < 1:
             raise ValueError("defect_depth_variation must lie in [0, 1)")
     if not 0 <= p.slip_std < 0.2:
-        raise ValueError(f"slip_std must lie in [0, 0.2) (fraction of the passage period), got {p.slip_std}")
+        raise ValueError(f"slip_std must lie in [0, 0.2) (fraction of the passage rate), got {p.slip_std}")
+    if not 0 <= p.defect_clock <= 12:
+        raise ValueError(f"defect_clock must lie in [0, 12] hours, got {p.defect_clock}")
     for f, zeta, _ in p.resonances:
         if not (0 < f < s.output_rate_hz * s.oversampling / 2 and 0 < zeta < 1):
             raise ValueError(f"resonance ({f}, {zeta}): need 0 < f < sensor Nyquist and 0 < zeta < 1")
@@ -233,10 +241,16 @@ def _hash01(esym, k, a: float, b: float):
     return z - esym.floor(z)
 
 
+# Cumulative slip: the slip rate is a sum of this many sinusoids of random frequency in this band
+# (slow against the passages, as load and lubrication change) and random phase.
+SLIP_COMPONENTS = 4
+SLIP_BAND_HZ = (0.5, 4.0)
+
+
 class _DefectProfile:
     """Builds the symbolic defect term: the passage phase psi(t) (one unit per ball passage or
-    strike), the local coordinate across the defect with jitter, the raised-cosine depth profile
-    and the line along which it acts."""
+    strike, with the integrated slip), the local coordinate across the defect, the raised-cosine
+    depth profile and the line along which it acts."""
 
     def __init__(self, p: BearingRigParameters, hash_seed: float):
         g = p.de_geometry
@@ -248,7 +262,6 @@ class _DefectProfile:
         self.width = p.defect_width
         self.entry, self.exit = p.defect_entry, p.defect_exit
         self.variation, self.strike = p.defect_depth_variation, p.defect_strike_probability
-        self.slip = p.slip_std
         self.seed = hash_seed
         z = g.n_balls
         if self.kind == "outer_race":
@@ -270,23 +283,35 @@ class _DefectProfile:
             self.arc_per_unit = g.ball_diameter / 2 * math.pi
             self.direction = (w_c, 0.0)                # carried by the cage (ball 0)
         self.period = 1.0 / self.psi_rate if self.kind != "none" else float("nan")
+        # slip rate s(t) = sum a cos(w t + phase), std slip_std; psi gains rate x its integral
+        wander = np.random.default_rng(int(hash_seed * 1e6))
+        omega = 2 * math.pi * wander.uniform(*SLIP_BAND_HZ, SLIP_COMPONENTS)
+        phases = wander.uniform(0.0, 2 * math.pi, SLIP_COMPONENTS)
+        amplitude = p.slip_std * math.sqrt(2.0 / SLIP_COMPONENTS)
+        self.slip_terms = ([(float(self.psi_rate * amplitude / w), float(w), float(f))
+                            for w, f in zip(omega, phases)] if self.kind != "none" else [])
+
+    def phase(self, t, sin):
+        """psi(t): passages since the reference, slip included (`sin`: esym.sin or np.sin)."""
+        psi = t * self.psi_rate + self.psi0
+        for amplitude, omega, phase in self.slip_terms:
+            psi = psi + sin(t * omega + phase) * amplitude
+        return psi
 
     def near_expr(self, esym, t):
-        """Symbolic condition: the nearest passage is within the defect's reach (width plus the
-        largest jitter), a cheap test that gates the costly profile."""
-        psi = t * self.psi_rate + self.psi0
+        """Symbolic condition: the nearest passage is within the defect's reach, a cheap test
+        that gates the costly profile."""
+        psi = self.phase(t, esym.sin)
         u = psi - esym.floor(psi + 0.5)
-        reach = 0.5 * self.width / self.arc_per_unit + math.sqrt(3) * self.slip + 1e-3
+        reach = 0.5 * self.width / self.arc_per_unit + 1e-3
         return esym.abs(u) < esym.Real(reach)
 
     def depth_expr(self, esym, t):
         R = esym.Real
-        psi = t * self.psi_rate + self.psi0
+        psi = self.phase(t, esym.sin)
         k = esym.floor(psi + 0.5)                      # index of the nearest passage
         u = psi - k                                    # in [-0.5, 0.5): passages from it
-        # jitter: uniform with std slip_std (half-width sqrt(3) std)
-        jitter = (_hash01(esym, k, 12.9898, self.seed) - 0.5) * (2 * math.sqrt(3) * self.slip)
-        x = (u - jitter) * (self.arc_per_unit / self.width) + 0.5   # 0..1 across the defect
+        x = u * (self.arc_per_unit / self.width) + 0.5   # 0..1 across the defect
         ramp_in = esym.min(esym.max(x * (1.0 / self.entry), R(0.0)), R(1.0))
         ramp_out = esym.min(esym.max((1.0 - x) * (1.0 / self.exit), R(0.0)), R(1.0))
         shape = esym.min(0.5 - 0.5 * esym.cos(ramp_in * math.pi), 0.5 - 0.5 * esym.cos(ramp_out * math.pi))
@@ -531,7 +556,7 @@ def simulate_rig(params: BearingRigParameters, settings: RigSettings | None = No
         # resonance bands without sharp impacts (what weak real faults look like)
         profile = _DefectProfile(p, hash_seed)
         t = acc[:, 0]
-        u = t * profile.psi_rate + profile.psi0
+        u = profile.phase(t, np.sin)
         u = u - np.floor(u + 0.5)
         window = np.cos(np.pi * u) ** 8                    # about a fifth of the period wide
         window /= np.sqrt(np.mean(window ** 2))

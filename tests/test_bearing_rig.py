@@ -5,7 +5,7 @@ import pytest
 
 from condmon.stat_features import envelope_line_ratio, envelope_spectrum
 from condmon.models.bearing_rig import (SKF_6203, SKF_6205, BearingRigParameters, RigSettings, SimulationError,
-                                effective_defect_depth, simulate_rig)
+                                _DefectProfile, effective_defect_depth, simulate_rig)
 
 SPEED = 1797.0
 SHAFT_HZ = SPEED / 60.0
@@ -111,3 +111,44 @@ def test_invalid_parameters_are_rejected():
         simulate_rig(BearingRigParameters(defect_kind="cage"), RigSettings(duration=0.01))
     with pytest.raises(ValueError, match="slip_std"):
         simulate_rig(BearingRigParameters(slip_std=0.5), RigSettings(duration=0.01))
+    with pytest.raises(ValueError, match="defect_clock"):
+        simulate_rig(BearingRigParameters(defect_clock=13.0), RigSettings(duration=0.01))
+
+
+def _outer_race(clock=6.0, slip=0.005, duration=0.3, seed=3):
+    params = BearingRigParameters(speed_rpm=SPEED, defect_kind="outer_race", defect_clock=clock,
+                                  **{**CLEAN, "slip_std": slip})
+    return simulate_rig(params, RigSettings(duration=duration, settle_time=0.1),
+                        np.random.default_rng(seed))["DE"]
+
+
+def test_outer_race_line_weakens_as_the_defect_leaves_the_load_zone():
+    """The load presses the journal down: at 6:00 the balls over the defect carry the most load;
+    at 4:30 less, at 3:00 none (no strike, no line: real 3:00 records are beyond the model)."""
+    bpfo = SKF_6205.orders()["bpfo"]
+    ratios = {clock: _line(_outer_race(clock), bpfo)[1] for clock in (6.0, 4.5, 3.0)}
+    assert ratios[6.0] > 2 * ratios[4.5] and ratios[4.5] > 4.0, ratios
+    assert ratios[3.0] < 3.0, ratios
+
+
+def _line_spread(signal, harmonic=3):
+    """Relative std of the envelope power around harmonic x BPFO (+/- 8 %, floor removed)."""
+    freqs, amps = envelope_spectrum(signal, FS)
+    f0 = harmonic * SKF_6205.orders()["bpfo"] * SHAFT_HZ
+    window = np.abs(freqs - f0) <= 0.08 * f0
+    power = np.clip(amps[window] ** 2 - np.median(amps[window] ** 2), 0, None)
+    centre = (freqs[window] * power).sum() / power.sum()
+    return float(np.sqrt(((freqs[window] - centre) ** 2 * power).sum() / power.sum()) / f0)
+
+
+def test_slip_is_cumulative_and_spreads_the_line_by_about_the_slip():
+    profile = _DefectProfile(BearingRigParameters(defect_kind="outer_race", slip_std=0.02), 42.0)
+    t = np.linspace(0.0, 10.0, 200_001)
+    psi = profile.phase(t, np.sin)
+    rate = np.gradient(psi, t) / profile.psi_rate - 1           # the slip rate
+    assert np.std(rate) == pytest.approx(0.02, rel=0.15)
+    # integrated: the passages drift by a good part of a period, not a jitter about fixed times
+    assert np.abs(psi - (t * profile.psi_rate + profile.psi0)).max() > 0.2
+    exact, slipping = (_line_spread(_outer_race(slip=s, duration=1.0)) for s in (0.0, 0.02))
+    assert exact < 0.005
+    assert 0.01 < slipping < 0.04, slipping

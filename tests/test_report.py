@@ -90,10 +90,11 @@ def test_plots_exist_are_listed_and_are_real_images(built_report):
                 "spectra_measured_vs_calibrated.png", "calibration_convergence.png",
                 "confusion_knn_record_split_all.png", "confusion_logreg_condition_holdout_600rpm.png",
                 "prediction_shares_knn_record_split.png",
-                "prediction_shares_logreg_condition_holdout.png"}
+                "prediction_shares_logreg_condition_holdout.png", "accuracy_per_condition.png",
+                "accuracy_design_vs_evaluation.png"}
     assert expected <= set(plots)
-    # classifiers x protocols x (all + 2 speeds confusion figures + prediction shares), 5 others
-    assert len(plots) == 2 * 2 * 4 + 5
+    # classifiers x protocols x (all + 2 speeds confusion figures + prediction shares), 7 others
+    assert len(plots) == 2 * 2 * 4 + 7
     for name in plots:
         data = (out / "plots" / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n", name
@@ -314,5 +315,47 @@ def test_evaluation_tables_per_condition_design_records_and_baselines(built_repo
     assert set(result["accuracy_mean_per_condition"]) == {"speed_rpm=600", "speed_rpm=900"}
     assert set(result["accuracy_mean_by_records"]) == {"design", "evaluation"}
     assert "design" in summary["design_records"]["note"]
+    # condition_holdout at 0 %: the same test set and deterministic fits in both repeats
+    alike = next(r for r in summary["results"] if r["classifier"] == "knn"
+                 and r["protocol"] == "condition_holdout" and r["measured_percent"] == 0)
+    assert alike["distinct_repeats"] == 1 and alike["n_repeats"] == 2
+    assert alike["accuracy_std"] is None and "one repeat" in alike["repeats_note"]
+    assert "simulated training data are the same in every repeat" in summary["repeats"]
     overall = pd.read_csv(out / "evaluation_summary.csv")
     assert {"accuracy_ci_low", "false_alarm_ci_high", "distinct_repeats", "leaky"} <= set(overall)
+
+
+def test_summary_intervals_count_a_tested_segment_once():
+    """Identical repeats, and a healthy record tested by every holdout, add no data: the pooled
+    interval is that of one repeat's distinct test segments (pooling all rows made it narrower)."""
+    from condmon.evaluation import evaluation_table, summarise, wilson_interval
+
+    def predictions(repeats):
+        rows = []
+        for repeat in range(repeats):
+            for holdout, fault in (("g=a", "fa"), ("g=b", "fb")):
+                # healthy h tests in both holdouts: 10 segments, 2 called faulty
+                rows += [(repeat, holdout, "h", s, "ok", "ok" if s >= 2 else "ball")
+                         for s in range(10)]
+                rows += [(repeat, holdout, fault, s, "ball", "ball" if s >= 5 else "ok")
+                         for s in range(20)]
+        frame = pd.DataFrame(rows, columns=["repeat", "holdout", "record_id", "segment",
+                                            "true_label", "predicted_label"])
+        return frame.assign(classifier="svm", protocol="specimen_holdout", measured_percent=0)
+
+    conditions = {"h": 0.0, "fa": 0.0, "fb": 1.0}
+    summaries = []
+    for repeats in (1, 3):
+        frame = predictions(repeats)
+        table = evaluation_table(frame, "ok", ["ok", "ball"], conditions, "load")
+        summaries.append(summarise(table, frame, "ok", conditions, "load").set_index(
+            ["condition", "records"]).loc[("all", "all")])
+    one, three = summaries
+    # 50 distinct segments (10 healthy + 2 x 20 fault): 2 x 8 + 2 x 15 = 46 hits of 60 rows
+    assert three["n_test_distinct"] == 50 and three["distinct_repeats"] == 1
+    assert (three["accuracy_ci_low"], three["accuracy_ci_high"]) == wilson_interval(
+        round(46 / 60 * 50), 50)
+    assert (three["false_alarm_ci_low"], three["false_alarm_ci_high"]) == wilson_interval(2, 10)
+    for name in ("accuracy_ci_low", "accuracy_ci_high", "false_alarm_ci_low",
+                 "record_accuracy_ci_high"):
+        assert three[name] == one[name], name

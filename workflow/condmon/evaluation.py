@@ -11,8 +11,10 @@ per operating condition (`hybrid.condition`, e.g. load: never a file's stored rp
 - baselines that can lose: chance (1 / classes), the majority class of the test set, and the best
   measured-only classifier the split allows (any classifier's `measured_only.csv`); the gain is
   taken against the strongest of them.
-Aggregated over repeats and holdouts (`summarise`): means, pooled Wilson intervals, and how many
-repeats differ (identical repeats are one repeat, and said so).
+Aggregated over repeats and holdouts (`summarise`): means, Wilson intervals on one repeat's
+distinct test segments (a segment tested again by another repeat or holdout is no new data, so
+identical repeats do not narrow them), and how many repeats differ (identical repeats are one
+repeat, and said so).
 """
 from __future__ import annotations
 
@@ -83,6 +85,31 @@ def test_set_figures(test: pd.DataFrame, healthy_state: str | None) -> dict:
             "small_test_set": len(test) < SMALL_TEST_SET}
 
 
+def with_conditions(predictions: pd.DataFrame, conditions: dict, condition: str) -> pd.DataFrame:
+    """`predictions` with `_condition`, each record's "<condition>=<value>" (an error names the
+    records that have none)."""
+    predictions = predictions.assign(
+        _condition=predictions["record_id"].map(
+            lambda r: f"{condition}={format_speed(conditions[r])}" if r in conditions else ""))
+    missing = sorted(set(predictions.loc[predictions["_condition"] == "", "record_id"]))
+    if missing:
+        raise ValueError(f"record(s) {missing[:5]} have no {condition} in the measured features")
+    return predictions
+
+
+def subsets(test: pd.DataFrame, design: set):
+    """(condition, records, rows) of a test set: all of it, per condition and, with design
+    records, the design records and the others apart."""
+    yield ALL, ALL, test
+    for value, part in test.groupby("_condition", sort=True):
+        yield value, ALL, part
+    if design:
+        in_design = test["record_id"].isin(design)
+        for name, mask in (("design", in_design), ("evaluation", ~in_design)):
+            if mask.any():
+                yield ALL, name, test[mask]
+
+
 def evaluation_table(predictions: pd.DataFrame, healthy_state: str | None, labels,
                      conditions: dict, condition: str, design_records=(),
                      measured_only: pd.DataFrame | None = None) -> pd.DataFrame:
@@ -94,22 +121,11 @@ def evaluation_table(predictions: pd.DataFrame, healthy_state: str | None, label
     speeds rows used). Baselines and the gain are given on the `all` x `all` rows.
     """
     design = set(map(str, design_records))
-    predictions = predictions.assign(
-        _condition=predictions["record_id"].map(
-            lambda r: f"{condition}={format_speed(conditions[r])}" if r in conditions else ""))
-    missing = sorted(set(predictions.loc[predictions["_condition"] == "", "record_id"]))
-    if missing:
-        raise ValueError(f"record(s) {missing[:5]} have no {condition} in the measured features")
+    predictions = with_conditions(predictions, conditions, condition)
     best_alone = _best_measured_only(measured_only)
     rows = []
     for key, test in predictions.groupby(KEYS, sort=True):
-        subsets = [(ALL, ALL, test)]
-        subsets += [(value, ALL, part) for value, part in test.groupby("_condition", sort=True)]
-        if design:
-            in_design = test["record_id"].isin(design)
-            subsets += [(ALL, name, test[mask]) for name, mask in
-                        (("design", in_design), ("evaluation", ~in_design)) if mask.any()]
-        for condition_label, records, part in subsets:
+        for condition_label, records, part in subsets(test, design):
             row = dict(zip(KEYS, key), condition=condition_label, records=records,
                        **test_set_figures(part, healthy_state),
                        leaky=key[1] in LEAKY_PROTOCOLS)
@@ -159,28 +175,69 @@ SUMMARY_MEANS = ["accuracy", "record_accuracy", "balanced_accuracy", "false_alar
                  "strongest_baseline_accuracy", "gain_vs_strongest"]
 
 
-def summarise(table: pd.DataFrame, predictions: pd.DataFrame) -> pd.DataFrame:
+def distinct_tested(predictions: pd.DataFrame, healthy_state: str | None, conditions: dict,
+                    condition: str, design_records=()) -> pd.DataFrame:
+    """Per (classifier, protocol, measured_percent, repeat, condition, records): how many distinct
+    segments, records and healthy segments the repeat tested over all its holdouts (a healthy
+    record tested in every holdout counts once)."""
+    design = set(map(str, design_records))
+    predictions = with_conditions(predictions, conditions, condition)
+    rows = []
+    for key, test in predictions.groupby(KEYS[:4], sort=True):
+        for condition_label, records, part in subsets(test, design):
+            segments = part[["record_id", "segment"]].drop_duplicates()
+            healthy = part.loc[part["true_label"] == healthy_state, ["record_id", "segment"]]
+            rows.append(dict(zip(KEYS[:4], key), condition=condition_label, records=records,
+                             distinct_segments=len(segments),
+                             distinct_records=segments["record_id"].nunique(),
+                             distinct_healthy=len(healthy.drop_duplicates())))
+    return pd.DataFrame(rows)
+
+
+def _pooled_interval(per_repeat: pd.DataFrame, successes: str, tested: str,
+                     distinct: str) -> tuple[float, float]:
+    """Wilson interval of one repeat's worth of data: per repeat the rate pooled over its
+    holdouts times the distinct units it tested, averaged over repeats. Repeats (identical or
+    not) and holdouts that test the same segments again add no independent data, so they do not
+    narrow the interval."""
+    rate = per_repeat[successes] / per_repeat[tested].where(per_repeat[tested] > 0)
+    n = per_repeat[distinct].mean()
+    if not n or rate.isna().all():
+        return float("nan"), float("nan")
+    return wilson_interval(round((rate * per_repeat[distinct]).mean()), round(n))
+
+
+def summarise(table: pd.DataFrame, predictions: pd.DataFrame, healthy_state: str | None,
+              conditions: dict, condition: str, design_records=()) -> pd.DataFrame:
     """Per (classifier, protocol, measured_percent, condition, records): means over repeats and
-    holdouts, intervals over the pooled test segments (records, healthy segments), the number of
-    repeats and of distinct ones, the strongest baseline named."""
+    holdouts, Wilson intervals on one repeat's distinct test segments (records, healthy
+    segments; see _pooled_interval), the number of repeats and of distinct ones, the strongest
+    baseline named."""
     group = ["classifier", "protocol", "measured_percent", "condition", "records"]
     table = table.assign(_hits=(table["accuracy"] * table["n_test"]).round(),
                          _record_hits=(table["record_accuracy"] * table["n_records"]).round(),
                          _alarms=(table["false_alarm_rate"].fillna(0) * table["n_healthy"]).round())
+    per_repeat = (table.groupby(group + ["repeat"], sort=True)
+                  [["_hits", "n_test", "_record_hits", "n_records", "_alarms", "n_healthy"]].sum()
+                  .reset_index()
+                  .merge(distinct_tested(predictions, healthy_state, conditions, condition,
+                                         design_records), on=group + ["repeat"], how="left"))
+    per_repeat = {key: part for key, part in per_repeat.groupby(group, sort=True)}
     rows = []
     for key, part in table.groupby(group, sort=True):
-        n, n_records, n_healthy = (int(part[c].sum()) for c in ("n_test", "n_records",
-                                                                 "n_healthy"))
+        repeats = per_repeat[key]
         row = dict(zip(group, key), n_repeats=int(part["repeat"].nunique()),
-                   n_evaluations=len(part), n_test_per_evaluation=n / len(part),
+                   n_evaluations=len(part), n_test_per_evaluation=part["n_test"].mean(),
+                   n_test_distinct=repeats["distinct_segments"].mean(),
                    **{f"{c}_mean": part[c].mean() for c in SUMMARY_MEANS},
                    accuracy_std=part.groupby("repeat")["accuracy"].mean().std(),
                    strongest_baseline=",".join(sorted(set(part["strongest_baseline"].dropna()))))
-        row["accuracy_ci_low"], row["accuracy_ci_high"] = wilson_interval(int(part["_hits"].sum()), n)
-        row["record_accuracy_ci_low"], row["record_accuracy_ci_high"] = wilson_interval(
-            int(part["_record_hits"].sum()), n_records)
-        row["false_alarm_ci_low"], row["false_alarm_ci_high"] = wilson_interval(
-            int(part["_alarms"].sum()), n_healthy)
+        row["accuracy_ci_low"], row["accuracy_ci_high"] = _pooled_interval(
+            repeats, "_hits", "n_test", "distinct_segments")
+        row["record_accuracy_ci_low"], row["record_accuracy_ci_high"] = _pooled_interval(
+            repeats, "_record_hits", "n_records", "distinct_records")
+        row["false_alarm_ci_low"], row["false_alarm_ci_high"] = _pooled_interval(
+            repeats, "_alarms", "n_healthy", "distinct_healthy")
         row["small_test_set"] = row["n_test_per_evaluation"] < SMALL_TEST_SET
         row["leaky"] = bool(part["leaky"].any())
         rows.append(row)

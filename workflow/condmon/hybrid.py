@@ -16,7 +16,10 @@ Protocols
 - condition_holdout: each condition in turn is held out whole as the test set; the training
   share is drawn per stratum from the other conditions' records. Records of the other conditions
   that are not drawn get the role "unused" (neither trained on nor tested), so every record
-  still has a row.
+  still has a row. With `condition_split` ({train: [...], test: [...]}, a benchmark's split such
+  as pdm-bench's cwru_cross_load) there is one holdout: the test conditions test, the share
+  trains from the train conditions, other conditions are unused; a listed condition the
+  measured records lack is an error naming it.
 - segment_share: the bearing study's protocol: per health state, a share of all its measured
   segments trains and the rest tests. Segments of one record land on both sides (leaky: the
   report labels its numbers so).
@@ -196,7 +199,8 @@ def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats:
                 measured_classes=None, simulated_records: pd.DataFrame | None = None,
                 simulated_validation_share: float = 0.0, healthy_state: str | None = None,
                 reserve: dict | None = None,
-                specimens: pd.DataFrame | None = None) -> pd.DataFrame:
+                specimens: pd.DataFrame | None = None,
+                condition_split: dict | None = None) -> pd.DataFrame:
     """The split table for one protocol (columns SPLIT_COLUMNS, one row per record, or per
     segment for segment_share, and split).
 
@@ -213,6 +217,7 @@ def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats:
     blocks of lone healthy records (measured_layout); calibration segments get the role
     "calibration" and guard gaps "unused" in every split, blocks are split like records.
     `specimens`: record_id, specimen, specimen_group of the measured records (specimen_holdout).
+    `condition_split`: condition_holdout's fixed sides, {train: [values], test: [values]}.
     """
     percents = _check_arguments(protocol, measured_percent, repeats, seed, min_test_records)
     layout = None
@@ -238,6 +243,10 @@ def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats:
         splits = _segment_share_splits(records, unique, percents, repeats, seed, min_test_records)
         return with_simulated_validation(_finish(splits, layout, unique, healthy_state), held_out)
     conditions = sorted(unique["condition"].unique())
+    train_conditions = None
+    if protocol == "condition_holdout" and condition_split:
+        train_conditions, test_conditions = _check_condition_split(condition_split, conditions,
+                                                                   condition)
     if protocol == "condition_holdout" and len(conditions) < 2:
         raise SplitError(f"condition_holdout needs at least two values of {condition}; the "
                          f"measured records have only {condition} "
@@ -271,11 +280,13 @@ def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats:
                     rows += _specimen_rows(orders, percent, repeat, group, group_of)
             else:
                 healthy_there = {value for health, value in orders if health == healthy_state}
-                for value in conditions:
-                    keep = (max(1, min_test_records)
-                            if healthy_state is not None and value not in healthy_there else 0)
-                    rows += _holdout_rows(orders, percent, repeat, value, condition,
-                                          healthy_state, keep)
+                tested_conditions = ([test_conditions] if train_conditions is not None else
+                                     [[value] for value in conditions])
+                for values in tested_conditions:
+                    keep = (max(1, min_test_records) if healthy_state is not None
+                            and not healthy_there & set(values) else 0)
+                    rows += _holdout_rows(orders, percent, repeat, values, condition,
+                                          healthy_state, keep, train_conditions)
     splits = _finish(_typed(_frame(rows, protocol)), layout, unique, healthy_state)
     return with_simulated_validation(splits, held_out)
 
@@ -530,16 +541,21 @@ def _unseen_fault_rows(orders, percent, repeat, measured_classes, healthy_state=
 
 
 def _holdout_rows(orders, percent, repeat, held_out, condition, healthy_state=None,
-                  keep_healthy=0) -> list[tuple]:
-    # The held-out condition supplies the test set, so no record of the other conditions needs
-    # to stay back for testing (at 100 % all of them train), except where it has no healthy
+                  keep_healthy=0, train_conditions=None) -> list[tuple]:
+    # The held-out conditions supply the test set, so no record of the other conditions needs
+    # to stay back for testing (at 100 % all of them train), except where they have no healthy
     # record: then `keep_healthy` healthy records per other stratum test, so false alarms are
-    # measured (at another condition: the report's protocol label says so).
-    label = holdout_label(held_out, condition)
+    # measured (at another condition: the report's protocol label says so). With
+    # `train_conditions` only those train; the records of any other condition are unused.
+    label = "+".join(holdout_label(value, condition) if i == 0 else format_speed(value)
+                     for i, value in enumerate(sorted(held_out)))
     rows = []
     for (health, value), ids in orders.items():
-        if value == held_out:
+        if value in held_out:
             rows += [(percent, repeat, label, rid, WHOLE_RECORD, "test") for rid in ids]
+            continue
+        if train_conditions is not None and value not in train_conditions:
+            rows += [(percent, repeat, label, rid, WHOLE_RECORD, "unused") for rid in ids]
             continue
         keep = keep_healthy if health == healthy_state else 0
         n_train = n_train_records(len(ids), percent, keep)
@@ -547,6 +563,27 @@ def _holdout_rows(orders, percent, repeat, held_out, condition, healthy_state=No
                   "train" if i < n_train else "test" if i >= len(ids) - keep else "unused")
                  for i, rid in enumerate(ids)]
     return rows
+
+
+def _check_condition_split(split: dict, conditions, condition: str) -> tuple[list, list]:
+    """(train, test) condition values of hybrid.condition_split, each one measured, or an error
+    naming the missing ones (a benchmark's split needs its loads in the folder)."""
+    train, test = ([float(v) for v in split.get(side) or []] for side in ("train", "test"))
+    if not train or not test:
+        raise SplitError(f"hybrid.condition_split needs train and test {condition} values, got "
+                         f"{split}")
+    both = sorted(set(train) & set(test))
+    if both:
+        raise SplitError(f"hybrid.condition_split: {condition} {[format_speed(v) for v in both]} "
+                         "is on both sides")
+    missing = sorted(set(train + test) - set(conditions))
+    if missing:
+        raise SplitError(
+            f"hybrid.condition_split needs measured records at {condition} "
+            f"{[format_speed(v) for v in missing]}, which the measured data lack (they have "
+            f"{condition} {[format_speed(v) for v in conditions]}): point measured_dir at a "
+            "folder with those records, or change the split")
+    return train, test
 
 
 def _specimen_rows(orders, percent, repeat, group, group_of) -> list[tuple]:

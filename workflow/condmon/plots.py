@@ -392,3 +392,31 @@ def job_timings(timings, note: str):
     for ax in (wall, memory):
         ax.grid(axis="x", alpha=0.3)
     return _finish(fig, "Job timings per rule (Snakemake benchmark files)", note, legend_from=wall)
+
+
+def accuracy_per_subset(summary, column: str, chance: float, note: str, title: str):
+    """One panel per protocol: accuracy against the measured share per value of ``column``
+    (colour; e.g. `condition`: the load) and classifier (line style), with the 95 % Wilson
+    interval as error bars. ``summary``: condmon.evaluation.summarise's rows of that subset."""
+    protocols = sorted(summary["protocol"].unique())
+    colours = _colours(sorted(summary[column].unique()))
+    styles = dict(zip(sorted(summary["classifier"].unique()), ["-", "--", ":", "-."] * 4))
+    # at least 9 inches: the two-line title must fit over a single panel
+    fig, axes = plt.subplots(1, len(protocols), figsize=(max(5.5 * len(protocols), 9.0), 4.8),
+                             sharey=True, squeeze=False)
+    for ax, protocol in zip(axes[0], protocols):
+        rows = summary[summary["protocol"] == protocol]
+        for (value, classifier), group in rows.groupby([column, "classifier"], sort=True):
+            group = group.sort_values("measured_percent")
+            mean = group["accuracy_mean"].to_numpy()
+            error = np.clip([mean - group["accuracy_ci_low"], group["accuracy_ci_high"] - mean],
+                            0, None)
+            ax.errorbar(group["measured_percent"], mean, yerr=error, marker="o", capsize=3,
+                        color=colours[value], linestyle=styles[classifier],
+                        label=f"{value}, {classifier}")
+        ax.axhline(chance, linestyle=":", color="0.4", label=f"chance ({chance:.2f})")
+        ax.set(title=protocol_title(protocol), xlabel=PERCENT_LABEL, ylim=(0, 1.05))
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel(f"{ACCURACY_LABEL} (fraction)")
+    return _finish(fig, f"{title}\n(mean over repeats; bars: 95 % Wilson interval on one "
+                        "repeat's test segments)", note, legend_from=axes[0, 0])

@@ -459,6 +459,32 @@ def confusion_percents(accuracy: pd.DataFrame, requested) -> list[int]:
     return sorted(set(requested) | {available[-1]})
 
 
+def plot_note(run_name: str, data_source: str, bench_effects: int = 0) -> str:
+    """Every plot's footnote: the data source and run (and a bench's difference in form)."""
+    note = f"Data: {data_source_label(data_source)} | run {run_name}"
+    if bench_effects:
+        note += f" | bench differs from the model in form: {bench_effects} effects (summary.json)"
+    return note
+
+
+def evaluation_plots(overall: pd.DataFrame, chance: float, note: str, plots_dir: Path) -> list:
+    """Accuracy per operating condition (CWRU: load, never a file's stored rpm) and, with
+    design records, on design records against records never used in design; the file names."""
+    whole = overall["condition"] == evaluation.ALL
+    subsets = [("condition", overall[~whole & (overall["records"] == evaluation.ALL)],
+                "Accuracy per operating condition", "accuracy_per_condition.png"),
+               ("records", overall[whole & (overall["records"] != evaluation.ALL)],
+                "Accuracy on design records vs records never used in design",
+                "accuracy_design_vs_evaluation.png")]
+    names = []
+    for column, rows, title, name in subsets:
+        if not rows.empty:
+            plots.save_figure(plots.accuracy_per_subset(rows, column, chance, note, title),
+                              plots_dir / name)
+            names.append(name)
+    return names
+
+
 def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: Path,
                run_name: str, data_source: str, confusion_percent, baseline=None,
                healthy_state: str | None = None, bench_effects: int = 0,
@@ -466,9 +492,7 @@ def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: 
     """Write every report plot into ``plots_dir``; returns the file names. bench_effects: how many
     effects the bench has that the model lacks (the note says so; summary.json lists them).
     ``shares``: prediction_shares of the predictions (computed here if not given)."""
-    note = f"Data: {data_source_label(data_source)} | run {run_name}"
-    if bench_effects:
-        note += f" | bench differs from the model in form: {bench_effects} effects (summary.json)"
+    note = plot_note(run_name, data_source, bench_effects)
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
     chance = 1.0 / len(labels)
     percents = confusion_percents(accuracy, confusion_percent)
@@ -539,7 +563,8 @@ def evaluation_tables(predictions, baseline, labels, healthy_state, measured_fea
     conditions = dict(zip(features["record_id"].astype(str), features[condition].astype(float)))
     table = evaluation.evaluation_table(predictions, healthy_state, labels, conditions, condition,
                                         design_records, baseline)
-    return table, evaluation.summarise(table, predictions)
+    return table, evaluation.summarise(table, predictions, healthy_state, conditions, condition,
+                                       design_records)
 
 
 def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFrame,
@@ -576,7 +601,10 @@ def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFra
             result[name] = value if isinstance(value, str) else (
                 bool(value) if isinstance(value, (bool, np.bool_)) else _json_number(value))
         if result["distinct_repeats"] == 1 and result["n_repeats"] > 1:
-            result["repeats_note"] = "the repeats predicted alike: one repeat, no spread"
+            # a spread of 0 would claim a stability nobody measured
+            result["accuracy_std"] = result["macro_f1_std"] = None
+            result["repeats_note"] = ("the repeats predicted alike: one repeat, no spread (the "
+                                      "seed changed neither the training set nor the fit)")
         result["accuracy_mean_per_condition"] = {
             r.condition: _json_number(r.accuracy_mean)
             for r in mine[(mine["condition"] != evaluation.ALL)
@@ -596,10 +624,19 @@ def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFra
                     "; every tested record is a design record: no result here is on records "
                     "never used in design") if design_records else
                  "report.design_records is empty: no record is declared as used in design")}
+    summary["repeats"] = (
+        "a repeat redraws which measured records (time blocks, or segments under segment_share) "
+        "join each share and seeds the fit (the CNN's initialisation and batches, a "
+        "classifier's own randomness); the simulated training data are the same in every "
+        "repeat (simulation.seed), so where no measured record trains (0 %) or every one does, "
+        "deterministic classifiers (SVM, KNN, grouped feature selection) repeat one result: "
+        "distinct_repeats counts the repeats that predicted differently, and only those give "
+        "a spread")
     summary["evaluation"] = (
         "per-segment, per-record (majority vote) and balanced accuracy with 95 % Wilson "
-        "intervals over pooled test segments/records (optimistic: segments of a record are not "
-        "independent), false-alarm rate (healthy test segments called faulty), gain against "
+        "intervals (per evaluation on its test set; over repeats on one repeat's distinct test "
+        "segments/records: repeats and holdouts that test a segment again add no data; still "
+        "optimistic: segments of a record are not independent), false-alarm rate (healthy test segments called faulty), gain against "
         "the strongest of chance, the test set's majority class and the best measured-only "
         "classifier; evaluation.csv per evaluation, evaluation_summary.csv over repeats")
 
@@ -725,6 +762,9 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
             table, overall = evaluation_tables(predictions, baseline, labels, healthy_state,
                                                measured_features_path, condition, design_records)
             add_evaluation(summary, overall, predictions, measured_records, design_records)
+            summary["plots"] += evaluation_plots(
+                overall, 1.0 / len(labels), plot_note(run_name, data_source, len(bench_effects)),
+                staging)
             if evaluation_path is not None:
                 write_text(table.to_csv(index=False), evaluation_path)
             if evaluation_summary_path is not None:

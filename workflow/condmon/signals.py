@@ -59,18 +59,21 @@ def package_versions(names=("numpy", "scipy", "exudyn", "pyarrow", "scikit-learn
 
 
 def make_rows(record_id, source, health_state, speed_rpm, load, fs_hz, channels: dict,
-              segment_length: int | None = None, params: dict | None = None) -> list[dict]:
+              segment_length: int | None = None, params: dict | None = None,
+              segment_hop: int | None = None) -> list[dict]:
     """Rows for one record: `channels` maps channel name to a 1-D signal (m/s^2).
 
-    With `segment_length`, each channel is cut into consecutive non-overlapping segments
-    (the tail shorter than one segment is dropped); without it the record is one segment.
+    With `segment_length`, each channel is cut into segments starting every `segment_hop`
+    samples (default: the segment length, no overlap; half of it: 50 % overlap); the tail
+    shorter than one segment is dropped. Without it the record is one segment.
     """
     params_json = json.dumps(params, sort_keys=True) if params else ""
     rows = []
     for channel, signal in channels.items():
         signal = np.asarray(signal, dtype=np.float32)
         n = segment_length or len(signal)
-        n_segments = len(signal) // n
+        hop = segment_hop or n
+        n_segments = (len(signal) - n) // hop + 1 if len(signal) >= n else 0
         if n_segments == 0:
             raise SignalTableError(
                 f"record {record_id!r} channel {channel!r}: {len(signal)} samples, "
@@ -79,7 +82,7 @@ def make_rows(record_id, source, health_state, speed_rpm, load, fs_hz, channels:
             rows.append(dict(record_id=record_id, segment=seg, source=source,
                              health_state=health_state, speed_rpm=float(speed_rpm),
                              load=float(load), fs_hz=float(fs_hz), channel=channel,
-                             signal=signal[seg * n:(seg + 1) * n], params=params_json))
+                             signal=signal[seg * hop:seg * hop + n], params=params_json))
     return rows
 
 

@@ -19,6 +19,8 @@ rule hybrid:
         reserve=config["calibration"]["reserve"],  # the calibration set: never in a split
         measured_classes=lambda wc: (config["hybrid"]["measured_classes"]
                                      if wc.protocol == "unseen_fault" else None),
+        condition_split=lambda wc: (config["hybrid"]["condition_split"]
+                                    if wc.protocol == "condition_holdout" else None),
         **({"simulated_validation_share": SIMULATED_VALIDATION_SHARE} if SIMULATED_VALIDATION_SHARE else {}),
     conda:
         "../envs/learning.yaml"

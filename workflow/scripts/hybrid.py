@@ -30,7 +30,8 @@ splits = make_splits(measured[["record_id", "segment", "health_state", condition
                      measured_classes=getattr(params, "measured_classes", None),
                      simulated_records=simulated, simulated_validation_share=share,
                      healthy_state=params.healthy_state, reserve=dict(params.reserve),
-                     specimens=specimens)
+                     specimens=specimens,
+                     condition_split=getattr(params, "condition_split", None))
 write_split_table(splits, snakemake.output.splits)
 log.info("%s: %d rows, %d records, roles %s", params.protocol, len(splits),
          splits["record_id"].nunique(), splits["role"].value_counts().to_dict())

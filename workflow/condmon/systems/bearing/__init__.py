@@ -10,6 +10,7 @@ randomisation), `cwru` (the task and manifest of the CWRU reader), `measured_dir
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -139,6 +140,15 @@ class BearingSystem(System):
             if not config["measured_table"]:
                 problems.append("bearing.health_states: CWRU files are labelled by cwru.task; own labels "
                                 "need a measured_table")
+        hop, length = self.bearing.get("segment_hop"), self.segment_length
+        guard = config["calibration"]["reserve"]["guard_segments"]
+        if hop is not None and hop > length:
+            problems.append(f"bearing.segment_hop {hop} exceeds bearing.segment_length {length}")
+        elif hop and guard < math.ceil(length / hop) - 1:
+            # overlapping segments: the guard gap must keep calibration and test samples apart
+            problems.append(f"calibration.reserve.guard_segments {guard} lets overlapping "
+                            f"segments (bearing.segment_hop {hop} of {length}) share samples "
+                            f"across the guard gap; use at least {math.ceil(length / hop) - 1}")
         if config["hybrid"]["condition"] == "speed_rpm" and "condition_holdout" in config["hybrid"]["protocols"]:
             problems.append("hybrid.condition: CWRU records of one load differ by a few rpm; hold out "
                             "loads (condition: load)")
@@ -155,7 +165,7 @@ class BearingSystem(System):
         ingest = cwru_rows(self.config["measured_dir"], task=self.config["cwru"]["task"],
                            channels=tuple(self.bearing["channels"]), fs_hz=self.output_rate_hz,
                            segment_length=self.segment_length, manifest=self.config["cwru"]["manifest"],
-                           on_bad_record=on_bad_record)
+                           on_bad_record=on_bad_record, segment_hop=self.bearing.get("segment_hop"))
         records = pd.concat([ingest.records.assign(status="kept", reason=""),
                              ingest.excluded.assign(status="left out")], ignore_index=True)
         return pd.DataFrame(ingest.rows), records

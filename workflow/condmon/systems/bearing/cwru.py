@@ -388,8 +388,9 @@ class CwruIngest:
 
 def cwru_rows(folder, task: str = "location", channels=("DE",), fs_hz: float = 12000.0,
               segment_length: int = 4096, manifest="auto", files=None,
-              on_bad_record: str = "stop") -> CwruIngest:
-    """Signal-table rows of every `*.mat` in `folder` (or of the given `files` names).
+              on_bad_record: str = "stop", segment_hop: int | None = None) -> CwruIngest:
+    """Signal-table rows of every `*.mat` in `folder` (or of the given `files` names), cut into
+    segments of `segment_length` samples starting every `segment_hop` (default: no overlap).
 
     `manifest`: a CSV (columns of `index.csv`) overriding/extending the built-in table; "auto"
     uses `<folder>/index.csv` if there is one; None uses the built-in table only. A file listed
@@ -414,6 +415,10 @@ def cwru_rows(folder, task: str = "location", channels=("DE",), fs_hz: float = 1
         raise CwruError(f"{folder}: no such folder")
     if int(segment_length) < 2:
         raise ValueError(f"segment_length must be at least 2, got {segment_length}")
+    segment_hop = int(segment_hop or segment_length)
+    if not 1 <= segment_hop <= int(segment_length):
+        raise ValueError(f"segment_hop must lie in 1..segment_length ({segment_length}), got "
+                         f"{segment_hop}")
     explicit = manifest not in ("auto", None)
     if manifest == "auto":
         manifest = folder / "index.csv" if (folder / "index.csv").exists() else None
@@ -432,7 +437,7 @@ def cwru_rows(folder, task: str = "location", channels=("DE",), fs_hz: float = 1
     for number, path in keyed:
         try:
             kept = _ingest_file(path, number, table, task, channels, fs_hz, segment_length,
-                                excluded)
+                                excluded, segment_hop)
         except CwruError as exc:
             if on_bad_record == "stop":
                 raise
@@ -482,7 +487,7 @@ def specimen_of(info) -> dict:
 
 
 def _ingest_file(path: Path, number: int, table: pd.DataFrame, task: str, channels, fs_hz: float,
-                 segment_length: int, excluded: list):
+                 segment_length: int, excluded: list, segment_hop: int | None = None):
     """(rows, record line) of one file, or None when its class is outside the task (then a line
     is appended to `excluded`). Raises CwruError for a bad file."""
     known = table.loc[table["cwru_number"] == number]
@@ -524,22 +529,22 @@ def _ingest_file(path: Path, number: int, table: pd.DataFrame, task: str, channe
     record_id = f"cwru-{record.number}"
     rows = make_rows(record_id, SOURCE, label, record.speed_rpm, float(info["load_hp"]),
                      fs_hz, {ch: s[:n] for ch, s in signals.items()},
-                     segment_length=int(segment_length))
+                     segment_length=int(segment_length), segment_hop=segment_hop)
     return rows, {**description, "record_id": record_id, "health_state": label,
                   "speed_rpm": record.speed_rpm, "speed_from_file": record.speed_from_file,
                   "fs_original_hz": record.fs_hz, "n_samples": n,
-                  "n_segments": n // int(segment_length), "sha256": record.sha256,
+                  "n_segments": len(rows) // len(signals), "sha256": record.sha256,
                   "sha256_ok": sha_ok}
 
 
 def write_cwru_signal_table(folder, path, task: str = "location", channels=("DE",),
                             fs_hz: float = 12000.0, segment_length: int = 4096, manifest="auto",
                             files=None, config: dict | None = None,
-                            on_bad_record: str = "stop") -> CwruIngest:
+                            on_bad_record: str = "stop", segment_hop: int | None = None) -> CwruIngest:
     """`cwru_rows` of a folder written as a signal table at `path`; returns the ingest summary
     (bad files left out with `on_bad_record="skip"` are in its `excluded`)."""
     ingest = cwru_rows(folder, task=task, channels=channels, fs_hz=fs_hz,
                        segment_length=segment_length, manifest=manifest, files=files,
-                       on_bad_record=on_bad_record)
+                       on_bad_record=on_bad_record, segment_hop=segment_hop)
     write_signal_table(ingest.rows, path, config=config)
     return ingest
