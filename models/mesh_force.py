@@ -39,6 +39,7 @@ HEALTH_STATES = MESH_HEALTH_STATES + SHAFT_HEALTH_STATES
 MESH_STIFFNESS_MODELS = ("potential_energy", "simple")
 DEFLECTION_REF = 1.0e-6  # m; K = mesh stiffness at this deflection keeps K's unit N/m for any n
 MAX_DEFLECTION = 1.0e-3  # m; a mesh deflection beyond this is divergence
+EDGE_CONTACT = 0.02      # a pair stiffness at its window's edge above this share of the peak: extended contact
 
 
 def tooth_damage(p) -> ToothDamage | None:
@@ -268,7 +269,11 @@ class TVMSMeshForce(MeshForce):
             if (id(groups), factor) not in compiled:
                 compiled[id(groups), factor] = tuple(compile_group(g, factor) for g in groups)
             self.tooth_groups.append(compiled[id(groups), factor])
-        self.extended = any(edges[0] > 0 or edges[2] > 0 for groups in self.tooth_groups for _, edges in groups)
+        # a spur pair carries load at its window's edges: the extended contact beyond them; a helical
+        # pair's edge values are the last partial slice before its stiffness reaches zero
+        peak = max(row[0] for groups in self.tooth_groups for rows, _ in groups for row in rows)
+        self.extended = any(max(edges[0], edges[2]) > EDGE_CONTACT * peak
+                            for groups in self.tooth_groups for _, edges in groups)
         healthy = tvms.healthy_groups[0]
         self.mean_deviation = float((healthy.stiffness * healthy.deviation).sum() / healthy.stiffness.sum())
 
