@@ -378,12 +378,13 @@ class GearMesh:
         self.u = np.arange(n) / self.points_per_pitch
         dz = g.face_width / self.slices
         self.z = (np.arange(self.slices) + 0.5) * dz
-        # Contact position of every slice at every phase (n, M); inside the path of contact?
+        # Contact position of every slice's centre at every phase (n, M), and the share of its
+        # contact line inside the path of contact
         shift = self.z * math.tan(g.base_helix_angle)
+        self.slice_span = dz * math.tan(g.base_helix_angle)  # the positions one slice's contact line covers
         self.s_slice = g.path_start + self.u[:, None] * g.base_pitch - shift[None, :]
-        self.inside = (self.s_slice >= g.path_start) & (self.s_slice <= g.path_end)
-        self.profile_fraction = (self.s_slice - g.path_start) / (g.path_end - g.path_start)
-        self.slice_stiffness = np.where(self.inside, np.interp(self.s_slice, self.s, self.k_per_width) * dz, 0.0)
+        self.inside = self._profile_coverage(g.path_start, g.path_end)
+        self.slice_stiffness = self.inside * np.interp(self.s_slice, self.s, self.k_per_width) * dz
         self.unit_sine = ProfileDeviation(amplitude=1.0)(g, self.s_slice)
         self.sine_te_gain = self._sine_te_gain()
         deviation = self.profile_deviation
@@ -426,6 +427,17 @@ class GearMesh:
             weighted = np.interp(np.arange(len(total)), idx, weighted[idx])
         return [ContactGroup(total, weighted)]
 
+    def _profile_coverage(self, low: float, high: float) -> np.ndarray:
+        """Share of every slice's contact line (n, M) whose position along the path lies in
+        [low, high]. A helical slice enters and leaves contact gradually as its line sweeps across
+        an edge: with the centre's position alone (all or nothing) the pair stiffness would be a
+        staircase, a step per slice, whose fast ripple the integrator cannot follow at the chosen
+        step (the features then depend on the step). A spur pair (no span) is all or nothing."""
+        if self.slice_span <= 0.0:
+            return ((self.s_slice >= low) & (self.s_slice <= high)).astype(float)
+        start, end = self.s_slice - self.slice_span / 2, self.s_slice + self.slice_span / 2
+        return np.clip(np.minimum(end, high) - np.maximum(start, low), 0.0, None) / self.slice_span
+
     def _face_coverage(self, face) -> np.ndarray:
         """Share of every slice's width inside the face range (fractions of the face width)."""
         b, m = self.geometry.face_width, self.slices
@@ -440,14 +452,16 @@ class GearMesh:
         if d.kind == "crack":
             k = pair_stiffness_per_width(self.geometry, self.s, pinion_crack=d.crack_depth)
             dz = self.geometry.face_width / self.slices
-            stiffness = np.where(self.inside, np.interp(self.s_slice, self.s, k) * dz, 0.0)
+            stiffness = self.inside * np.interp(self.s_slice, self.s, k) * dz
             return self._groups_from(stiffness, None)
         coverage = self._face_coverage(d.face)[None, :]
+        g = self.geometry
+        at = [g.path_start + fraction * (g.path_end - g.path_start) for fraction in d.profile]  # along the path
         if d.kind == "chip":
-            region = coverage * (self.profile_fraction > d.profile[0])
+            region = coverage * self._profile_coverage(at[0], g.path_end)
             return self._groups_from(self.slice_stiffness * (1 - region), None)
         # Spall: the region is a separate contact, `depth` below the flank, softer by stiffness_loss.
-        region = coverage * ((self.profile_fraction >= d.profile[0]) & (self.profile_fraction <= d.profile[1]))
+        region = coverage * self._profile_coverage(at[0], at[1])
         groups = self._groups_from(self.slice_stiffness * (1 - region), None)
         pit = self.slice_stiffness * region * (1 - d.stiffness_loss)
         if pit.sum() > 0:

@@ -38,7 +38,9 @@ SHAFT_HEALTH_STATES = ("shaft_crack", "delamination")
 HEALTH_STATES = MESH_HEALTH_STATES + SHAFT_HEALTH_STATES
 MESH_STIFFNESS_MODELS = ("potential_energy", "simple")
 DEFLECTION_REF = 1.0e-6  # m; K = mesh stiffness at this deflection keeps K's unit N/m for any n
+INVERSE_DEFLECTION_REF = 1.0 / DEFLECTION_REF
 MAX_DEFLECTION = 1.0e-3  # m; a mesh deflection beyond this is divergence
+EDGE_CONTACT = 0.02      # a pair stiffness at its window's edge above this share of the peak: extended contact
 
 
 def tooth_damage(p) -> ToothDamage | None:
@@ -111,8 +113,12 @@ class MeshForce:
         self.fluct = p.speed_fluctuation
         self.fluct_w = 2 * math.pi * p.speed_fluctuation_hz
         self.fluct_phase = p.speed_fluctuation_phase
-        self.runout = (p.runout_pinion, p.runout_gear)
-        self.runout_phase = (p.runout_phase_pinion, p.runout_phase_gear)
+        self.fluct_cos0 = math.cos(p.speed_fluctuation_phase)
+        # run-out of each shaft that has one: (amplitude, shaft angle per mesh period, phase)
+        self.runout_terms = tuple((amplitude, 2 * math.pi / g.teeth_pinion * ratio, offset)
+                                  for amplitude, ratio, offset in ((p.runout_pinion, 1.0, p.runout_phase_pinion),
+                                                                   (p.runout_gear, self.gear_ratio, p.runout_phase_gear))
+                                  if amplitude)
         pinion = _pitch_errors(p.pitch_errors_pinion, g.teeth_pinion, "pinion")
         gear = _pitch_errors(p.pitch_errors_gear, g.teeth_gear, "gear")
         # pair j meets pinion tooth j mod z1 and gear tooth j mod z2: periodic in lcm(z1, z2)
@@ -135,26 +141,21 @@ class MeshForce:
                 / sum(grp.stiffness.sum() for grp in tvms.healthy_groups))
 
     # -- excitation --------------------------------------------------------------------------
-    def phase(self, t):
-        """Mesh phase in mesh periods and its rate, with the speed fluctuation."""
+    def excitation(self, t):
+        """(mesh phase in mesh periods, its rate, run-out of both shafts along the line of action
+        (m), its rate) at time t. One call per force evaluation: it runs four times per step."""
         if self.fluct:
             angle = self.fluct_w * t + self.fluct_phase
-            return (self.mesh_frequency * (t + self.fluct * (math.cos(self.fluct_phase) - math.cos(angle))
-                                           / self.fluct_w),
-                    self.mesh_frequency * (1.0 + self.fluct * math.sin(angle)))
-        return self.mesh_frequency * t, self.mesh_frequency
-
-    def runout_excitation(self, phase, phase_rate):
-        """Run-out of both shafts along the line of action (m) and its rate."""
+            phase = self.mesh_frequency * (t + self.fluct * (self.fluct_cos0 - math.cos(angle)) / self.fluct_w)
+            phase_rate = self.mesh_frequency * (1.0 + self.fluct * math.sin(angle))
+        else:
+            phase, phase_rate = self.mesh_frequency * t, self.mesh_frequency
         e = e_t = 0.0
-        w = 2 * math.pi
-        for amplitude, ratio, offset in ((self.runout[0], 1.0, self.runout_phase[0]),
-                                          (self.runout[1], self.gear_ratio, self.runout_phase[1])):
-            if amplitude:
-                angle = w * phase / self.teeth * ratio + offset
-                e += amplitude * math.sin(angle)
-                e_t += amplitude * w * phase_rate / self.teeth * ratio * math.cos(angle)
-        return e, e_t
+        for amplitude, per_phase, offset in self.runout_terms:
+            angle = per_phase * phase + offset
+            e += amplitude * math.sin(angle)
+            e_t += amplitude * per_phase * phase_rate * math.cos(angle)
+        return phase, phase_rate, e, e_t
 
     def pitch_error(self, j) -> float:
         """Pitch errors of the pinion and gear teeth of pair j (m; > 0 closes the pair earlier)."""
@@ -194,8 +195,7 @@ class MeshForce:
         self.separated = not touched
 
     def __call__(self, t, deflection, rate):
-        phase, phase_rate = self.phase(t)
-        e, e_t = self.runout_excitation(phase, phase_rate)
+        phase, phase_rate, e, e_t = self.excitation(t)
         if self.te_amplitude:
             w = 2 * math.pi
             e += self.te_amplitude * math.sin(w * phase)
@@ -268,7 +268,13 @@ class TVMSMeshForce(MeshForce):
             if (id(groups), factor) not in compiled:
                 compiled[id(groups), factor] = tuple(compile_group(g, factor) for g in groups)
             self.tooth_groups.append(compiled[id(groups), factor])
-        self.extended = any(edges[0] > 0 or edges[2] > 0 for groups in self.tooth_groups for _, edges in groups)
+        # a spur pair carries load at its window's edges: the extended contact beyond them; a helical
+        # pair's edge values are the last partial slice before its stiffness reaches zero
+        peak = max(row[0] for groups in self.tooth_groups for rows, _ in groups for row in rows)
+        self.extended = any(max(edges[0], edges[2]) > EDGE_CONTACT * peak
+                            for groups in self.tooth_groups for _, edges in groups)
+        # per pair j mod lcm(z1, z2): its pinion tooth's contact groups and its pitch errors
+        self.pairs = [(self.tooth_groups[j % self.teeth], self.pair_pitch_error[j]) for j in range(self.pitch_period)]
         healthy = tvms.healthy_groups[0]
         self.mean_deviation = float((healthy.stiffness * healthy.deviation).sum() / healthy.stiffness.sum())
 
@@ -277,43 +283,53 @@ class TVMSMeshForce(MeshForce):
             # a diverging run: stop at once (the extended contact's pair range grows with the
             # deflection and would eat the memory before the run's end check)
             raise SimulationError(f"mesh deflection {deflection:.3g} m at t = {t:.4g} s: the simulation diverged")
-        phase, phase_rate = self.phase(t)
-        e, e_t = self.runout_excitation(phase, phase_rate)
+        phase, phase_rate, e, e_t = self.excitation(t)
         d, d_t = deflection - e, rate - e_t
         if -d - self.backlash > 0.0:
             return self._back_flank(-d - self.backlash, d_t)
         touching = [] if (self.impacts or self.separated) else None
         window, ppp, pitch, rho = self.window, self.points_per_pitch, self.base_pitch, self.tip_radius
-        n, ref_inv, damping = self.exponent, 1.0 / DEFLECTION_REF, self.damping_per_stiffness
-        pitch_errors, period = self.pair_pitch_error, self.pitch_period
+        n, damping = self.exponent, self.damping_per_stiffness
+        pairs, period = self.pairs, self.pitch_period
         ext = math.sqrt(2.0 * rho * d) / pitch if (self.extended and d > 0.0) else 0.0
+        deviation_rate = ppp * phase_rate  # d(table position)/dt
+        gap_rate = pitch * phase_rate / rho
         total = 0.0
         for j in range(math.floor(phase - window - ext) + 1, math.floor(phase + ext) + 1):
             u = phase - j
+            groups, pitch_error = pairs[j % period]
+            d_pair = d + pitch_error
+            inside = 0.0 <= u < window
+            if inside:
+                x = u * ppp
+                i = int(x)
+                x -= i
+            else:  # extended contact beyond the window: tip gap s^2 / (2 rho)
+                s = -u * pitch if u < 0.0 else (u - window) * pitch
+                gap, gap_t = s * s / (2 * rho), (s if u < 0.0 else -s) * gap_rate
             key = 4 * j
-            pitch_error = pitch_errors[j % period]
-            for rows, edges in self.tooth_groups[j % self.teeth]:
-                if 0.0 <= u < window:
-                    x = u * ppp
-                    i = int(x)
+            for rows, edges in groups:
+                if inside:
                     k0, dk, e0, de = rows[i]
-                    k = k0 + (x - i) * dk
-                    gd = d - e0 - (x - i) * de + pitch_error
-                    gd_t = d_t - de * ppp * phase_rate
-                else:  # extended contact beyond the window: tip gap s^2 / (2 rho)
-                    s = (-u if u < 0.0 else u - window) * pitch
+                    k = k0 + x * dk
+                    gd = d_pair - e0 - x * de
+                    gd_t = d_t - de * deviation_rate
+                else:
                     k, e0 = (edges[0], edges[1]) if u < 0.0 else (edges[2], edges[3])
-                    gd = d - e0 - s * s / (2 * rho) + pitch_error
-                    gd_t = d_t + (s if u < 0.0 else -s) * pitch * phase_rate / rho
+                    gd = d_pair - e0 - gap
+                    gd_t = d_t + gap_t
                 if k > 0.0 and gd > 0.0:
                     if touching is None:  # steady mesh: elastic plus viscous, inline
-                        force = k * ((gd * ref_inv) ** n + damping * gd_t)
+                        force = k * ((gd * INVERSE_DEFLECTION_REF) ** n + damping * gd_t)
                         if force > 0.0:
                             total += force
                     else:
                         total += self._contact(key, k, gd, gd_t, touching)
                 key += 1
-        self._finish(touching, total > 0.0)
+        if touching is None:
+            self.separated = not total > 0.0
+        else:
+            self._finish(touching, total > 0.0)
         return total
 
     def static_deflection(self, force):

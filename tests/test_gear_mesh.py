@@ -65,7 +65,7 @@ def test_helical_contact_zones_match_the_contact_ratios(rig_mesh):
     ppp = rig_mesh.points_per_pitch
     # Every slice is a spur gear of the transverse profile: two pairs during eps_alpha - 1 of a cycle.
     for i in (0, rig_mesh.slices // 2, rig_mesh.slices - 1):
-        inside = rig_mesh.inside[:, i]
+        inside = (rig_mesh.inside[:, i] > 0.5).astype(int)  # the slice centre in contact
         n = len(inside)
         per_phase = np.zeros(ppp, dtype=int)
         for j in range(-4, 1):  # pairs j at u = phase - j
@@ -112,7 +112,17 @@ def test_slicing_converges_as_the_number_of_slices_grows():
               for m in (5, 10, 20, 40, 80)]
     assert all(b < a for a, b in zip(errors, errors[1:])), errors
     assert errors[-1] < 0.01  # the drivetrain's default of 80 slices
-    assert errors[0] > 0.1    # a coarse slicing is visibly wrong: slicing matters for this helix
+    # each slice enters and leaves contact gradually (its share of contact line in the path), so
+    # even a coarse slicing follows the helix (all-or-nothing slices: 16 % off with 5 slices)
+    assert errors[0] < 0.02
+
+
+def test_pair_stiffness_has_no_slice_staircase(rig_mesh):
+    # Slices switching on and off whole make the pair stiffness a staircase (second differences of
+    # 1 % of the peak with 80 slices): a ripple far above the output band that the integrator's
+    # step cannot follow, so the features changed with the step. Left: the contact lines' corners.
+    k = rig_mesh.healthy_groups[0].stiffness
+    assert np.abs(np.diff(k, 2)).max() < 0.005 * k.max()
 
 
 def test_missing_tooth_removes_exactly_one_tooth_share_once_per_pinion_revolution(rig_mesh):

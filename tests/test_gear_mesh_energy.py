@@ -246,21 +246,25 @@ def max_spur_mesh_error(gear_mesh_module, g: GearGeometry) -> float:
 def max_helical_error(gear_mesh_module, g: GearGeometry, slices: int = 20) -> float:
     """Helical pair: `GearMesh` slices the face into `slices` spur gears of the transverse profile,
     slice i at z_i = (i + 1/2) b/M shifted back along the line of action by z_i tan(beta_b); the
-    slices in contact add. Compared at table phases (no interpolation in u) with the reference."""
+    slices add, each weighted by the share of its contact line (z_i +- b/2M) inside the path of
+    contact, at its centre's stiffness (the path's end value beyond it). Compared at table phases
+    (no interpolation in u) with the reference."""
     ref = reference_pair(g)
     mesh = gear_mesh_module.GearMesh(g, slices=slices)
     dz = ref["width"] / slices
     z = (np.arange(slices) + 0.5) * dz
+    span = dz * math.tan(ref["base_helix"])
     ppp = mesh.points_per_pitch
     eps_gamma = (ref["end"] - ref["start"]) / ref["base_pitch"] + ref["width"] * math.tan(ref["base_helix"]) / ref["base_pitch"]
     u = np.arange(1, int(eps_gamma * ppp), ppp // 8) / ppp
     errors = []
     for ui in u:
         s = ref["start"] + ui * ref["base_pitch"] - z * math.tan(ref["base_helix"])
-        s = s[(s >= ref["start"]) & (s <= ref["end"])]
-        if len(s) == 0:  # before the first slice enters / after the last one leaves
+        share = np.clip(np.minimum(s + span / 2, ref["end"]) - np.maximum(s - span / 2, ref["start"]), 0, None) / span
+        if not share.any():  # before the first slice enters / after the last one leaves
             continue
-        expected = dz * reference_pair_stiffness(ref, s).sum()
+        inside = share > 0
+        expected = dz * (share[inside] * reference_pair_stiffness(ref, np.clip(s[inside], ref["start"], ref["end"]))).sum()
         errors.append(mesh.pair_stiffness(ui) / expected - 1)
     assert len(errors) >= 8
     return float(np.max(np.abs(errors)))
