@@ -2,11 +2,10 @@
 and the FIR filter that decimates the sensors to the output rate."""
 from __future__ import annotations
 
-import math
 from contextlib import contextmanager
 
 import numpy as np
-from scipy.signal import firwin
+from scipy.signal import firwin, kaiserord
 
 
 class SimulationError(RuntimeError):
@@ -16,13 +15,13 @@ class SimulationError(RuntimeError):
 
 
 def decimation_filter(factor: int, passband: float = 0.8, attenuation_db: float = 80.0) -> np.ndarray:
-    """FIR low-pass for decimation by `factor`: flat to `passband` x the output Nyquist and at
-    least `attenuation_db` down from the output Nyquist on, so no harmonic above it folds back
-    into the band (scipy's default decimation filter lets them through at -20 dB)."""
+    """FIR low-pass for decimation by `factor`: flat to `passband` x the output Nyquist and
+    `attenuation_db` down (Kaiser's estimate) from the output Nyquist on, so no harmonic above it
+    folds back into the band (scipy's default decimation filter lets them through at -20 dB)."""
     transition = (1.0 - passband) / factor  # as a fraction of the input Nyquist
-    beta = 0.1102 * (attenuation_db - 8.7)
-    numtaps = int(math.ceil((attenuation_db - 7.95) / (2.285 * math.pi * transition))) | 1
-    return firwin(numtaps, (1.0 + passband) / 2.0 / factor, window=("kaiser", beta))
+    numtaps, beta = kaiserord(attenuation_db, transition)
+    # odd length (type I): a delay of whole input samples, which resample_poly takes off
+    return firwin(numtaps | 1, (1.0 + passband) / 2.0 / factor, window=("kaiser", beta))
 
 
 @contextmanager

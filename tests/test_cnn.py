@@ -199,7 +199,7 @@ def test_run_protocol_with_a_subset_uncertainty_and_history(tmp_path):
     assert set(metrics.measured_percent) == {0, 100} and set(metrics.repeat) == {0}
     assert list(predictions.columns) == PREDICTION_COLUMNS
     assert predictions.uncertainty.notna().all() and (predictions.uncertainty >= 0).all()
-    entries = write_models(models, tmp_path / "models")
+    entries = write_models(models, tmp_path / "models", FEATURES)
     assert entries[0]["members"][0]["epochs_run"] <= 2
     history = pd.read_parquet(tmp_path / "models" / HISTORY_FILE)
     assert len(history) == sum(len(m.history_) for m in models.values())
@@ -232,7 +232,7 @@ def test_tracking_logs_curves_and_the_ensemble_as_a_pytorch_model(tmp_path):
     out = root / "train/cnn/record_split"
     write_predictions(predictions, out / "predictions.parquet")
     write_metrics(metrics, out / "metrics.csv")
-    write_models(models, out / "models")
+    write_models(models, out / "models", FEATURES)
     uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
     info = tracking.log_pipeline_run(uri, "cnn_demo", "hash-c", "virtual_bench", {"cnn": SMALL},
                                      [out / "metrics.csv"], [out / "predictions.parquet"],

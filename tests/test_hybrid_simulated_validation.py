@@ -13,6 +13,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from sklearn.base import BaseEstimator
 
 from conftest import config_of
 from condmon import train
@@ -141,10 +142,11 @@ def test_split_table_roundtrip_and_errors(tmp_path):
 
 
 # -- training without them, evaluating on them -------------------------------------------------
-class Recorder:
+class Recorder(BaseEstimator):
     """A classifier that remembers the record ids it was fitted on and predicts the class of the
     largest feature (the clusters' centres), so its accuracy is known."""
     fitted_on: list = []
+    __metadata_request__fit = {"groups": True}  # as the CNN: the training loop passes them
 
     def fit(self, x, y, groups=None):
         Recorder.fitted_on.append(set(groups))

@@ -3,6 +3,7 @@ comes from the training data of each fit only."""
 import numpy as np
 import pandas as pd
 import pytest
+import sklearn
 from sklearn.base import clone
 from sklearn.exceptions import NotFittedError
 from sklearn.model_selection import cross_validate
@@ -88,11 +89,19 @@ def test_selection_only_ever_fits_on_training_rows():
 def test_groups_keep_records_together():
     X, y = blobs([2, 3, 7], n_per_class=30, seed=5)
     groups = np.arange(len(X)) // 10  # 9 "records" of 10 segments, one class each
-    pipe = pipeline(cv=3).fit(X, y, sbs__groups=groups)
+    # metadata routing: the Pipeline hands groups to the selector, which requests them
+    with sklearn.config_context(enable_metadata_routing=True):
+        pipe = pipeline(cv=3).fit(X, y, groups=groups)
     sbs = pipe.named_steps["sbs"]
     assert list(np.flatnonzero(sbs.get_support())) == [2, 3, 7]
+    assert len(sbs.selector_.cv) == 3
     for train, test in sbs.selector_.cv:
         assert not set(groups[train]) & set(groups[test])
+    # fewer records than folds (a measured-only fit on a few records): one fold per record
+    few = np.isin(groups, [0, 3, 4, 7])  # four records, of classes 0, 1, 1, 2
+    with sklearn.config_context(enable_metadata_routing=True):
+        sbs = pipeline(cv=5).fit(X[few], y[few], groups=groups[few]).named_steps["sbs"]
+    assert len(sbs.selector_.cv) == 4
 
 
 def test_parameters_and_errors():
@@ -111,14 +120,19 @@ def test_parameters_and_errors():
 def test_select_then_classify_names_its_features_and_predicts_on_them():
     from sklearn.svm import SVC
 
-    from condmon.selection import SelectThenClassify
+    from condmon.selection import select_then_classify, selected_features
 
     X, y = blobs([1, 4, 6])
+    groups = np.arange(len(X)) % 12  # 12 groups, each of every class
     names = [f"f{i}" for i in range(8)]
-    model = SelectThenClassify(SequentialBackwardSelector(n_features=3, cv=3), SVC())
-    model.fit(X, y, groups=None, feature_names=names)
-    assert sorted(model.selected_features_) == ["f1", "f4", "f6"]
+    model = select_then_classify(SequentialBackwardSelector(n_features=3, cv=3), SVC())
+    with sklearn.config_context(enable_metadata_routing=True):
+        model.fit(X, y, groups=groups)  # SVC requests nothing: the groups go to the selector only
+    assert selected_features(model, names) == ["f1", "f4", "f6"]
+    for train, test in model.named_steps["select"].selector_.cv:
+        assert not set(groups[train]) & set(groups[test])
     shuffled = X.copy()
     shuffled[:, [0, 2, 3, 5, 7]] = 0.0  # dropped columns cannot matter
     assert (model.predict(shuffled) == model.predict(X)).all()
     assert (model.predict(X) == y).mean() > 0.9
+    assert selected_features(SVC().fit(X, y), names) is None  # no selection step

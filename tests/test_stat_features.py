@@ -146,6 +146,14 @@ def test_envelope_spectrum_line_amplitude_and_band_energy():
     assert sf.envelope_band_energy(x, fs, 1.7 * fm) < 1e-3 * m ** 2
 
 
+def test_band_power_sums_the_band_at_least_two_bins_either_side():
+    freqs = np.arange(0.0, 101.0)  # 1 Hz bins
+    density = np.ones((2, len(freqs)))
+    # 50 Hz +/- 10 %: 45..55 Hz, 11 bins; at 10 Hz +/- 1 Hz is narrower than the main lobe: 8..12 Hz
+    assert sf.band_power(freqs, density, [50.0, 10.0], 0.1) == pytest.approx([11.0, 5.0])
+    assert sf.band_power(freqs, density, 10.0, 0.015) == pytest.approx([5.0, 5.0])
+
+
 def test_envelope_line_ratio_known_spectrum():
     freqs = np.arange(0, 200, 0.5)
     amps = np.ones_like(freqs)

@@ -18,6 +18,7 @@ from condmon.classifiers import make_classifier
 from condmon.features import read_feature_table
 from condmon.hybrid import make_splits, read_split_table
 from condmon.signals import ID_COLUMNS, make_rows, write_signal_table
+from condmon.selection import selected_features
 from condmon.train import (METRIC_COLUMNS, PREDICTION_COLUMNS, model_filename, run_protocol,
                            write_metrics, write_models)
 
@@ -170,7 +171,7 @@ def test_results_are_deterministic():
 def test_model_files_and_metrics_csv(tmp_path):
     splits = splits_for(MEASURED, "condition_holdout", percents=[50], repeats=1)
     _, metrics, models = run_protocol("knn", {}, SIMULATED, MEASURED, splits, FEATURES, 0)
-    entries = write_models(models, tmp_path / "models")
+    entries = write_models(models, tmp_path / "models", FEATURES)
     assert sorted(p.name for p in (tmp_path / "models").iterdir()) == [
         "p050_r0_h0.joblib", "p050_r0_h1.joblib"]
     assert entries[1] == {"file": "p050_r0_h1.joblib", "measured_percent": 50, "repeat": 0,
@@ -321,9 +322,14 @@ def test_backward_selection_inside_each_fit_keeps_the_informative_features(tmp_p
     _, metrics, models = run_protocol("svm", {}, SIMULATED, MEASURED, splits, FEATURES, seed=0,
                                       feature_selection={"n_features": 3, "cv": 3})
     model = models[(0, 0, "")]
+    chosen = selected_features(model, FEATURES)
     # two of the three class-bearing columns already separate three classes
-    assert len(model.selected_features_) == 3
-    assert len(set(model.selected_features_) & set(FEATURES[:3])) >= 2
+    assert len(chosen) == 3
+    assert len(set(chosen) & set(FEATURES[:3])) >= 2
     assert (metrics.accuracy == 1.0).all()
-    entries = write_models(models, tmp_path / "models")
-    assert entries[0]["selected_features"] == model.selected_features_
+    # the record ids reached the selector: its folds keep every record whole
+    records = SIMULATED.record_id.to_numpy()  # at 0 % only the simulated records train
+    for train, test in model.named_steps["select"].selector_.cv:
+        assert not set(records[train]) & set(records[test])
+    entries = write_models(models, tmp_path / "models", FEATURES)
+    assert entries[0]["selected_features"] == chosen

@@ -210,8 +210,10 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
 
     ``fit(X, y, feature_names=None, groups=None)``: ``feature_names`` lets
     ``input_channels="auto"`` find the sensor channels; ``groups`` (record ids) keeps records
-    whole in the validation split.
+    whole in the validation split. Both are requested for ``fit`` (sklearn metadata routing),
+    so a Pipeline or the training loop passes them on.
     """
+    __metadata_request__fit = {"feature_names": True, "groups": True}
 
     def __init__(self, members=10, epochs=25, batch_size=64, learning_rate=0.002,
                  conv_channels=(4, 8), kernel_size=7, pool_size=4, input_pool=2,

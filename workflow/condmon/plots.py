@@ -186,52 +186,60 @@ def accuracy_per_speed(speed_rows, percents, chance: float, note: str):
                         "repeats)", note, legend_from=axes[0, 0])
 
 
-def _confusion_panel(ax, counts, labels, fontsize: int, aspect=None):
-    """One confusion matrix on `ax`: colour = row-normalised share (recall per true class), text =
-    share and count; a class absent from the test set leaves its row blank. Returns the image."""
-    n = len(labels)
-    totals = counts.sum(axis=1, keepdims=True)
-    shares = np.where(totals > 0, counts / np.maximum(totals, 1), np.nan)
-    image = ax.imshow(shares, cmap="Blues", vmin=0, vmax=1, aspect=aspect)
-    for r in range(n):
-        if totals[r, 0] == 0:
-            continue
-        for c in range(n):
-            ax.text(c, r, f"{shares[r, c]:.2f}\n({counts[r, c]})", ha="center", va="center",
-                    fontsize=fontsize, color="white" if shares[r, c] > 0.6 else "black")
-    ax.set_xticks(range(n), labels, rotation=35, ha="right", fontsize=fontsize)
-    ax.set_yticks(range(n), labels, fontsize=fontsize)
-    return image
+def confusion_figure(panels, labels, title: str, note: str, colour_bar: bool = True):
+    """Confusion matrices side by side, one per (counts, panel title or None) of `panels`.
+
+    Colour = row-normalised share (recall per true class); text = share and count; a class absent
+    from the test set leaves its row blank. Laid out by fixed margins in inches, with no layout
+    pass: the tracking job draws one per nested run (hundreds), where a layout pass costs about
+    0.3 s a figure. (sklearn's ConfusionMatrixDisplay colours and writes the matrix it is given;
+    shares in colour with counts in the text and blank untested rows would override all of it.)
+    """
+    n, k = len(labels), len(panels)
+    side, gap, left, bottom = max(1.8, 0.65 * n), 0.25, 1.5, 1.3  # inches
+    top = 0.5 + (0.45 if any(panel_title for _, panel_title in panels) else 0.0)
+    right = 1.1 if colour_bar else 0.3
+    width, height = left + k * side + (k - 1) * gap + right, bottom + side + top
+    fig = plt.figure(figsize=(width, height))
+    image = None
+    for i, (counts, panel_title) in enumerate(panels):
+        ax = fig.add_axes(((left + i * (side + gap)) / width, bottom / height,
+                           side / width, side / height))
+        totals = counts.sum(axis=1, keepdims=True)
+        shares = np.where(totals > 0, counts / np.maximum(totals, 1), np.nan)
+        image = ax.imshow(shares, cmap="Blues", vmin=0, vmax=1, aspect="auto")
+        for r, c in np.ndindex(n, n):
+            if totals[r, 0]:
+                ax.text(c, r, f"{shares[r, c]:.2f}\n({counts[r, c]})", ha="center", va="center",
+                        fontsize=7, color="white" if shares[r, c] > 0.6 else "black")
+        ax.set_xticks(range(n), labels, rotation=35, ha="right", fontsize=8)
+        ax.set_yticks(range(n), labels if i == 0 else [], fontsize=8)
+        ax.set_xlabel("predicted state", fontsize=8)
+        if i == 0:
+            ax.set_ylabel("true state", fontsize=8)
+        if panel_title:
+            ax.set_title(panel_title, fontsize=9)
+    if colour_bar:
+        colour_axes = fig.add_axes(((width - right + 0.2) / width, bottom / height,
+                                    0.15 / width, side / height))
+        fig.colorbar(image, cax=colour_axes).set_label("share of true class (row)", fontsize=8)
+    fig.suptitle(title, fontsize=10, y=1 - 0.1 / height, va="top")
+    fig.text(0.01, 0.01, note, fontsize=7, color="0.3")
+    return fig
 
 
 def confusion_matrices(matrices: dict, labels, classifier: str, protocol: str,
                        speed: str | None, note: str):
-    """One panel per measured percentage; ``matrices`` maps percent -> (counts, n_repeats).
-
-    Colour = row-normalised share (recall per true class); text = share and count.
-    """
-    n = len(labels)
-    size = max(3.2, 0.7 * n + 1.6)
-    width, height = size * len(matrices) + 1.8, size + 1.6
-    fig, axes = plt.subplots(1, len(matrices), figsize=(width, height), squeeze=False,
-                             sharey=True)
-    image = None
-    for ax, (percent, (counts, n_repeats)) in zip(axes[0], sorted(matrices.items())):
-        image = _confusion_panel(ax, counts, labels, fontsize=8)
-        ax.set_xlabel("predicted state")
+    """One panel per measured percentage; ``matrices`` maps percent -> (counts, n_repeats)."""
+    panels = []
+    for percent, (counts, n_repeats) in sorted(matrices.items()):
         training = "simulation only" if percent == 0 else f"{percent} % measured"
-        ax.set_title(f"training: {training}\n{int(counts.sum())} test segments, "
-                     f"{n_repeats} repeat(s)", fontsize=9)
-    axes[0, 0].set_ylabel("true state")
+        panels.append((counts, f"training: {training}\n{int(counts.sum())} test segments, "
+                               f"{n_repeats} repeat(s)"))
     where = "all speeds" if speed is None else f"{speed} rpm"
-    fig.suptitle(f"Confusion matrix: {classifier}, {protocol_title(protocol)}, {where}", fontsize=12)
-    fig.text(0.01, 0.005, note + " | counts summed over repeats", fontsize=8, color="0.3")
-    # fixed margins in inches: title on top, footnote below, colour bar on the right
-    right = 1 - 1.3 / width
-    fig.tight_layout(rect=(0, 0.3 / height, right, 1 - 0.45 / height))
-    colour_axes = fig.add_axes((right + 0.15 / width, 0.25, 0.2 / width, 0.5))
-    fig.colorbar(image, cax=colour_axes, label="share of true class (row)")
-    return fig
+    return confusion_figure(panels, labels,
+                            f"Confusion matrix: {classifier}, {protocol_title(protocol)}, {where}",
+                            note + " | counts summed over repeats")
 
 
 def prediction_shares(shares, labels, classifier: str, protocol: str, percents, note: str):
@@ -290,22 +298,8 @@ def prediction_shares(shares, labels, classifier: str, protocol: str, percents, 
 
 
 def confusion_matrix_small(counts, labels, title: str, note: str):
-    """A single, cheap confusion matrix (fixed margins, no layout pass) for per-run artifacts.
-
-    The tracking job draws one per nested run (hundreds), where the report's layout-managed
-    figure would cost about 0.3 s each.
-    """
-    n = len(labels)
-    size = max(3.5, 0.6 * n + 2.0)
-    fig = plt.figure(figsize=(size, size))
-    # margins in inches: 1.5 left for labels, 0.4 right, 1.4 below, 0.7 above for the title
-    ax = fig.add_axes((1.5 / size, 1.4 / size, (size - 1.9) / size, (size - 2.1) / size))
-    _confusion_panel(ax, counts, labels, fontsize=7, aspect="auto")
-    ax.set_xlabel("predicted state", fontsize=8)
-    ax.set_ylabel("true state", fontsize=8)
-    fig.suptitle(title, fontsize=9)
-    fig.text(0.01, 0.01, note, fontsize=6, color="0.3")
-    return fig
+    """One confusion matrix without a colour bar: the tracking job's per-run artifact."""
+    return confusion_figure([(counts, None)], labels, title, note, colour_bar=False)
 
 
 def spectra_grid(spectra, note: str):

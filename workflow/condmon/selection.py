@@ -7,7 +7,15 @@ of every fit, and `transform` only applies the stored choice.
 
 `SequentialBackwardSelector` wraps `sklearn.feature_selection.SequentialFeatureSelector`
 (direction="backward"): starting from all features it removes, one at a time, the feature whose
-removal keeps the cross-validated score of `estimator` highest, until `n_features` remain.
+removal keeps the cross-validated score of `estimator` highest, until `n_features` remain. What
+the wrapper adds: its folds follow the training set it is given (GroupKFold over the records,
+never more folds than records: a measured-only fit at a small share trains on two or three
+records; without groups, shuffled StratifiedKFold seeded by `random_state`, never more folds than
+the smallest class has samples), a scale-aware default estimator and errors naming the bad value.
+
+`select_then_classify` puts it in front of a classifier as a Pipeline. Fitted with sklearn's
+metadata routing on, `fit(X, y, groups=record_ids)` hands the groups to the selector (it
+requests them) and to the classifier only if that asks for them too.
 """
 from __future__ import annotations
 
@@ -16,7 +24,7 @@ from sklearn.base import BaseEstimator, clone
 from sklearn.feature_selection import SelectorMixin, SequentialFeatureSelector
 from sklearn.model_selection import GroupKFold, StratifiedKFold
 from sklearn.neighbors import KNeighborsClassifier
-from sklearn.pipeline import make_pipeline
+from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.utils.validation import check_is_fitted, validate_data
 
@@ -36,13 +44,17 @@ class SequentialBackwardSelector(SelectorMixin, BaseEstimator):
     - cv: number of folds (int) or a CV splitter. With an int, folds are `StratifiedKFold`
       (shuffled with `random_state`), or `GroupKFold` when `fit` gets `groups` (pass the record
       ids: segments of one record are not independent, so folds must not cut through records).
-      In a Pipeline: `pipe.fit(X, y, <step name>__groups=record_ids)`.
+      In a Pipeline with metadata routing on (`sklearn.config_context(enable_metadata_routing=
+      True)`): `pipe.fit(X, y, groups=record_ids)`; the selector requests `groups` for `fit`.
     - scoring: sklearn scoring name (default "accuracy"); n_jobs: for the CV evaluations.
 
     Fitted attributes: `support_` (boolean mask), `selector_` (the fitted
     SequentialFeatureSelector), `n_features_in_`, `feature_names_in_` (if X was a DataFrame).
     `get_feature_names_out()` names the kept features.
     """
+
+    # metadata routing: a Pipeline (or any meta-estimator) passes the record ids on to fit
+    __metadata_request__fit = {"groups": True}
 
     def __init__(self, n_features: int = 3, estimator=None, cv=5, scoring="accuracy",
                  n_jobs=None, random_state=0):
@@ -97,29 +109,18 @@ class SequentialBackwardSelector(SelectorMixin, BaseEstimator):
         return tags
 
 
-class SelectThenClassify(BaseEstimator):
-    """A classifier fitted on the features a `SequentialBackwardSelector` keeps.
+SELECT_STEP = "select"  # the selector's name in a select_then_classify Pipeline
 
-    `fit(X, y, groups=None, feature_names=None)` fits the selector on the training rows only
-    (its CV folds keep the `groups`, the record ids, whole), then `classifier` on the kept
-    columns; `predict` applies the stored choice. `selected_features_` names the kept features
-    when `feature_names` are given (else their column indices).
-    """
 
-    def __init__(self, selector=None, classifier=None):
-        self.selector = selector
-        self.classifier = classifier
+def select_then_classify(selector: SequentialBackwardSelector, classifier) -> Pipeline:
+    """Pipeline: `selector`, then `classifier` on the columns it keeps."""
+    return Pipeline([(SELECT_STEP, selector), ("classify", classifier)])
 
-    def fit(self, X, y, groups=None, feature_names=None):
-        X = np.asarray(X)
-        self.selector_ = clone(self.selector or SequentialBackwardSelector()).fit(X, y, groups)
-        mask = self.selector_.get_support()
-        self.classifier_ = clone(self.classifier).fit(X[:, mask], y)
-        names = list(feature_names) if feature_names is not None else list(range(X.shape[1]))
-        self.selected_features_ = [n for n, keep in zip(names, mask) if keep]
-        self.classes_ = self.classifier_.classes_
-        return self
 
-    def predict(self, X):
-        check_is_fitted(self, "classifier_")
-        return self.classifier_.predict(np.asarray(X)[:, self.selector_.get_support()])
+def selected_features(model, feature_names) -> list[str] | None:
+    """The names of the features a fitted select_then_classify Pipeline keeps, in input order;
+    None for a model without a selection step."""
+    if not isinstance(model, Pipeline) or SELECT_STEP not in model.named_steps:
+        return None
+    mask = model.named_steps[SELECT_STEP].get_support()
+    return [str(name) for name, keep in zip(feature_names, mask, strict=True) if keep]

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.stats
-from scipy.signal import butter, hilbert, sosfiltfilt
+from scipy.signal import butter, hilbert, periodogram, sosfiltfilt
 from sklearn.base import BaseEstimator, TransformerMixin
 
 from condmon.spectra import amplitude_spectrum
@@ -267,24 +267,26 @@ def envelope_band_energy(x, fs_hz: float, line_hz, band_hz=(2000.0, 5000.0),
     modulation of amplitude A inside the band gives A^2 / 2; unit (signal unit)^2.
     """
     x = _x(x)
-    out = _band_power(np.atleast_2d(envelope(x, fs_hz, band_hz)), fs_hz, line_hz, tolerance)
+    freqs, density = envelope_periodogram(np.atleast_2d(envelope(x, fs_hz, band_hz)), fs_hz)
+    out = band_power(freqs, density, line_hz, tolerance)
     return out if x.ndim > 1 else out[0]
 
 
-def _band_power(env, fs_hz, line_hz, tolerance):
-    n = env.shape[-1]
-    window = np.hanning(n + 1)[:-1]
-    spec = np.abs(np.fft.rfft(env * window, axis=-1)) ** 2 / (fs_hz * (window ** 2).sum())
-    spec[..., 1:] *= 2.0
-    if n % 2 == 0:
-        spec[..., -1] /= 2.0
-    freqs = np.fft.rfftfreq(n, d=1.0 / fs_hz)
-    df = fs_hz / n
-    line_hz = np.broadcast_to(np.asarray(line_hz, dtype=np.float64), spec.shape[:1])
-    out = np.empty(len(spec))
+def envelope_periodogram(env, fs_hz):
+    """(freqs, power spectral density) of envelopes: periodic Hann window, no detrending (the
+    envelope's mean is already removed)."""
+    return periodogram(env, fs_hz, window="hann", detrend=False, axis=-1)
+
+
+def band_power(freqs, density, line_hz, tolerance):
+    """Per row of `density`, its sum times the bin width within line_hz (1 +/- tolerance), the
+    band at least +/- 2 bins wide; line_hz is a scalar or one value per row."""
+    df = freqs[1] - freqs[0]
+    line_hz = np.broadcast_to(np.asarray(line_hz, dtype=np.float64), density.shape[:1])
+    out = np.empty(len(density))
     for i, f0 in enumerate(line_hz):
         half = max(tolerance * f0, 2.0 * df)
-        out[i] = spec[i, np.abs(freqs - f0) <= half].sum() * df
+        out[i] = density[i, np.abs(freqs - f0) <= half].sum() * df
     return out
 
 
@@ -366,7 +368,8 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
             orders = self._orders()
             env = envelope(x, fs, self.band_hz)
             freqs, amps = _amplitude_spectrum_padded(env, fs)
-            energies = [_band_power(env, fs, o * shaft_hz, self.line_tolerance)
+            psd_freqs, density = envelope_periodogram(env, fs)  # once for every order
+            energies = [band_power(psd_freqs, density, o * shaft_hz, self.line_tolerance)
                         for o in orders.values()]
             ratios = [envelope_line_ratio(freqs, amps, o * shaft_hz, self.line_tolerance,
                                           self.floor_halfwidth_orders * shaft_hz)

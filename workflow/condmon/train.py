@@ -17,8 +17,9 @@ classifier on the same measured training segments alone, so the report can give 
 simulation's gain. With one measured class it predicts that class; with none, it is skipped.
 
 A classifier may train on a subset of the split table (``measured_percent``, ``repeats``: the
-CNN, whose fits cost far more than an SVM's). Estimators whose ``fit`` accepts
-``feature_names`` / ``groups`` get the feature names and the record ids; those with
+CNN, whose fits cost far more than an SVM's). Estimators that request ``feature_names`` /
+``groups`` for ``fit`` (sklearn metadata routing: the CNN both, the backward selector the
+groups) get the feature names and the record ids; those with
 ``predict_with_uncertainty`` (the CNN ensemble) fill the optional ``uncertainty`` column of the
 predictions, and those with a ``history_`` (per member and epoch) have it written to
 ``models/history.parquet`` for the tracking job.
@@ -26,7 +27,6 @@ predictions, and those with a ``history_`` (per member and epoch) have it writte
 from __future__ import annotations
 
 import hashlib
-import inspect
 import json
 import logging
 import time
@@ -36,16 +36,18 @@ from typing import NamedTuple
 import joblib
 import numpy as np
 import pandas as pd
-from sklearn.dummy import DummyClassifier
 import pyarrow as pa
+import sklearn
+from sklearn.dummy import DummyClassifier
 from sklearn.metrics import accuracy_score, f1_score
+from sklearn.utils.metadata_routing import get_routing_for_object
 
 from condmon import classifiers
 from condmon.atomic import staging_directory, write_frame, write_table, write_text
 from condmon.hybrid import (SIMULATED_VALIDATION, measured_rows, simulated_validation_ids,
                             sorted_holdouts, validate_splits)
 from condmon.seeds import derive_seed, stable_int
-from condmon.selection import SelectThenClassify, SequentialBackwardSelector
+from condmon.selection import SequentialBackwardSelector, select_then_classify, selected_features
 from condmon.signals import package_versions
 
 log = logging.getLogger(__name__)
@@ -137,12 +139,14 @@ def select_splits(splits: pd.DataFrame, classifier_name: str, measured_percent=N
     return splits
 
 
-def _fit_kwargs(model, feature_names, groups) -> dict:
-    """Extra fit() arguments the estimator takes: feature names (the CNN finds its sensor
-    channels in them) and record ids (its validation split keeps records whole)."""
-    accepted = inspect.signature(model.fit).parameters
-    extra = {"feature_names": list(feature_names), "groups": groups}
-    return {name: value for name, value in extra.items() if name in accepted}
+def fit_with_metadata(model, X, y, **metadata):
+    """Fit `model` with the metadata its fit requests (sklearn metadata routing; a Pipeline hands
+    each item to the steps that request it): the feature names (the CNN finds its sensor
+    channels in them) and the record ids (the CNN's validation split and the selector's folds
+    keep records whole). Metadata nobody requests is left out."""
+    with sklearn.config_context(enable_metadata_routing=True):
+        wanted = get_routing_for_object(model).consumes("fit", list(metadata))
+        return model.fit(X, y, **{name: metadata[name] for name in wanted})
 
 
 def segment_roles(split: pd.DataFrame, measured_features: pd.DataFrame) -> np.ndarray:
@@ -171,7 +175,10 @@ def build_model(classifier_name, classifier_params, seed, feature_selection=None
     selector = SequentialBackwardSelector(n_features=int(feature_selection["n_features"]),
                                           cv=int(feature_selection.get("cv", 3)),
                                           random_state=seed)
-    return SelectThenClassify(selector, model)
+    with sklearn.config_context(enable_metadata_routing=True):
+        if get_routing_for_object(model).consumes("fit", ["feature_names"]):
+            model.set_fit_request(feature_names=False)  # they name the columns before selection
+    return select_then_classify(selector, model)
 
 
 class ProtocolResult(NamedTuple):
@@ -288,7 +295,7 @@ def fit_and_evaluate(classifier_name: str, classifier_params: dict | None,
         else:
             model = build_model(classifier_name, classifier_params, fit_seed, feature_selection)
         start = time.perf_counter()
-        model.fit(x_train, y_train, **_fit_kwargs(model, feature_names, groups))
+        fit_with_metadata(model, x_train, y_train, feature_names=feature_names, groups=groups)
         fit_seconds = time.perf_counter() - start
         y_pred, uncertainty = _predict(model, x_meas[test])
         y_true = y_meas[test]
@@ -354,12 +361,13 @@ def training_history(models: dict) -> pd.DataFrame:
                            "epoch": "int32"})
 
 
-def write_models(models: dict, directory) -> list[dict]:
+def write_models(models: dict, directory, feature_names) -> list[dict]:
     """Dump every fitted model into `directory` (built aside, then renamed into place), plus
     ``history.parquet`` (per member and epoch) if the models have a training history.
 
     Returns one entry per file: file name, measured_percent, repeat, holdout, holdout_index
-    (and, for the CNN ensemble, its members' epochs run and best epochs).
+    (and, for the CNN ensemble, its members' epochs run and best epochs; with a backward
+    selection, the names of the selected features among `feature_names`).
     """
     directory = Path(directory)
     order = {h: i for i, h in enumerate(sorted_holdouts(key[2] for key in models))}
@@ -376,8 +384,9 @@ def write_models(models: dict, directory) -> list[dict]:
                      "holdout": holdout, "holdout_index": index}
             if hasattr(model, "member_info_"):
                 entry["members"] = model.member_info_
-            if hasattr(model, "selected_features_"):
-                entry["selected_features"] = [str(n) for n in model.selected_features_]
+            selected = selected_features(model, feature_names)
+            if selected is not None:
+                entry["selected_features"] = selected
             entries.append(entry)
         history = training_history(models)
         if not history.empty:

@@ -51,7 +51,7 @@ if validation_path is not None:
 elif len(validation):
     log.warning("the split table holds out simulated records but the rule declares no "
                 "simulated_validation output: their %d metric rows are not written", len(validation))
-model_files = write_models(models, out.models)
+model_files = write_models(models, out.models, feature_names)
 labels = set(simulated["health_state"]) | set(measured["health_state"])
 peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # Linux: KiB
 write_json(train_info(name, params, seed, str(splits["protocol"].iloc[0]), labels, feature_names,
