@@ -212,26 +212,32 @@ def test_an_unfinished_parent_never_counts(logged):
         client.delete_run(unfinished.info.run_id)
 
 
-def test_curves_go_to_one_log_batch_per_run_and_mlflow_splits_it(tmp_path, monkeypatch):
-    """A CNN run's training curves (here more points than MLflow's 1000 per request) go with its
-    other metrics and params in one log_batch call; MLflow splits it and every point arrives."""
+def test_each_run_is_one_log_batch_and_mlflow_splits_large_ones(tmp_path, monkeypatch):
+    """A nested run's params and metrics (a CNN run's mean training curves among them) go in one
+    log_batch call; the parent's 250 config params in one log_params call, which MLflow splits
+    into requests of its limit (100)."""
     history = pd.DataFrame([{"member": m, "epoch": e, "train_loss": 1 / (e + 1), "val_loss": 1.0,
                              "train_accuracy": 0.5, "val_accuracy": 0.5}
-                            for m in range(12) for e in range(25)])
+                            for m in range(3) for e in range(25 - 5 * m)])
     paths = fake.build(tmp_path / "demo")
     models = fake.train_dirs(paths)[0] / "models"  # knn/record_split
     history.assign(measured_percent=0, repeat=0, holdout="").to_parquet(models / tracking.HISTORY_FILE)
     calls, original = [], mlflow.MlflowClient.log_batch
     monkeypatch.setattr(mlflow.MlflowClient, "log_batch",
                         lambda self, run_id, **kw: calls.append(run_id) or original(self, run_id, **kw))
-    info = log(paths, f"sqlite:///{tmp_path / 'mlflow.db'}", "h", {}, log_models="none")
-    _, children = nested_runs(info["tracking_uri"], info["parent_run_id"])
+    config = {"section": {f"key{k:03d}": k for k in range(250)}}
+    info = log(paths, f"sqlite:///{tmp_path / 'mlflow.db'}", "h", config, log_models="none")
+    parent, children = nested_runs(info["tracking_uri"], info["parent_run_id"])
     assert sorted(calls.count(r.info.run_id) for r in children) == [1] * N_RUNS
+    assert len(parent.data.params) == 250 and parent.data.params["section.key249"] == "249"
     run = next(r for r in children if run_key(r) == "knn/record_split/p0/r0")
     client = mlflow.MlflowClient(info["tracking_uri"])
-    assert [m.step for m in client.get_metric_history(run.info.run_id, "member11_train_loss")] == list(range(25))
-    assert len(client.get_metric_history(run.info.run_id, "train_loss")) == 25
-    assert run.data.metrics["epochs_run_mean"] == 24
+    loss = client.get_metric_history(run.info.run_id, "train_loss")
+    assert [m.step for m in loss] == list(range(25))
+    assert loss[0].value == 1.0 and loss[-1].value == pytest.approx(1 / 25)  # the members still running
+    assert run.data.metrics["epochs_run_mean"] == pytest.approx((24 + 19 + 14) / 3)
+    members = pd.read_csv(client.download_artifacts(run.info.run_id, "training_history.csv"))
+    pd.testing.assert_frame_equal(members, history[members.columns.tolist()])
 
 
 def test_run_info_file(logged, tmp_path):
