@@ -107,7 +107,8 @@ def test_concurrent_track_jobs_of_several_configs_log_every_run_once(server, tmp
         assert len(keys) == N_RUNS  # none twice, none lost
         assert len({d.dataset.name for d in parent.inputs.dataset_inputs}) == 4
     mlflow.set_tracking_uri(server.uri)
-    models = mlflow.search_logged_models(experiment_names=["team"], output_format="list")
+    experiment_id = mlflow.get_experiment_by_name("team").experiment_id
+    models = mlflow.search_logged_models(experiment_ids=[experiment_id], output_format="list")
     assert len(models) == N_PIPELINES * N_RUNS // len(fake.REPEATS)
     # the models' artifacts went through the server to its artifact root
     assert mlflow.sklearn.load_model(models[0].model_uri) is not None

@@ -392,7 +392,7 @@ def log_nested_run(client, experiment_id: str, parent_id: str, key: dict, rows, 
     name = f"{clf}/{protocol}/p{key['measured_percent']}/r{key['repeat']}"
     name += f"/{key['holdout']}" if key["holdout"] else ""
     tags = {**{k: str(v) for k, v in key.items()}, "config_hash": config_hash,
-            "leaky": str(protocol in LEAKY_PROTOCOLS).lower(), "model_file": str(model_file),
+            "leaky": str(protocol in LEAKY_PROTOCOLS).lower(), "model_file": str(model_file.resolve()),
             "mlflow.parentRunId": parent_id}
     overall = rows[rows["speed_rpm"].isna()].iloc[0]
     params = {**{k: str(v) for k, v in key.items()}, "holdout": key["holdout"] or "none",
