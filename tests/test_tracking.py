@@ -107,9 +107,13 @@ def test_nested_run_values_model_and_its_linked_metrics(logged):
     listed = next(m["file"] for m in info["models"] if (m["measured_percent"], m["repeat"]) == (50, 1))
     assert run.data.tags["model_file"].endswith(f"svm/record_split/models/{listed}")
 
+    # its confusion matrix, in the parent's table of them
     client = mlflow.MlflowClient(uri)
-    confusion = pd.read_csv(client.download_artifacts(run.info.run_id, "confusion_matrix.csv"), index_col=0)
-    assert list(confusion.columns) == fake.LABELS and confusion.to_numpy().sum() == overall.n_test
+    confusion = pd.read_csv(client.download_artifacts(first["parent_run_id"], "confusion_matrices.csv"))
+    assert list(confusion.columns) == [*tracking.KEYS, "true_label", *fake.LABELS]
+    counts = confusion.query("classifier == 'svm' and protocol == 'record_split' and measured_percent == 50 "
+                             "and repeat == 1")
+    assert list(counts.true_label) == fake.LABELS and counts[fake.LABELS].to_numpy().sum() == overall.n_test
     # its LoggedModel: loads and predicts; the run's metrics are linked to it, on the measured features
     mlflow.set_tracking_uri(uri)
     models = mlflow.search_logged_models(experiment_ids=[first["experiment_id"]],

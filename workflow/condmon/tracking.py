@@ -7,7 +7,7 @@
   ``n_nested_runs``; params: the config flattened (``classifiers.svm.C``); inputs: the signal and
   feature tables as datasets (digest: SHA-256 of the files); metrics
   ``accuracy.<classifier>.<protocol>.p<percent>`` (mean over repeats, held-out conditions averaged
-  first), for the compare view; artifact ``accuracy.csv``;
+  first), for the compare view; artifacts ``accuracy.csv`` and ``confusion_matrices.csv``;
 - one nested run per classifier x protocol x measured percentage x repeat (x held-out condition):
   those keys as tags and params, with ``leaky``, ``config_hash`` and ``model_file`` (the model
   that the train job's info.json lists); params: training and test sizes and ``classifier.<name>``
@@ -15,9 +15,9 @@
   (``accuracy_<speed>rpm``), ``fit_seconds``; for the CNN ensemble ``uncertainty_mean``,
   ``epochs_run_mean`` and the members' mean training curves with step = epoch (``train_loss``,
   ``val_accuracy``, ...; every member's in the artifact ``training_history.csv``: a SQL store
-  writes about 0.1 ms per metric point, and the default run's members have 26000);
-  artifact ``confusion_matrix.csv``. One create, one log_batch (MLflow splits it) and one
-  terminate each;
+  writes about 0.1 ms per metric point, and the default run's members have 26000). One create,
+  one log_batch (MLflow splits it) and one terminate each; their confusion matrices in the
+  parent's ``confusion_matrices.csv``;
 - the models ``tracking.log_models`` picks (see ``wants_model``) as LoggedModels of their nested
   run, with a signature, the run's metrics linked to them (``model_id``, on the measured features).
 
@@ -272,20 +272,35 @@ def summary_metrics(metrics: pd.DataFrame) -> dict[str, float]:
     return {f"accuracy.{c}.{p}.p{int(percent):03d}": float(v) for (c, p, percent), v in means.items()}
 
 
-def run_metrics(rows: pd.DataFrame, predictions: pd.DataFrame, history) -> dict[str, float]:
-    overall = rows[rows["speed_rpm"].isna()].iloc[0]
-    values = {"accuracy": overall["accuracy"], "macro_f1": overall["macro_f1"]}
-    if np.isfinite(overall.get("fit_seconds", np.nan)):
-        values["fit_seconds"] = overall["fit_seconds"]
-    for row in rows[rows["speed_rpm"].notna()].itertuples():
-        values[f"accuracy_{format_speed(row.speed_rpm)}rpm"] = row.accuracy
-        values[f"macro_f1_{format_speed(row.speed_rpm)}rpm"] = row.macro_f1
-    uncertainty = predictions["uncertainty"].to_numpy(float)
-    if np.isfinite(uncertainty).any():
-        values["uncertainty_mean"] = np.nanmean(uncertainty)
-    if history is not None:
-        values["epochs_run_mean"] = history.groupby("member")["epoch"].max().mean()
-    return {name: float(value) for name, value in values.items()}
+def nested_runs(metrics: pd.DataFrame, predictions: pd.DataFrame, clf_params: dict,
+                histories: dict) -> list[tuple[dict, dict, dict]]:
+    """(key, params, metrics) of every nested run, from the metrics rows (the all-speeds row and
+    one per speed) and the predictions (the CNN's uncertainty)."""
+    uncertainty = predictions.groupby(KEYS)["uncertainty"].mean()
+    runs = {}
+    for row in metrics.to_dict("records"):
+        values = tuple(row[k] for k in KEYS)
+        key, params, run = runs.setdefault(values, (dict(zip(KEYS, values)), {}, {}))
+        if pd.isna(row["speed_rpm"]):
+            if params:
+                raise TrackingError(f"metrics for {key} have more than one all-speeds row")
+            params.update({k: str(v) for k, v in key.items()}, holdout=key["holdout"] or "none",
+                          **{k: str(row[k]) for k in ("n_train_simulated", "n_train_measured", "n_test")},
+                          **flatten_params(clf_params.get(key["classifier"], {}), "classifier"))
+            run.update(accuracy=row["accuracy"], macro_f1=row["macro_f1"])
+            if np.isfinite(row.get("fit_seconds", np.nan)):
+                run["fit_seconds"] = row["fit_seconds"]
+        else:
+            run[f"accuracy_{format_speed(row['speed_rpm'])}rpm"] = row["accuracy"]
+            run[f"macro_f1_{format_speed(row['speed_rpm'])}rpm"] = row["macro_f1"]
+    for values, (key, params, run) in runs.items():
+        if not params or values not in uncertainty.index:
+            raise TrackingError(f"{key}: {'no all-speeds row in metrics.csv' if not params else 'no predictions'}")
+        if np.isfinite(uncertainty[values]):
+            run["uncertainty_mean"] = uncertainty[values]
+        if values in histories:
+            run["epochs_run_mean"] = histories[values].groupby("member")["epoch"].max().mean()
+    return [(key, params, {k: float(v) for k, v in run.items()}) for key, params, run in runs.values()]
 
 
 def curves(history) -> list[tuple[str, float, int]]:
@@ -294,11 +309,6 @@ def curves(history) -> list[tuple[str, float, int]]:
     means = history.groupby("epoch")[list(CURVES)].mean()
     points = [(name, float(row[name]), int(epoch)) for epoch, row in means.iterrows() for name in CURVES]
     return [point for point in points if np.isfinite(point[1])]
-
-
-def confusion_csv(predictions: pd.DataFrame, labels) -> str:
-    counts = report.confusion_counts(predictions["true_label"], predictions["predicted_label"], labels)
-    return pd.DataFrame(counts, labels, labels).rename_axis("true\\predicted").to_csv()
 
 
 def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_source: str,
@@ -318,21 +328,15 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
     metrics, predictions, clf_params, files, histories = read_train_outputs(train_dirs)
     inputs = {name: file_dataset(name, paths) for name, paths in datasets.items()}
     example = feature_example(datasets["measured_features"][0])
-    labels = report.label_order([*predictions["true_label"], *predictions["predicted_label"]],
-                                healthy_state)
-    predictions_by_key = dict(list(predictions.groupby(KEYS)))
-    runs = []
-    for values, rows in metrics.groupby(KEYS):
-        key = dict(zip(KEYS, values))
-        if rows["speed_rpm"].isna().sum() != 1:
-            raise TrackingError(f"metrics for {key} need exactly one all-speeds row (empty "
-                                f"speed_rpm), found {rows['speed_rpm'].isna().sum()}")
-        if values not in predictions_by_key or values not in files:
-            raise TrackingError(f"{key}: in metrics.csv but without "
-                                f"{'predictions' if values in files else 'a model in info.json'}")
-        runs.append((key, rows))
+    runs = nested_runs(metrics, predictions, clf_params, histories)
+    if missing := [key for key, _, _ in runs if tuple(key.values()) not in files]:
+        raise TrackingError(f"no model file in info.json for {missing[:3]}")
+    labels = report.label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
+    confusion = (predictions.groupby([*KEYS, "true_label", "predicted_label"]).size()
+                 .unstack(fill_value=0).reindex(columns=labels, fill_value=0))
 
     import mlflow
+    from mlflow.entities import Metric, Param
 
     use_write_ahead_log(uri)
     mlflow.set_tracking_uri(uri)
@@ -342,8 +346,7 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
             "snakemake_run_name": run_name, "data_source": data_source,
             "data_source_synthetic": str(report.is_synthetic(data_source)).lower(),
             "models_logged": json.dumps(log_models), "n_nested_runs": str(len(runs))}
-    measured = inputs["measured_features"]
-    model_ids, parent_id = [], None
+    measured, model_ids, parent_id = inputs["measured_features"], [], None
     try:
         experiment_id = get_or_create_experiment(client, uri, run_name)
         parent_id = mlflow.start_run(experiment_id=experiment_id, tags=tags,
@@ -354,13 +357,31 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
         mlflow.log_params(flatten_params(config or {}))
         mlflow.log_metrics(summary_metrics(metrics))
         mlflow.log_text(metrics.to_csv(index=False), "accuracy.csv")
-        for key, rows in runs:
-            values = tuple(key.values())
-            model_id = log_nested_run(client, experiment_id, parent_id, key, rows,
-                                      predictions_by_key[values], clf_params.get(key["classifier"], {}),
-                                      config_hash, labels, files[values], histories.get(values),
-                                      measured, example if wants_model(log_models, key) else None)
-            model_ids += [model_id] if model_id else []
+        # counts per run (rows: true label, columns: predicted label)
+        mlflow.log_text(confusion.reset_index().to_csv(index=False), "confusion_matrices.csv")
+        for key, params, values in runs:
+            run_key = tuple(key.values())
+            name = f"{key['classifier']}/{key['protocol']}/p{key['measured_percent']}/r{key['repeat']}"
+            name += f"/{key['holdout']}" if key["holdout"] else ""
+            run_tags = {**{k: str(v) for k, v in key.items()}, "config_hash": config_hash,
+                        "leaky": str(key["protocol"] in LEAKY_PROTOCOLS).lower(),
+                        "model_file": str(files[run_key].resolve())}
+            run_id = client.create_run(experiment_id, run_name=name,
+                                       tags={**run_tags, "mlflow.parentRunId": parent_id}).info.run_id
+            model_id = None
+            if wants_model(log_models, key):
+                model_id = log_model(files[run_key], example, run_id, re.sub(r"[^\w-]+", "-", name),
+                                     params, run_tags)
+                model_ids.append(model_id)
+            now = int(time.time() * 1000)
+            points = [Metric(k, v, now, 0, dataset_name=measured.name, dataset_digest=measured.digest,
+                             model_id=model_id) for k, v in values.items()]
+            if run_key in histories:  # the members' mean curves; every member's in an artifact
+                points += [Metric(k, v, now, step, model_id=model_id) for k, v, step in curves(histories[run_key])]
+                client.log_text(run_id, histories[run_key][["member", "epoch", *CURVES]].to_csv(index=False),
+                                "training_history.csv")
+            client.log_batch(run_id, metrics=points, params=[Param(k, v) for k, v in params.items()])
+            client.set_terminated(run_id)
         mlflow.end_run()
     except Exception as exc:
         with contextlib.suppress(Exception):  # the server may be gone: best effort
@@ -381,46 +402,12 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
             "seconds": round(elapsed, 2)}
 
 
-def log_nested_run(client, experiment_id: str, parent_id: str, key: dict, rows, predictions,
-                   clf_params: dict, config_hash: str, labels, model_file: Path, history, dataset,
-                   example) -> str | None:
-    """One nested run; logs its model when ``example`` (rows for its signature) is given. Returns the
-    LoggedModel's id, or None."""
-    from mlflow.entities import Metric, Param
-
-    clf, protocol = key["classifier"], key["protocol"]
-    name = f"{clf}/{protocol}/p{key['measured_percent']}/r{key['repeat']}"
-    name += f"/{key['holdout']}" if key["holdout"] else ""
-    tags = {**{k: str(v) for k, v in key.items()}, "config_hash": config_hash,
-            "leaky": str(protocol in LEAKY_PROTOCOLS).lower(), "model_file": str(model_file.resolve()),
-            "mlflow.parentRunId": parent_id}
-    overall = rows[rows["speed_rpm"].isna()].iloc[0]
-    params = {**{k: str(v) for k, v in key.items()}, "holdout": key["holdout"] or "none",
-              **{k: str(overall[k]) for k in ("n_train_simulated", "n_train_measured", "n_test")},
-              **flatten_params(clf_params, "classifier")}
-    run_id = client.create_run(experiment_id, run_name=name, tags=tags).info.run_id
-    model_id = None
-    if example is not None:
-        model_id = log_model(model_file, example, run_id, re.sub(r"[^\w-]+", "-", name), params,
-                             {k: v for k, v in tags.items() if not k.startswith("mlflow.")})
-    now = int(time.time() * 1000)
-    points = [Metric(k, v, now, 0, dataset_name=dataset.name, dataset_digest=dataset.digest,
-                     model_id=model_id) for k, v in run_metrics(rows, predictions, history).items()]
-    if history is not None:  # the members' mean curves; every member's in an artifact
-        points += [Metric(k, v, now, step, model_id=model_id) for k, v, step in curves(history)]
-        client.log_text(run_id, history[["member", "epoch", *CURVES]].to_csv(index=False),
-                        "training_history.csv")
-    client.log_batch(run_id, metrics=points, params=[Param(k, v) for k, v in params.items()])
-    client.log_text(run_id, confusion_csv(predictions, labels), "confusion_matrix.csv")
-    client.set_terminated(run_id)
-    return model_id
-
-
 def log_model(path: Path, features: pd.DataFrame, run_id: str, name: str, params: dict,
               tags: dict) -> str:
     """The fitted model of ``path`` as a LoggedModel of ``run_id``, with a signature from the
-    ``features`` rows (the scikit-learn ones without input example: MLflow would load and run
-    each model to check it)."""
+    ``features`` rows. No input example: MLflow would load and run each model to check it (and
+    trace the CNN into its pt2 format, seconds each); the CNN is pickled (loading it needs
+    condmon, as the joblib file does)."""
     import joblib
     import mlflow
     from mlflow.models import infer_signature
@@ -435,8 +422,7 @@ def log_model(path: Path, features: pd.DataFrame, run_id: str, name: str, params
         example = features.to_numpy(np.float32).copy()
         with torch.no_grad():
             probabilities = module(torch.from_numpy(example)).numpy()
-        # MLflow's default format for it (pt2, a traced graph) needs an input example
-        info = mlflow.pytorch.log_model(module, input_example=example,
+        info = mlflow.pytorch.log_model(module, serialization_format="pickle",
                                         signature=infer_signature(example, probabilities),
                                         pip_requirements=pip_requirements("torch"), **common)
         mlflow.MlflowClient().log_dict(run_id, {"classes": module.classes}, "model_classes.json")
