@@ -45,8 +45,9 @@ def _column(frame: pd.DataFrame, name: str) -> pd.Series:
 def pipeline_parents(runs: pd.DataFrame) -> pd.DataFrame:
     """The parent runs of pipeline invocations in a ``mlflow.search_runs`` frame, each with a
     column ``latest``: it is the newest finished one of its experiment and config hash."""
+    runs = runs.assign(**{"tags.config_hash": _column(runs, "tags.config_hash")})
     parent_of = _column(runs, "tags.mlflow.parentRunId")
-    parents = runs[(parent_of.isna() | (parent_of == "")) & _column(runs, "tags.config_hash").notna()].copy()
+    parents = runs[(parent_of.isna() | (parent_of == "")) & runs["tags.config_hash"].notna()].copy()
     finished = parents[parents["status"] == "FINISHED"].sort_values("start_time")
     newest = finished.drop_duplicates(["experiment_id", "tags.config_hash"], keep="last")["run_id"]
     parents["latest"] = parents["run_id"].isin(newest)

@@ -255,11 +255,11 @@ def wants_model(policy, key: dict) -> bool:
 
 
 @functools.cache
-def pip_requirements(*extra: str) -> list[str]:
+def pip_requirements(*extra: str) -> tuple[str, ...]:
     """Pinned requirements of logged models: given, as MLflow would infer them in a subprocess
     per model (seconds each)."""
     names = ("mlflow", "scikit-learn", "numpy", "scipy", "pandas", "skops", *extra)
-    return [f"{n}=={metadata.version(n)}" for n in names]
+    return tuple(f"{n}=={metadata.version(n)}" for n in names)
 
 
 # --------------------------------------------------------------------------- logging
@@ -424,7 +424,7 @@ def log_model(path: Path, features: pd.DataFrame, run_id: str, name: str, params
             probabilities = module(torch.from_numpy(example)).numpy()
         info = mlflow.pytorch.log_model(module, serialization_format="pickle",
                                         signature=infer_signature(example, probabilities),
-                                        pip_requirements=pip_requirements("torch"), **common)
+                                        pip_requirements=list(pip_requirements("torch")), **common)
         mlflow.MlflowClient().log_dict(run_id, {"classes": module.classes}, "model_classes.json")
         return info.model_id
     import mlflow.sklearn
@@ -434,7 +434,7 @@ def log_model(path: Path, features: pd.DataFrame, run_id: str, name: str, params
     example = features[list(names)] if names is not None else features.to_numpy()
     info = mlflow.sklearn.log_model(
         model, signature=infer_signature(example, model.predict(example)),
-        pip_requirements=pip_requirements(),
+        pip_requirements=list(pip_requirements()),
         # skops refuses types it does not trust on load (k-NN's KD-tree, say): these are the
         # pipeline's own outputs, so their types are listed with the model; others stay refused
         skops_trusted_types=skops.io.get_untrusted_types(data=skops.io.dumps(model)), **common)
