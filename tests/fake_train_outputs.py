@@ -1,14 +1,17 @@
 """Small but contract-conforming train and calibration outputs for report/tracking tests.
 
-Two classifiers x two protocols (record_split; condition_holdout over two speeds), measured
-percentages 0 and 50, two repeats; real fitted sklearn pipelines on a six-feature table.
+By default two classifiers x two protocols (record_split; condition_holdout over two speeds),
+measured percentages 0 and 50, two repeats; real fitted sklearn pipelines on a six-feature table.
+Every size is a parameter of ``build`` (the tracking benchmark builds a default-run-sized set,
+see ``default_run_size``); the models, their ``info.json`` and the CNN's training history are
+written by condmon.train itself.
 """
 from __future__ import annotations
 
+import inspect
 import json
 from pathlib import Path
 
-import joblib
 import numpy as np
 import pandas as pd
 import pyarrow as pa
@@ -19,7 +22,8 @@ from sklearn.neighbors import KNeighborsClassifier
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 
-from condmon.train import model_filename
+from condmon import classifiers as registry
+from condmon.train import write_models
 
 LABELS = ["healthy", "missing_tooth", "surface_fault"]
 SPEEDS = [600.0, 900.0]
@@ -32,51 +36,97 @@ FEATURES = [f"fft_A1_x_{f:06.1f}Hz" for f in (10, 20, 30, 40, 50, 60)]
 ID_COLUMNS = ["record_id", "segment", "source", "health_state", "speed_rpm", "load", "fs_hz"]
 
 
-def _features_table(rng, source: str, n_per_stratum: int) -> pd.DataFrame:
+def _features_table(rng, source: str, n_per_stratum: int, speeds=SPEEDS,
+                    features=FEATURES) -> pd.DataFrame:
     rows = []
     for label_index, label in enumerate(LABELS):
-        for speed in SPEEDS:
+        for speed in speeds:
             for k in range(n_per_stratum):
                 for segment in range(2):
-                    values = rng.normal(label_index, 1.1, len(FEATURES)).astype(np.float32)
+                    values = rng.normal(label_index, 1.1, len(features)).astype(np.float32)
                     rows.append({"record_id": f"{source}_{label}_{speed:g}_{k}",
                                  "segment": segment, "source": source, "health_state": label,
                                  "speed_rpm": speed, "load": 1.0, "fs_hz": 5000.0,
-                                 **dict(zip(FEATURES, values))})
+                                 **dict(zip(features, values))})
     return pd.DataFrame(rows)
 
 
-def _write_features(frame: pd.DataFrame, path: Path) -> None:
+def _write_features(frame: pd.DataFrame, path: Path, features=FEATURES) -> None:
     table = pa.Table.from_pandas(frame, preserve_index=False)
-    table = table.replace_schema_metadata({b"condmon.feature_names": json.dumps(FEATURES).encode(),
+    table = table.replace_schema_metadata({b"condmon.feature_names": json.dumps(features).encode(),
                                            b"condmon.feature_kind": b"spectrum"})
     path.parent.mkdir(parents=True, exist_ok=True)
     pq.write_table(table, path)
 
 
-def _make_classifier(name: str):
-    params = CLASSIFIERS[name]
-    estimator = KNeighborsClassifier(**params) if name.startswith("knn") else LogisticRegression(**params)
-    return make_pipeline(StandardScaler(), estimator)
+def _make_classifier(name: str, params: dict):
+    if name == "logreg":
+        return make_pipeline(StandardScaler(), LogisticRegression(**params))
+    if name.startswith("knn"):
+        return make_pipeline(StandardScaler(), KNeighborsClassifier(**params))
+    return registry.make_classifier(name, params, seed=0)  # svm, cnn: the project's own
 
 
-def build(root: Path) -> dict:
-    """Write the fake outputs under ``root`` (a results/<run> directory); returns the paths."""
+def _fit(model, x, y, records, features):
+    """fit(), with the feature names and record ids for the estimators that take them (CNN)."""
+    if "feature_names" in inspect.signature(model.fit).parameters:
+        return model.fit(x, y, feature_names=features, groups=records)
+    return model.fit(x, y)
+
+
+def default_run_size(cnn: dict | None = None) -> dict:
+    """``build`` arguments for a set the size of config/config.yaml's run: SVM and k-NN on 11
+    measured percentages x 3 repeats, the CNN ensemble on 0/50/100 % x 2 repeats, both protocols
+    over 3 speeds (4 evaluations per percentage and repeat): 288 fitted models; 4000 spectral
+    features (4 channels x 1000 bands). ``cnn``: the CNN's settings (the default run's, unless
+    given: ten members, 25 epochs)."""
+    speeds = [450.0, 775.0, 1100.0]
+    features = [f"fft_{ch}_{f:07.1f}Hz" for ch in ("A1_x", "A1_y", "A2_x", "A2_y")
+                for f in np.arange(1.0, 2000.0, 2.0)]
+    cnn = cnn or {"members": 10, "epochs": 25, "conv_channels": [4, 8], "dense_units": [16]}
+    return dict(classifiers={"svm": {"C": 1.2, "gamma": "scale"},
+                             "knn": {"n_neighbors": 5, "weights": "uniform"}, "cnn": cnn},
+                percents=list(range(0, 101, 10)), repeats=[0, 1, 2], speeds=speeds,
+                features=features, selection={"cnn": {"measured_percent": [0, 50, 100],
+                                                      "repeats": 2}})
+
+
+def build(root: Path, classifiers: dict | None = None, percents=PERCENTS, repeats=REPEATS,
+          speeds=SPEEDS, features=FEATURES, selection: dict | None = None) -> dict:
+    """Write the fake outputs under ``root`` (a results/<run> directory); returns the paths.
+
+    ``classifiers``: name -> params (default CLASSIFIERS); ``selection``: name -> the
+    measured_percent / repeats subset it trains on (like classifiers.<name> in the config).
+    """
+    classifiers = CLASSIFIERS if classifiers is None else classifiers
     rng = np.random.default_rng(7)
-    simulated = _features_table(rng, "simulated", 3)
-    measured = _features_table(rng, "virtual_bench", 3)
-    _write_features(simulated, root / "features/simulated.parquet")
-    _write_features(measured, root / "features/measured.parquet")
+    simulated = _features_table(rng, "simulated", 3, speeds, features)
+    measured = _features_table(rng, "virtual_bench", 3, speeds, features)
+    _write_features(simulated, root / "features/simulated.parquet", features)
+    _write_features(measured, root / "features/measured.parquet", features)
+    # stand-ins for the signal tables (the tracking logs their digests, not their contents)
+    measured[ID_COLUMNS].to_parquet(root / "measured_signals.parquet", index=False)
+    simulated_signals = []
+    for label in LABELS:
+        path = root / "simulated" / label / "batch000.parquet"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        simulated[simulated["health_state"] == label][ID_COLUMNS].to_parquet(path, index=False)
+        simulated_signals.append(path)
     records = measured["record_id"].unique()
+    protocol_holdouts = {"record_split": [""],
+                         "condition_holdout": [f"speed_rpm={s:g}" for s in speeds]}
 
-    paths = {"metrics": [], "predictions": [], "models": []}
-    for clf in CLASSIFIERS:
-        for protocol, holdouts in PROTOCOL_HOLDOUTS.items():
+    paths = {"metrics": [], "predictions": [], "models": [], "info": []}
+    for clf, params in classifiers.items():
+        subset = (selection or {}).get(clf, {})
+        clf_percents = subset.get("measured_percent") or percents
+        clf_repeats = list(repeats)[:subset.get("repeats") or len(repeats)]
+        for protocol, holdouts in protocol_holdouts.items():
             out = root / "train" / clf / protocol
-            (out / "models").mkdir(parents=True, exist_ok=True)
-            metric_rows, prediction_frames = [], []
-            for percent in PERCENTS:
-                for repeat in REPEATS:
+            out.mkdir(parents=True, exist_ok=True)
+            metric_rows, prediction_frames, models = [], [], {}
+            for percent in clf_percents:
+                for repeat in clf_repeats:
                     for h_index, holdout in enumerate(holdouts):
                         split_rng = np.random.default_rng([percent, repeat, h_index])
                         if holdout:
@@ -94,12 +144,16 @@ def build(root: Path) -> dict:
                                            measured[measured["record_id"].isin(train_records)]])
                         test = measured[test_mask]
                         # bare float32 arrays, as the train stage fits them
-                        model = _make_classifier(clf).fit(train[FEATURES].to_numpy(np.float32),
-                                                          train["health_state"].to_numpy())
-                        # named like the train stage names them (zero-padded percent)
-                        name = model_filename(percent, repeat, h_index if holdout else None)
-                        joblib.dump(model, out / "models" / name)
-                        predicted = model.predict(test[FEATURES].to_numpy(np.float32))
+                        model = _fit(_make_classifier(clf, params),
+                                     train[features].to_numpy(np.float32),
+                                     train["health_state"].to_numpy(),
+                                     train["record_id"].to_numpy(), features)
+                        models[(percent, repeat, holdout)] = model
+                        x_test = test[features].to_numpy(np.float32)
+                        if hasattr(model, "predict_with_uncertainty"):  # the CNN ensemble
+                            predicted, uncertainty = model.predict_with_uncertainty(x_test)
+                        else:
+                            predicted, uncertainty = model.predict(x_test), np.nan
                         prediction_frames.append(pd.DataFrame({
                             "protocol": protocol, "measured_percent": np.int32(percent),
                             "repeat": np.int32(repeat), "holdout": holdout,
@@ -107,7 +161,7 @@ def build(root: Path) -> dict:
                             "segment": test["segment"].to_numpy(np.int32),
                             "speed_rpm": test["speed_rpm"].to_numpy(),
                             "true_label": test["health_state"].to_numpy(),
-                            "predicted_label": predicted}))
+                            "predicted_label": predicted, "uncertainty": uncertainty}))
                         common = {"classifier": clf, "protocol": protocol,
                                   "measured_percent": percent, "repeat": repeat,
                                   "holdout": holdout,
@@ -129,11 +183,20 @@ def build(root: Path) -> dict:
             columns = ["classifier", "protocol", "measured_percent", "repeat", "holdout",
                        "speed_rpm", "accuracy", "macro_f1", "n_train_simulated",
                        "n_train_measured", "n_test", "fit_seconds"]
-            pd.DataFrame(metric_rows)[columns].to_csv(out / "metrics.csv", index=False)
+            metrics = pd.DataFrame(metric_rows)[columns]
+            metrics.to_csv(out / "metrics.csv", index=False)
             pd.concat(prediction_frames).to_parquet(out / "predictions.parquet", index=False)
+            # named and listed as the train stage does (zero-padded percent, holdout index)
+            entries = write_models(models, out / "models", features)
+            complete = (registry.classifier_params(clf, params)
+                        if clf in registry.CLASSIFIERS else params)
+            (out / "info.json").write_text(json.dumps({  # the keys of condmon.train.train_info used
+                "classifier": clf, "classifier_params": complete, "protocol": protocol,
+                "labels": LABELS, "models": entries, "selection": subset}))
             paths["metrics"].append(out / "metrics.csv")
             paths["predictions"].append(out / "predictions.parquet")
             paths["models"].append(out / "models")
+            paths["info"].append(out / "info.json")
 
     calibration = root / "calibration"
     calibration.mkdir(parents=True, exist_ok=True)
@@ -159,5 +222,51 @@ def build(root: Path) -> dict:
                  calibration_spectra=calibration / "spectra.parquet",
                  calibration_history=calibration / "history.parquet",
                  features_measured=root / "features/measured.parquet",
-                 features_simulated=root / "features/simulated.parquet")
+                 features_simulated=root / "features/simulated.parquet",
+                 measured_signals=root / "measured_signals.parquet",
+                 simulated_signals=simulated_signals)
     return paths
+
+
+TRACK_RUNNER = """
+import json, sys, types
+class Section(dict):
+    __getattr__ = dict.__getitem__
+args = json.loads(sys.argv[1])
+snakemake = types.SimpleNamespace(params=Section(args["params"]), input=Section(args["input"]),
+                                  output=Section(args["output"]), log=[args["log"]], rule="track")
+exec(compile(open(args["script"]).read(), args["script"], "exec"),
+     {"snakemake": snakemake, "__name__": "__main__"})
+"""
+
+
+def track_job(paths: dict, tracking_uri: str, workdir: Path, config_hash: str = "h",
+              run_name: str = "demo", config: dict | None = None, log_models="all") -> list[str]:
+    """The command line that runs workflow/scripts/track.py as the `track` rule does (a fresh
+    Python, `snakemake` injected) on the outputs of ``build``; log and mlflow_run.json go to
+    ``workdir``."""
+    import sys
+    script = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "track.py"
+    args = dict(script=str(script), log=str(workdir / "track.log"),
+                params=dict(tracking_uri=tracking_uri, run_name=run_name, config_hash=config_hash,
+                            data_source="virtual_bench", config=config or {"run_name": run_name},
+                            log_models=log_models, healthy_state="healthy"),
+                input=dict(info=list(map(str, paths["info"])),
+                           features_measured=str(paths["features_measured"]),
+                           features_simulated=str(paths["features_simulated"]),
+                           measured_signals=str(paths["measured_signals"]),
+                           simulated_signals=list(map(str, paths["simulated_signals"]))),
+                output=dict(run_info=str(workdir / "mlflow_run.json")))
+    return [sys.executable, "-c", TRACK_RUNNER, json.dumps(args)]
+
+
+def datasets(paths: dict) -> dict:
+    """``log_pipeline_run``'s datasets argument for the outputs of ``build``."""
+    return {"measured_signals": [paths["measured_signals"]],
+            "simulated_signals": paths["simulated_signals"],
+            "measured_features": [paths["features_measured"]],
+            "simulated_features": [paths["features_simulated"]]}
+
+
+def train_dirs(paths: dict) -> list[Path]:
+    return [Path(p).parent for p in paths["info"]]

@@ -18,8 +18,8 @@ from condmon.cnn import (CNNConfigError, CNNEnsembleClassifier, channels_from_fe
                          validation_split)
 from condmon.features import write_feature_table
 from condmon.hybrid import make_splits
-from condmon.train import (HISTORY_FILE, PREDICTION_COLUMNS, run_protocol, write_metrics,
-                           write_models, write_predictions)
+from condmon.train import (HISTORY_FILE, PREDICTION_COLUMNS, run_protocol, train_info,
+                           write_metrics, write_models, write_predictions)
 
 CLASSES = ("healthy", "surface_fault", "missing_tooth")
 SPEEDS = (450.0, 775.0)
@@ -225,6 +225,7 @@ def test_subset_errors_name_the_config_key():
 def test_tracking_logs_curves_and_the_ensemble_as_a_pytorch_model(tmp_path):
     root = tmp_path / "results" / "cnn_demo"
     write_feature_table(MEASURED, FEATURES, root / "features/measured.parquet")
+    write_feature_table(SIMULATED, FEATURES, root / "features/simulated.parquet")
     splits = make_splits(MEASURED[["record_id", "health_state", "speed_rpm"]], "record_split",
                          [0], 1, seed=3)
     predictions, metrics, models = run_protocol("cnn", SMALL, SIMULATED, MEASURED, splits,
@@ -232,12 +233,14 @@ def test_tracking_logs_curves_and_the_ensemble_as_a_pytorch_model(tmp_path):
     out = root / "train/cnn/record_split"
     write_predictions(predictions, out / "predictions.parquet")
     write_metrics(metrics, out / "metrics.csv")
-    write_models(models, out / "models", FEATURES)
+    entries = write_models(models, out / "models", FEATURES)
+    (out / "info.json").write_text(json.dumps(train_info("cnn", SMALL, 1, "record_split", CLASSES, FEATURES,
+                                                         metrics, entries, 1.0)))
     uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
-    info = tracking.log_pipeline_run(uri, "cnn_demo", "hash-c", "virtual_bench", {"cnn": SMALL},
-                                     [out / "metrics.csv"], [out / "predictions.parquet"],
-                                     [out / "models"], root / "features/measured.parquet",
-                                     workdir=tmp_path)
+    tables = [root / "features/measured.parquet", root / "features/simulated.parquet"]
+    info = tracking.log_pipeline_run(uri, "cnn_demo", "hash-c", "virtual_bench", [out],
+                                     {"measured_features": tables[:1], "simulated_features": tables[1:]},
+                                     log_models="all", workdir=tmp_path)
     assert info["n_nested_runs"] == info["n_models_logged"] == 1
     client = mlflow.MlflowClient(info["tracking_uri"])
     run = client.search_runs([info["experiment_id"]],
@@ -245,15 +248,17 @@ def test_tracking_logs_curves_and_the_ensemble_as_a_pytorch_model(tmp_path):
     assert run.data.params["classifier.members"] == "2"
     assert run.data.params["classifier.conv_channels"] == "[4]"
     assert 0 <= run.data.metrics["uncertainty_mean"] <= 0.5
-    curve = client.get_metric_history(run.info.run_id, "member1_train_loss")
     model = models[(0, 0, "")]
-    assert [m.step for m in curve] == [r["epoch"] for r in model.history_ if r["member"] == 1]
     assert len(client.get_metric_history(run.info.run_id, "val_loss")) == max(
-        i["epochs_run"] for i in model.member_info_)
+        i["epochs_run"] for i in model.member_info_)  # the members' mean, step = epoch
+    members = pd.read_csv(client.download_artifacts(run.info.run_id, "training_history.csv"))
+    assert list(members.loc[members.member == 1, "epoch"]) == [r["epoch"] for r in model.history_ if r["member"] == 1]
 
     logged = mlflow.search_logged_models(experiment_ids=[info["experiment_id"]],
                                          output_format="list")
-    assert len(logged) == 1
+    assert len(logged) == 1 and logged[0].source_run_id == run.info.run_id
+    # the run's metrics, the curves among them, are the model's
+    assert {m.key for m in logged[0].metrics} >= {"accuracy", "val_loss", "uncertainty_mean"}
     loaded = mlflow.pytorch.load_model(logged[0].model_uri)
     with torch.no_grad():
         probabilities = loaded(torch.from_numpy(X[:3])).numpy()

@@ -107,15 +107,51 @@ def test_mlflow_has_one_parent_and_nested_runs(smoke):
     children = [r for r in runs if r.data.tags.get("mlflow.parentRunId") == info["parent_run_id"]]
     assert len(children) == info["n_nested_runs"] > 0
     assert all("accuracy" in r.data.metrics for r in children)
+    assert all(Path(r.data.tags["model_file"]).is_file() for r in children)  # as train's info.json lists them
+    assert info["n_models_logged"] == len(children)  # smoke.yaml: log_models all
+    parent = client.get_run(info["parent_run_id"])
+    assert {d.dataset.name for d in parent.inputs.dataset_inputs} == {
+        "measured_signals", "simulated_signals", "measured_features", "simulated_features"}
+    assert any(name.startswith("accuracy.svm.record_split.p") for name in parent.data.metrics)
 
 
-def test_editing_a_classifier_setting_reruns_only_training_and_report(smoke):
-    workdir, _ = smoke
+def copy_of_run(workdir: Path, target: Path) -> Path:
+    """The smoke run's project folder, results and Snakemake's records included, with its MLflow
+    store pointing at its own artifacts (the store keeps absolute paths)."""
+    import sqlite3
+    shutil.copytree(workdir, target, symlinks=True)
+    with sqlite3.connect(target / "results" / "mlflow.db") as db:
+        for table, column in (("experiments", "artifact_location"), ("runs", "artifact_uri"),
+                              ("logged_models", "artifact_location")):
+            db.execute(f"UPDATE {table} SET {column} = replace({column}, ?, ?)", (workdir.as_uri(), target.as_uri()))
+    return target
+
+
+def test_two_runs_differing_in_svm_C_compared_through_mlflow(smoke, tmp_path):
+    """The README's comparison: edit classifiers.svm.C, rerun (the SVM's train jobs, track and
+    report only), then both invocations are parent runs of the experiment, found by
+    mlflow.search_runs with their differing parameter and their summary metrics."""
+    import mlflow
+    from condmon.compare import latest_parents
+    workdir = copy_of_run(smoke[0], tmp_path / "project")
     config = smoke_config()
     config["classifiers"]["svm"]["C"] = 2.5
     jobs = planned_jobs(workdir, config)
     assert set(jobs) == {"train", "track", "report", "all"}
     assert jobs["train"] == len(config["hybrid"]["protocols"])  # the SVM's jobs only
+    snakemake(workdir, "--cores", "2", "--configfile", "edited.yaml")
+
+    mlflow.set_tracking_uri(f"sqlite:///{workdir}/results/mlflow.db")
+    runs = mlflow.search_runs(experiment_names=["smoke"], filter_string="tags.snakemake_run_name = 'smoke'")
+    assert len(runs) == 2 and set(runs["status"]) == {"FINISHED"}
+    assert len(latest_parents(mlflow.search_runs(experiment_names=["smoke"]))) == 2  # two configs
+    runs = runs.set_index("params.classifiers.svm.C")
+    assert set(runs.index) == {str(smoke_config()["classifiers"]["svm"]["C"]), "2.5"}
+    assert runs["tags.config_hash"].nunique() == 2
+    summary = [c for c in runs.columns if c.startswith("metrics.accuracy.")]
+    assert {c.split(".")[2] for c in summary} == {"svm", "knn"} and runs[summary].notna().all().all()
+    knn = [c for c in summary if ".knn." in c]
+    assert (runs[knn].nunique() == 1).all()  # the k-NN did not rerun: the same numbers
 
 
 def test_choosing_which_models_mlflow_logs_reruns_only_the_tracking(smoke):

@@ -1,6 +1,10 @@
-"""MLflow tracking against a temporary SQLite store: structure, values, reruns, compare."""
+"""MLflow tracking against a temporary SQLite store: structure, values, models and their metrics,
+datasets, parent summaries, two configs compared through mlflow.search_runs, reruns counted once
+at query time, condmon-compare, a dead server."""
 import json
 import os
+import sqlite3
+import subprocess
 import time
 
 import mlflow
@@ -10,30 +14,33 @@ import pytest
 import fake_train_outputs as fake
 from condmon import compare, tracking
 
-# raised inside MLflow's input-example handling, not by this code
-pytestmark = pytest.mark.filterwarnings("ignore:Operation with range is deprecated")
+# two configs that differ in classifiers.svm.C only
+CONFIG_A = {"run_name": "demo", "classifiers": {"svm": {"C": 1.0}, "knn": {"n_neighbors": 3}}}
+CONFIG_B = {"run_name": "demo", "classifiers": {"svm": {"C": 0.02}, "knn": {"n_neighbors": 3}}}
+N_RUNS = 2 * len(fake.PERCENTS) * len(fake.REPEATS) * 3  # record_split + two held-out speeds
+
+
+def log(paths, uri, config_hash, config, **options):
+    return tracking.log_pipeline_run(uri, "demo", config_hash, "virtual_bench", fake.train_dirs(paths),
+                                     fake.datasets(paths), config=config, healthy_state="healthy",
+                                     **options)
 
 
 @pytest.fixture(scope="module")
 def logged(tmp_path_factory):
-    """Two invocations of the same config, then one of another config."""
-    root = tmp_path_factory.mktemp("results") / "demo"
-    paths = fake.build(root)
-    uri = f"sqlite:///{root.parent / 'mlflow.db'}"
-
-    def log(config_hash, models="all"):
-        return tracking.log_pipeline_run(
-            uri, "demo", config_hash, "virtual_bench", fake.CLASSIFIERS, paths["metrics"],
-            paths["predictions"], paths["models"], paths["features_measured"],
-            paths["features_simulated"], models=models, workdir=root)
-
-    first = log("hash-a")
-    second = log("hash-a", models="first_repeat")
-    other = log("hash-b", models="none")
-    return uri, paths, first, second, other
+    """Config A logged twice (a rerun of the same config: the models of repeat 1 at 50 %, then
+    those of repeat 0), then config B (no models)."""
+    root = tmp_path_factory.mktemp("results")
+    paths_a = fake.build(root / "a", classifiers=CONFIG_A["classifiers"])
+    paths_b = fake.build(root / "b", classifiers=CONFIG_B["classifiers"])
+    uri = f"sqlite:///{root / 'mlflow.db'}"
+    first = log(paths_a, uri, "hash-a", CONFIG_A, log_models={"measured_percent": [50], "repeat": [1]})
+    second = log(paths_a, uri, "hash-a", CONFIG_A, log_models="first_repeat")
+    other = log(paths_b, uri, "hash-b", CONFIG_B, log_models="none")
+    return uri, paths_a, first, second, other
 
 
-def runs_of(uri, parent_id):
+def nested_runs(uri, parent_id):
     client = mlflow.MlflowClient(uri)
     parent = client.get_run(parent_id)
     children = client.search_runs([parent.info.experiment_id],
@@ -41,116 +48,213 @@ def runs_of(uri, parent_id):
     return parent, children
 
 
-def test_parent_and_nested_structure(logged):
+def run_key(run):
+    tags = run.data.tags
+    return f"{tags['classifier']}/{tags['protocol']}/p{tags['measured_percent']}/r{tags['repeat']}" + (
+        f"/{tags['holdout']}" if tags["holdout"] else "")
+
+
+def metrics_of(paths, classifier, protocol):
+    return pd.read_csv(next(p for p in paths["metrics"] if f"{classifier}/{protocol}" in str(p)))
+
+
+def test_parent_nested_runs_params_and_datasets(logged):
     uri, paths, first, _, _ = logged
-    # classifiers x percents x repeats x (record_split + two held-out speeds)
-    n_expected = len(fake.CLASSIFIERS) * len(fake.PERCENTS) * len(fake.REPEATS) * 3
-    assert first["n_nested_runs"] == n_expected == first["n_models_logged"]
-    parent, children = runs_of(uri, first["parent_run_id"])
-    assert len(children) == n_expected
+    assert first["n_nested_runs"] == N_RUNS and first["n_models_logged"] == 6
+    parent, children = nested_runs(uri, first["parent_run_id"])
+    assert len(children) == N_RUNS and {r.info.status for r in children} == {"FINISHED"}
+    assert len({run_key(r) for r in children}) == N_RUNS
     tags = parent.data.tags
     assert tags["config_hash"] == "hash-a" and tags["snakemake_run_name"] == "demo"
     assert tags["data_source"] == "virtual_bench" and tags["data_source_synthetic"] == "true"
-    assert tags["git_commit"]  # a hash, or "unknown" outside a repository
+    assert tags["git_commit"] and tags["n_nested_runs"] == str(N_RUNS)
+    assert "superseded" not in tags  # older runs are never rewritten
     assert parent.info.status == "FINISHED"
     assert mlflow.MlflowClient(uri).get_experiment(first["experiment_id"]).name == "demo"
+    assert parent.data.params["classifiers.svm.C"] == "1.0"  # the config, flattened
+    # the signal and feature tables as inputs, digests of their files
+    datasets = {d.dataset.name: d for d in parent.inputs.dataset_inputs}
+    assert set(datasets) == set(first["datasets"]) == {"measured_signals", "simulated_signals",
+                                                       "measured_features", "simulated_features"}
+    assert {name: d.dataset.digest for name, d in datasets.items()} == first["datasets"]
+    assert json.loads(datasets["simulated_signals"].dataset.profile)["files"] == len(fake.LABELS)
+    assert json.loads(datasets["measured_features"].dataset.profile)["rows"] == len(
+        pd.read_parquet(paths["features_measured"]))
+    assert {d.tags[0].value for d in datasets.values()} == {"training", "training_and_test"}
+    # a SQLite store on a local disk is switched to write-ahead logging
+    with sqlite3.connect(uri[len("sqlite:///"):]) as db:
+        assert db.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
 
 
-def test_nested_run_values_match_metrics_csv(logged):
+def test_nested_run_values_model_and_its_linked_metrics(logged):
     uri, paths, first, _, _ = logged
-    _, children = runs_of(uri, first["parent_run_id"])
-    run = next(r for r in children if r.data.params["classifier"] == "logreg"
-               and r.data.params["protocol"] == "record_split"
-               and r.data.params["measured_percent"] == "50" and r.data.params["repeat"] == "1")
-    metrics = pd.read_csv(fake_metrics_path(logged, "logreg", "record_split"))
-    rows = metrics[(metrics.measured_percent == 50) & (metrics.repeat == 1)]
+    _, children = nested_runs(uri, first["parent_run_id"])
+    run = next(r for r in children if run_key(r) == "svm/record_split/p50/r1")
+    rows = metrics_of(paths, "svm", "record_split")
+    rows = rows[(rows.measured_percent == 50) & (rows.repeat == 1)]
     overall = rows[rows.speed_rpm.isna()].iloc[0]
     assert run.data.metrics["accuracy"] == pytest.approx(overall.accuracy)
     assert run.data.metrics["macro_f1"] == pytest.approx(overall.macro_f1)
     at_600 = rows[rows.speed_rpm == 600].iloc[0]
     assert run.data.metrics["accuracy_600rpm"] == pytest.approx(at_600.accuracy)
     assert run.data.params["classifier.C"] == "1.0"
+    assert run.data.params["classifier.gamma"] == "scale"  # the registered default, as fitted
     assert run.data.params["n_train_measured"] == str(overall.n_train_measured)
     assert run.data.tags["leaky"] == "false"  # "true" only on segment_share runs
+    # the model file the train job's info.json lists for this run
+    info = json.loads(next(p for p in paths["info"] if "svm/record_split" in str(p)).read_text())
+    listed = next(m["file"] for m in info["models"] if (m["measured_percent"], m["repeat"]) == (50, 1))
+    assert run.data.tags["model_file"].endswith(f"svm/record_split/models/{listed}")
 
+    # its confusion matrix, in the parent's table of them
     client = mlflow.MlflowClient(uri)
-    artifacts = {a.path for a in client.list_artifacts(run.info.run_id)}
-    assert {"confusion_matrix.csv", "confusion_matrix.png"} <= artifacts
-    confusion = client.download_artifacts(run.info.run_id, "confusion_matrix.csv")
-    table = pd.read_csv(confusion, index_col=0)
-    assert list(table.columns) == fake.LABELS
-    assert table.to_numpy().sum() == overall.n_test
-    # the logged model loads and predicts from a features row
+    confusion = pd.read_csv(client.download_artifacts(first["parent_run_id"], "confusion_matrices.csv"))
+    assert list(confusion.columns) == [*tracking.KEYS, "true_label", *fake.LABELS]
+    counts = confusion.query("classifier == 'svm' and protocol == 'record_split' and measured_percent == 50 "
+                             "and repeat == 1")
+    assert list(counts.true_label) == fake.LABELS and counts[fake.LABELS].to_numpy().sum() == overall.n_test
+    # its LoggedModel: loads and predicts; the run's metrics are linked to it, on the measured features
+    mlflow.set_tracking_uri(uri)
     models = mlflow.search_logged_models(experiment_ids=[first["experiment_id"]],
                                          filter_string=f"source_run_id = '{run.info.run_id}'",
                                          output_format="list")
     assert len(models) == 1
+    linked = {m.key: m for m in models[0].metrics}
+    assert linked["accuracy"].value == pytest.approx(overall.accuracy)
+    assert linked["accuracy"].dataset_name == "measured_features"
+    assert linked["accuracy"].dataset_digest == first["datasets"]["measured_features"]
+    assert models[0].params["classifier.C"] == "1.0" and models[0].tags["protocol"] == "record_split"
     loaded = mlflow.sklearn.load_model(models[0].model_uri)
     example = pd.read_parquet(paths["features_measured"]).iloc[:2][fake.FEATURES].to_numpy()
     assert len(loaded.predict(example)) == 2
+    assert mlflow.models.get_model_info(models[0].model_uri).signature is not None
 
 
-def test_second_invocation_supersedes_the_first(logged):
+def test_the_config_chooses_which_models_are_logged(logged):
     uri, _, first, second, other = logged
-    first_parent, first_children = runs_of(uri, first["parent_run_id"])
-    second_parent, second_children = runs_of(uri, second["parent_run_id"])
-    assert first_parent.data.tags["superseded"] == "true"
-    assert first_parent.data.tags["superseded_by"] == second["parent_run_id"]
-    assert all(r.data.tags["superseded"] == "true" for r in first_children)
-    assert second_parent.data.tags["superseded"] == "false"
-    assert set(second["superseded_run_ids"]) == {first["parent_run_id"]} | {
-        r.info.run_id for r in first_children}
-    # a different config hash supersedes nothing
-    assert other["superseded_run_ids"] == []
-    assert second_parent.data.tags["models_logged"] == "first_repeat"
-    assert second["n_models_logged"] == second["n_nested_runs"] // len(fake.REPEATS)
+    assert other["n_models_logged"] == 0
+    assert second["n_models_logged"] == N_RUNS // len(fake.REPEATS)  # first_repeat
+    models = mlflow.search_logged_models(experiment_ids=[first["experiment_id"]], output_format="list")
+    for info, expected in [(first, lambda r: r.data.tags["measured_percent"] == "50" and r.data.tags["repeat"] == "1"),
+                           (second, lambda r: r.data.tags["repeat"] == "0")]:
+        _, children = nested_runs(uri, info["parent_run_id"])
+        with_model = {m.source_run_id for m in models}
+        assert {r.info.run_id for r in children if r.info.run_id in with_model} == {
+            r.info.run_id for r in children if expected(r)}
+        assert all(os.path.exists(r.data.tags["model_file"]) for r in children)  # every run names its file
 
 
-def test_compare_prints_one_row_per_current_parent_and_setting(logged, capsys):
-    uri, _, first, second, other = logged
+def test_parent_summary_metrics_are_the_means_over_repeats(logged):
+    uri, paths, first, _, _ = logged
+    parent, _ = nested_runs(uri, first["parent_run_id"])
+    overall = metrics_of(paths, "knn", "condition_holdout").query("speed_rpm != speed_rpm")  # NaN
+    for percent in fake.PERCENTS:
+        at = overall[overall.measured_percent == percent]
+        expected = at.groupby("repeat")["accuracy"].mean().mean()  # holdouts averaged first
+        assert parent.data.metrics[f"accuracy.knn.condition_holdout.p{percent:03d}"] == pytest.approx(expected)
+    assert len([m for m in parent.data.metrics if m.startswith("accuracy.")]) == 2 * 2 * len(fake.PERCENTS)
+
+
+def test_two_configs_differing_in_svm_C_compared_through_search_runs(logged):
+    """What the MLflow UI's compare view shows for two pipeline runs: the parameter that differs
+    and the parents' summary metrics side by side."""
+    uri, _, _, second, other = logged
+    mlflow.set_tracking_uri(uri)
+    runs = compare.latest_parents(mlflow.search_runs(experiment_names=["demo"]))
+    runs = runs.set_index("tags.config_hash")
+    assert set(runs.index) == {"hash-a", "hash-b"}
+    assert set(runs["run_id"]) == {second["parent_run_id"], other["parent_run_id"]}
+    assert runs.loc["hash-a", "params.classifiers.svm.C"] == "1.0"
+    assert runs.loc["hash-b", "params.classifiers.svm.C"] == "0.02"
+    assert runs.loc["hash-a", "params.classifiers.knn.n_neighbors"] == runs.loc["hash-b", "params.classifiers.knn.n_neighbors"]
+    summary = [c for c in runs.columns if c.startswith("metrics.accuracy.svm.")]
+    assert len(summary) == 2 * len(fake.PERCENTS) and runs[summary].notna().all().all()
+    assert (runs.loc["hash-a", summary] != runs.loc["hash-b", summary]).any()
+
+
+def test_a_rerun_rewrites_nothing_and_counts_once(logged, capsys):
+    uri, paths, first, second, other = logged
+    first_parent, first_children = nested_runs(uri, first["parent_run_id"])
+    assert first_parent.info.status == "FINISHED"
+    assert all("superseded" not in r.data.tags for r in [first_parent, *first_children])
+    # condmon-compare: the newest finished parent per config hash, one row per setting
     assert compare.main(["--tracking-uri", uri, "--experiment", "demo", "--percent", "0"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     header, rows = lines[0].split(), lines[1:]
     assert header[:4] == ["experiment", "parent_run_id", "started_utc", "config_hash"]
-    # current parents (second, other) x classifiers x protocols at 0 %
-    assert len(rows) == 2 * len(fake.CLASSIFIERS) * len(fake.PROTOCOL_HOLDOUTS)
+    assert len(rows) == 2 * 2 * len(fake.PROTOCOL_HOLDOUTS)  # 2 parents x classifiers x protocols
     assert not any(first["parent_run_id"] in row for row in rows)
     assert sum(second["parent_run_id"] in row for row in rows) == 4
-
-    # the numbers are the mean over repeats (holdouts averaged first) of the metrics
-    runs = mlflow.search_runs(experiment_names=["demo"])
-    table = compare.comparison_table(runs, {first["experiment_id"]: "demo"}, [0])
-    metrics = pd.read_csv(fake_metrics_path(logged, "knn", "condition_holdout"))
-    overall = metrics[(metrics.measured_percent == 0) & metrics.speed_rpm.isna()]
-    expected = overall.groupby("repeat")["accuracy"].mean().mean()
+    # the numbers: mean over repeats (held-out conditions averaged first)
+    mlflow.set_tracking_uri(uri)
+    table = compare.comparison_table(mlflow.search_runs(experiment_names=["demo"]),
+                                     {first["experiment_id"]: "demo"}, [0])
+    overall = metrics_of(paths, "knn", "condition_holdout").query("measured_percent == 0 and speed_rpm != speed_rpm")
     row = table[(table.parent_run_id == second["parent_run_id"]) & (table.classifier == "knn")
                 & (table.protocol == "condition_holdout")].iloc[0]
-    assert row.accuracy_mean == pytest.approx(expected) and row.n_repeats == 2
-
-    assert compare.main(["--tracking-uri", uri, "--include-superseded"]) == 0
+    assert row.accuracy_mean == pytest.approx(overall.groupby("repeat")["accuracy"].mean().mean())
+    assert row.n_repeats == 2
+    # --all: every invocation
+    assert compare.main(["--tracking-uri", uri, "--all"]) == 0
     rows = capsys.readouterr().out.strip().splitlines()[1:]
-    assert len(rows) == 3 * len(fake.CLASSIFIERS) * len(fake.PROTOCOL_HOLDOUTS) * 2
-    assert sum(first["parent_run_id"] in row and " true " in row for row in rows) == 8
+    assert len(rows) == 3 * 2 * len(fake.PROTOCOL_HOLDOUTS) * len(fake.PERCENTS)
+    assert sum(first["parent_run_id"] in row and " no " in row for row in rows) == 8  # not the latest
 
 
-def fake_metrics_path(logged, classifier, protocol):
-    _, paths, *_ = logged
-    return next(p for p in paths["metrics"] if f"{classifier}/{protocol}" in str(p))
+def test_an_unfinished_parent_never_counts(logged):
+    """A parent left running (job killed, server gone mid-way) is ignored by the query, however new."""
+    uri, _, _, second, _ = logged
+    client = mlflow.MlflowClient(uri)
+    unfinished = client.create_run(second["experiment_id"], tags={"config_hash": "hash-a"})
+    try:
+        mlflow.set_tracking_uri(uri)
+        runs = compare.latest_parents(mlflow.search_runs(experiment_names=["demo"]))
+        assert unfinished.info.run_id not in set(runs["run_id"])
+        assert second["parent_run_id"] in set(runs["run_id"])
+    finally:
+        client.delete_run(unfinished.info.run_id)
+
+
+def test_each_run_is_one_log_batch_and_mlflow_splits_large_ones(tmp_path, monkeypatch):
+    """A nested run's params and metrics (a CNN run's mean training curves among them) go in one
+    log_batch call; the parent's 250 config params in one log_params call, which MLflow splits
+    into requests of its limit (100)."""
+    history = pd.DataFrame([{"member": m, "epoch": e, "train_loss": 1 / (e + 1), "val_loss": 1.0,
+                             "train_accuracy": 0.5, "val_accuracy": 0.5}
+                            for m in range(3) for e in range(25 - 5 * m)])
+    paths = fake.build(tmp_path / "demo")
+    models = fake.train_dirs(paths)[0] / "models"  # knn/record_split
+    history.assign(measured_percent=0, repeat=0, holdout="").to_parquet(models / tracking.HISTORY_FILE)
+    calls, original = [], mlflow.MlflowClient.log_batch
+    monkeypatch.setattr(mlflow.MlflowClient, "log_batch",
+                        lambda self, run_id, **kw: calls.append(run_id) or original(self, run_id, **kw))
+    config = {"section": {f"key{k:03d}": k for k in range(250)}}
+    info = log(paths, f"sqlite:///{tmp_path / 'mlflow.db'}", "h", config, log_models="none")
+    parent, children = nested_runs(info["tracking_uri"], info["parent_run_id"])
+    assert sorted(calls.count(r.info.run_id) for r in children) == [1] * N_RUNS
+    assert len(parent.data.params) == 250 and parent.data.params["section.key249"] == "249"
+    run = next(r for r in children if run_key(r) == "knn/record_split/p0/r0")
+    client = mlflow.MlflowClient(info["tracking_uri"])
+    loss = client.get_metric_history(run.info.run_id, "train_loss")
+    assert [m.step for m in loss] == list(range(25))
+    assert loss[0].value == 1.0 and loss[-1].value == pytest.approx(1 / 25)  # the members still running
+    assert run.data.metrics["epochs_run_mean"] == pytest.approx((24 + 19 + 14) / 3)
+    members = pd.read_csv(client.download_artifacts(run.info.run_id, "training_history.csv"))
+    pd.testing.assert_frame_equal(members, history[members.columns.tolist()])
 
 
 def test_run_info_file(logged, tmp_path):
     _, _, first, _, _ = logged
     tracking.write_run_info(first, tmp_path / "mlflow_run.json")
     info = json.loads((tmp_path / "mlflow_run.json").read_text())
-    assert {"parent_run_id", "experiment_id", "tracking_uri", "n_nested_runs"} <= set(info)
+    assert {"parent_run_id", "experiment_id", "tracking_uri", "n_nested_runs", "datasets"} <= set(info)
 
 
 def test_unreachable_server_fails_fast_naming_the_uri(tmp_path):
     uri = "http://127.0.0.1:9"
     started = time.perf_counter()
     with pytest.raises(tracking.TrackingError, match="http://127.0.0.1:9.*unreachable"):
-        tracking.log_pipeline_run(uri, "demo", "h", "virtual_bench", {}, [], [], [],
-                                  tmp_path / "none.parquet")
+        tracking.log_pipeline_run(uri, "demo", "h", "virtual_bench", [], {})
     assert time.perf_counter() - started < 10
     assert compare.main(["--tracking-uri", uri]) == 2
 
@@ -218,43 +322,19 @@ def test_a_server_that_accepts_but_never_answers_fails_after_the_probe_timeout()
         assert time.perf_counter() - started < 5
 
 
-TRACK_RUNNER = """
-import json, sys, types
-class Section(dict):
-    __getattr__ = dict.__getitem__
-args = json.loads(sys.argv[1])
-snakemake = types.SimpleNamespace(params=Section(args["params"]), input=Section(args["input"]),
-                                  output=Section(args["output"]), log=[args["log"]], rule="track")
-exec(compile(open(args["script"]).read(), args["script"], "exec"),
-     {"snakemake": snakemake, "__name__": "__main__"})
-"""
-
-
 def test_track_script_fails_in_seconds_naming_a_dead_server(tmp_path):
     """workflow/scripts/track.py as the `track` rule runs it (a fresh Python, `snakemake`
     injected), against a tracking URI on a closed port."""
-    import subprocess
-    import sys
-    from conftest import ROOT
     uri = f"http://127.0.0.1:{closed_port()}"
     paths = fake.build(tmp_path / "demo")
-    args = dict(script=str(ROOT / "workflow" / "scripts" / "track.py"), log=str(tmp_path / "track.log"),
-                params=dict(tracking_uri=uri, run_name="demo", config_hash="h", data_source="virtual_bench",
-                            classifier_params=fake.CLASSIFIERS),
-                input=dict(metrics=list(map(str, paths["metrics"])),
-                           predictions=list(map(str, paths["predictions"])),
-                           models=list(map(str, paths["models"])),
-                           features_measured=str(paths["features_measured"]),
-                           features_simulated=str(paths["features_simulated"])),
-                output=dict(run_info=str(tmp_path / "mlflow_run.json")))
     env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_HTTP_REQUEST")}
     started = time.perf_counter()
-    result = subprocess.run([sys.executable, "-c", TRACK_RUNNER, json.dumps(args)], cwd=tmp_path, env=env,
+    result = subprocess.run(fake.track_job(paths, uri, tmp_path), cwd=tmp_path, env=env,
                             capture_output=True, text=True, timeout=120)
     elapsed = time.perf_counter() - started
-    log = (tmp_path / "track.log").read_text()
+    log_text = (tmp_path / "track.log").read_text()
     assert result.returncode == 1, result.stderr[-2000:]
-    assert f"MLflow tracking server {uri} is unreachable" in log, log
-    assert "Traceback" not in log  # a plain message, not a stack
+    assert f"MLflow tracking server {uri} is unreachable" in log_text, log_text
+    assert "Traceback" not in log_text  # a plain message, not a stack
     assert not (tmp_path / "mlflow_run.json").exists()
     assert elapsed < 30, elapsed  # imports included; MLflow's own retries would take minutes

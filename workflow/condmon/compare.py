@@ -1,9 +1,10 @@
 """Compare pipeline invocations logged in MLflow (console script ``condmon-compare``).
 
-One row per parent run x classifier x protocol x measured percentage: mean accuracy and
-macro-F1 over repeats (held-out conditions of a repeat averaged first), the parent run's start
-time and config hash. Superseded invocations (see condmon.tracking) are left out unless
-``--include-superseded`` is given.
+One row per parent run x classifier x protocol x measured percentage: mean accuracy and macro-F1
+over repeats (held-out conditions of a repeat averaged first), the parent run's start time and
+config hash. A config logged more than once (a rerun) counts once: the newest finished parent
+per experiment and config hash, decided here at query time (``latest_parents``); unfinished
+parents (a job killed, a server gone mid-way) never count. ``--all`` shows every invocation.
 
     condmon-compare --tracking-uri sqlite:///results/mlflow.db --experiment default --percent 0
 """
@@ -30,36 +31,53 @@ def parse_args(argv=None):
                         help="experiment (= pipeline run) names; default: all")
     parser.add_argument("--percent", type=int, nargs="+", default=None,
                         help="only these measured percentages")
-    parser.add_argument("--include-superseded", action="store_true",
-                        help="also show invocations replaced by a later one with the same config")
+    parser.add_argument("--all", action="store_true",
+                        help="every invocation, also older ones of the same config and unfinished "
+                             "ones (columns status, latest)")
     return parser.parse_args(argv)
 
 
 def _column(frame: pd.DataFrame, name: str) -> pd.Series:
     """A search_runs column that may be absent when no run has that tag/param."""
-    return frame[name] if name in frame.columns else pd.Series(None, index=frame.index,
-                                                               dtype=object)
+    return frame[name] if name in frame.columns else pd.Series(None, index=frame.index, dtype=object)
+
+
+def pipeline_parents(runs: pd.DataFrame) -> pd.DataFrame:
+    """The parent runs of pipeline invocations in a ``mlflow.search_runs`` frame, each with a
+    column ``latest``: it is the newest finished one of its experiment and config hash."""
+    runs = runs.assign(**{"tags.config_hash": _column(runs, "tags.config_hash")})
+    parent_of = _column(runs, "tags.mlflow.parentRunId")
+    parents = runs[(parent_of.isna() | (parent_of == "")) & runs["tags.config_hash"].notna()].copy()
+    finished = parents[parents["status"] == "FINISHED"].sort_values("start_time")
+    newest = finished.drop_duplicates(["experiment_id", "tags.config_hash"], keep="last")["run_id"]
+    parents["latest"] = parents["run_id"].isin(newest)
+    return parents
+
+
+def latest_parents(runs: pd.DataFrame) -> pd.DataFrame:
+    """The newest finished parent per experiment and config hash (a rerun replaces, at query time)."""
+    parents = pipeline_parents(runs)
+    return parents[parents["latest"]].drop(columns="latest")
 
 
 def comparison_table(runs: pd.DataFrame, experiment_names: dict, percents=None,
-                     include_superseded: bool = False) -> pd.DataFrame:
+                     every_invocation: bool = False) -> pd.DataFrame:
     """Aggregate the ``mlflow.search_runs`` frame of parents and nested runs into the table."""
-    columns = ["experiment", "parent_run_id", "started_utc", "config_hash", "superseded",
+    columns = ["experiment", "parent_run_id", "started_utc", "config_hash",
+               *(["status", "latest"] if every_invocation else []),
                *KEYS, "n_repeats", "accuracy_mean", "macro_f1_mean"]
     if runs.empty:
         return pd.DataFrame(columns=columns)
-    parent_of = _column(runs, "tags.mlflow.parentRunId")
-    parents = runs[parent_of.isna() | (parent_of == "")]
-    parents = parents[_column(parents, "tags.config_hash").notna()]  # only pipeline parents
-    if not include_superseded:
-        parents = parents[_column(parents, "tags.superseded") != "true"]
+    parents = pipeline_parents(runs)
+    if not every_invocation:
+        parents = parents[parents["latest"]]
     parents = pd.DataFrame({
         "parent_run_id": parents["run_id"],
         "experiment": parents["experiment_id"].map(experiment_names),
         "started_utc": parents["start_time"].dt.strftime("%Y-%m-%d %H:%M:%S"),
-        "config_hash": parents["tags.config_hash"],
-        "superseded": _column(parents, "tags.superseded").fillna("false")})
-    children = runs[parent_of.isin(parents["parent_run_id"])]
+        "config_hash": parents["tags.config_hash"], "status": parents["status"],
+        "latest": parents["latest"].map({True: "yes", False: "no"})})
+    children = runs[_column(runs, "tags.mlflow.parentRunId").isin(parents["parent_run_id"])]
     if children.empty:
         return pd.DataFrame(columns=columns)
     nested = pd.DataFrame({
@@ -104,14 +122,11 @@ def main(argv=None) -> int:
     else:
         experiments = client.search_experiments()
     names = {e.experiment_id: e.name for e in experiments}
-    runs = (mlflow.search_runs(experiment_ids=list(names), output_format="pandas")
-            if names else pd.DataFrame())
-    table = comparison_table(runs, names, args.percent, args.include_superseded)
+    runs = mlflow.search_runs(experiment_ids=list(names)) if names else pd.DataFrame()
+    table = comparison_table(runs, names, args.percent, args.all)
     if table.empty:
         print(f"no pipeline runs found at {uri}")
         return 0
-    if not args.include_superseded:
-        table = table.drop(columns="superseded")
     with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
         print(table.to_string(index=False))
     return 0

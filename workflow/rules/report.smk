@@ -7,6 +7,10 @@ rule track:
         predictions=train_outputs("predictions.parquet"),
         metrics=train_outputs("metrics.csv"),
         models=train_outputs("models"),
+        info=train_outputs("info.json"),  # lists each job's model files and fitted settings
+        # logged as datasets, with digests of their files
+        measured_signals=rules.measured.output[0],
+        simulated_signals=simulated_batches(),
         features_simulated=rules.features_simulated.output.features,
         features_measured=rules.features_measured.output.features,
     output:
@@ -16,8 +20,8 @@ rule track:
         log_models=config["tracking"]["log_models"],
         run_name=config["run_name"],
         config_hash=config_hash,
+        config=config,  # the parent run's params (any edit changes config_hash anyway)
         data_source=data_source(),
-        classifier_params={name: classifier_params(name) for name in CLASSIFIERS},
         healthy_state=SYSTEM.healthy_state,
     conda:
         "../envs/report.yaml"

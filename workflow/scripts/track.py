@@ -1,30 +1,31 @@
 """Snakemake script: log the whole run to MLflow -> report/mlflow_run.json.
 
-The only job that writes to the tracking store, run once after all training jobs, so parallel
-jobs never race on the SQLite file. The logic lives in condmon.tracking.
+The only job that writes to the tracking store, run once after all training, so parallel jobs
+never race on it. The logic lives in condmon.tracking.
 `snakemake` is injected by Snakemake's script directive.
 """
 import sys
+from pathlib import Path
 
 from condmon.runlog import setup_logging
-from condmon.tracking import DEFAULT_TRACKING_URI, TrackingError, log_pipeline_run, write_run_info
+from condmon.tracking import TrackingError, log_pipeline_run, write_run_info
 
 log = setup_logging(snakemake)  # to snakemake.log[0]
-params = snakemake.params
+params, inputs = snakemake.params, snakemake.input
 try:
     info = log_pipeline_run(
-        tracking_uri=params.get("tracking_uri") or DEFAULT_TRACKING_URI,
+        tracking_uri=params.tracking_uri,
         run_name=params.run_name,
         config_hash=params.config_hash,
         data_source=params.data_source,
-        classifier_params=dict(params.classifier_params),
-        metrics_paths=list(snakemake.input.metrics),
-        predictions_paths=list(snakemake.input.predictions),
-        model_dirs=list(snakemake.input.models),
-        features_measured=snakemake.input.features_measured,
-        features_simulated=snakemake.input.features_simulated,
-        models=params.get("log_models", "all"),
-        healthy_state=params.get("healthy_state"),
+        train_dirs=[Path(path).parent for path in inputs.info],  # train/<classifier>/<protocol>
+        datasets={"measured_signals": [inputs.measured_signals],
+                  "simulated_signals": list(inputs.simulated_signals),
+                  "measured_features": [inputs.features_measured],
+                  "simulated_features": [inputs.features_simulated]},
+        config=dict(params.config),
+        log_models=params.log_models,
+        healthy_state=params.healthy_state,
     )
 except TrackingError as error:  # a store that is down, inconsistent inputs: say so plainly
     log.error("%s", error)
