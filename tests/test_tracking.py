@@ -243,6 +243,31 @@ def test_each_run_is_one_log_batch_and_mlflow_splits_large_ones(tmp_path, monkey
     pd.testing.assert_frame_equal(members, history[members.columns.tolist()])
 
 
+def test_a_dataset_inserted_meanwhile_by_another_pipeline_is_logged_again(monkeypatch):
+    """Pipelines logging the same table into one experiment at once race on the store's unique
+    (experiment, name, digest) row: the loser logs its inputs again; other errors pass through."""
+    from mlflow.exceptions import MlflowException
+
+    race = MlflowException("BAD_REQUEST: (sqlite3.IntegrityError) UNIQUE constraint failed: "
+                           "datasets.experiment_id, datasets.name, datasets.digest")
+    outcomes, calls = [race, None], []
+
+    def log_inputs(datasets, **options):
+        calls.append(len(datasets))
+        if outcome := outcomes.pop(0):
+            raise outcome
+
+    monkeypatch.setattr(mlflow, "log_inputs", log_inputs)
+    tracking.log_inputs({"measured_signals": object(), "simulated_signals": object()})
+    assert calls == [2, 2]
+    outcomes[:] = [MlflowException("BAD_REQUEST: no such experiment")]
+    with pytest.raises(MlflowException, match="no such experiment"):
+        tracking.log_inputs({"measured_signals": object()})
+    outcomes[:] = [race] * 3
+    with pytest.raises(MlflowException, match="UNIQUE"):  # a race that never settles still fails
+        tracking.log_inputs({"measured_signals": object()})
+
+
 def test_run_info_file(logged, tmp_path):
     _, _, first, _, _ = logged
     tracking.write_run_info(first, tmp_path / "mlflow_run.json")

@@ -160,6 +160,27 @@ def get_or_create_experiment(client, uri: str, name: str) -> str:
     return experiment.experiment_id
 
 
+def log_inputs(inputs: dict, attempts: int = 3) -> None:
+    """Log the datasets as the active run's inputs. Pipelines logging the same table (same name
+    and digest) into one experiment at once race to insert it: the loser's insert fails on the
+    store's unique constraint, and logging again finds the row the winner wrote."""
+    import mlflow
+    from mlflow.exceptions import MlflowException
+
+    contexts = ["training" if name.startswith("simulated") else "training_and_test" for name in inputs]
+    for attempt in range(attempts):
+        try:
+            mlflow.log_inputs(list(inputs.values()), contexts=contexts, tags_list=[None] * len(inputs))
+            return
+        except MlflowException as exc:
+            message = str(exc).lower()
+            duplicate = "datasets" in message and ("unique" in message or "duplicate" in message)
+            if not duplicate or attempt == attempts - 1:
+                raise
+            log.info("dataset inserted meanwhile by another pipeline; logging the inputs again")
+            time.sleep(0.2 * (attempt + 1))
+
+
 # --------------------------------------------------------------------------- inputs
 
 def git_state(cwd=".") -> tuple[str, str]:
@@ -351,9 +372,7 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
         experiment_id = get_or_create_experiment(client, uri, run_name)
         parent_id = mlflow.start_run(experiment_id=experiment_id, tags=tags,
                                      run_name=f"{run_name}-{config_hash[:8]}").info.run_id
-        mlflow.log_inputs(list(inputs.values()), contexts=[
-            "training" if name.startswith("simulated") else "training_and_test" for name in inputs],
-            tags_list=[None] * len(inputs))
+        log_inputs(inputs)
         mlflow.log_params(flatten_params(config or {}))
         mlflow.log_metrics(summary_metrics(metrics))
         mlflow.log_text(metrics.to_csv(index=False), "accuracy.csv")
