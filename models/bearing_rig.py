@@ -32,25 +32,33 @@ Mechanics (exudyn, plane x horizontal / y vertical, 8 DOF, RK44):
   the load pushes the journal down, so away from 6:00 its balls carry less load and strike
   weaker).
 
-Measurement chain (post-processing at the sensor rate, before decimation): the vertical housing
-acceleration from the multibody model plus the response of several structural resonances
-(`resonances`: frequency, damping ratio, gain in m/s^2 per N, second-order modes driven by the
-vertical DE bearing force). They are post-processing because these 2-6 kHz modes of the end
-shield and motor frame are linear and light: they barely load the bearing, so superposing their
-response to the computed contact force is what a coupled simulation would give, the integration
-step need not resolve them, and domain randomisation can vary them without changing the
-dynamics. Then the FIR low-pass and decimation to the output rate (no aliasing), the sensor gain,
-and broadband background (white noise plus random band-limited components, `background`) that
+Structure and measurement chain: the DE housing (end shield and motor frame) carries several
+light structural modes (`resonances`: frequency, damping ratio, gain in m/s^2 per N), each a
+modal mass (`modal_mass_share` of the housing mass) on a spring-damper to the housing, tuned to
+its frequency and damping. The bearing force moves the housing and the housing drives the modes;
+their reaction acts back on the housing and so on the bearing, as in the structure. The
+accelerometer reads the housing's acceleration (`housing_path_gain`) plus each mode's relative
+acceleration with a participation g m_housing: above the housing's mount and contact modes the
+housing moves as its mass under the bearing force F, so a mode's share of the reading is close
+to g s^2 / (s^2 + 2 zeta w s + w^2) F, which is what `gain` means. The rough running of a damaged
+contact (`defect_roughness`) is a random force on the DE housing and journal inside the model
+too, so it reaches the sensor along the same paths as the impacts. The integration step resolves
+the modes (RK44 at 48 kHz, omega h <= 0.7 up to 5 kHz: numerical damping under 1e-3 of critical).
+Then the FIR low-pass and decimation to the output rate (no aliasing), the sensor gain, and
+broadband background (white noise plus random band-limited components, `background`) that
 stands in for everything else on a real motor (electromagnetic, fan, coupling, base).
 The accelerometer is at 12 o'clock on the DE housing: channel "DE" is +y acceleration, m/s^2.
 
 Speed (measured on the 2-core CI machine, exudyn 1.13.6, one process): 1.2-1.35 s of CPU per
-simulated second (defaults, oversampling 4, h = 20.8 us, load-zone ball sums, post-processing
-included; 96 randomised samples of 0.78 s took 100 s of CPU); summing every ball of both bearings
-costs about 40 % more, and the defect term is gated by a cheap `IfThenElse` so it costs nothing
-between passages. Oversampling 4 (not 10) keeps the cost: the RK44 step bounds what the model
-represents; an outer-race run agrees with oversampling 8 (h/2) within 1.5 % in RMS, 2 % in kurtosis
-and 1.5 % in the BPFO envelope-line ratio, the line at the same frequency (`SPEED_NOTE`).
+simulated second with the modes as filters after the run (defaults, oversampling 4, h = 20.8 us,
+load-zone ball sums; 96 randomised samples of 0.78 s took 100 s of CPU); the modes and the rough
+running in the model cost about 10 % more (30 % with rough running), measured side by side.
+Summing every ball of both bearings costs about 40 % more, and the defect term is gated by a cheap
+`IfThenElse` so it costs nothing between passages. Oversampling 4 (not 10) keeps the cost: against
+oversampling 8 (h/2), an outer-race run agrees within 0.4 % in RMS and 0.3 % in kurtosis, a
+ball-defect run with rough running within 0.7 % in RMS, kurtosis and the 2 x BSF envelope-line
+ratio (the outer race's BPFO line ratio, over a floor of a few bins, moves by 20 %; it moved by
+40 % with the modes as filters) (`SPEED_NOTE`).
 """
 from __future__ import annotations
 
@@ -63,8 +71,8 @@ from scipy.signal import bilinear, lfilter, resample_poly
 
 from condmon.models.numerics import SimulationError, decimation_filter, exudyn_system, solve_rk44
 
-SPEED_NOTE = ("1.2-1.35 s of CPU per simulated second on one core (defaults, oversampling 4, "
-              "h = 20.8 us, load-zone ball sums, post-processing included); wall time the same on an idle "
+SPEED_NOTE = ("1.3-1.75 s of CPU per simulated second on one core (defaults, oversampling 4, "
+              "h = 20.8 us, load-zone ball sums, modes and rough running in the model); wall time the same on an idle "
               "core, up to 2x when the 2 cores are shared")
 DEFECT_KINDS = ("none", "outer_race", "inner_race", "ball")
 CHANNELS = ("DE",)
@@ -144,13 +152,15 @@ class BearingRigParameters:
     defect_phase: float = 0.0               # rad: inner-race defect angle / ball defect spin angle at t=0
     slip_std: float = 0.01                  # std of the wandering slip rate, fraction of the passage rate
     # Rough running of the damaged contact (rough pit floor, debris, a ball pit rubbing obliquely):
-    # a random force (N rms, white at the sensor rate) added to the DE bearing force, modulated
+    # a random force (N rms, white up to 24 kHz) between the DE journal and housing, modulated
     # at the defect's passage rate with depth `defect_roughness_modulation` (0 stationary, 1 gated).
     defect_roughness: float = 0.0
     defect_roughness_modulation: float = 0.5
-    # Measurement chain: (frequency Hz, damping ratio, gain m/s^2 per N) modes from the DE bearing
-    # force to the sensor; the housing's own (multibody) acceleration enters with housing_path_gain.
+    # Structural modes of the DE housing (frequency Hz, damping ratio, gain m/s^2 per N of DE
+    # bearing force at the sensor), each a modal mass of modal_mass_share x housing_mass on the
+    # housing; the housing's own acceleration enters the sensor with housing_path_gain.
     resonances: tuple = field(default_factory=_resonances_default)
+    modal_mass_share: float = 0.01
     housing_path_gain: float = 1.0
     sensor_gain: float = 1.0                # multiplies the whole mechanical signal
     noise_rms: float = 0.3                  # m/s^2, white broadband noise
@@ -223,9 +233,14 @@ def _check(p: BearingRigParameters, s: RigSettings) -> None:
         raise ValueError(f"slip_std must lie in [0, 0.2) (fraction of the passage rate), got {p.slip_std}")
     if not 0 <= p.defect_clock <= 12:
         raise ValueError(f"defect_clock must lie in [0, 12] hours, got {p.defect_clock}")
+    # the RK44 step must resolve every mode: omega h <= 1 keeps its numerical damping small
+    step_hz = s.output_rate_hz * s.oversampling * s.steps_per_sensor_sample
     for f, zeta, _ in p.resonances:
-        if not (0 < f < s.output_rate_hz * s.oversampling / 2 and 0 < zeta < 1):
-            raise ValueError(f"resonance ({f}, {zeta}): need 0 < f < sensor Nyquist and 0 < zeta < 1")
+        if not (0 < f <= step_hz / (2 * math.pi) and 0 < zeta < 1):
+            raise ValueError(f"resonance ({f}, {zeta}): need 0 < f <= {step_hz / (2 * math.pi):.0f} Hz "
+                             "(omega h <= 1 at this step) and 0 < zeta < 1")
+    if p.resonances and not 0 < p.modal_mass_share <= 0.2:
+        raise ValueError(f"modal_mass_share must lie in (0, 0.2] (light modes), got {p.modal_mass_share}")
     for f, zeta, level in p.background:
         if not (0 < f < s.output_rate_hz / 2 and 0 < zeta < 1 and level >= 0):
             raise ValueError(f"background band ({f}, {zeta}, {level}): need 0 < f < output Nyquist, "
@@ -330,6 +345,37 @@ class _DefectProfile:
         return esym.cos(angle), esym.sin(angle)
 
 
+# The rough-running window: cos(pi u)^8 of the passage offset u, about a fifth of the period wide,
+# scaled to unit mean square (mean of cos^16 over a period: C(16, 8) / 2^16).
+ROUGHNESS_WINDOW_POWER = 8
+ROUGHNESS_WINDOW_RMS = math.sqrt(math.comb(16, 8) / 2 ** 16)
+# The rough-running force is white up to 24 kHz (held over 1/48000 s), whatever the step, so
+# a finer step does not spread the same force over a wider band.
+ROUGHNESS_HOLD_RATE_HZ = 48000.0
+
+
+def _roughness_force_function(profile: _DefectProfile, level: float, modulation: float, seed: float,
+                              sign: float):
+    """A load function of exudyn's signature, recorded symbolically: the vertical rough-running
+    force of the damaged contact, sign x level x envelope(t) x n(t). n is white at `rate` (held
+    over each sensor sample), nearly normal with unit variance (the sum of three sine-hash
+    uniforms of the sample index, scaled); the envelope (1 - m) + m window(psi) gates it at the
+    defect's passages, slip included."""
+    def load(mbs, t, item):
+        import exudyn as exu
+        esym = exu.symbolic
+        R = esym.Real
+        k = esym.floor(t * ROUGHNESS_HOLD_RATE_HZ)
+        normal = (_hash01(esym, k, 12.9898, seed) + _hash01(esym, k, 78.233, seed + 0.37)
+                  + _hash01(esym, k, 37.719, seed + 1.91) - 1.5) * 2.0
+        psi = profile.phase(t, esym.sin)
+        u = psi - esym.floor(psi + 0.5)
+        window = esym.pow(esym.cos(u * math.pi), R(ROUGHNESS_WINDOW_POWER)) * (1.0 / ROUGHNESS_WINDOW_RMS)
+        envelope = window * modulation + (1.0 - modulation)
+        return esym.Vector([R(0.0), normal * envelope * (sign * level), R(0.0)])
+    return load
+
+
 LOAD_ZONE_DEG = 80.0  # zone_only sums every ball within this angle of the bottom (and a few more)
 
 
@@ -416,8 +462,9 @@ def _static_sag(geometry, stiffness, clearance, load):
 
 
 def _resonance_filter(freq, zeta, gain, fs):
-    """Discrete s^2 g / (s^2 + 2 zeta w s + w^2) (acceleration per force of a mode) by the
-    bilinear transform with the resonance pre-warped."""
+    """Discrete s^2 g / (s^2 + 2 zeta w s + w^2) by the bilinear transform with the resonance
+    pre-warped: shapes the machine background's random bands (not the bearing's modes, which
+    are in the model)."""
     w = 2 * np.pi * freq
     warp = 2 * fs * np.tan(w / (2 * fs)) / w
     wn = w * warp
@@ -426,9 +473,10 @@ def _resonance_filter(freq, zeta, gain, fs):
 
 # -- the run ----------------------------------------------------------------------------------
 def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, unbalance_phase: float,
-                   zone_only: bool, where: str):
+                   rough_seed: float, zone_only: bool, where: str):
     """The exudyn part: returns (housing acceleration, DE bearing force, DE bearing displacement)
-    sensor arrays (time in column 0) at the sensor rate, settling included."""
+    sensor arrays (time in column 0) and the modes' vertical accelerations (one column per mode)
+    at the sensor rate, settling included."""
     import exudyn as exu
     from exudyn.utilities import CreateSymbolicUserFunction
 
@@ -441,7 +489,9 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
     load_de, load_fe = m_de * g + p.radial_load, m_fe * g
     sag_de = _static_sag(p.de_geometry, p.contact_stiffness, p.radial_clearance, load_de)
     sag_fe = _static_sag(p.fe_geometry, k_fe, p.radial_clearance, load_fe)
-    h_de = -(load_de + p.housing_mass * g) / p.housing_stiffness
+    modal_mass = p.modal_mass_share * p.housing_mass
+    modes_mass = modal_mass * len(p.resonances)
+    h_de = -(load_de + (p.housing_mass + modes_mass) * g) / p.housing_stiffness
     h_fe = -(load_fe + p.housing_mass * g) / p.housing_stiffness
 
     with exudyn_system() as mbs:
@@ -483,7 +533,26 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
                 fn = CreateSymbolicUserFunction(mbs, unbalance_load, 'loadVectorUserFunction', load)
                 mbs.SetLoadParameter(load, 'loadVectorUserFunction', fn)
                 keep.append(fn)
+        # Structural modes of the DE housing: modal masses on spring-dampers tuned to each mode.
+        mode_nodes = []
+        for freq, zeta, _ in p.resonances:
+            omega = 2 * math.pi * freq
+            node, mode = point(modal_mass, h_de - g / omega ** 2, -modal_mass * g)
+            mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
+                markerNumbers=[hde, mode], stiffness=[modal_mass * omega ** 2] * 2 + [0.0],
+                damping=[2 * zeta * omega * modal_mass] * 2 + [0.0]))
+            mode_nodes.append(node)
         defect = _DefectProfile(p, hash_seed) if p.defect_kind != "none" else None
+        if defect is not None and p.defect_roughness > 0:
+            # rough running: a random force between the DE journal and housing (action, reaction)
+            for marker, sign in ((hde, 1.0), (rde, -1.0)):
+                load = mbs.AddLoad(eii.LoadForceVector(markerNumber=marker, loadVector=[0.0, 0.0, 0.0]))
+                fn = CreateSymbolicUserFunction(
+                    mbs, _roughness_force_function(defect, p.defect_roughness, p.defect_roughness_modulation,
+                                                   rough_seed, sign),
+                    'loadVectorUserFunction', load)
+                mbs.SetLoadParameter(load, 'loadVectorUserFunction', fn)
+                keep.append(fn)
         bearings = []
         for housing, journal, geometry, stiffness, dfct in ((hde, rde, p.de_geometry, p.contact_stiffness, defect),
                                                             (hfe, rfe, p.fe_geometry, k_fe, None)):
@@ -501,6 +570,9 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
         for variable in (exu.OutputVariableType.Force, exu.OutputVariableType.Displacement):
             sensors.append(mbs.AddSensor(eii.SensorObject(objectNumber=bearings[0], storeInternal=True,
                                                           writeToFile=False, outputVariableType=variable)))
+        mode_sensors = [mbs.AddSensor(eii.SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
+                                                     outputVariableType=exu.OutputVariableType.Acceleration))
+                        for node in mode_nodes]
         mbs.Assemble()
 
         try:
@@ -509,14 +581,17 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
         except Exception as exc:
             raise SimulationError(f"exudyn solver failed ({where}): {exc}") from exc
         acc, force, disp = (mbs.GetSensorStoredData(sensor) for sensor in sensors)
+        modes = np.column_stack([mbs.GetSensorStoredData(sensor)[:, 2] for sensor in mode_sensors]
+                                or [np.zeros(len(acc))])
     del keep
-    if not (np.isfinite(acc).all() and np.isfinite(force).all() and np.isfinite(disp).all()):
+    if not (np.isfinite(acc).all() and np.isfinite(force).all() and np.isfinite(disp).all()
+            and np.isfinite(modes).all()):
         raise SimulationError(f"simulation diverged ({where}): non-finite states")
     radial = np.hypot(disp[:, 1], disp[:, 2])
     if radial.max() > p.radial_clearance + s.max_penetration:
         raise SimulationError(f"simulation diverged ({where}): journal displacement {radial.max():.3g} m "
                               f"beyond the clearance + {s.max_penetration:g} m")
-    return acc, force, disp
+    return acc, force, disp, modes[:, :len(p.resonances)]
 
 
 def simulate_rig(params: BearingRigParameters, settings: RigSettings | None = None,
@@ -535,39 +610,25 @@ def simulate_rig(params: BearingRigParameters, settings: RigSettings | None = No
     hash_seed = float(rng.uniform(0.0, 100.0))
     unbalance_phase = float(rng.uniform(0.0, 2 * np.pi))
     noise_seed = int(rng.integers(2 ** 32))
+    rough_seed = float(rng.uniform(0.0, 100.0))
     sensor_rate = s.output_rate_hz * s.oversampling
     where = (f"defect {p.defect_kind}, {p.speed_rpm:g} rpm, contact_stiffness={p.contact_stiffness:.3g}, "
              f"radial_clearance={p.radial_clearance:.3g}, radial_load={p.radial_load:.3g}, "
              f"defect_width={p.defect_width:.3g}, h={1 / (sensor_rate * s.steps_per_sensor_sample):.3g} s")
     zone_only = s.load_zone_only
-    acc, force, disp = _run_mechanics(p, s, hash_seed, unbalance_phase, zone_only, where)
+    acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed, zone_only, where)
     if zone_only and not _load_zone_ok(disp[:, 1:3], p.radial_clearance):
         zone_only = False  # a ball outside the zone would have touched: run again with all balls
-        acc, force, disp = _run_mechanics(p, s, hash_seed, unbalance_phase, zone_only, where)
+        acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed, zone_only, where)
     if diagnostics is not None:
         diagnostics.update(time=acc[:, 0], de_force_y=force[:, 2], de_displacement=disp[:, 1:3],
                            load_zone_only=zone_only)
 
-    # Measurement chain at the sensor rate: housing acceleration (+y = 12 o'clock) plus the
-    # structural modes driven by the vertical DE bearing force.
-    f_y = force[:, 2] - force[:, 2].mean()
-    if p.defect_kind != "none" and p.defect_roughness > 0:
-        # cyclostationary random force of the damaged contact: not impulsive, it raises the
-        # resonance bands without sharp impacts (what weak real faults look like)
-        profile = _DefectProfile(p, hash_seed)
-        t = acc[:, 0]
-        u = profile.phase(t, np.sin)
-        u = u - np.floor(u + 0.5)
-        window = np.cos(np.pi * u) ** 8                    # about a fifth of the period wide
-        window /= np.sqrt(np.mean(window ** 2))
-        m = p.defect_roughness_modulation
-        envelope = (1 - m) + m * window
-        rough = np.random.default_rng(noise_seed + 1).normal(0.0, p.defect_roughness, len(t))
-        f_y = f_y + rough * envelope
+    # The accelerometer (+y = 12 o'clock): the housing's acceleration and each mode's relative
+    # acceleration with its participation (the mode's gain per N times the housing mass).
     signal = p.housing_path_gain * acc[:, 2]
-    for freq, zeta, gain in p.resonances:
-        b, a = _resonance_filter(freq, zeta, gain, sensor_rate)
-        signal = signal + lfilter(b, a, f_y)
+    for (_, _, gain), mode_acc in zip(p.resonances, modes.T):
+        signal = signal - gain * p.housing_mass * (mode_acc - acc[:, 2])
     # Filter the whole run (settling included) so the filter's edge effects fall in the
     # discarded part, then decimate.
     out = resample_poly(signal, 1, s.oversampling, window=decimation_filter(s.oversampling))

@@ -2,6 +2,7 @@
 defects at the kinematic frequencies, reproducibility, divergence."""
 import numpy as np
 import pytest
+from scipy.signal import welch
 
 from condmon.stat_features import envelope_line_ratio, envelope_spectrum
 from condmon.models.bearing_rig import (SKF_6203, SKF_6205, BearingRigParameters, RigSettings, SimulationError,
@@ -152,3 +153,56 @@ def test_slip_is_cumulative_and_spreads_the_line_by_about_the_slip():
     exact, slipping = (_line_spread(_outer_race(slip=s, duration=1.0)) for s in (0.0, 0.02))
     assert exact < 0.005
     assert 0.01 < slipping < 0.04, slipping
+
+
+def _band_power(signal, low, high, fs=FS):
+    freqs, power = welch(signal, fs=fs, nperseg=1024)
+    return float(power[(freqs >= low) & (freqs < high)].sum())
+
+
+def _clean_outer_race(seed=3, **changes):
+    params = BearingRigParameters(speed_rpm=SPEED, defect_kind="outer_race", **{**CLEAN, **changes})
+    return simulate_rig(params, RigSettings(duration=0.3, settle_time=0.1), np.random.default_rng(seed))["DE"]
+
+
+def test_structural_modes_are_bodies_the_bearing_force_excites():
+    """A housing mode is a modal mass in the model: the impacts ring it at its frequency (and
+    nowhere else), and moving the mode moves the ringing; without modes the band stays quiet."""
+    bare = _clean_outer_race(resonances=())
+    at_3k = _clean_outer_race(resonances=((3000.0, 0.02, 0.5),))
+    at_4k = _clean_outer_race(resonances=((4000.0, 0.02, 0.5),))
+    assert _band_power(at_3k, 2800, 3200) > 100 * _band_power(bare, 2800, 3200)
+    assert _band_power(at_4k, 3800, 4200) > 100 * _band_power(bare, 3800, 4200)
+    assert _band_power(at_3k, 3800, 4200) < 0.1 * _band_power(at_4k, 3800, 4200)
+    freqs, power = welch(at_3k, fs=FS, nperseg=2048)
+    search = (freqs > 1500) & (freqs < 5500)
+    # the modal mass rides on the moving housing: its peak sits within 2 % of the tuned frequency
+    assert freqs[search][np.argmax(power[search])] == pytest.approx(3000.0, rel=0.02)
+    # and it acts back: a heavier mode absorbs the housing's motion in its band, so the bearing
+    # deflection there drops (a filter applied after the run could not change it)
+    deflection = {}
+    for name, resonances in (("bare", ()), ("mode", ((3000.0, 0.02, 0.5),))):
+        diagnostics = {}
+        simulate_rig(BearingRigParameters(speed_rpm=SPEED, defect_kind="outer_race", modal_mass_share=0.1,
+                                          resonances=resonances, **CLEAN),
+                     RigSettings(duration=0.3, settle_time=0.1), np.random.default_rng(3), diagnostics)
+        deflection[name] = _band_power(diagnostics["de_displacement"][:, 1], 2850, 3150, fs=4 * FS)
+    assert deflection["mode"] < 0.7 * deflection["bare"], deflection
+
+
+def test_rough_running_is_a_force_in_the_model_gated_by_the_passages():
+    """With a defect too shallow to strike, the rough-running force alone rings the modes, and its
+    gating by the passages puts the BPFO line in the envelope; same seed, same force."""
+    quiet = dict(defect_drop_scale=1e-6, defect_roughness_modulation=1.0)
+    smooth = _clean_outer_race(defect_roughness=0.0, **quiet)
+    rough = _clean_outer_race(defect_roughness=5.0, **quiet)
+    assert np.std(rough) > 20 * np.std(smooth)
+    assert _line(rough, SKF_6205.orders()["bpfo"])[1] > 4.0
+    np.testing.assert_array_equal(rough, _clean_outer_race(defect_roughness=5.0, **quiet))
+
+
+def test_a_mode_the_step_cannot_resolve_is_rejected():
+    with pytest.raises(ValueError, match="omega h <= 1"):
+        simulate_rig(BearingRigParameters(resonances=((9000.0, 0.02, 0.5),)), RigSettings(duration=0.01))
+    with pytest.raises(ValueError, match="modal_mass_share"):
+        simulate_rig(BearingRigParameters(modal_mass_share=0.5), RigSettings(duration=0.01))
