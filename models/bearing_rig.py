@@ -357,9 +357,9 @@ ROUGHNESS_HOLD_RATE_HZ = 48000.0
 def _roughness_force_function(profile: _DefectProfile, level: float, modulation: float, seed: float,
                               sign: float):
     """A load function of exudyn's signature, recorded symbolically: the vertical rough-running
-    force of the damaged contact, sign x level x envelope(t) x n(t). n is white at `rate` (held
-    over each sensor sample), nearly normal with unit variance (the sum of three sine-hash
-    uniforms of the sample index, scaled); the envelope (1 - m) + m window(psi) gates it at the
+    force of the damaged contact, sign x level x envelope(t) x n(t). n is white up to half of
+    ROUGHNESS_HOLD_RATE_HZ (held over each 1/ROUGHNESS_HOLD_RATE_HZ), nearly normal with unit
+    variance (the sum of three sine-hash uniforms of the hold index, scaled); the envelope (1 - m) + m window(psi) gates it at the
     defect's passages, slip included."""
     def load(mbs, t, item):
         import exudyn as exu
