@@ -24,6 +24,7 @@ from condmon.features import compute_feature_table
 from condmon.models.numerics import SimulationError
 from condmon.signals import make_rows
 from condmon.systems import get_system, system_class
+from condmon.systems.base import source_digest
 
 TOY_MODULE = str(ROOT / "tests" / "toy_system.py")
 
@@ -161,6 +162,34 @@ def test_health_states_and_features_agree_with_the_config(system_and_config):
     features = compute_feature_table(pd.DataFrame(rows), config["features"]["channels"], config["features"]["spectrum"])
     assert len(features) == 2 * len(system.health_states)
     assert np.isfinite(features.iloc[:, 7:].to_numpy()).all()
+
+
+def test_model_stages_carry_the_model_digest(system_and_config):
+    """The bench, calibrate and simulate jobs' param changes with the model code (so Snakemake
+    reruns them); the stages that do not run the model do not carry it."""
+    system, _ = system_and_config
+    digest = system.model_digest()
+    assert re.fullmatch(r"[0-9a-f]{64}", digest)
+    for stage in ("bench", "calibrate", "simulate"):
+        assert system.job_spec(stage)["model_digest"] == digest, stage
+    for stage in ("measured", "features"):
+        assert "model_digest" not in system.job_spec(stage), stage
+
+
+def test_the_source_digest_follows_every_model_file(tmp_path):
+    digest = source_digest.__wrapped__      # uncached: the files change under it
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "model.py").write_text("stiffness = 1.0\n")
+    (tmp_path / "schema.yaml").write_text("a: 1\n")
+    deep, flat = digest((tmp_path,), (True,)), digest((tmp_path,), (False,))
+    (tmp_path / "__pycache__").mkdir()
+    (tmp_path / "__pycache__" / "model.py").write_text("compiled")
+    assert digest((tmp_path,), (True,)) == deep
+    (tmp_path / "sub" / "part.py").write_text("x = 2\n")
+    assert digest((tmp_path,), (True,)) != deep
+    assert digest((tmp_path,), (False,)) == flat
+    (tmp_path / "model.py").write_text("stiffness = 2.0\n")
+    assert digest((tmp_path,), (False,)) != flat
 
 
 def test_registry_errors_name_the_culprit():

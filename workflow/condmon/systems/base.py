@@ -17,6 +17,9 @@ A system object is built on a config: the whole validated config in the Snakefil
 """
 from __future__ import annotations
 
+import functools
+import hashlib
+import inspect
 from abc import ABC, abstractmethod
 from pathlib import Path
 from typing import ClassVar
@@ -31,6 +34,24 @@ __all__ = ["System", "SimulationError"]
 
 # Stages whose jobs build a system object (job_config's `stage`).
 STAGES = ("bench", "measured", "calibrate", "simulate", "features")
+# Stages whose outputs come from the model code: their `system` param carries its digest.
+MODEL_STAGES = ("bench", "calibrate", "simulate")
+
+
+@functools.cache
+def source_digest(folders: tuple[Path, ...], recursive: tuple[bool, ...]) -> str:
+    """SHA-256 over the names and contents of the .py and .yaml files in `folders` (each
+    searched recursively or not), in sorted order."""
+    digest = hashlib.sha256()
+    files = set()
+    for folder, deep in zip(folders, recursive):
+        for pattern in ("*.py", "*.yaml"):
+            files.update((folder.rglob if deep else folder.glob)(pattern))
+    for path in sorted(files):
+        if "__pycache__" in path.parts:
+            continue
+        digest.update(path.as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()
 
 
 class System(ABC):
@@ -131,9 +152,24 @@ class System(ABC):
         return {key: self.config[key] for key in keys if key in self.config}
 
     def job_spec(self, stage: str, variant: str | None = None) -> dict:
-        """The `system` param of a rule: what `load_system` needs to rebuild this system in a job."""
-        return {"name": self.name, "modules": list(self.config.get("system_modules") or []),
+        """The `system` param of a rule: what `load_system` needs to rebuild this system in a job.
+        For the stages that run the model it also carries `model_digest`, so Snakemake reruns
+        them when the model's code changes (its code trigger sees only the rule's script)."""
+        spec = {"name": self.name, "modules": list(self.config.get("system_modules") or []),
                 "config": self.job_config(stage, variant)}
+        if stage in MODEL_STAGES:
+            spec["model_digest"] = self.model_digest()
+        return spec
+
+    def model_digest(self) -> str:
+        """Digest of the code the model stages run: the built-in systems and `condmon.models`
+        (searched recursively) and the folder of this system's own module (not recursively: a
+        system of your own may live in a large folder)."""
+        from condmon import models
+        built_in = (Path(__file__).parent, Path(models.__file__).parent)
+        own = Path(inspect.getfile(type(self))).parent
+        folders = built_in if any(own.is_relative_to(f) for f in built_in) else (*built_in, own)
+        return source_digest(tuple(f.resolve() for f in folders), (True, True, False)[:len(folders)])
 
     # -- config checks -----------------------------------------------------------------------
     def problems(self) -> list[str]:
