@@ -11,6 +11,7 @@ import gc
 import json
 import os
 import re
+import shutil
 
 import numpy as np
 import pandas as pd
@@ -190,6 +191,10 @@ def test_the_source_digest_follows_every_model_file(tmp_path):
     assert digest((tmp_path,), (False,)) == flat
     (tmp_path / "model.py").write_text("stiffness = 2.0\n")
     assert digest((tmp_path,), (False,)) != flat
+    # the same files elsewhere: the same digest
+    moved = tmp_path.parent / (tmp_path.name + "-moved")
+    shutil.copytree(tmp_path, moved)
+    assert digest((moved,), (True,)) == digest((tmp_path,), (True,))
 
 
 def test_registry_errors_name_the_culprit():

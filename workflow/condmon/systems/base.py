@@ -40,17 +40,18 @@ MODEL_STAGES = ("bench", "calibrate", "simulate")
 
 @functools.cache
 def source_digest(folders: tuple[Path, ...], recursive: tuple[bool, ...]) -> str:
-    """SHA-256 over the names and contents of the .py and .yaml files in `folders` (each
-    searched recursively or not), in sorted order."""
-    digest = hashlib.sha256()
+    """SHA-256 over the .py and .yaml files in `folders` (each searched recursively or not): their
+    names relative to their folder and their contents, in sorted order, so the digest does not
+    depend on where the project lies."""
     files = set()
-    for folder, deep in zip(folders, recursive):
+    for number, (folder, deep) in enumerate(zip(folders, recursive)):
         for pattern in ("*.py", "*.yaml"):
-            files.update((folder.rglob if deep else folder.glob)(pattern))
-    for path in sorted(files):
-        if "__pycache__" in path.parts:
-            continue
-        digest.update(path.as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+            for path in (folder.rglob if deep else folder.glob)(pattern):
+                if "__pycache__" not in path.relative_to(folder).parts:
+                    files.add((number, path.relative_to(folder).as_posix(), path))
+    digest = hashlib.sha256()
+    for number, name, path in sorted(files):
+        digest.update(f"{number}:{name}".encode() + b"\0" + path.read_bytes() + b"\0")
     return digest.hexdigest()
 
 
@@ -166,10 +167,10 @@ class System(ABC):
         (searched recursively) and the folder of this system's own module (not recursively: a
         system of your own may live in a large folder)."""
         from condmon import models
-        built_in = (Path(__file__).parent, Path(models.__file__).parent)
-        own = Path(inspect.getfile(type(self))).parent
+        built_in = (Path(__file__).parent.resolve(), Path(models.__file__).parent.resolve())
+        own = Path(inspect.getfile(type(self))).parent.resolve()
         folders = built_in if any(own.is_relative_to(f) for f in built_in) else (*built_in, own)
-        return source_digest(tuple(f.resolve() for f in folders), (True, True, False)[:len(folders)])
+        return source_digest(folders, (True, True, False)[:len(folders)])
 
     # -- config checks -----------------------------------------------------------------------
     def problems(self) -> list[str]:
