@@ -354,14 +354,14 @@ ROUGHNESS_WINDOW_RMS = math.sqrt(math.comb(16, 8) / 2 ** 16)
 ROUGHNESS_HOLD_RATE_HZ = 48000.0
 
 
-def _roughness_force_function(profile: _DefectProfile, level: float, modulation: float, seed: float,
-                              sign: float):
-    """A load function of exudyn's signature, recorded symbolically: the vertical rough-running
-    force of the damaged contact, sign x level x envelope(t) x n(t). n is white up to half of
+def _roughness_force_function(profile: _DefectProfile, level: float, modulation: float, seed: float):
+    """A Python function of exudyn's Cartesian spring-damper signature, recorded symbolically: the
+    vertical rough-running force of the damaged contact, level x envelope(t) x n(t), on the
+    housing (and its reaction on the journal). n is white up to half of
     ROUGHNESS_HOLD_RATE_HZ (held over each 1/ROUGHNESS_HOLD_RATE_HZ), nearly normal with unit
     variance (the sum of three sine-hash uniforms of the hold index, scaled); the envelope (1 - m) + m window(psi) gates it at the
     defect's passages, slip included."""
-    def load(mbs, t, item):
+    def force(mbs, t, item, u, v, k, d, offset):
         import exudyn as exu
         esym = exu.symbolic
         R = esym.Real
@@ -372,8 +372,8 @@ def _roughness_force_function(profile: _DefectProfile, level: float, modulation:
         u = psi - esym.floor(psi + 0.5)
         window = esym.pow(esym.cos(u * math.pi), R(ROUGHNESS_WINDOW_POWER)) * (1.0 / ROUGHNESS_WINDOW_RMS)
         envelope = window * modulation + (1.0 - modulation)
-        return esym.Vector([R(0.0), normal * envelope * (sign * level), R(0.0)])
-    return load
+        return esym.Vector([R(0.0), normal * envelope * level, R(0.0)])
+    return force
 
 
 LOAD_ZONE_DEG = 80.0  # zone_only sums every ball within this angle of the bottom (and a few more)
@@ -544,15 +544,15 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
             mode_nodes.append(node)
         defect = _DefectProfile(p, hash_seed) if p.defect_kind != "none" else None
         if defect is not None and p.defect_roughness > 0:
-            # rough running: a random force between the DE journal and housing (action, reaction)
-            for marker, sign in ((hde, 1.0), (rde, -1.0)):
-                load = mbs.AddLoad(eii.LoadForceVector(markerNumber=marker, loadVector=[0.0, 0.0, 0.0]))
-                fn = CreateSymbolicUserFunction(
-                    mbs, _roughness_force_function(defect, p.defect_roughness, p.defect_roughness_modulation,
-                                                   rough_seed, sign),
-                    'loadVectorUserFunction', load)
-                mbs.SetLoadParameter(load, 'loadVectorUserFunction', fn)
-                keep.append(fn)
+            # rough running: a random force between the DE housing and journal, evaluated once a
+            # stage by a force-only connector (action on the housing, reaction on the journal)
+            item = mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
+                markerNumbers=[hde, rde], stiffness=[0.0, 0.0, 0.0], damping=[0.0, 0.0, 0.0]))
+            fn = CreateSymbolicUserFunction(
+                mbs, _roughness_force_function(defect, p.defect_roughness, p.defect_roughness_modulation,
+                                               rough_seed), 'springForceUserFunction', item)
+            mbs.SetObjectParameter(item, 'springForceUserFunction', fn)
+            keep.append(fn)
         bearings = []
         for housing, journal, geometry, stiffness, dfct in ((hde, rde, p.de_geometry, p.contact_stiffness, defect),
                                                             (hfe, rfe, p.fe_geometry, k_fe, None)):
@@ -581,8 +581,8 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
         except Exception as exc:
             raise SimulationError(f"exudyn solver failed ({where}): {exc}") from exc
         acc, force, disp = (mbs.GetSensorStoredData(sensor) for sensor in sensors)
-        modes = np.column_stack([mbs.GetSensorStoredData(sensor)[:, 2] for sensor in mode_sensors]
-                                or [np.zeros(len(acc))])
+        modes = (np.column_stack([mbs.GetSensorStoredData(sensor)[:, 2] for sensor in mode_sensors])
+                 if mode_sensors else np.empty((len(acc), 0)))
     del keep
     if not (np.isfinite(acc).all() and np.isfinite(force).all() and np.isfinite(disp).all()
             and np.isfinite(modes).all()):
@@ -591,7 +591,7 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
     if radial.max() > p.radial_clearance + s.max_penetration:
         raise SimulationError(f"simulation diverged ({where}): journal displacement {radial.max():.3g} m "
                               f"beyond the clearance + {s.max_penetration:g} m")
-    return acc, force, disp, modes[:, :len(p.resonances)]
+    return acc, force, disp, modes
 
 
 def simulate_rig(params: BearingRigParameters, settings: RigSettings | None = None,

@@ -116,11 +116,12 @@ def test_invalid_parameters_are_rejected():
         simulate_rig(BearingRigParameters(defect_clock=13.0), RigSettings(duration=0.01))
 
 
-def _outer_race(clock=6.0, slip=0.005, duration=0.3, seed=3):
+def _outer_race(clock=6.0, slip=0.005, duration=0.3, seed=3, diagnostics=None, **changes):
+    """A clean outer-race run; `changes` override other parameters."""
     params = BearingRigParameters(speed_rpm=SPEED, defect_kind="outer_race", defect_clock=clock,
-                                  **{**CLEAN, "slip_std": slip})
+                                  **{**CLEAN, "slip_std": slip, **changes})
     return simulate_rig(params, RigSettings(duration=duration, settle_time=0.1),
-                        np.random.default_rng(seed))["DE"]
+                        np.random.default_rng(seed), diagnostics)["DE"]
 
 
 def test_outer_race_line_weakens_as_the_defect_leaves_the_load_zone():
@@ -160,17 +161,12 @@ def _band_power(signal, low, high, fs=FS):
     return float(power[(freqs >= low) & (freqs < high)].sum())
 
 
-def _clean_outer_race(seed=3, **changes):
-    params = BearingRigParameters(speed_rpm=SPEED, defect_kind="outer_race", **{**CLEAN, **changes})
-    return simulate_rig(params, RigSettings(duration=0.3, settle_time=0.1), np.random.default_rng(seed))["DE"]
-
-
 def test_structural_modes_are_bodies_the_bearing_force_excites():
     """A housing mode is a modal mass in the model: the impacts ring it at its frequency (and
     nowhere else), and moving the mode moves the ringing; without modes the band stays quiet."""
-    bare = _clean_outer_race(resonances=())
-    at_3k = _clean_outer_race(resonances=((3000.0, 0.02, 0.5),))
-    at_4k = _clean_outer_race(resonances=((4000.0, 0.02, 0.5),))
+    bare = _outer_race(resonances=())
+    at_3k = _outer_race(resonances=((3000.0, 0.02, 0.5),))
+    at_4k = _outer_race(resonances=((4000.0, 0.02, 0.5),))
     assert _band_power(at_3k, 2800, 3200) > 100 * _band_power(bare, 2800, 3200)
     assert _band_power(at_4k, 3800, 4200) > 100 * _band_power(bare, 3800, 4200)
     assert _band_power(at_3k, 3800, 4200) < 0.1 * _band_power(at_4k, 3800, 4200)
@@ -183,9 +179,7 @@ def test_structural_modes_are_bodies_the_bearing_force_excites():
     deflection = {}
     for name, resonances in (("bare", ()), ("mode", ((3000.0, 0.02, 0.5),))):
         diagnostics = {}
-        simulate_rig(BearingRigParameters(speed_rpm=SPEED, defect_kind="outer_race", modal_mass_share=0.1,
-                                          resonances=resonances, **CLEAN),
-                     RigSettings(duration=0.3, settle_time=0.1), np.random.default_rng(3), diagnostics)
+        _outer_race(diagnostics=diagnostics, modal_mass_share=0.1, resonances=resonances)
         deflection[name] = _band_power(diagnostics["de_displacement"][:, 1], 2850, 3150, fs=4 * FS)
     assert deflection["mode"] < 0.7 * deflection["bare"], deflection
 
@@ -194,11 +188,11 @@ def test_rough_running_is_a_force_in_the_model_gated_by_the_passages():
     """With a defect too shallow to strike, the rough-running force alone rings the modes, and its
     gating by the passages puts the BPFO line in the envelope; same seed, same force."""
     quiet = dict(defect_drop_scale=1e-6, defect_roughness_modulation=1.0)
-    smooth = _clean_outer_race(defect_roughness=0.0, **quiet)
-    rough = _clean_outer_race(defect_roughness=5.0, **quiet)
+    smooth = _outer_race(defect_roughness=0.0, **quiet)
+    rough = _outer_race(defect_roughness=5.0, **quiet)
     assert np.std(rough) > 20 * np.std(smooth)
     assert _line(rough, SKF_6205.orders()["bpfo"])[1] > 4.0
-    np.testing.assert_array_equal(rough, _clean_outer_race(defect_roughness=5.0, **quiet))
+    np.testing.assert_array_equal(rough, _outer_race(defect_roughness=5.0, **quiet))
 
 
 def test_a_mode_the_step_cannot_resolve_is_rejected():

@@ -182,19 +182,19 @@ def test_the_source_digest_follows_every_model_file(tmp_path):
     (tmp_path / "sub").mkdir()
     (tmp_path / "model.py").write_text("stiffness = 1.0\n")
     (tmp_path / "schema.yaml").write_text("a: 1\n")
-    deep, flat = digest((tmp_path,), (True,)), digest((tmp_path,), (False,))
+    deep, flat = digest(deep=(tmp_path,)), digest(flat=(tmp_path,))
     (tmp_path / "__pycache__").mkdir()
     (tmp_path / "__pycache__" / "model.py").write_text("compiled")
-    assert digest((tmp_path,), (True,)) == deep
+    assert digest(deep=(tmp_path,)) == deep
     (tmp_path / "sub" / "part.py").write_text("x = 2\n")
-    assert digest((tmp_path,), (True,)) != deep
-    assert digest((tmp_path,), (False,)) == flat
+    assert digest(deep=(tmp_path,)) != deep
+    assert digest(flat=(tmp_path,)) == flat
     (tmp_path / "model.py").write_text("stiffness = 2.0\n")
-    assert digest((tmp_path,), (False,)) != flat
+    assert digest(flat=(tmp_path,)) != flat
     # the same files elsewhere: the same digest
     moved = tmp_path.parent / (tmp_path.name + "-moved")
     shutil.copytree(tmp_path, moved)
-    assert digest((moved,), (True,)) == digest((tmp_path,), (True,))
+    assert digest(deep=(moved,)) == digest(deep=(tmp_path,))
 
 
 def test_registry_errors_name_the_culprit():

@@ -39,19 +39,21 @@ MODEL_STAGES = ("bench", "calibrate", "simulate")
 
 
 @functools.cache
-def source_digest(folders: tuple[Path, ...], recursive: tuple[bool, ...]) -> str:
-    """SHA-256 over the .py and .yaml files in `folders` (each searched recursively or not): their
-    names relative to their folder and their contents, in sorted order, so the digest does not
-    depend on where the project lies."""
+def source_digest(deep: tuple[Path, ...] = (), flat: tuple[Path, ...] = ()) -> str:
+    """SHA-256 over the .py and .yaml files in the `deep` folders (with their subfolders) and the
+    `flat` ones (without): their names relative to their folder and their contents, in sorted
+    order, so the digest does not depend on where the project lies."""
     files = set()
-    for number, (folder, deep) in enumerate(zip(folders, recursive)):
-        for pattern in ("*.py", "*.yaml"):
-            for path in (folder.rglob if deep else folder.glob)(pattern):
-                if "__pycache__" not in path.relative_to(folder).parts:
-                    files.add((number, path.relative_to(folder).as_posix(), path))
+    for kind, folders, search in (("deep", deep, Path.rglob), ("flat", flat, Path.glob)):
+        for number, folder in enumerate(folders):
+            for pattern in ("*.py", "*.yaml"):
+                for path in search(folder, pattern):
+                    name = path.relative_to(folder)
+                    if "__pycache__" not in name.parts:
+                        files.add((f"{kind}{number}:{name.as_posix()}", path))
     digest = hashlib.sha256()
-    for number, name, path in sorted(files):
-        digest.update(f"{number}:{name}".encode() + b"\0" + path.read_bytes() + b"\0")
+    for name, path in sorted(files):
+        digest.update(name.encode() + b"\0" + path.read_bytes() + b"\0")
     return digest.hexdigest()
 
 
@@ -169,8 +171,8 @@ class System(ABC):
         from condmon import models
         built_in = (Path(__file__).parent.resolve(), Path(models.__file__).parent.resolve())
         own = Path(inspect.getfile(type(self))).parent.resolve()
-        folders = built_in if any(own.is_relative_to(f) for f in built_in) else (*built_in, own)
-        return source_digest(folders, (True, True, False)[:len(folders)])
+        inside = any(own.is_relative_to(folder) for folder in built_in)
+        return source_digest(deep=built_in, flat=() if inside else (own,))
 
     # -- config checks -----------------------------------------------------------------------
     def problems(self) -> list[str]:
