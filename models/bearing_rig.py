@@ -52,7 +52,7 @@ The accelerometer is at 12 o'clock on the DE housing: channel "DE" is +y acceler
 Speed (measured on the 2-core CI machine, exudyn 1.13.6, one process): 1.2-1.35 s of CPU per
 simulated second with the modes as filters after the run (defaults, oversampling 4, h = 20.8 us,
 load-zone ball sums; 96 randomised samples of 0.78 s took 100 s of CPU); the modes and the rough
-running in the model cost about 10 % more (30 % with rough running), measured side by side.
+running in the model cost about 10 % more (about 20 % with rough running), measured side by side.
 Summing every ball of both bearings costs about 40 % more, and the defect term is gated by a cheap
 `IfThenElse` so it costs nothing between passages. Oversampling 4 (not 10) keeps the cost: against
 oversampling 8 (h/2), an outer-race run agrees within 0.4 % in RMS and 0.3 % in kurtosis, a
@@ -71,7 +71,7 @@ from scipy.signal import bilinear, lfilter, resample_poly
 
 from condmon.models.numerics import SimulationError, decimation_filter, exudyn_system, solve_rk44
 
-SPEED_NOTE = ("1.3-1.75 s of CPU per simulated second on one core (defaults, oversampling 4, "
+SPEED_NOTE = ("1.3-1.6 s of CPU per simulated second on one core (defaults, oversampling 4, "
               "h = 20.8 us, load-zone ball sums, modes and rough running in the model); wall time the same on an idle "
               "core, up to 2x when the 2 cores are shared")
 DEFECT_KINDS = ("none", "outer_race", "inner_race", "ball")
