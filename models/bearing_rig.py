@@ -30,17 +30,23 @@ Mechanics (exudyn, plane x horizontal / y vertical, 8 DOF, RK44):
   the defect lines spread around the kinematic frequencies by about the slip instead of sitting
   exactly on them. The outer-race defect sits at `defect_clock` (CWRU rigs: 3:00, 6:00, 12:00;
   the load pushes the journal down, so away from 6:00 its balls carry less load and strike
-  weaker).
+  weaker, and above the load zone they strike only if a mounted preload (`preload_deflection`)
+  keeps them pressed).
 
 Structure and measurement chain: the DE housing (end shield and motor frame) carries several
-light structural modes (`resonances`: frequency, damping ratio, gain in m/s^2 per N), each a
-modal mass (`modal_mass_share` of the housing mass) on a spring-damper to the housing, tuned to
-its frequency and damping. The bearing force moves the housing and the housing drives the modes;
-their reaction acts back on the housing and so on the bearing, as in the structure. The
+light structural modes (`resonances`: frequency, damping ratio, gain in m/s^2 per N, and
+optionally the mode's tilt in degrees), each a modal mass (`modal_mass_share` of the housing
+mass) on a spring-damper to the housing, tuned to its frequency and damping. The bearing force
+moves the housing and the housing drives the modes; their reaction acts back on the housing and
+so on the bearing, as in the structure. The
 accelerometer reads the housing's acceleration (`housing_path_gain`) plus each mode's relative
 acceleration with a participation g m_housing: above the housing's mount and contact modes the
 housing moves as its mass under the bearing force F, so a mode's share of the reading is close
-to g s^2 / (s^2 + 2 zeta w s + w^2) F, which is what `gain` means. The rough running of a damaged
+to g s^2 / (s^2 + 2 zeta w s + w^2) F, which is what `gain` means. A mode's motion at the
+sensor need not be vertical: it reads the mode's relative motion along its tilt (degrees from
+vertical, towards 3 o'clock), so a horizontal bearing force (a defect at 3:00) reaches the
+12 o'clock accelerometer through the tilted modes, as through a real end shield, where the
+vertical housing motion alone would never show it. The rough running of a damaged
 contact (`defect_roughness`) is a random force on the DE housing and journal inside the model
 too, so it reaches the sensor along the same paths as the impacts. The integration step resolves
 the modes (RK44 at 48 kHz, omega h <= 0.7 up to 5 kHz: numerical damping under 1e-3 of critical).
@@ -53,7 +59,8 @@ Speed (measured on the 2-core CI machine, exudyn 1.13.6, one process): 1.2-1.35 
 simulated second with the modes as filters after the run (defaults, oversampling 4, h = 20.8 us,
 load-zone ball sums; 96 randomised samples of 0.78 s took 100 s of CPU); the modes and the rough
 running in the model cost about 10 % more (about 20 % with rough running), measured side by side.
-Summing every ball of both bearings costs about 40 % more, and the defect term is gated by a cheap
+Summing every ball of both bearings costs about 40 % more (a preload beyond the clearance
+presses every DE ball, so such a run sums all of the DE's), and the defect term is gated by a cheap
 `IfThenElse` so it costs nothing between passages. Oversampling 4 (not 10) keeps the cost: against
 oversampling 8 (h/2), an outer-race run agrees within 0.4 % in RMS and 0.3 % in kurtosis, a
 ball-defect run with rough running within 0.7 % in RMS, kurtosis and the 2 x BSF envelope-line
@@ -134,6 +141,10 @@ class BearingRigParameters:
     # Ball-race contact (Hertz, point contact, both races in series): F = K delta^1.5.
     contact_stiffness: float = 8.0e9        # N/m^1.5, DE (6205); FE scaled by (d_FE/d_DE)^0.5
     radial_clearance: float = 5.0e-6        # m, radial internal clearance (both bearings)
+    # m, contact deflection every DE ball carries from a mounted preload (an axial wave spring, an
+    # interference fit): it takes up the clearance, and beyond it keeps the balls away from the
+    # load zone in contact too, so an outer-race defect at 12:00 or 3:00 still strikes (weaker)
+    preload_deflection: float = 0.0
     bearing_damping: float = 300.0          # N s/m, linear viscous damping journal-housing
     # Housings (end shields) on the motor frame.
     housing_mass: float = 3.0               # kg, each
@@ -157,8 +168,9 @@ class BearingRigParameters:
     defect_roughness: float = 0.0
     defect_roughness_modulation: float = 0.5
     # Structural modes of the DE housing (frequency Hz, damping ratio, gain m/s^2 per N of DE
-    # bearing force at the sensor), each a modal mass of modal_mass_share x housing_mass on the
-    # housing; the housing's own acceleration enters the sensor with housing_path_gain.
+    # bearing force at the sensor, optionally the tilt in degrees from vertical of the mode's
+    # motion at the sensor, default 0), each a modal mass of modal_mass_share x housing_mass on
+    # the housing; the housing's own acceleration enters the sensor with housing_path_gain.
     resonances: tuple = field(default_factory=_resonances_default)
     modal_mass_share: float = 0.01
     housing_path_gain: float = 1.0
@@ -190,6 +202,12 @@ class RigSettings:
 def clock_angle(hours: float) -> float:
     """Angle (rad, from +x = 3 o'clock, counter-clockwise) of a clock position (12 = top)."""
     return math.radians(90.0 - 30.0 * hours)
+
+
+def de_clearance(p: BearingRigParameters) -> float:
+    """The DE bearing's running clearance: the radial clearance less the preload deflection
+    (negative: every ball is pressed, at rest, by that much)."""
+    return p.radial_clearance - p.preload_deflection
 
 
 def effective_defect_depth(p: BearingRigParameters) -> float:
@@ -231,14 +249,23 @@ def _check(p: BearingRigParameters, s: RigSettings) -> None:
             raise ValueError("defect_depth_variation must lie in [0, 1)")
     if not 0 <= p.slip_std < 0.2:
         raise ValueError(f"slip_std must lie in [0, 0.2) (fraction of the passage rate), got {p.slip_std}")
+    if not (np.isfinite(p.radial_clearance) and p.radial_clearance >= 0
+            and np.isfinite(p.preload_deflection) and p.preload_deflection >= 0):
+        raise ValueError(f"radial_clearance and preload_deflection must be >= 0 m, got {p.radial_clearance} "
+                         f"and {p.preload_deflection}")
     if not 0 <= p.defect_clock <= 12:
         raise ValueError(f"defect_clock must lie in [0, 12] hours, got {p.defect_clock}")
     # the RK44 step must resolve every mode: omega h <= 1 keeps its numerical damping small
     step_hz = s.output_rate_hz * s.oversampling * s.steps_per_sensor_sample
-    for f, zeta, _ in p.resonances:
+    for mode in p.resonances:
+        if len(mode) not in (3, 4):
+            raise ValueError(f"resonance {mode}: need (frequency Hz, damping ratio, gain[, tilt deg])")
+        f, zeta = mode[0], mode[1]
         if not (0 < f <= step_hz / (2 * math.pi) and 0 < zeta < 1):
             raise ValueError(f"resonance ({f}, {zeta}): need 0 < f <= {step_hz / (2 * math.pi):.0f} Hz "
                              "(omega h <= 1 at this step) and 0 < zeta < 1")
+        if len(mode) == 4 and not -90 <= mode[3] <= 90:
+            raise ValueError(f"resonance {mode}: the tilt must lie in [-90, 90] degrees from vertical")
     if p.resonances and not 0 < p.modal_mass_share <= 0.2:
         raise ValueError(f"modal_mass_share must lie in (0, 0.2] (light modes), got {p.modal_mass_share}")
     for f, zeta, level in p.background:
@@ -473,10 +500,11 @@ def _resonance_filter(freq, zeta, gain, fs):
 
 # -- the run ----------------------------------------------------------------------------------
 def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, unbalance_phase: float,
-                   rough_seed: float, zone_only: bool, where: str):
+                   rough_seed: float, zone_only: tuple[bool, bool], where: str):
     """The exudyn part: returns (housing acceleration, DE bearing force, DE bearing displacement)
-    sensor arrays (time in column 0) and the modes' vertical accelerations (one column per mode)
-    at the sensor rate, settling included."""
+    sensor arrays (time in column 0) and the modes' accelerations (shape (samples, modes, 2): x
+    and y) at the sensor rate, settling included. zone_only: whether the DE and the FE bearing
+    sum only their load-zone balls."""
     import exudyn as exu
     from exudyn.utilities import CreateSymbolicUserFunction
 
@@ -487,7 +515,8 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
     c_shaft = 2 * p.shaft_damping_ratio * math.sqrt(p.shaft_stiffness * min(m_de, m_fe))
     # static sag of the journals in their bearings and of the housings on the frame
     load_de, load_fe = m_de * g + p.radial_load, m_fe * g
-    sag_de = _static_sag(p.de_geometry, p.contact_stiffness, p.radial_clearance, load_de)
+    clearance_de = de_clearance(p)
+    sag_de = _static_sag(p.de_geometry, p.contact_stiffness, clearance_de, load_de)
     sag_fe = _static_sag(p.fe_geometry, k_fe, p.radial_clearance, load_fe)
     modal_mass = p.modal_mass_share * p.housing_mass
     modes_mass = modal_mass * len(p.resonances)
@@ -535,7 +564,7 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
                 keep.append(fn)
         # Structural modes of the DE housing: modal masses on spring-dampers tuned to each mode.
         mode_nodes = []
-        for freq, zeta, _ in p.resonances:
+        for freq, zeta, *_ in p.resonances:
             omega = 2 * math.pi * freq
             node, mode = point(modal_mass, h_de - g / omega ** 2, -modal_mass * g)
             mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
@@ -554,13 +583,14 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
             mbs.SetObjectParameter(item, 'springForceUserFunction', fn)
             keep.append(fn)
         bearings = []
-        for housing, journal, geometry, stiffness, dfct in ((hde, rde, p.de_geometry, p.contact_stiffness, defect),
-                                                            (hfe, rfe, p.fe_geometry, k_fe, None)):
+        for housing, journal, geometry, stiffness, clearance, dfct, zone in (
+                (hde, rde, p.de_geometry, p.contact_stiffness, clearance_de, defect, zone_only[0]),
+                (hfe, rfe, p.fe_geometry, k_fe, p.radial_clearance, None, zone_only[1])):
             item = mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
                 markerNumbers=[housing, journal], stiffness=[0.0, 0.0, 0.0], damping=[0.0, 0.0, 0.0]))
             fn = CreateSymbolicUserFunction(
-                mbs, _bearing_force_function(geometry, stiffness, p.radial_clearance, p.bearing_damping,
-                                             p.shaft_hz, dfct, zone_only), 'springForceUserFunction', item)
+                mbs, _bearing_force_function(geometry, stiffness, clearance, p.bearing_damping,
+                                             p.shaft_hz, dfct, zone), 'springForceUserFunction', item)
             mbs.SetObjectParameter(item, 'springForceUserFunction', fn)
             keep.append(fn)
             bearings.append(item)
@@ -581,14 +611,14 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
         except Exception as exc:
             raise SimulationError(f"exudyn solver failed ({where}): {exc}") from exc
         acc, force, disp = (mbs.GetSensorStoredData(sensor) for sensor in sensors)
-        modes = (np.column_stack([mbs.GetSensorStoredData(sensor)[:, 2] for sensor in mode_sensors])
-                 if mode_sensors else np.empty((len(acc), 0)))
+        modes = (np.stack([mbs.GetSensorStoredData(sensor)[:, 1:3] for sensor in mode_sensors], axis=1)
+                 if mode_sensors else np.empty((len(acc), 0, 2)))
     del keep
     if not (np.isfinite(acc).all() and np.isfinite(force).all() and np.isfinite(disp).all()
             and np.isfinite(modes).all()):
         raise SimulationError(f"simulation diverged ({where}): non-finite states")
     radial = np.hypot(disp[:, 1], disp[:, 2])
-    if radial.max() > p.radial_clearance + s.max_penetration:
+    if radial.max() > max(clearance_de, 0.0) + s.max_penetration:
         raise SimulationError(f"simulation diverged ({where}): journal displacement {radial.max():.3g} m "
                               f"beyond the clearance + {s.max_penetration:g} m")
     return acc, force, disp, modes
@@ -613,22 +643,31 @@ def simulate_rig(params: BearingRigParameters, settings: RigSettings | None = No
     rough_seed = float(rng.uniform(0.0, 100.0))
     sensor_rate = s.output_rate_hz * s.oversampling
     where = (f"defect {p.defect_kind}, {p.speed_rpm:g} rpm, contact_stiffness={p.contact_stiffness:.3g}, "
-             f"radial_clearance={p.radial_clearance:.3g}, radial_load={p.radial_load:.3g}, "
+             f"radial_clearance={p.radial_clearance:.3g}, preload_deflection={p.preload_deflection:.3g}, "
+             f"radial_load={p.radial_load:.3g}, "
              f"defect_width={p.defect_width:.3g}, h={1 / (sensor_rate * s.steps_per_sensor_sample):.3g} s")
-    zone_only = s.load_zone_only
-    acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed, zone_only, where)
-    if zone_only and not _load_zone_ok(disp[:, 1:3], p.radial_clearance):
+    # a DE preload beyond the clearance presses every DE ball: its load-zone sum cannot hold (the
+    # fan end keeps its clearance)
+    zone_only = s.load_zone_only and de_clearance(p) > 0
+    zones = (zone_only, s.load_zone_only)
+    acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed, zones, where)
+    if zone_only and not _load_zone_ok(disp[:, 1:3], de_clearance(p)):
         zone_only = False  # a ball outside the zone would have touched: run again with all balls
-        acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed, zone_only, where)
+        acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed, (False, False),
+                                                 where)
     if diagnostics is not None:
         diagnostics.update(time=acc[:, 0], de_force_y=force[:, 2], de_displacement=disp[:, 1:3],
                            load_zone_only=zone_only)
 
     # The accelerometer (+y = 12 o'clock): the housing's acceleration and each mode's relative
-    # acceleration with its participation (the mode's gain per N times the housing mass).
+    # acceleration along its tilt, with its participation (the mode's gain per N times the
+    # housing mass).
     signal = p.housing_path_gain * acc[:, 2]
-    for (_, _, gain), mode_acc in zip(p.resonances, modes.T):
-        signal = signal - gain * p.housing_mass * (mode_acc - acc[:, 2])
+    for m, (_, _, gain, *tilt) in enumerate(p.resonances):
+        tilt_rad = math.radians(tilt[0]) if tilt else 0.0
+        relative = modes[:, m, :] - acc[:, 1:3]
+        along = relative[:, 0] * math.sin(tilt_rad) + relative[:, 1] * math.cos(tilt_rad)
+        signal = signal - gain * p.housing_mass * along
     # Filter the whole run (settling included) so the filter's edge effects fall in the
     # discarded part, then decimate.
     out = resample_poly(signal, 1, s.oversampling, window=decimation_filter(s.oversampling))

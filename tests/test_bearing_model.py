@@ -60,10 +60,15 @@ def test_randomise_draws_within_ranges():
             level = "gain" if name == "resonances" else "rms"
             for d in draws:
                 assert s["count"][0] <= len(d[name]) <= s["count"][1]
-                for f, z, g in d[name]:
+                for f, z, g, *tilt in d[name]:
                     assert s["frequency_hz"][0] <= f <= s["frequency_hz"][1]
                     assert s["damping_ratio"][0] <= z <= s["damping_ratio"][1]
                     assert s[level][0] <= g <= s[level][1]
+                    assert len(tilt) == ("tilt_deg" in s)
+                    assert not tilt or s["tilt_deg"][0] <= tilt[0] <= s["tilt_deg"][1]
+            if "tilt_deg" in s:  # tilted both ways, over most of the range
+                tilts = [mode[3] for d in draws for mode in d[name]]
+                assert np.ptp(tilts) > 0.9 * (s["tilt_deg"][1] - s["tilt_deg"][0])
             continue
         values = np.array([d[name] for d in draws])
         factor = base.get(name, 1.0) if s.get("relative") else 1.0

@@ -33,6 +33,7 @@ def test_effective_depth_is_limited_by_the_ball():
 # Clean signals for the kinematic checks: no background, little noise, every passage strikes.
 CLEAN = dict(noise_rms=0.05, background=(), slip_std=0.005, defect_width=0.014 * 0.0254,
              defect_strike_probability=1.0, defect_depth_variation=0.1)
+CLEAN_CLEARANCE = BearingRigParameters().radial_clearance
 
 
 @pytest.fixture(scope="module")
@@ -126,11 +127,32 @@ def _outer_race(clock=6.0, slip=0.005, duration=0.3, seed=3, diagnostics=None, *
 
 def test_outer_race_line_weakens_as_the_defect_leaves_the_load_zone():
     """The load presses the journal down: at 6:00 the balls over the defect carry the most load;
-    at 4:30 less, at 3:00 none (no strike, no line: real 3:00 records are beyond the model)."""
+    at 4:30 less, at 12:00 none (no strike, no line)."""
     bpfo = SKF_6205.orders()["bpfo"]
-    ratios = {clock: _line(_outer_race(clock), bpfo)[1] for clock in (6.0, 4.5, 3.0)}
+    ratios = {clock: _line(_outer_race(clock), bpfo)[1] for clock in (6.0, 4.5, 12.0)}
     assert ratios[6.0] > 2 * ratios[4.5] and ratios[4.5] > 4.0, ratios
-    assert ratios[3.0] < 3.0, ratios
+    assert ratios[12.0] < 3.0, ratios
+
+
+TILTED = ((2900.0, 0.04, 0.6, 40.0), (3400.0, 0.03, 1.0, -40.0), (3700.0, 0.04, 0.5, 40.0))
+
+
+def test_a_preload_and_tilted_modes_show_defects_above_and_beside_the_load_zone():
+    """A mounted preload beyond the clearance keeps the balls at 12:00 pressed, so a defect there
+    strikes; a strike at 3:00 is horizontal and reaches the 12 o'clock sensor only through modes
+    whose motion at the sensor is tilted (real CWRU records at 3:00 and 12:00 show the line)."""
+    bpfo = SKF_6205.orders()["bpfo"]
+    preload = dict(preload_deflection=4 * CLEAN_CLEARANCE)
+    top = _line(_outer_race(12.0, resonances=TILTED, **preload), bpfo)[1]
+    assert top > 4.0, top   # without the preload: no line (the test above)
+    beside_vertical_modes = _line(_outer_race(3.0, **preload), bpfo)[1]
+    beside = _line(_outer_race(3.0, resonances=TILTED, **preload), bpfo)[1]
+    assert beside_vertical_modes < 3.0 < 4.0 < beside, (beside_vertical_modes, beside)
+    # a preload must never be negative, nor a mode tilted past horizontal
+    with pytest.raises(ValueError, match="preload_deflection"):
+        _outer_race(preload_deflection=-1e-6)
+    with pytest.raises(ValueError, match="tilt"):
+        _outer_race(resonances=((3000.0, 0.02, 0.5, 120.0),))
 
 
 def _line_spread(signal, harmonic=3):

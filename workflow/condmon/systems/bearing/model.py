@@ -127,7 +127,8 @@ def build_rig_parameters(model: dict, health_state: str, speed_rpm: float, label
         raise ValueError(f"unknown bearing model parameters {unknown}; choose among {sorted(_FIELDS | set(SCALES))}")
     values["resonances"] = tuple((float(f) * scales["resonance_frequency_scale"],
                                   min(float(z) * scales["resonance_damping_scale"], 0.9),
-                                  float(g) * scales["resonance_gain_scale"]) for f, z, g in values["resonances"])
+                                  float(g) * scales["resonance_gain_scale"], *map(float, tilt))
+                                 for f, z, g, *tilt in values["resonances"])
     values["background"] = tuple((float(f), float(z), float(r) * scales["background_level_scale"])
                                  for f, z, r in values["background"])
     if kind != "none":
@@ -159,6 +160,8 @@ def _draw_modes(spec: dict, level_key: str, rng) -> list:
         z = math.exp(rng.uniform(*np.log(np.asarray(spec["damping_ratio"], dtype=float))))
         g = math.exp(rng.uniform(*np.log(np.asarray(spec[level_key], dtype=float))))
         modes.append([round(float(f), 3), float(z), float(g)])
+        if "tilt_deg" in spec:  # drawn after the others, so a spec without it draws as before
+            modes[-1].append(float(rng.uniform(*map(float, spec["tilt_deg"]))))
     return modes
 
 
@@ -169,7 +172,8 @@ def randomise(randomisation: dict, rng: np.random.Generator, base: dict | None =
     over [low, high]; with `relative` the draw is a factor on `base[name]` (the calibrated or
     nominal value). `resonances` and `background` entries `{count: [lo, hi], frequency_hz: [lo, hi],
     damping_ratio: [lo, hi], gain|rms: [lo, hi]}` draw a new list of modes (count uniform integer,
-    frequency uniform, damping and gain/rms log-uniform). Keys are drawn in sorted order so the
+    frequency uniform, damping and gain/rms log-uniform; a `resonances` entry with `tilt_deg:
+    [lo, hi]` draws each mode's tilt from vertical too, uniform). Keys are drawn in sorted order so the
     stream does not depend on the config's key order."""
     base = _merged_model(base or {})
     out = {}
