@@ -248,13 +248,13 @@ def sha256(path):
 
 def test_simulated_files_do_not_depend_on_the_core_count(smoke, tmp_path):
     """The smoke run used 2 cores; the same config on 1 core gives byte-identical simulations.
-    The first, a middle and the last batch, run alone in another order: a batch's random stream
-    must depend on its own key only, not on which jobs ran before it or beside it."""
+    The last and the first batch, run alone in the reverse order: a batch's random stream must
+    depend on its own key only, not on which jobs ran before it or beside it."""
     _, results = smoke
     workdir = copy_project(tmp_path)
     batches = sorted(p.relative_to(results.parent.parent) for p in (results / "simulated").rglob("*.parquet"))
     assert len(batches) >= 3, batches
-    targets = [batches[-1], batches[len(batches) // 2], batches[0]]
+    targets = [batches[-1], batches[0]]
     snakemake(workdir, "--cores", "1", *map(str, targets), "--configfile", "config/smoke.yaml")
     for target in targets:
         assert sha256(workdir / target) == sha256(results.parent.parent / target), target
