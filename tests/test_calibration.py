@@ -28,6 +28,8 @@ def test_log_bounds_round_trip_and_clip():
     assert bound.from_unit(bound.to_unit(3e8)) == pytest.approx(3e8)
     assert bound.from_unit(0.5) == pytest.approx(np.sqrt(1e8 * 1e9))
     assert bound.from_unit(1.7) == pytest.approx(1e9)
+    # a start outside the range (a nominal 0 under a log range) starts at the nearest bound
+    assert bound.to_unit(0.0) == 0.0 and bound.to_unit(5e9) == 1.0
 
 
 

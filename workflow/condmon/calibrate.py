@@ -79,6 +79,8 @@ class Bound:
     log: bool
 
     def to_unit(self, value: float) -> float:
+        # a value outside the range (a nominal 0 under a log range) maps to the nearest bound
+        value = min(max(value, self.low), self.high)
         if self.log:
             return (math.log(value) - math.log(self.low)) / (math.log(self.high) - math.log(self.low))
         return (value - self.low) / (self.high - self.low)
