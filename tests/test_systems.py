@@ -273,6 +273,7 @@ def test_a_bearing_run_from_another_rigs_signal_table(tmp_path):
     config["hybrid"].update(protocols=["unseen_fault", "record_split"], measured_classes=["ok"],
                             measured_percent=[0, 100])
     config["classifiers"]["knn"]["enabled"] = False  # the plumbing is the point; one classifier will do
+    config["simulation"].update(samples_per_state=2, samples_per_job=2)  # and two samples a state
     config["calibration"].update(sim_seconds=0.4)
     validated = config_of(json.loads(json.dumps(config)))
     rig_signal_table(tmp_path / "rig2.parquet", get_system(validated), labels, [(1500.0, 2.0), (1450.0, 5.0)])
