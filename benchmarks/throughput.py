@@ -124,8 +124,9 @@ def convergence(spec: str, refinement: int = 4) -> dict:
     from condmon.features import SpectrumFeatures
 
     system, config = load_system(spec)
-    values = system.sample_parameters(system.nominal_calibration(), system.healthy_state,
-                                      np.random.default_rng(0), {**config["simulation"], "perturbation_sigma": 0.0})
+    values = system.noise_free(system.sample_parameters(
+        system.nominal_calibration(), system.healthy_state, np.random.default_rng(0),
+        {**config["simulation"], "perturbation_sigma": 0.0}))
     duration, speed = sample_duration(system, config), _speed(system)
     channels = config["features"]["channels"]
     # linear amplitudes: the dB difference is taken here

@@ -187,3 +187,19 @@ def test_another_rig_geometry_labels_and_loads():
     assert 0.2 / 25.4 * 0.999 <= params["defect_diameter_in"] <= 0.4 / 25.4 * 1.001
     rig = system._parameters(params, "or_small", 1500.0)
     assert rig.de_geometry.n_balls == 12 and rig.defect_kind == "outer_race"
+
+
+def test_noise_free_drops_the_rigs_own_noise_and_background():
+    """The benchmark's step check compares noise-free runs: the rig model adds its own sensor noise
+    and machine background, so `noise_free` removes them, and what is left converges with the step."""
+    system = system_of("config/cwru-smoke.yaml")
+    parameters = system.sample_parameters(system.nominal_calibration(), "normal", np.random.default_rng(0),
+                                          {"perturbation_sigma": 0.0})
+    quiet = system.noise_free(parameters)
+    assert quiet["noise_rms"] == 0.0 and quiet["background"] == [] and parameters["noise_rms"] > 0
+    speed = system.speeds_rpm[0]
+    noisy = system.simulate_sample(parameters, "normal", speed, 0.1, seed=11)["DE"]
+    coarse, fine = (system.simulate_sample(quiet, "normal", speed, 0.1, seed=11, step_refinement=r)["DE"]
+                    for r in (1, 2))
+    assert np.std(noisy - coarse) > 10 * np.std(coarse - fine)
+    assert np.std(coarse - fine) < 0.01 * np.std(coarse)

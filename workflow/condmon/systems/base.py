@@ -283,6 +283,11 @@ class System(ABC):
         """The `load` column of a simulated record (its operating condition besides speed)."""
         return 0.0
 
+    def noise_free(self, parameters: dict) -> dict:
+        """`parameters` without the noise the model itself adds (sensor noise added after the
+        run comes from the calibration, not from here): what a step-convergence check compares."""
+        return dict(parameters)
+
     # -- features ----------------------------------------------------------------------------
     def defect_orders(self) -> dict | None:
         """Envelope lines the statistical features measure, in orders of the shaft speed, or None

@@ -206,6 +206,10 @@ class BearingSystem(System):
         return simulate_rig(self._parameters(parameters, health_state, speed_rpm),
                             rig_settings(numerics, duration=duration_s), np.random.default_rng(seed))
 
+    def noise_free(self, parameters: dict) -> dict:
+        # the rig model adds its own sensor noise and machine background
+        return {**parameters, "noise_rms": 0.0, "background": []}
+
     def diverging(self, parameters: dict) -> dict:
         # balls a million times stiffer: a contact mode far beyond what RK44 at this step can hold
         stiffness = parameters.get("contact_stiffness", self.model["contact_stiffness"])
