@@ -38,16 +38,15 @@ light structural modes (`resonances`: frequency, damping ratio, gain in m/s^2 pe
 optionally the mode's tilt in degrees), each a modal mass (`modal_mass_share` of the housing
 mass) on a spring-damper to the housing, tuned to its frequency and damping. The bearing force
 moves the housing and the housing drives the modes; their reaction acts back on the housing and
-so on the bearing, as in the structure. The
-accelerometer reads the housing's acceleration (`housing_path_gain`) plus each mode's relative
-acceleration with a participation g m_housing: above the housing's mount and contact modes the
-housing moves as its mass under the bearing force F, so a mode's share of the reading is close
-to g s^2 / (s^2 + 2 zeta w s + w^2) F, which is what `gain` means. A mode's motion at the
-sensor need not be vertical: it reads the mode's relative motion along its tilt (degrees from
-vertical, towards 3 o'clock), so a horizontal bearing force (a defect at 3:00) reaches the
-12 o'clock accelerometer through the tilted modes, as through a real end shield, where the
-vertical housing motion alone would never show it. The rough running of a damaged
-contact (`defect_roughness`) is a random force on the DE housing and journal inside the model
+so on the bearing, as in the structure. The accelerometer reads the housing's acceleration
+(`housing_path_gain`) plus each mode's relative acceleration with a participation g m_housing:
+above the housing's mount and contact modes the housing moves as its mass under the bearing
+force F, so a mode's share of the reading is close to g s^2 / (s^2 + 2 zeta w s + w^2) F, which
+is what `gain` means. A mode's motion at the sensor need not be vertical: it reads the mode's
+relative motion along its tilt (degrees from vertical, towards 3 o'clock), so a horizontal
+bearing force (a defect at 3:00) reaches the 12 o'clock accelerometer through the tilted modes,
+as through a real end shield, where the vertical housing motion alone would never show it. The
+rough running of a damaged contact (`defect_roughness`) is a random force on the DE housing and journal inside the model
 too, so it reaches the sensor along the same paths as the impacts. The integration step resolves
 the modes (RK44 at 48 kHz, omega h <= 0.7 up to 5 kHz: numerical damping under 1e-3 of critical).
 Then the FIR low-pass and decimation to the output rate (no aliasing), the sensor gain, and
@@ -648,10 +647,11 @@ def simulate_rig(params: BearingRigParameters, settings: RigSettings | None = No
              f"defect_width={p.defect_width:.3g}, h={1 / (sensor_rate * s.steps_per_sensor_sample):.3g} s")
     # a DE preload beyond the clearance presses every DE ball: its load-zone sum cannot hold (the
     # fan end keeps its clearance)
-    zone_only = s.load_zone_only and de_clearance(p) > 0
-    zones = (zone_only, s.load_zone_only)
-    acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed, zones, where)
-    if zone_only and not _load_zone_ok(disp[:, 1:3], de_clearance(p)):
+    clearance_de = de_clearance(p)
+    zone_only = s.load_zone_only and clearance_de > 0
+    acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed,
+                                             (zone_only, s.load_zone_only), where)
+    if zone_only and not _load_zone_ok(disp[:, 1:3], clearance_de):
         zone_only = False  # a ball outside the zone would have touched: run again with all balls
         acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed, (False, False),
                                                  where)
