@@ -184,10 +184,17 @@ class GearDrivetrainParameters:
     runout_phase_gear: float = 0.0
     pitch_errors_pinion: tuple = ()
     pitch_errors_gear: tuple = ()
+    # Flank deviations of every pinion tooth (`gear_errors.FlankMap`, material removed; empty:
+    # none): profile and helix deviations and misalignment, or a bench's own damage.
+    flank_maps_pinion: tuple = ()
     # Health.
     health_state: str = "healthy"
     faulty_tooth: int = 0
     surface_fault_teeth: int = 3
+    surface_fault_model: str = "wear"      # or "stiffness_loss" (the CFRP study's)
+    wear_depth: float = 2.0e-5             # material removed at root and tip, m
+    wear_roughness: float = 2.0e-6         # rms of the worn surface, m
+    wear_seed: int = 0                     # the worn surfaces' roughness
     surface_fault_stiffness_loss: float = 0.15
     spall_profile: tuple = (0.35, 0.65)
     spall_face: tuple = (0.25, 0.75)

@@ -365,6 +365,9 @@ class GearMesh:
     # If set: the static transmission error (m) at mesh frequency the sinusoidal profile deviation
     # must produce; its flank amplitude is then transmission_error / `sine_te_gain`.
     transmission_error: float | None = None
+    # Per pinion tooth (empty: none): a `gear_errors.FlankMap` of material removed from its flank
+    # (manufacturing deviations, wear, a bench's own damage) or None.
+    flank_maps: tuple = ()
 
     def __post_init__(self):
         g = self.geometry
@@ -400,6 +403,29 @@ class GearMesh:
         self._healthy = self._groups_from(self.slice_stiffness, None)
         self._damaged = self._damaged_groups() if self.damage is not None else None
         self.mean_stiffness = float(self._healthy[0].stiffness.sum() / self.points_per_pitch)
+        self._tooth_groups = self._flank_groups() if self.flank_maps else None
+
+    def _flank_groups(self) -> list[list[ContactGroup]]:
+        """Every pinion tooth's contact groups with its flank map: each slice's contact lowered by
+        the map at its contact point (roll fraction along the path, fraction of the face)."""
+        g = self.geometry
+        if len(self.flank_maps) != g.teeth_pinion:
+            raise ValueError(f"flank_maps: {len(self.flank_maps)} maps for {g.teeth_pinion} pinion teeth")
+        roll = (self.s_slice - g.path_start) / (g.path_end - g.path_start)
+        face = np.broadcast_to(self.z[None, :] / g.face_width, roll.shape)
+        cache, groups = {}, []
+        for tooth, flank in enumerate(self.flank_maps):
+            damaged = self._is_damaged(tooth)
+            if (flank, damaged) not in cache:
+                extra = None if flank is None else flank.at(roll, face)
+                cache[flank, damaged] = (self._damaged_groups(extra) if damaged
+                                         else self._groups_from(self.slice_stiffness, extra))
+            groups.append(cache[flank, damaged])
+        return groups
+
+    def _is_damaged(self, tooth: int) -> bool:
+        z1 = self.geometry.teeth_pinion
+        return self.damage is not None and tooth % z1 in [t % z1 for t in self.damage.teeth]
 
     def _sine_te_gain(self) -> float:
         """First-harmonic amplitude of the unloaded static TE (the stiffness-weighted deviation of
@@ -445,7 +471,8 @@ class GearMesh:
         edges = np.arange(m + 1) * b / m
         return np.clip(np.minimum(edges[1:], hi) - np.maximum(edges[:-1], lo), 0, None) / (b / m)
 
-    def _damaged_groups(self) -> list[ContactGroup]:
+    def _damaged_groups(self, extra=None) -> list[ContactGroup]:
+        """The damaged tooth's contact groups; `extra`: its flank map's deviation per slice."""
         d = self.damage
         if d.kind == "missing":
             return []
@@ -453,19 +480,19 @@ class GearMesh:
             k = pair_stiffness_per_width(self.geometry, self.s, pinion_crack=d.crack_depth)
             dz = self.geometry.face_width / self.slices
             stiffness = self.inside * np.interp(self.s_slice, self.s, k) * dz
-            return self._groups_from(stiffness, None)
+            return self._groups_from(stiffness, extra)
         coverage = self._face_coverage(d.face)[None, :]
         g = self.geometry
         at = [g.path_start + fraction * (g.path_end - g.path_start) for fraction in d.profile]  # along the path
         if d.kind == "chip":
             region = coverage * self._profile_coverage(at[0], g.path_end)
-            return self._groups_from(self.slice_stiffness * (1 - region), None)
+            return self._groups_from(self.slice_stiffness * (1 - region), extra)
         # Spall: the region is a separate contact, `depth` below the flank, softer by stiffness_loss.
         region = coverage * self._profile_coverage(at[0], at[1])
-        groups = self._groups_from(self.slice_stiffness * (1 - region), None)
+        groups = self._groups_from(self.slice_stiffness * (1 - region), extra)
         pit = self.slice_stiffness * region * (1 - d.stiffness_loss)
         if pit.sum() > 0:
-            groups += self._groups_from(pit, d.depth)
+            groups += self._groups_from(pit, d.depth if extra is None else d.depth + extra)
         return groups
 
     @property
@@ -474,8 +501,9 @@ class GearMesh:
 
     def groups(self, tooth: int) -> list[ContactGroup]:
         """Contact groups of the pair in which pinion tooth `tooth` meshes."""
-        if self.damage is not None and tooth % self.geometry.teeth_pinion in [
-                t % self.geometry.teeth_pinion for t in self.damage.teeth]:
+        if self._tooth_groups is not None:
+            return self._tooth_groups[tooth % self.geometry.teeth_pinion]
+        if self._is_damaged(tooth):
             return self._damaged
         return self._healthy
 

@@ -20,7 +20,10 @@ contact stiffness of its pinion teeth by (1 - loss) over the whole flank; a miss
 chipped tooth and root crack are tooth geometry (`gear_mesh.ToothDamage`).
 
 Effects of a real drivetrain, per sample: a slow speed fluctuation (in the mesh phase), shaft
-run-out (eccentricity along the line of action at the shaft frequencies) and tooth pitch errors.
+run-out (eccentricity along the line of action at the shaft frequencies: it displaces the mesh and
+shifts its phase by e / base pitch, so the mesh is modulated at the shaft orders; the centre-distance
+part, which changes the contact ratio by about 0.3 % at 10 um, is left out), tooth pitch errors and
+flank maps (`gear_errors.FlankMap`: profile and helix deviations, wear, a bench's damage).
 """
 from __future__ import annotations
 
@@ -29,6 +32,7 @@ import math
 import numpy as np
 
 from condmon.models.contact_laws import hysteresis_factor
+from condmon.models.gear_errors import add_flank_maps, wear_flank_map
 from condmon.models.gear_mesh import GearMesh, ProfileDeviation, ToothDamage
 from condmon.models.numerics import SimulationError
 
@@ -37,6 +41,9 @@ MESH_HEALTH_STATES = ("healthy", "surface_fault", "missing_tooth", "spall", "chi
 SHAFT_HEALTH_STATES = ("shaft_crack", "delamination")
 HEALTH_STATES = MESH_HEALTH_STATES + SHAFT_HEALTH_STATES
 MESH_STIFFNESS_MODELS = ("potential_energy", "simple")
+# A surface fault as material removed by sliding wear (`wear_depth`, `wear_roughness`), or as the
+# CFRP study's loss of contact stiffness (`surface_fault_stiffness_loss`), kept to compare with it.
+SURFACE_FAULT_MODELS = ("wear", "stiffness_loss")
 DEFLECTION_REF = 1.0e-6  # m; K = mesh stiffness at this deflection keeps K's unit N/m for any n
 INVERSE_DEFLECTION_REF = 1.0 / DEFLECTION_REF
 MAX_DEFLECTION = 1.0e-3  # m; a mesh deflection beyond this is divergence
@@ -61,21 +68,43 @@ def tooth_damage(p) -> ToothDamage | None:
     return None
 
 
+def surface_fault_teeth(p) -> list[int]:
+    """The pinion teeth of a surface fault: `surface_fault_teeth` in a row from `faulty_tooth`."""
+    return [(p.faulty_tooth + k) % p.geometry.teeth_pinion for k in range(p.surface_fault_teeth)]
+
+
 def contact_stiffness_factors(p) -> list[float]:
     """Factor on the contact stiffness of every pinion tooth: 1 - surface_fault_stiffness_loss on
-    the surface fault's teeth, 1 elsewhere."""
+    the surface fault's teeth (`surface_fault_model: stiffness_loss`), 1 elsewhere."""
+    if p.surface_fault_model not in SURFACE_FAULT_MODELS:
+        raise ValueError(f"unknown surface_fault_model {p.surface_fault_model!r}; "
+                         f"choose one of {list(SURFACE_FAULT_MODELS)}")
     factors = [1.0] * p.geometry.teeth_pinion
-    if p.health_state == "surface_fault":
-        for k in range(p.surface_fault_teeth):
-            factors[(p.faulty_tooth + k) % p.geometry.teeth_pinion] = 1.0 - p.surface_fault_stiffness_loss
+    if p.health_state == "surface_fault" and p.surface_fault_model == "stiffness_loss":
+        for tooth in surface_fault_teeth(p):
+            factors[tooth] = 1.0 - p.surface_fault_stiffness_loss
     return factors
 
 
+def flank_maps(p) -> tuple:
+    """Every pinion tooth's flank map: the manufacturing deviations `flank_maps_pinion` plus, for a
+    surface fault by wear, the wear of its teeth (each tooth its own rough surface, from `wear_seed`)."""
+    if p.health_state != "surface_fault" or p.surface_fault_model != "wear":
+        return tuple(p.flank_maps_pinion)
+    if p.wear_depth <= 0:
+        raise ValueError(f"wear_depth {p.wear_depth} m: a worn flank has lost material (> 0)")
+    rng = np.random.default_rng([int(p.wear_seed), 0x3EA2])
+    wear = [None] * p.geometry.teeth_pinion
+    for tooth in surface_fault_teeth(p):
+        wear[tooth] = wear_flank_map(p.wear_depth, p.wear_roughness, rng)
+    return add_flank_maps(tuple(p.flank_maps_pinion), tuple(wear))
+
+
 def gear_mesh(p) -> GearMesh:
-    """The potential-energy TVMS tables of `p` (geometry, slices, profile deviations, damage)."""
+    """The potential-energy TVMS tables of `p` (geometry, slices, profile deviations, flank maps, damage)."""
     return GearMesh(p.geometry, slices=p.helix_slices, damage=tooth_damage(p),
                     profile_deviation=ProfileDeviation(tip_relief=p.tip_relief),
-                    transmission_error=p.transmission_error)
+                    transmission_error=p.transmission_error, flank_maps=flank_maps(p))
 
 
 class MeshForce:
@@ -101,6 +130,7 @@ class MeshForce:
         self.contact_ratio = g.contact_ratio
         self.mesh_frequency = p.speed_rpm / 60.0 * g.teeth_pinion
         self.base_pitch = g.base_pitch
+        self.inverse_base_pitch = 1.0 / g.base_pitch
         self.tip_radius = g.base_radius(g.teeth_pinion)  # rho of the tip gap s^2 / (2 rho)
         self.gear_ratio = g.teeth_pinion / g.teeth_gear
         self.mean_force_ref = p.mesh_stiffness * DEFLECTION_REF
@@ -132,6 +162,12 @@ class MeshForce:
     def __init__(self, p, damping: float = 0.0):
         self._common(p, damping)
         self.pair_force_ref = p.mesh_stiffness * DEFLECTION_REF / self.contact_ratio
+        # equal pairs have no flank: a tooth's flank map counts by its mean, as a later contact
+        maps = flank_maps(p)
+        if maps:
+            z1, z2 = p.geometry.teeth_pinion, p.geometry.teeth_gear
+            mean = [0.0 if m is None else float(m.array().mean()) for m in maps]
+            self.pair_pitch_error = [e - mean[j % z1] for j, e in enumerate(self.pair_pitch_error)]
         if p.health_state == "missing_tooth":
             self.stiffness_factor[p.faulty_tooth % self.teeth] = 0.0
         elif p.health_state in ("chipped_tooth", "root_crack", "spall"):
@@ -155,6 +191,12 @@ class MeshForce:
             angle = per_phase * phase + offset
             e += amplitude * math.sin(angle)
             e_t += amplitude * per_phase * phase_rate * math.cos(angle)
+        if self.runout_terms:
+            # an eccentric gear moves its flanks along the line of action by e: the contact lies
+            # e further along every pair's path (an involute translated is an involute turned), so
+            # the mesh cycle is phase-modulated at the shaft orders as well as displaced
+            phase += e * self.inverse_base_pitch
+            phase_rate += e_t * self.inverse_base_pitch
         return phase, phase_rate, e, e_t
 
     def pitch_error(self, j) -> float:

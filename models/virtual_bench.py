@@ -8,9 +8,12 @@ report labels them):
 - rolling bearings with their own tones: a radial force at each bearing's defect-free passing
   orders (`bearing_orders` x its shaft frequency);
 - the motor's torque ripple at twice the line frequency;
-- pitch errors of its own gears: a fixed pattern (drawn once from the bench seed) with a
-  cumulative, once-per-revolution part, where the model draws independent errors per sample;
-- run-out, slow speed and load fluctuations of its own amplitude and frequency;
+- its own gears: one pair of ISO 1328-1 accuracy `gear_grade` (`gear_errors.draw_gear_errors`, drawn
+  once from the bench seed: the same physical gears in every record) with its own misalignment;
+- its own damage (`faults`): a surface fault as pitting (pits around the pitch line) and a missing
+  tooth as a tooth broken off above a height, built here as flank geometry; the model's fault code
+  is never called for a state that has a bench form;
+- slow speed and load fluctuations of its own amplitude and frequency;
 - coloured (low-frequency weighted) sensor noise on top of white noise.
 Its records are always labelled `virtual_bench`, never `measured`.
 """
@@ -23,6 +26,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from condmon.models.gear_drivetrain import GearDrivetrainParameters, PeriodicLoad, SimulationSettings, simulate
+from condmon.models.gear_errors import FlankMap, add_flank_maps, draw_gear_errors
 
 EFFECTS = {
     "housing_model": "housings as rigid blocks on four feet (rocking modes)",
@@ -30,7 +34,7 @@ EFFECTS = {
     "housing_stiffness": "housing mounts of their own stiffness",
     "bearing_tone_force": "rolling-bearing tones at the bearings' passing orders",
     "motor_ripple": "motor torque ripple at twice the line frequency",
-    "cumulative_pitch_error": "a fixed pitch-error pattern with a once-per-revolution part",
+    "gear_grade": "its own gears (ISO 1328-1 grade, fixed pattern) and misalignment",
     "coloured_noise": "coloured (low-frequency weighted) sensor noise",
 }
 
@@ -43,9 +47,9 @@ class BenchForm:
     housing_stiffness: tuple = (5.0e7, 1.5e8, 8.0e7)
     sensor_noise: float = 0.001          # white, m/s^2 rms
     coloured_noise: float = 0.002        # m/s^2 rms
-    runout: float = 1.5e-6
-    pitch_error: float = 5.0e-8          # single pitch deviations, rms
-    cumulative_pitch_error: float = 3.0e-7  # once-per-revolution amplitude
+    gear_grade: float = 5.0              # ISO 1328-1 accuracy grade of both gears
+    gear_deviation_share: float = 0.8    # their deviations as a share of the grade's tolerances
+    misalignment: float = 8.0e-6         # mesh misalignment across the face, m
     speed_fluctuation: float = 0.002
     speed_fluctuation_hz: float = 1.5
     load_fluctuation: float = 0.05
@@ -61,27 +65,84 @@ class BenchForm:
         for key, text in EFFECTS.items():
             value = getattr(self, key)
             if (key == "housing_model" and value == "block") or (key == "shaft_model" and value == "flexible") \
-                    or (key == "housing_stiffness") or (isinstance(value, float) and value > 0):
+                    or key in ("housing_stiffness", "gear_grade") or (isinstance(value, float) and value > 0):
                 on.append(text)
         return on
 
 
-def bench_gears(form: BenchForm, teeth_pinion: int, teeth_gear: int, seed: int) -> dict:
-    """The bench's own gears: pitch errors fixed by `seed` (the same physical gears in every
-    record), single deviations plus a sinusoidal cumulative error over one revolution."""
+def bench_gears(form: BenchForm, geometry, seed: int) -> dict:
+    """The bench's own gears: one pinion and one gear of ISO grade `form.gear_grade`, fixed by `seed`
+    (the same physical gears in every record), as GearDrivetrainParameters fields; perfect gears
+    (no fields) with `gear_deviation_share` 0."""
+    if not form.gear_deviation_share and not form.misalignment:
+        return {}
     rng = np.random.default_rng([seed, 0xBE7C4])
-    errors = {}
-    for name, teeth in (("pinion", teeth_pinion), ("gear", teeth_gear)):
-        phase = rng.uniform(0.0, 2 * math.pi)
-        cumulative = form.cumulative_pitch_error * np.sin(2 * math.pi * np.arange(teeth) / teeth + phase)
-        errors[f"pitch_errors_{name}"] = tuple((rng.normal(0.0, form.pitch_error, teeth) + cumulative).tolist())
-    return errors
+    fields = {}
+    for name, teeth in (("pinion", geometry.teeth_pinion), ("gear", geometry.teeth_gear)):
+        gear = draw_gear_errors(rng, form.gear_grade, teeth, geometry.normal_module, 2 * geometry.pitch_radius(teeth),
+                                geometry.face_width, form.gear_deviation_share,
+                                misalignment=form.misalignment if name == "pinion" else 0.0)
+        fields.update({f"pitch_errors_{name}": gear.pitch_deviations, f"runout_{name}": gear.eccentricity,
+                       f"runout_phase_{name}": gear.eccentricity_phase})
+        if name == "pinion":
+            fields["flank_maps_pinion"] = gear.flank_maps
+    return fields
+
+
+# The bench's own fault forms: health state -> form; each form's keys (`virtual_bench.faults`).
+FAULT_FORMS = {"pitting": ("teeth", "pit_depth", "pitted_area"), "broken_tooth": ("broken_height",)}
+
+
+def pitting_map(rng: np.random.Generator, pit_depth: float, pitted_area: float, rows: int = 41,
+                columns: int = 21) -> FlankMap:
+    """Pitting of one flank: round pits, each up to `pit_depth` deep, around the pitch line (roll
+    fraction 0.3-0.6, where rolling contact fatigue starts) until `pitted_area` of that band is
+    pitted."""
+    roll, face = np.meshgrid(np.linspace(0, 1, rows), np.linspace(0, 1, columns), indexing="ij")
+    removed = np.zeros_like(roll)
+    band = (roll >= 0.3) & (roll <= 0.6)
+    for _ in range(200):
+        if (removed[band] > 0).mean() >= pitted_area:
+            break
+        centre = (rng.uniform(0.3, 0.6), rng.uniform(0.0, 1.0))
+        radius = rng.uniform(0.03, 0.08)
+        inside = ((roll - centre[0]) ** 2 + ((face - centre[1]) * 0.5) ** 2) < radius ** 2
+        removed[inside] = np.maximum(removed[inside], pit_depth * rng.uniform(0.5, 1.0))
+    return FlankMap.of(removed)
+
+
+def broken_tooth_map(broken_height: float, rows: int = 41) -> FlankMap:
+    """A tooth broken off above `1 - broken_height` of its active profile (towards the tip): the
+    part that is gone never touches (1 mm of material removed)."""
+    roll = np.linspace(0.0, 1.0, rows)[:, None]
+    return FlankMap.of(np.where(roll >= 1.0 - broken_height, 1.0e-3, 0.0))
+
+
+def bench_fault(health_state: str, faults: dict, teeth: int, faulty_tooth: int, rng: np.random.Generator):
+    """(the health state the model runs, per-tooth flank maps) of the bench's own form of
+    `health_state` (`faults`: health state -> {form, its keys}); a state without a bench form
+    runs the model's own fault (the report says so)."""
+    spec = faults.get(health_state)
+    if spec is None:
+        return health_state, ()
+    form = spec["form"]
+    if form not in FAULT_FORMS:
+        raise ValueError(f"virtual_bench.faults.{health_state}.form: unknown form {form!r}; "
+                         f"choose one of {list(FAULT_FORMS)}")
+    maps = [None] * teeth
+    if form == "pitting":
+        for k in range(int(spec["teeth"])):
+            maps[(faulty_tooth + k) % teeth] = pitting_map(rng, spec["pit_depth"], spec["pitted_area"])
+    else:
+        maps[faulty_tooth % teeth] = broken_tooth_map(spec["broken_height"])
+    return "healthy", tuple(maps)
 
 
 def bench_record(true_params: GearDrivetrainParameters, form: BenchForm, settings: SimulationSettings,
-                 rng: np.random.Generator, gears: dict) -> dict[str, np.ndarray]:
-    """One acquisition of the bench at `true_params` (speed and health included): random phases of
-    run-out, fluctuations and bearing tones, then white plus coloured sensor noise."""
+                 rng: np.random.Generator, gears: dict, fault_maps: tuple = ()) -> dict[str, np.ndarray]:
+    """One acquisition of the bench at `true_params` (speed and health state the model runs
+    included) with its own gears (`bench_gears`) and damage (`fault_maps`, `bench_fault`): random
+    phases of the fluctuations and bearing tones, then white plus coloured sensor noise."""
     g = true_params.geometry
     shaft_hz = true_params.speed_rpm / 60.0
     shaft_frequencies = (shaft_hz, shaft_hz, shaft_hz * g.teeth_pinion / g.teeth_gear,
@@ -96,12 +157,11 @@ def bench_record(true_params: GearDrivetrainParameters, form: BenchForm, setting
     params = true_params.replace(
         housing_model=form.housing_model, shaft_model=form.shaft_model,
         housing_stiffness=tuple(form.housing_stiffness),
-        runout_pinion=form.runout, runout_gear=form.runout,
-        runout_phase_pinion=float(rng.uniform(0, 2 * math.pi)), runout_phase_gear=float(rng.uniform(0, 2 * math.pi)),
         speed_fluctuation=form.speed_fluctuation, speed_fluctuation_hz=form.speed_fluctuation_hz,
         speed_fluctuation_phase=float(rng.uniform(0, 2 * math.pi)),
         load_fluctuation=form.load_fluctuation, load_fluctuation_hz=form.load_fluctuation_hz,
-        load_fluctuation_phase=float(rng.uniform(0, 2 * math.pi)), **gears)
+        load_fluctuation_phase=float(rng.uniform(0, 2 * math.pi)),
+        **dict(gears, flank_maps_pinion=add_flank_maps(gears.get("flank_maps_pinion", ()), fault_maps)))
     signals = simulate(params, settings, extra_loads=loads)
     return {name: signal + sensor_noise(len(signal), form, rng) for name, signal in signals.items()}
 

@@ -80,9 +80,10 @@ MESH_MODELS = ("potential_energy", "simple")
 # The bench's effects the model lacks, switched off: a bench of the model's own form (white noise
 # only), on which calibration must find the hidden parameters.
 SAME_FORM = dict(housing_model="point", shaft_model="rigid", coloured_noise=0.0, bearing_tone_force=0.0,
-                 motor_ripple=0.0, cumulative_pitch_error=0.0, pitch_error=0.0, runout=0.0,
-                 speed_fluctuation=0.0, load_fluctuation=0.0)
-NO_VARIABILITY = dict(runout=0.0, pitch_error=0.0, speed_fluctuation=0.0, load_fluctuation=0.0)
+                 motor_ripple=0.0, gear_deviation_share=0.0, misalignment=0.0,
+                 speed_fluctuation=0.0, load_fluctuation=0.0, faults={})
+NO_VARIABILITY = dict(speed_fluctuation=0.0, load_fluctuation=0.0)
+PERFECT_GEARS = dict(grade=[5, 5], deviation_share=[0.0, 0.0], misalignment=[0.0, 0.0])
 
 
 def _bench_spectra(config, bench, speeds, channels):
@@ -101,7 +102,8 @@ def bench():
     config = config_of("config/config.yaml")
     assert config["virtual_bench"]["true_parameters"]["mesh_stiffness_model"] == "potential_energy"
     speeds, channels = [450.0, 1100.0], config["features"]["channels"]
-    config["model"] = dict(config["model"], variability=dict(config["model"]["variability"], **NO_VARIABILITY))
+    config["model"] = dict(config["model"], variability=dict(config["model"]["variability"], **NO_VARIABILITY),
+                           gear_errors=PERFECT_GEARS)
     same_form = dict(config["virtual_bench"], records_per_state=1, record_seconds=2.0,
                      housing_stiffness=config["model"]["housing_stiffness"], **SAME_FORM)
     target = _bench_spectra(config, same_form, speeds, channels)

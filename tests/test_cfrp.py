@@ -189,7 +189,7 @@ def test_the_breathing_crack_raises_the_shaft_orders():
     1x and 3x lines (measured 6.1x and 6.5x over healthy; at 450 rpm 3.8x and 2.3x, at 1100 rpm
     only 2x rises, 1.9x). The delamination's turning asymmetry moves much less (2x at 775 rpm:
     1.8x; elsewhere within +-20 %): its bending loss is 11-32 % over 5 cm and it never closes."""
-    config = config_of("config/cfrp.yaml", {"model": {"variability": {"runout": 0.0, "pitch_error": 0.0}}})
+    config = config_of("config/cfrp.yaml", {"model": {"gear_errors": {"deviation_share": [0.0, 0.0], "misalignment": [0.0, 0.0]}}})
     system = get_system(config)
     signals = {state: system.simulate_sample({"contact_law": "flores"}, state, 775.0, 0.5, seed=2)
                for state in ("healthy", "shaft_crack")}

@@ -81,8 +81,8 @@ def test_simple_mesh_force_missing_tooth_removes_one_pair_and_neighbours_catch_t
 
 
 def test_simple_surface_fault_lowers_the_stiffness_of_the_affected_teeth_by_15_percent():
-    p = GearDrivetrainParameters(speed_rpm=600.0, health_state="surface_fault", contact_exponent=1.0,
-                                 transmission_error=0.0, mesh_stiffness_model=SIMPLE)
+    p = GearDrivetrainParameters(speed_rpm=600.0, health_state="surface_fault", surface_fault_model="stiffness_loss",
+                                 contact_exponent=1.0, transmission_error=0.0, mesh_stiffness_model=SIMPLE)
     faulty, healthy = MeshForce(p), MeshForce(p.replace(health_state="healthy"))
     period = 1.0 / healthy.mesh_frequency
     t = 0.5 * (1 + healthy.contact_ratio - 1) * period  # single contact of pair 0
@@ -95,7 +95,8 @@ def test_surface_fault_mesh_force_follows_its_stiffness_loss(loss):
     lost is exactly `loss` x that tooth's pair force, at every phase of its mesh (the studies'
     -15 % contact stiffness acts, whatever the loaded deflection)."""
     p = GearDrivetrainParameters(speed_rpm=600.0, transmission_error=0.0, health_state="surface_fault",
-                                 surface_fault_teeth=1, surface_fault_stiffness_loss=loss)
+                                 surface_fault_teeth=1, surface_fault_stiffness_loss=loss,
+                                 surface_fault_model="stiffness_loss")
     healthy, faulty = MeshForce(p.replace(health_state="healthy")), MeshForce(p)
     period = 1.0 / healthy.mesh_frequency
     scale = p.mesh_stiffness * DEFLECTION_REF / healthy.tvms.mean_stiffness

@@ -126,6 +126,17 @@ class GearSystem(System):
             Drivetrain(self.parameters())
         except (ValueError, TypeError) as exc:
             problems.append(f"model: {exc}")
+        if config["measured_table"] is None:
+            from condmon.models.virtual_bench import FAULT_FORMS
+
+            for state, spec in config["virtual_bench"]["faults"].items():
+                missing = [key for key in FAULT_FORMS[spec["form"]] if key not in spec]
+                if missing:
+                    problems.append(f"virtual_bench.faults.{state}: form {spec['form']} needs {missing}")
+            try:
+                self.parameters(**dict(config["virtual_bench"]["model_overrides"]))
+            except (ValueError, TypeError) as exc:
+                problems.append(f"virtual_bench.model_overrides: {exc}")
         if config["calibration"]["cost"] == "features_eq6":
             problems.append("calibration.cost: features_eq6 is the bearing rig's cost; the gear model "
                             "uses cfrp_eq4 or helical_eq14")
@@ -141,9 +152,22 @@ class GearSystem(System):
                                   self.config["rig"]["segment_seconds"])
 
     def bench_effects(self) -> list[str]:
+        """Every way the bench differs from the model: its effects, fault forms and overrides."""
         from condmon.systems.gear.bench import bench_form
 
-        return bench_form(self.config["virtual_bench"]).active_effects() if self.measured_parts() else []
+        if not self.measured_parts():
+            return []
+        bench = self.config["virtual_bench"]
+        effects = bench_form(bench).active_effects()
+        for state in self.health_states:
+            spec = bench["faults"].get(state)
+            if spec is not None:
+                details = ", ".join(f"{k} {v:g}" for k, v in spec.items() if k != "form")
+                effects.append(f"{state} as its own {spec['form'].replace('_', ' ')} ({details})")
+            elif state != self.healthy_state:
+                effects.append(f"{state}: the model's own fault form (no bench form)")
+        effects += [f"model field {key} = {value}" for key, value in bench["model_overrides"].items()]
+        return effects
 
     # -- calibration -------------------------------------------------------------------------
     def calibrate(self, frame, variant, calibration, spectrum, channels, processes=1):
@@ -175,7 +199,7 @@ class GearSystem(System):
         (`model.variability`)."""
         model = self.config["model"]
         params = self.parameters(speed_rpm=float(speed_rpm), health_state=health_state, **parameters)
-        params = params.replace(**sample_effects(model["variability"], params.geometry, np.random.default_rng(seed)))
+        params = params.replace(**sample_effects(model, params.geometry, np.random.default_rng(seed)))
         return simulate(params, SimulationSettings(duration=duration_s, step_refinement=int(step_refinement),
                                                    **self.numerics))
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import logging
 import time
 
-from condmon.models.virtual_bench import BenchForm, bench_gears, bench_record
+from condmon.models.virtual_bench import BenchForm, bench_fault, bench_gears, bench_record
 from condmon.seeds import job_rng
 from condmon.signals import make_rows
 from condmon.systems.gear.parameters import simulation_settings
@@ -22,20 +22,25 @@ def virtual_bench_rows(parameters, bench: dict, health_states, speeds_rpm, numer
                        segment_seconds: float) -> list[dict]:
     """Records of the virtual bench: `records_per_state` acquisitions per health state and speed,
     each `record_seconds` long, cut into segments. Source is always `virtual_bench`.
-    `parameters(**overrides)` builds the rig's GearDrivetrainParameters (the system's)."""
+    `parameters(**overrides)` builds the rig's GearDrivetrainParameters (the system's); the bench
+    overrides any of its fields (`model_overrides`, then `true_parameters`), has its own gears and
+    its own fault forms (`faults`)."""
     form = bench_form(bench)
     settings = simulation_settings(numerics, duration=bench["record_seconds"])
     segment_length = int(round(segment_seconds * settings.output_rate))
-    geometry = parameters().geometry
-    gears = bench_gears(form, geometry.teeth_pinion, geometry.teeth_gear, bench["seed"])
+    truth = dict(bench.get("model_overrides", {}), **bench["true_parameters"])
+    geometry = parameters(**truth).geometry
+    gears = bench_gears(form, geometry, bench["seed"])
     rows = []
     for health_state in health_states:
+        model_state, fault_maps = bench_fault(health_state, bench.get("faults", {}), geometry.teeth_pinion,
+                                              bench["faulty_tooth"], job_rng(bench["seed"], "bench fault", health_state))
         for speed in speeds_rpm:
             rng = job_rng(bench["seed"], "virtual_bench", health_state, float(speed))
-            params = parameters(speed_rpm=float(speed), health_state=health_state, **bench["true_parameters"])
+            params = parameters(speed_rpm=float(speed), health_state=model_state, **truth)
             for k in range(bench["records_per_state"]):
                 start = time.perf_counter()
-                signals = bench_record(params, form, settings, rng, gears)
+                signals = bench_record(params, form, settings, rng, gears, fault_maps)
                 log.info("virtual bench %s %s rpm record %d of %d: %.1f s", health_state, speed, k + 1,
                          bench["records_per_state"], time.perf_counter() - start)
                 rows += make_rows(f"vb-{health_state}-{speed:g}rpm-r{k:02d}", "virtual_bench", health_state,

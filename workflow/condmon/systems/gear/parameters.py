@@ -7,13 +7,13 @@ import math
 import numpy as np
 
 from condmon.models.gear_drivetrain import GearDrivetrainParameters, GearGeometry, ShaftLayout, SimulationSettings
-from condmon.models.mesh_force import random_pitch_errors
+from condmon.models.gear_errors import draw_gear_errors
 
 # Parameters that calibration may tune (the contact law is the categorical one).
 CALIBRATABLE = ("mesh_stiffness", "restitution", "contact_exponent", "mesh_damping_ratio", "bushing_stiffness",
                 "bushing_damping", "bushing_axial_stiffness", "transmission_error")
 _FIELDS = {f.name for f in dataclasses.fields(GearDrivetrainParameters)}
-_SECTIONS = ("geometry", "variability")  # model keys that are not parameters themselves
+_SECTIONS = ("geometry", "variability", "gear_errors", "fault_severity")  # drawn per sample, not parameters
 
 
 def build_parameters(model: dict, **overrides) -> GearDrivetrainParameters:
@@ -22,6 +22,7 @@ def build_parameters(model: dict, **overrides) -> GearDrivetrainParameters:
     `model` holds `geometry` (dict), the shaft layouts (dicts), `variability` (drawn per sample,
     `sample_effects`) and any scalar or list field of GearDrivetrainParameters."""
     values = {k: v for k, v in model.items() if k not in _SECTIONS}
+    geometry = dict(model.get("geometry", {}), **overrides.pop("geometry", {}))
     values.update(overrides)
     unknown = sorted(set(values) - _FIELDS)
     if unknown:
@@ -32,7 +33,7 @@ def build_parameters(model: dict, **overrides) -> GearDrivetrainParameters:
     if isinstance(values.get("sensors"), dict):
         values["sensors"] = tuple(values["sensors"].items())
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
-    return GearDrivetrainParameters(geometry=GearGeometry(**model.get("geometry", {})), **values)
+    return GearDrivetrainParameters(geometry=GearGeometry(**geometry), **values)
 
 
 def simulation_settings(numerics: dict, duration: float) -> SimulationSettings:
@@ -51,25 +52,37 @@ def perturb(values: dict, names, sigma: float, rng: np.random.Generator) -> dict
     return out
 
 
-def sample_effects(variability: dict, geometry: GearGeometry, rng: np.random.Generator) -> dict:
-    """One drivetrain's manufacturing and operating scatter (`model.variability`): run-out of
-    each shaft (amplitude uniform in [0.5, 1.5] x `runout`, random phase), Gaussian single pitch
-    errors of every tooth, and slow sinusoidal speed and load fluctuations (amplitude uniform
-    up to the configured one, frequency uniform in its range, random phase)."""
+def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator) -> dict:
+    """One drivetrain's manufacturing and operating scatter, drawn per sample:
+    - its gears (`model.gear_errors`): an ISO 1328-1 grade uniform in `grade`, deviations a share
+      of its tolerances uniform in `deviation_share`, a misalignment uniform in `misalignment`
+      (`gear_errors.draw_gear_errors`: pitch pattern, eccentricity, profile and helix slopes);
+    - slow sinusoidal speed and load fluctuations (`model.variability`: amplitude uniform up to
+      the configured one, frequency uniform in its range, random phase);
+    - the severity of its faults (`model.fault_severity`: the surface fault's wear depth uniform
+      in its range) and the worn surfaces' roughness seed."""
     def uniform(low, high):
         return float(rng.uniform(low, high))
 
-    return {
-        "runout_pinion": uniform(0.5, 1.5) * variability["runout"],
-        "runout_gear": uniform(0.5, 1.5) * variability["runout"],
-        "runout_phase_pinion": uniform(0.0, 2 * math.pi),
-        "runout_phase_gear": uniform(0.0, 2 * math.pi),
-        "pitch_errors_pinion": tuple(random_pitch_errors(rng, geometry.teeth_pinion, variability["pitch_error"])),
-        "pitch_errors_gear": tuple(random_pitch_errors(rng, geometry.teeth_gear, variability["pitch_error"])),
-        "speed_fluctuation": uniform(0.0, variability["speed_fluctuation"]),
-        "speed_fluctuation_hz": uniform(*variability["speed_fluctuation_hz"]),
-        "speed_fluctuation_phase": uniform(0.0, 2 * math.pi),
-        "load_fluctuation": uniform(0.0, variability["load_fluctuation"]),
-        "load_fluctuation_hz": uniform(*variability["load_fluctuation_hz"]),
-        "load_fluctuation_phase": uniform(0.0, 2 * math.pi),
-    }
+    errors, variability, severity = model["gear_errors"], model["variability"], model["fault_severity"]
+    grade, share = uniform(*errors["grade"]), uniform(*errors["deviation_share"])
+    fields = {}
+    for name, teeth in (("pinion", geometry.teeth_pinion), ("gear", geometry.teeth_gear)):
+        gear = draw_gear_errors(rng, grade, teeth, geometry.normal_module, 2 * geometry.pitch_radius(teeth),
+                                geometry.face_width, share,
+                                misalignment=uniform(*errors["misalignment"]) if name == "pinion" else 0.0)
+        fields.update({f"pitch_errors_{name}": gear.pitch_deviations, f"runout_{name}": gear.eccentricity,
+                       f"runout_phase_{name}": gear.eccentricity_phase})
+        if name == "pinion":
+            fields["flank_maps_pinion"] = gear.flank_maps
+    return dict(
+        fields,
+        speed_fluctuation=uniform(0.0, variability["speed_fluctuation"]),
+        speed_fluctuation_hz=uniform(*variability["speed_fluctuation_hz"]),
+        speed_fluctuation_phase=uniform(0.0, 2 * math.pi),
+        load_fluctuation=uniform(0.0, variability["load_fluctuation"]),
+        load_fluctuation_hz=uniform(*variability["load_fluctuation_hz"]),
+        load_fluctuation_phase=uniform(0.0, 2 * math.pi),
+        wear_depth=uniform(*severity["wear_depth"]),
+        wear_seed=int(rng.integers(2 ** 31)),
+    )

@@ -1,0 +1,167 @@
+"""Gear manufacturing errors by ISO 1328-1 grade, flank maps, and how they act in the mesh."""
+import math
+
+import numpy as np
+import pytest
+import yaml
+from conftest import ROOT
+
+from condmon.models.gear_drivetrain import GearDrivetrainParameters, SimulationSettings, simulate
+from condmon.models.gear_errors import FlankMap, draw_gear_errors, iso1328_tolerances, wear_flank_map
+from condmon.models.gear_mesh import GearGeometry, GearMesh
+from condmon.models.virtual_bench import bench_fault, broken_tooth_map, pitting_map
+
+GEOMETRY = GearGeometry()
+PINION_DIAMETER = 2 * GEOMETRY.pitch_radius(GEOMETRY.teeth_pinion)
+
+
+def test_tolerances_match_the_worked_example():
+    """../shared/notes/gear-tolerances.md: the helical pinion (d = 72.6 mm) at grade 4 has
+    f_pt = 4.0 um and F_p = 13 um; at grade 6, 8.1 um and 26 um."""
+    assert PINION_DIAMETER == pytest.approx(72.6e-3, abs=0.1e-3)
+    grade4 = iso1328_tolerances(4, GEOMETRY.normal_module, PINION_DIAMETER, GEOMETRY.face_width)
+    grade6 = iso1328_tolerances(6, GEOMETRY.normal_module, PINION_DIAMETER, GEOMETRY.face_width)
+    assert grade4.single_pitch == pytest.approx(4.0e-6, abs=0.05e-6)
+    assert grade4.cumulative_pitch == pytest.approx(13e-6, abs=0.5e-6)
+    assert grade6.single_pitch == pytest.approx(8.1e-6, abs=0.05e-6)
+    assert grade6.cumulative_pitch == pytest.approx(26e-6, abs=0.5e-6)
+    assert grade6.runout == pytest.approx(0.8 * grade6.cumulative_pitch)
+    with pytest.raises(ValueError, match="grades 1 to 12"):
+        iso1328_tolerances(13, GEOMETRY.normal_module, PINION_DIAMETER, GEOMETRY.face_width)
+
+
+@pytest.mark.parametrize("grade", [4, 5, 6, 8, 11])
+def test_a_grade_yields_deviations_within_its_limits(grade):
+    rng = np.random.default_rng(grade)
+    for share in (1.0, 0.5):
+        for _ in range(40):
+            gear = draw_gear_errors(rng, grade, 29, GEOMETRY.normal_module, PINION_DIAMETER, GEOMETRY.face_width, share)
+            tol = gear.tolerances
+            assert np.abs(gear.single_pitch_deviations()).max() <= share * tol.single_pitch * (1 + 1e-9)
+            assert gear.total_cumulative_pitch() <= share * tol.cumulative_pitch * (1 + 1e-9)
+            assert 2 * gear.eccentricity <= share * tol.runout * (1 + 1e-9)
+            for flank in gear.flank_maps:
+                values = flank.array()
+                profile = np.ptp(values[:, 0])  # root to tip at one face edge
+                helix = np.ptp(values[0, :])    # across the face at the root
+                assert profile <= share * tol.profile * (1 + 1e-9)
+                assert helix <= share * tol.helix * (1 + 1e-9)
+    # a real gear of the grade, not a perfect one: its largest pitch deviation a fair part of the limit
+    gear = draw_gear_errors(np.random.default_rng(1), grade, 29, GEOMETRY.normal_module, PINION_DIAMETER,
+                            GEOMETRY.face_width, 1.0)
+    assert np.abs(gear.single_pitch_deviations()).max() > 0.3 * gear.tolerances.single_pitch
+
+
+def test_flank_map_interpolates_and_adds():
+    flank = FlankMap.from_function(lambda roll, face: 2e-6 * roll + 1e-6 * face, rows=3, columns=2)
+    assert flank.at(np.array(0.25), np.array(0.5)) == pytest.approx(2e-6 * 0.25 + 0.5e-6)
+    total = flank + FlankMap.of([[1e-6]])
+    assert total.at(np.array(1.0), np.array(1.0)) == pytest.approx(4e-6)
+    with pytest.raises(ValueError, match="non-finite"):
+        FlankMap.of([[np.nan]])
+
+
+def test_wear_removes_most_at_root_and_tip():
+    wear = wear_flank_map(2e-5, 0.0, np.random.default_rng(0)).array()
+    middle = wear.shape[0] // 2
+    assert wear[0].mean() == pytest.approx(2e-5) and wear[-1].mean() == pytest.approx(2e-5)
+    assert wear[middle].mean() < 0.3 * 2e-5
+
+
+def test_a_flank_map_of_constant_depth_is_a_later_contact():
+    """Material removed evenly from a tooth's flank (h) lowers its pair's contact exactly as a pitch
+    deviation of -h would: the loaded transmission error of the mesh is the same."""
+    depth = 3e-6
+    maps = tuple(FlankMap.of([[depth]]) if tooth == 5 else None for tooth in range(GEOMETRY.teeth_pinion))
+    with_map = GearMesh(GEOMETRY, slices=20, flank_maps=maps)
+    plain = GearMesh(GEOMETRY, slices=20)
+    phase = np.linspace(3.0, 9.0, 301)
+    te_map = with_map.loaded_transmission_error(phase, 300.0)
+    te_plain = plain.loaded_transmission_error(phase, 300.0)
+    # the worn tooth's pair carries less: the mesh deflects more while it is in contact
+    assert te_map.max() > te_plain.max()
+    assert np.allclose(te_map[phase < 5.0 - with_map.window], te_plain[phase < 5.0 - with_map.window])
+
+
+def _sideband(signal, fs, gmf, shaft):
+    window = np.hanning(len(signal))
+    amplitude = np.abs(np.fft.rfft(signal * window)) / window.sum() * 2
+    freqs = np.fft.rfftfreq(len(signal), 1 / fs)
+
+    def peak(f):
+        i = int(np.argmin(abs(freqs - f)))
+        return amplitude[i - 1:i + 2].max()
+    return peak(gmf - shaft) + peak(gmf + shaft)
+
+
+def test_eccentricity_raises_the_mesh_sidebands_as_it_grows():
+    """An eccentric pinion shifts its mesh cycle by e / base pitch once per revolution: the first
+    sidebands of the mesh frequency grow with the eccentricity."""
+    speed = 1100.0
+    shaft = speed / 60
+    gmf = shaft * GEOMETRY.teeth_pinion
+    settings = SimulationSettings(duration=0.6)
+    levels = []
+    for eccentricity in (0.0, 5e-6, 20e-6):
+        signals = simulate(GearDrivetrainParameters(speed_rpm=speed, runout_pinion=eccentricity), settings)
+        levels.append(_sideband(signals["A1_y"], settings.output_rate, gmf, shaft))
+    assert levels[0] < levels[1] < levels[2]
+    assert levels[2] > 3 * levels[1] > 9 * levels[0]
+
+
+def test_bench_fault_forms_are_its_own_geometry():
+    """The bench's surface fault (pitting) and missing tooth (broken tooth) are flank geometry it
+    builds itself: the model runs them as a healthy mesh with those flanks."""
+    rng = np.random.default_rng(3)
+    faults = {"surface_fault": {"form": "pitting", "teeth": 4, "pit_depth": 3e-5, "pitted_area": 0.3},
+              "missing_tooth": {"form": "broken_tooth", "broken_height": 0.8}}
+    state, maps = bench_fault("surface_fault", faults, 29, 27, rng)
+    assert state == "healthy"
+    assert [i for i, m in enumerate(maps) if m is not None] == [0, 1, 27, 28]
+    pits = maps[27].array()
+    roll = np.linspace(0, 1, pits.shape[0])
+    band = pits[(roll >= 0.3) & (roll <= 0.6)]
+    assert (band > 0).mean() >= 0.3 and pits.max() <= 3e-5 and pits[:8].max() == 0.0
+    state, maps = bench_fault("missing_tooth", faults, 29, 3, rng)
+    assert state == "healthy" and maps[3].array()[-1, 0] == pytest.approx(1e-3) and maps[3].array()[0, 0] == 0.0
+    assert bench_fault("spall", faults, 29, 3, rng) == ("spall", ())
+    with pytest.raises(ValueError, match="unknown form"):
+        bench_fault("spall", {"spall": {"form": "crater"}}, 29, 3, rng)
+    assert pitting_map(rng, 1e-5, 0.5).array().max() <= 1e-5
+    assert broken_tooth_map(0.5).array()[:20].max() == 0.0
+
+
+def test_per_sample_gear_errors_come_from_the_config():
+    from conftest import system_of
+
+    system = system_of("config/smoke.yaml")
+    params = system.parameters()
+    from condmon.systems.gear.parameters import sample_effects
+
+    effects = sample_effects(system.config["model"], params.geometry, np.random.default_rng(0))
+    again = sample_effects(system.config["model"], params.geometry, np.random.default_rng(0))
+    assert effects["pitch_errors_pinion"] == again["pitch_errors_pinion"]
+    assert len(effects["flank_maps_pinion"]) == params.geometry.teeth_pinion
+    low, high = system.config["model"]["fault_severity"]["wear_depth"]
+    assert low <= effects["wear_depth"] <= high
+    grade_high = system.config["model"]["gear_errors"]["grade"][1]
+    tol = iso1328_tolerances(grade_high, params.geometry.normal_module, PINION_DIAMETER, params.geometry.face_width)
+    pitch = np.asarray(effects["pitch_errors_pinion"])
+    assert np.ptp(pitch) <= tol.cumulative_pitch and math.isfinite(effects["runout_pinion"])
+
+
+@pytest.mark.parametrize("variant", sorted(p.name for p in (ROOT / "config" / "benches").glob("*.yaml")))
+def test_bench_variants_layer_over_the_default_config(variant):
+    """Each shipped bench variant states only what differs: layered over config/config.yaml (as
+    `--configfile config/config.yaml config/benches/<variant>` does) it validates, names its own run
+    and differs from the default bench in what the report lists."""
+    from conftest import deep_update, system_of
+
+    changes = yaml.safe_load((ROOT / "config" / "benches" / variant).read_text())
+    default = system_of("config/config.yaml")
+    system = system_of("config/config.yaml", changes)
+    assert not system.problems()
+    assert system.config["run_name"] != default.config["run_name"]
+    assert set(system.bench_effects()) != set(default.bench_effects())
+    assert set(changes) <= {"run_name", "virtual_bench"}  # the model section is the default run's
+    assert deep_update({}, changes)  # plain mapping
