@@ -6,7 +6,9 @@ cross-entropy). ``CNNEnsembleClassifier`` is that classifier as a scikit-learn e
 
 - input: the flat feature vector of the features table (``fft_<channel>_<band>Hz``, channels
   concatenated), reshaped to (input channels, bands): one input channel per sensor channel, so
-  the convolutions slide along frequency over all sensors at once. Standardisation uses the
+  the convolutions slide along frequency over all sensors at once. When other feature families
+  sit beside the spectra (``features.kind: spectrum+order``) and ``fit`` gets the feature names,
+  it reads the spectrum columns only and says so in the log (``feature_columns_``). Standardisation uses the
   data given to ``fit`` only, never the test set: ``standardize="channel"`` (default) one mean
   and std per sensor channel, which keeps the shape of each spectrum (its peaks over the
   floor); ``"feature"`` per band as the SVM does. On the virtual bench, per-band scaling made
@@ -117,9 +119,11 @@ class EnsembleModule(nn.Module):
     models; ``classes`` names the output columns.
     """
 
-    def __init__(self, members, mean, scale, input_shape, classes):
+    def __init__(self, members, mean, scale, input_shape, classes, columns=None):
         super().__init__()
         self.members = nn.ModuleList(members)
+        # the spectrum columns among the raw features (None: all of them)
+        self.register_buffer("columns", None if columns is None else torch.as_tensor(columns, dtype=torch.long))
         self.register_buffer("mean", torch.as_tensor(mean, dtype=torch.float32))
         self.register_buffer("scale", torch.as_tensor(scale, dtype=torch.float32))
         self.input_shape = tuple(int(n) for n in input_shape)
@@ -127,6 +131,8 @@ class EnsembleModule(nn.Module):
 
     def forward(self, x):
         x = torch.as_tensor(x, dtype=torch.float32)
+        if self.columns is not None:
+            x = x[:, self.columns]
         x = ((x - self.mean) / self.scale).reshape(-1, *self.input_shape)
         return torch.stack([torch.softmax(m(x), dim=1) for m in self.members]).mean(dim=0)
 
@@ -149,6 +155,19 @@ def channels_from_feature_names(feature_names) -> int | None:
     if not channels or len(feature_names) % len(channels):
         return None
     return len(channels)
+
+
+def spectrum_columns(feature_names) -> np.ndarray | None:
+    """Positions of the ``fft_<channel>_<band>Hz`` names when other features sit beside them
+    (``spectrum+order``: the CNN reads the band spectra only); None when all or none of the names
+    are spectrum bands (then every column is an input, as before)."""
+    if feature_names is None:
+        return None
+    names = [str(name) for name in feature_names]
+    columns = np.array([i for i, name in enumerate(names) if FEATURE_NAME.fullmatch(name)], dtype=np.int64)
+    if len(columns) in (0, len(names)):
+        return None
+    return columns
 
 
 def resolve_device(device: str) -> torch.device:
@@ -314,6 +333,13 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
         if len(self.classes_) < 2:
             raise CNNConfigError(f"training data has only class(es) {list(self.classes_)}")
         self.n_features_in_ = X.shape[1]
+        self.feature_columns_ = spectrum_columns(feature_names)
+        if self.feature_columns_ is not None:
+            others = [str(feature_names[i]) for i in sorted(set(range(X.shape[1])) - set(self.feature_columns_))]
+            log.info("CNN: reads the %d band-spectrum features (fft_<channel>_<band>Hz) and leaves out the %d "
+                     "others (%s ...)", len(self.feature_columns_), len(others), ", ".join(others[:3]))
+            X = X[:, self.feature_columns_]
+            feature_names = [feature_names[i] for i in self.feature_columns_]
         self.input_shape_ = self._input_shape(X.shape[1], feature_names)
         # standardisation from the training data only (constant inputs keep scale 1 rather
         # than dividing by zero)
@@ -427,6 +453,9 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
         if X.ndim != 2 or X.shape[1] != self.n_features_in_:
             raise CNNConfigError(f"X has shape {X.shape}; the ensemble was fitted on "
                                  f"{self.n_features_in_} features")
+        columns = getattr(self, "feature_columns_", None)  # absent in models fitted before it
+        if columns is not None:
+            X = X[:, columns]
         x = torch.from_numpy((X - self.mean_) / self.scale_).reshape(-1, *self.input_shape_)
         # prediction on the CPU: cheap, and the same numbers wherever the model was trained
         with torch_settings(self.threads, torch.device("cpu")), torch.no_grad():
@@ -452,7 +481,7 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
         """The ensemble (standardisation included) as one eval-mode nn.Module."""
         check_is_fitted(self, "members_")
         return EnsembleModule(copy.deepcopy(self._member_modules()), self.mean_, self.scale_,
-                              self.input_shape_, self.classes_).eval()
+                              self.input_shape_, self.classes_, getattr(self, "feature_columns_", None)).eval()
 
     def __getstate__(self):
         state = dict(super().__getstate__())  # a copy: object.__getstate__ gives __dict__

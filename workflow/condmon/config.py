@@ -137,6 +137,12 @@ def cross_field_problems(config: dict) -> list[str]:
             problems.append("calibration.parameters.restitution: bounds must lie in (0, 1]")
     if not any(c["enabled"] for c in config["classifiers"].values()):
         problems.append("classifiers: enable at least one classifier")
+    families = config["features"]["kind"].split("+")
+    if len(set(families)) != len(families):
+        problems.append(f"features.kind: {config['features']['kind']!r} names a family twice")
+    if config["classifiers"]["cnn"]["enabled"] and "order" in families and "spectrum" not in families:
+        problems.append(f"classifiers.cnn: the CNN reads the Hz band spectra and features.kind "
+                        f"{config['features']['kind']!r} has none; use spectrum+order or disable the CNN")
     names = config["features"]["statistical"]["names"]
     n_features = config["features"]["selection"]["n_features"]
     n_channels = len(config["features"]["channels"])

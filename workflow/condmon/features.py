@@ -1,8 +1,11 @@
-"""Spectrum features: band-averaged amplitude spectra of every channel, concatenated.
+"""Features tables: band-averaged amplitude spectra of every channel, concatenated (the
+`spectrum` family), and the `statistical` and `order` families beside them.
 
-This is the input of the CFRP study's classifiers (eq. 5: FFT = [FFT_X, FFT_Y] per sensor).
-The features table is wide Parquet: the signal table's id columns, then one float32 column per
-feature; its file metadata lists the feature columns in order (see ARCHITECTURE.md).
+The spectra are the input of the CFRP study's classifiers (eq. 5: FFT = [FFT_X, FFT_Y] per
+sensor). `features.kind` names one family or several joined by "+" (`spectrum+order`): their
+columns side by side, in that order. The features table is wide Parquet: the signal table's id
+columns, then one float32 column per feature; its file metadata lists the feature columns in
+order (see ARCHITECTURE.md).
 """
 from __future__ import annotations
 
@@ -18,11 +21,13 @@ from sklearn.base import BaseEstimator, TransformerMixin
 from condmon.atomic import write_table
 from condmon.signals import (ID_COLUMNS, SCHEMA, config_hash, package_versions,
                              read_signal_table, to_arrays)
-from condmon.spectra import amplitude_spectrum
+from condmon.order_features import order_features_from_params
+from condmon.spectra import amplitude_spectrum, band_values
 from condmon.stat_features import statistical_features_from_params
 
 __all__ = ["amplitude_spectrum", "SpectrumFeatures", "compute_feature_table", "compute_feature_table_from_files",
-           "statistical_feature_table", "read_feature_table", "write_feature_table", "FeatureTableError"]
+           "statistical_feature_table", "order_feature_table", "feature_families", "read_feature_table",
+           "write_feature_table", "FeatureTableError"]
 
 log = logging.getLogger(__name__)
 
@@ -31,7 +36,7 @@ LOG_FLOOR = 1e-6  # added before log10 so silent bands stay finite
 FEATURE_NAMES_KEY = b"condmon.feature_names"
 FEATURE_KIND_KEY = b"condmon.feature_kind"
 BAND_STATISTICS = ("mean", "rms")
-FEATURE_KINDS = ("spectrum", "statistical")
+FEATURE_KINDS = ("spectrum", "statistical", "order")  # the families `features.kind` joins with "+"
 SPECTRUM_PARAMS = ("f_min_hz", "f_max_hz", "resolution_hz", "scale", "band_statistic")
 
 
@@ -102,20 +107,9 @@ class SpectrumFeatures(TransformerMixin, BaseEstimator):
         return int(np.floor((self.f_max_hz - self.f_min_hz) / self.resolution_hz + 1e-9))
 
     def _band_means(self, freqs: np.ndarray, amplitudes: np.ndarray) -> np.ndarray:
-        """Mean amplitude of the FFT bins in every band (bands along the last axis)."""
-        n_bands = self._n_bands()
-        # The small epsilon keeps a bin sitting exactly on a band edge in the upper band,
-        # whatever rounding the two float grids carry.
-        band_of_bin = np.floor((freqs - self.f_min_hz) / self.resolution_hz + 1e-9).astype(int)
-        inside = np.flatnonzero((band_of_bin >= 0) & (band_of_bin < n_bands))
-        band_of_bin = band_of_bin[inside]  # non-decreasing: each band is a contiguous run
-        starts = np.searchsorted(band_of_bin, np.arange(n_bands))
-        counts = np.diff(np.append(starts, len(band_of_bin)))
-        if (counts == 0).any():  # guarded by _check_grid; kept as a last line of defence
-            raise ValueError(f"bands without FFT bins at {self.band_centres()[counts == 0]} Hz")
-        if self.band_statistic == "rms":
-            return np.sqrt(np.add.reduceat(amplitudes[..., inside] ** 2, starts, axis=-1) / counts)
-        return np.add.reduceat(amplitudes[..., inside], starts, axis=-1) / counts
+        """Mean (or RMS) amplitude of the FFT bins in every band (bands along the last axis)."""
+        return band_values(freqs, amplitudes, self.f_min_hz, self.resolution_hz, self._n_bands(),
+                           self.band_statistic)
 
     def _check_params(self) -> None:
         if len(self.channels) == 0:
@@ -189,24 +183,43 @@ def compute_feature_table(signal_frame: pd.DataFrame, channels,
     return pd.concat([ids.reset_index(drop=True), values], axis=1)
 
 
+def feature_families(kind: str) -> list[str]:
+    """The families of a `features.kind` value: one of FEATURE_KINDS or several joined by "+"
+    (`spectrum+order`), each at most once."""
+    families = str(kind).split("+")
+    unknown = [f for f in families if f not in FEATURE_KINDS]
+    if unknown:
+        raise FeatureTableError(f"features.kind {kind!r}: unknown feature famil{'ies' if len(unknown) > 1 else 'y'} "
+                                f"{unknown}; choose one of {list(FEATURE_KINDS)} or several joined by '+'")
+    if len(set(families)) != len(families):
+        raise FeatureTableError(f"features.kind {kind!r}: a family appears twice")
+    return families
+
+
 def compute_feature_table_from_files(paths, channels, spectrum_params: dict, kind: str = "spectrum",
                                      statistical_params: dict | None = None,
-                                     defect_orders: dict | None = None) -> pd.DataFrame:
+                                     defect_orders: dict | None = None, order_params: dict | None = None,
+                                     shafts=None) -> pd.DataFrame:
     """Features of several signal tables in one table (read one at a time to bound memory).
 
-    kind "spectrum": band spectra (`spectrum_params`); "statistical": time/frequency statistics
-    and envelope features at the system's `defect_orders` (`condmon.stat_features`,
-    `statistical_params`)."""
-    if kind not in FEATURE_KINDS:
-        raise FeatureTableError(f"unknown feature kind {kind!r}; choose one of {list(FEATURE_KINDS)}")
+    Families (`kind`, "+" joins several, columns in that order): "spectrum": band spectra
+    (`spectrum_params`); "statistical": time/frequency statistics and envelope features at the
+    system's `defect_orders` (`condmon.stat_features`, `statistical_params`); "order": order-domain
+    gear diagnostics on the system's `shafts` (`condmon.order_features`, `order_params`)."""
+    families = feature_families(kind)
     frames = []
     for path in paths:
         log.info("%s features of %s", kind, path)
         signals = read_signal_table(path)
-        if kind == "statistical":
-            frames.append(statistical_feature_table(signals, channels, statistical_params or {}, defect_orders))
-        else:
-            frames.append(compute_feature_table(signals, channels, spectrum_params))
+        parts = []
+        for family in families:
+            if family == "statistical":
+                parts.append(statistical_feature_table(signals, channels, statistical_params or {}, defect_orders))
+            elif family == "order":
+                parts.append(order_feature_table(signals, channels, order_params or {}, shafts))
+            else:
+                parts.append(compute_feature_table(signals, channels, spectrum_params))
+        frames.append(_side_by_side(parts))
     if not frames:
         raise FeatureTableError("no signal tables given")
     frame = pd.concat(frames, ignore_index=True)
@@ -217,6 +230,16 @@ def compute_feature_table_from_files(paths, channels, spectrum_params: dict, kin
         raise FeatureTableError(f"record {first.record_id!r} segment {first.segment} appears in "
                                 "more than one signal table")
     return frame.sort_values(["record_id", "segment"]).reset_index(drop=True)
+
+
+def _side_by_side(parts: list[pd.DataFrame]) -> pd.DataFrame:
+    """The feature columns of several families' tables of one signal table, after its id columns
+    (every family's rows come in the same (record_id, segment) order from `to_arrays`)."""
+    ids = parts[0][ID_COLUMNS]
+    for part in parts[1:]:
+        if not part[ID_COLUMNS].equals(ids):  # a guard: to_arrays sorts every family alike
+            raise FeatureTableError("feature families disagree on the segments' order")
+    return pd.concat([ids] + [part[feature_columns(part)] for part in parts], axis=1)
 
 
 def feature_columns(frame: pd.DataFrame) -> list[str]:
@@ -294,3 +317,26 @@ def statistical_feature_table(signal_frame, channels, params: dict, defect_order
             else:
                 columns[f"{channel}_{name}"] = values[:, j]
     return pd.concat([ids.reset_index(drop=True), pd.DataFrame(columns)], axis=1)
+
+
+def order_feature_table(signal_frame, channels, params: dict, shafts) -> pd.DataFrame:
+    """Wide features table of one signal table: order-spectrum bands and gear condition indicators
+    per channel (`condmon.order_features.OrderFeatures`, configured by `params` = the config's
+    `features.order`) on the rig's `shafts` [(name, speed ratio, teeth)] (`System.shafts()`), with
+    each segment's stored input-shaft speed."""
+    try:
+        extractor = order_features_from_params(channels, shafts, params)
+    except ValueError as exc:
+        raise FeatureTableError(f"features.order: {exc}") from exc
+    present = set(signal_frame["channel"])
+    missing = [ch for ch in extractor.channels if ch not in present]
+    if missing:
+        raise FeatureTableError(f"channel(s) {missing} not in the signal table (it has {sorted(present)})")
+    fs_hz = _single_sampling_rate(signal_frame)
+    ids, arrays = to_arrays(signal_frame, extractor.channels)
+    try:
+        values = extractor.transform(arrays, fs_hz, ids["speed_rpm"].to_numpy())
+    except ValueError as exc:
+        raise FeatureTableError(f"order features: {exc}") from exc
+    return pd.concat([ids.reset_index(drop=True),
+                      pd.DataFrame(values, columns=extractor.feature_names())], axis=1)

@@ -26,3 +26,29 @@ def amplitude_spectrum(signal, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
     if n % 2 == 0:
         amplitudes[..., -1] /= 2.0
     return np.fft.rfftfreq(n, d=1.0 / fs_hz), amplitudes
+
+
+def band_values(freqs, amplitudes, low: float, width: float, n_bands: int, statistic: str = "mean"
+                ) -> np.ndarray:
+    """Per band of `width` over [low, low + n_bands x width), the mean ("mean") or root mean square
+    ("rms") of the amplitudes of the bins inside it (bands along the last axis).
+
+    The RMS keeps a band's energy when a line is smeared over several bins (a small speed
+    fluctuation), which the mean amplitude does not. Raises if a band holds no bin.
+    """
+    # The small epsilon keeps a bin sitting exactly on a band edge in the upper band, whatever
+    # rounding the two float grids carry.
+    band_of_bin = np.floor((np.asarray(freqs) - low) / width + 1e-9).astype(int)
+    inside = np.flatnonzero((band_of_bin >= 0) & (band_of_bin < n_bands))
+    band_of_bin = band_of_bin[inside]  # non-decreasing: each band is a contiguous run
+    starts = np.searchsorted(band_of_bin, np.arange(n_bands))
+    counts = np.diff(np.append(starts, len(band_of_bin)))
+    if (counts == 0).any():
+        empty = low + width * (np.flatnonzero(counts == 0) + 0.5)
+        raise ValueError(f"bands without spectrum bins at {empty[:5]} (band centres)")
+    amplitudes = np.asarray(amplitudes)
+    if statistic == "rms":
+        return np.sqrt(np.add.reduceat(amplitudes[..., inside] ** 2, starts, axis=-1) / counts)
+    if statistic == "mean":
+        return np.add.reduceat(amplitudes[..., inside], starts, axis=-1) / counts
+    raise ValueError(f"unknown band statistic {statistic!r}; choose mean or rms")

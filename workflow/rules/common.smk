@@ -116,12 +116,30 @@ def data_source():
     return SYSTEM.data_source()
 
 
+FEATURE_FAMILIES = config["features"]["kind"].split("+")  # e.g. spectrum+order: both families
+
+
 def statistical_feature_params():
-    """features.statistical; None with spectrum features, so its settings never rerun a spectrum
-    run's features."""
-    if config["features"]["kind"] != "statistical":
+    """features.statistical; None without the statistical family, so its settings never rerun
+    another run's features."""
+    if "statistical" not in FEATURE_FAMILIES:
         return None
     return dict(config["features"]["statistical"])
+
+
+def order_feature_params():
+    """features.order; None without the order family (as statistical_feature_params)."""
+    if "order" not in FEATURE_FAMILIES:
+        return None
+    return dict(config["features"]["order"])
+
+
+def order_shafts():
+    """The system's geared shafts [(name, speed ratio, teeth)] the order family needs; None
+    without it, so a gear edit never reruns another run's features."""
+    if "order" not in FEATURE_FAMILIES:
+        return None
+    return [list(shaft) for shaft in SYSTEM.shafts() or []]
 
 
 def final_outputs():

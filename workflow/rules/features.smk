@@ -1,4 +1,5 @@
-# Stage 4: features (FFT spectra of every channel, concatenated; or statistical features).
+# Stage 4: features (FFT spectra of every channel, concatenated; statistical features; order-domain
+# gear diagnostics; or several of these families side by side).
 
 
 rule features_measured:
@@ -11,6 +12,8 @@ rule features_measured:
         spectrum=config["features"]["spectrum"],
         kind=config["features"]["kind"],
         statistical=statistical_feature_params(),
+        order=order_feature_params(),
+        shafts=order_shafts(),
         system=SYSTEM.job_spec("features"),
     conda:
         "../envs/learning.yaml"
@@ -32,6 +35,8 @@ rule features_simulated:
         spectrum=config["features"]["spectrum"],
         kind=config["features"]["kind"],
         statistical=statistical_feature_params(),
+        order=order_feature_params(),
+        shafts=order_shafts(),
         system=SYSTEM.job_spec("features"),
     conda:
         "../envs/learning.yaml"

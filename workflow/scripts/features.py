@@ -1,4 +1,5 @@
-"""Snakemake script: signal table(s) -> features table (band spectra, or statistical features).
+"""Snakemake script: signal table(s) -> features table (band spectra, statistical features, order-domain
+gear diagnostics, or several of these families side by side).
 
 `snakemake` is injected by Snakemake's script directive.
 """
@@ -14,13 +15,17 @@ channels = list(snakemake.params.channels)
 spectrum = dict(snakemake.params.spectrum)
 kind = getattr(snakemake.params, "kind", "spectrum")
 statistical = dict(getattr(snakemake.params, "statistical", None) or {})
+order = dict(getattr(snakemake.params, "order", None) or {})
+shafts = getattr(snakemake.params, "shafts", None)  # the system's geared shafts (order family)
 
 # the system says where its envelope lines are (bearing defect orders), if it has any
 defect_orders = load_system(snakemake.params.system).defect_orders()
-frame = compute_feature_table_from_files(signal_paths, channels, spectrum, kind, statistical, defect_orders)
+frame = compute_feature_table_from_files(signal_paths, channels, spectrum, kind, statistical, defect_orders,
+                                         order, shafts)
 names = feature_columns(frame)
-write_feature_table(frame, names, snakemake.output.features, kind=kind,
-                    config={"channels": channels, "spectrum": spectrum, "kind": kind,
-                            "statistical": statistical})
+config = {"channels": channels, "spectrum": spectrum, "kind": kind, "statistical": statistical}
+if order:  # only with the order family, so the other families' config hash stays as it was
+    config.update(order=order, shafts=shafts)
+write_feature_table(frame, names, snakemake.output.features, kind=kind, config=config)
 log.info("wrote %d segments x %d features to %s", len(frame), len(names),
          snakemake.output.features)

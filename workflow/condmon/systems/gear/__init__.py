@@ -210,3 +210,11 @@ class GearSystem(System):
 
     def sample_load(self, speed_rpm, parameters) -> float:
         return float(self.config["model"]["load_torque"])
+
+    # -- features ----------------------------------------------------------------------------
+    def shafts(self) -> list[tuple[str, float, int]]:
+        """The pinion on the input shaft (ratio 1) and the gear on the output shaft (ratio
+        teeth_pinion / teeth_gear), with their teeth (`model.geometry`)."""
+        geometry = self.config["model"]["geometry"]
+        pinion, gear = int(geometry["teeth_pinion"]), int(geometry["teeth_gear"])
+        return [("pinion", 1.0, pinion), ("gear", pinion / gear, gear)]
