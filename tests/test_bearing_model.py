@@ -194,7 +194,7 @@ def test_noise_free_drops_the_rigs_own_noise_and_background():
     and machine background, so `noise_free` removes them, and what is left converges with the step."""
     system = system_of("config/cwru-smoke.yaml")
     parameters = system.sample_parameters(system.nominal_calibration(), "normal", np.random.default_rng(0),
-                                          {"perturbation_sigma": 0.0})
+                                          {})
     quiet = system.noise_free(parameters)
     assert quiet["noise_rms"] == 0.0 and quiet["background"] == [] and parameters["noise_rms"] > 0
     speed = system.speeds_rpm[0]

@@ -164,7 +164,7 @@ def test_choosing_which_models_mlflow_logs_reruns_only_the_tracking(smoke):
 def test_editing_a_simulation_setting_reruns_simulation_and_downstream_not_calibration(smoke):
     workdir, _ = smoke
     config = smoke_config()
-    config["simulation"]["perturbation_sigma"] = 0.05
+    config["model"]["variability"]["perturbation_sigma"] = 0.05
     jobs = planned_jobs(workdir, config)
     assert {"simulate", "features_simulated", "train", "track", "report"} <= set(jobs)
     assert not {"calibrate", "measured", "measured_part", "features_measured", "hybrid"} & set(jobs)

@@ -18,7 +18,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from conftest import ROOT, config_of
+from conftest import CWRU, ROOT, config_of
 from condmon.calibrate import FAILED_COST, Bound, Calibrator, SpectrumModel
 from condmon.config import ConfigError
 from condmon.features import compute_feature_table
@@ -195,6 +195,74 @@ def test_the_source_digest_follows_every_model_file(tmp_path):
     moved = tmp_path.parent / (tmp_path.name + "-moved")
     shutil.copytree(tmp_path, moved)
     assert digest(deep=(moved,)) == digest(deep=(tmp_path,))
+
+
+def touched_project(tmp_path, configfile: str, *config_args: str):
+    """A copy of the project whose every job of `configfile` looks done: Snakemake's metadata
+    (params, code) recorded by `--touch`, every output an empty file. A dry run with
+    `--rerun-triggers params` then plans exactly the jobs whose params an edit changes."""
+    from test_pipeline import copy_project, snakemake
+
+    workdir = copy_project(tmp_path / "project")
+    run = ("--configfile", configfile, *(("--config", *config_args) if config_args else ()))
+    snakemake(workdir, "--touch", "--cores", "1", *run)  # records every job's params, writes no file
+    for _ in range(5):
+        out = snakemake(workdir, "-n", "--rerun-triggers", "params", *run).stdout
+        missing = [name.strip() for line in re.findall(r"reason: Missing output files: ([^;\n]+)", out)
+                   for name in line.split(",")]
+        if not missing:
+            break
+        for name in missing:
+            (workdir / name).parent.mkdir(parents=True, exist_ok=True)
+            (workdir / name).touch()
+    snakemake(workdir, "--touch", "--cores", "1", *run)  # outputs newer than their inputs
+    assert "Nothing to be done" in snakemake(workdir, "-n", "--rerun-triggers", "params", *run).stdout
+    return workdir, run
+
+
+def planned_rules(workdir, run, edited: dict) -> set:
+    """The rules a params-triggered dry run plans after the config edit `edited` (merged into the
+    run's config file), or the config error's message."""
+    from conftest import deep_update
+    from test_pipeline import snakemake
+
+    config = yaml.safe_load((workdir / run[1]).read_text())
+    (workdir / "edited.yaml").write_text(yaml.safe_dump(deep_update(config, edited)))
+    result = snakemake(workdir, "-n", "--rerun-triggers", "params", "--configfile", "edited.yaml", *run[2:],
+                       check=False)
+    if result.returncode != 0:
+        return result.stdout + result.stderr
+    if "Nothing to be done" in result.stdout:
+        return set()
+    return set(re.findall(r"^rule (\w+):", result.stdout, flags=re.M))
+
+
+def test_a_systems_own_simulation_knob_reruns_its_simulations_only_and_never_another_systems(tmp_path):
+    """The gear's per-sample perturbation lives in the gear's own section: the simulate rule's
+    params are the system's job_spec("simulate") plus the shared simulation section, so an edit
+    of it reruns the gear's simulations and what follows (not the bench or calibration), and a
+    bearing (CWRU) run has no such knob at all: nothing of it reaches a bearing job."""
+    gear = config_of("config/smoke.yaml")
+    assert "perturbation_sigma" not in gear["simulation"]
+    system = get_system(gear)
+    assert system.job_spec("simulate")["config"]["model"]["variability"]["perturbation_sigma"] == 0.03
+    for stage in ("bench", "calibrate"):
+        assert "perturbation_sigma" not in system.job_spec(stage)["config"]["model"]["variability"], stage
+    bearing = config_of("config/cwru-smoke.yaml")
+    assert "perturbation_sigma" not in json.dumps(get_system(bearing).job_spec("simulate")) + json.dumps(bearing)
+    with pytest.raises(ConfigError, match="unknown key model"):
+        config_of("config/cwru-smoke.yaml", {"model": {"variability": {"perturbation_sigma": 0.05}}})
+    with pytest.raises(ConfigError, match="unknown key simulation.perturbation_sigma"):
+        config_of("config/cwru-smoke.yaml", {"simulation": {"perturbation_sigma": 0.05}})
+
+    # real Snakemake plans (params trigger) on a project whose jobs look done
+    workdir, run = touched_project(tmp_path / "gear", "config/smoke.yaml")
+    knob = {"model": {"variability": {"perturbation_sigma": 0.05}}}
+    assert planned_rules(workdir, run, knob) == {"simulate", "features_simulated", "train", "track", "report", "all"}
+    workdir, run = touched_project(tmp_path / "bearing", "config/cwru-smoke.yaml", f"measured_dir={CWRU}")
+    assert planned_rules(workdir, run, {"simulation": {"max_failed_share": 0.2}}) == {
+        "simulate", "features_simulated", "train", "track", "report", "all"}
+    assert "unknown key model" in planned_rules(workdir, run, knob)  # a CWRU run has no gear knob
 
 
 def test_registry_errors_name_the_culprit():

@@ -83,6 +83,10 @@ class GearSystem(System):
 
     def job_config(self, stage: str, variant: str | None = None) -> dict:
         config = super().job_config(stage, variant)
+        if stage != "simulate" and "model" in config:
+            # the per-sample perturbation of the calibrated values concerns the simulation only
+            variability = {k: v for k, v in config["model"].get("variability", {}).items() if k != "perturbation_sigma"}
+            config["model"] = dict(config["model"], variability=variability)
         if stage != "bench":
             config.pop("virtual_bench", None)  # the hidden truth reaches the bench jobs only
         if stage == "bench":
@@ -167,7 +171,7 @@ class GearSystem(System):
 
     def sample_parameters(self, calibrated, health_state, rng, simulation) -> dict:
         values = perturb(calibrated["parameters"], list(calibrated["parameters"]),
-                         simulation["perturbation_sigma"], rng)
+                         self.config["model"]["variability"]["perturbation_sigma"], rng)
         return {"contact_law": calibrated["contact_law"], **values}
 
     def simulate_sample(self, parameters, health_state, speed_rpm, duration_s, seed, step_refinement=1):
