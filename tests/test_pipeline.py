@@ -77,11 +77,11 @@ def test_every_design_output_is_written(smoke):
     simulated_with = smoke_config()["model"]["mesh_stiffness_model"]
     for model in ("potential_energy", "simple"):
         calibration = json.loads((results / "calibration" / model / "params.json").read_text())
-        assert {"contact_law", "parameters", "cost", "nominal_cost", "evaluations"} <= set(calibration)
-        assert calibration["mesh_stiffness_model"] == model
+        assert {"model_variant", "parameters", "cost", "nominal_cost", "evaluations"} <= set(calibration)
+        assert calibration["mesh_stiffness_model"] == model and calibration["contact_law"] == calibration["model_variant"]
     summary = json.loads((results / "report" / "summary.json").read_text())
-    assert summary["calibration"]["mesh_stiffness_model"] == simulated_with
-    assert set(summary["calibration_by_mesh_stiffness_model"]) == {"potential_energy", "simple"}
+    assert summary["calibration"]["calibration_variant"] == simulated_with
+    assert set(summary["calibration_by_variant"]) == {"potential_energy", "simple"}
     accuracy = pd.read_csv(results / "report" / "accuracy.csv")
     assert list(accuracy.columns[:7]) == ["classifier", "protocol", "measured_percent", "repeat", "speed_rpm",
                                           "accuracy", "macro_f1"]

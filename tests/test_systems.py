@@ -34,7 +34,7 @@ def toy_config(run_name="toy-smoke") -> dict:
     """The toy's smoke config: every stage at tiny sizes."""
     return {
         "run_name": run_name, "system": "toy", "system_modules": [TOY_MODULE],
-        "calibration": {"contact_laws": ["flores"], "strategy": "per_law", "population": 4, "generations": 2,
+        "calibration": {"strategy": "per_law", "population": 4, "generations": 2,
                         "sim_seconds": 0.5, "resolution_hz": 8.0},
         "simulation": {"samples_per_state": 4, "samples_per_job": 4},
         "features": {"spectrum": {"f_min_hz": 0.0, "f_max_hz": 200.0, "resolution_hz": 4.0}},
@@ -125,11 +125,11 @@ class SometimesDiverging(SpectrumModel):
     """The system's own calibration spectra, but candidates with `diverge` > 0.5 run the system's
     diverging parameters: what a calibration meets when CMA-ES strays into an unstable corner."""
 
-    def __call__(self, contact_law, values):
+    def __call__(self, variant, values):
         values = dict(values)
         if values.pop("diverge") > 0.5:
             values = self.system.diverging(values)
-        return super().__call__(contact_law, values)
+        return super().__call__(variant, values)
 
 
 def test_a_calibration_scores_a_diverging_candidate_and_goes_on(system_and_config):
@@ -138,7 +138,7 @@ def test_a_calibration_scores_a_diverging_candidate_and_goes_on(system_and_confi
     model = SometimesDiverging(system, system.speeds_rpm[:1], system.channels, spectrum,
                                config["calibration"]["resolution_hz"],
                                sim_seconds=system.segment_length / system.output_rate_hz, seed=1)
-    law = system.nominal_calibration([])["contact_law"]
+    law = system.nominal_calibration([])["model_variant"]
     target = model(law, {"diverge": 0.0})
     calibrator = Calibrator([Bound("diverge", 0.0, 1.0, False)], [law], strategy="per_law", population=6,
                             generations=2, sigma0=0.5, seed=2, processes=2, initial={"diverge": 0.5})
@@ -263,6 +263,22 @@ def test_a_systems_own_simulation_knob_reruns_its_simulations_only_and_never_ano
     assert planned_rules(workdir, run, {"simulation": {"max_failed_share": 0.2}}) == {
         "simulate", "features_simulated", "train", "track", "report", "all"}
     assert "unknown key model" in planned_rules(workdir, run, knob)  # a CWRU run has no gear knob
+
+
+def test_each_system_checks_its_own_costs_variants_and_bounds():
+    """The costs, model variants and parameter checks are the system's: the shared layer names none."""
+    with pytest.raises(ConfigError, match=r"calibration.cost: 'features_eq6' is not a cost of the gear system"):
+        config_of("config/smoke.yaml", {"calibration": {"cost": "features_eq6"}})
+    assert config_of("config/cwru-smoke.yaml", {"calibration": {"cost": "features_eq6"}})
+    with pytest.raises(ConfigError, match=r"calibration.parameters.restitution: bounds must lie in \(0, 1\]"):
+        config_of("config/smoke.yaml", {"calibration": {"parameters": {"restitution": {"low": 0.5, "high": 1.2}}}})
+    with pytest.raises(ConfigError, match="unknown key calibration.contact_laws"):
+        config_of("config/cwru-smoke.yaml", {"calibration": {"contact_laws": ["flores"]}})
+    gear, bearing, toy = (get_system(CONFIGS[name]()) for name in ("gear", "bearing", "toy"))
+    assert gear.model_variants({"contact_laws": ["flores", "gonthier"]}) == ["flores", "gonthier"]
+    assert bearing.model_variants({}) == ["hertz"] and toy.model_variants({}) == [toy.nominal_variant]
+    with pytest.raises(ValueError, match="one model variant"):
+        toy.simulate_healthy("flores", {}, toy.speeds_rpm[0], 0.1, seed=1)
 
 
 def test_registry_errors_name_the_culprit():

@@ -133,7 +133,7 @@ class ToySystem(System):
 
     def calibrate(self, frame, variant, calibration, spectrum, channels, processes=1):
         return calibrate_on_spectra(self, frame, calibration, spectrum, channels, nominal=self.toy,
-                                    nominal_law=calibration["contact_laws"][0], processes=processes)
+                                    processes=processes)
 
     def nominal_values(self):
         return {"stiffness": self.toy["stiffness"], "damping": self.toy["damping"]}

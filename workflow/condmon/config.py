@@ -133,8 +133,6 @@ def cross_field_problems(config: dict) -> list[str]:
                             f"high ({bound['high']})")
         if bound.get("log") and bound["low"] <= 0:
             problems.append(f"calibration.parameters.{name}: a log-scaled bound needs low > 0")
-        if name == "restitution" and not (0 < bound["low"] and bound["high"] <= 1):
-            problems.append("calibration.parameters.restitution: bounds must lie in (0, 1]")
     if not any(c["enabled"] for c in config["classifiers"].values()):
         problems.append("classifiers: enable at least one classifier")
     names = config["features"]["statistical"]["names"]

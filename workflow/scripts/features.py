@@ -15,7 +15,7 @@ spectrum = dict(snakemake.params.spectrum)
 kind = getattr(snakemake.params, "kind", "spectrum")
 statistical = dict(getattr(snakemake.params, "statistical", None) or {})
 
-# the system says where its envelope lines are (bearing defect orders), if it has any
+# the system says where its envelope lines are (its defect orders), if it has any
 defect_orders = load_system(snakemake.params.system).defect_orders()
 frame = compute_feature_table_from_files(signal_paths, channels, spectrum, kind, statistical, defect_orders)
 names = feature_columns(frame)
