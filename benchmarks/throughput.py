@@ -126,7 +126,7 @@ def convergence(spec: str, refinement: int = 4) -> dict:
     system, config = load_system(spec)
     values = system.noise_free(system.sample_parameters(
         system.nominal_calibration(), system.healthy_state, np.random.default_rng(0),
-        {**config["simulation"], "perturbation_sigma": 0.0}))
+        config["simulation"]))
     duration, speed = sample_duration(system, config), _speed(system)
     channels = config["features"]["channels"]
     # linear amplitudes: the dB difference is taken here

@@ -7,6 +7,9 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 CWRU = ROOT.parent / "shared" / "data" / "cwru"
+# Config keys that point at a data folder, and where that data lies on this machine: a project
+# config that sets one (whatever its system) reads this copy, so tests run from any folder.
+DATA_FOLDERS = {"measured_dir": CWRU}
 
 
 def pytest_configure(config):
@@ -34,8 +37,7 @@ def config_of(configfile="config/smoke.yaml", changes: dict | None = None) -> di
         config = copy.deepcopy(configfile)
     else:
         config = yaml.safe_load((ROOT / configfile).read_text())
-    if config.get("system") == "bearing":
-        config["measured_dir"] = str(CWRU)
+    config.update({key: str(folder) for key, folder in DATA_FOLDERS.items() if key in config})
     deep_update(config, changes or {})
     return validate_config(config, load_schema(ROOT / "config" / "schema.yaml"))
 

@@ -201,7 +201,7 @@ def build(root: Path, classifiers: dict | None = None, percents=PERCENTS, repeat
     calibration = root / "calibration"
     calibration.mkdir(parents=True, exist_ok=True)
     (calibration / "params.json").write_text(json.dumps({
-        "contact_law": "hertz", "parameters": {"stiffness": 1.2e8, "damping": 0.02},
+        "model_variant": "hertz", "parameters": {"stiffness": 1.2e8, "damping": 0.02},
         "cost": 0.031, "evaluations": 40}))
     freqs = np.linspace(5, 2500, 200)
     spectra = []
@@ -213,7 +213,7 @@ def build(root: Path, classifiers: dict | None = None, percents=PERCENTS, repeat
                                          "calibrated": base}))
     pd.concat(spectra).to_parquet(calibration / "spectra.parquet", index=False)
     history = pd.DataFrame({"generation": np.arange(40) // 8, "evaluation": np.arange(40),
-                            "contact_law": np.where(np.arange(40) % 2, "hertz", "linear"),
+                            "model_variant": np.where(np.arange(40) % 2, "hertz", "linear"),
                             "cost": np.abs(rng.normal(1, 0.5, 40)) / (1 + np.arange(40) / 4),
                             "stiffness": rng.uniform(1e7, 1e9, 40)})
     history.loc[5, "cost"] = np.inf  # a failed simulation

@@ -194,7 +194,7 @@ def test_noise_free_drops_the_rigs_own_noise_and_background():
     and machine background, so `noise_free` removes them, and what is left converges with the step."""
     system = system_of("config/cwru-smoke.yaml")
     parameters = system.sample_parameters(system.nominal_calibration(), "normal", np.random.default_rng(0),
-                                          {"perturbation_sigma": 0.0})
+                                          {})
     quiet = system.noise_free(parameters)
     assert quiet["noise_rms"] == 0.0 and quiet["background"] == [] and parameters["noise_rms"] > 0
     speed = system.speeds_rpm[0]
@@ -203,3 +203,28 @@ def test_noise_free_drops_the_rigs_own_noise_and_background():
                     for r in (1, 2))
     assert np.std(noisy - coarse) > 10 * np.std(coarse - fine)
     assert np.std(coarse - fine) < 0.01 * np.std(coarse)
+
+
+# The data centre's published drive-end defect frequencies (SKF 6205-2RS JEM), in shaft orders.
+CWRU_DE_ORDERS = dict(bpfi=5.4152, bpfo=3.5848, ftf=0.39828, bsf=2.3567)
+
+
+def test_the_default_geometry_gives_the_cwru_defect_orders():
+    from condmon.systems.bearing.model import geometry
+
+    orders = geometry(bearing_defaults()["geometry"]).orders()
+    for name, published in CWRU_DE_ORDERS.items():
+        assert orders[name] == pytest.approx(published, abs=1e-4), name
+    features = feature_orders(bearing_defaults()["geometry"])
+    assert list(features) == ["bpfo", "bpfi", "bsf", "bsf_x2"]
+    assert features["bsf_x2"] == pytest.approx(2 * orders["bsf"])
+
+
+def test_defect_orders_relations_and_contact_angle():
+    from condmon.models.bearing_rig import BearingGeometry
+
+    o = BearingGeometry(8, 10.0, 50.0).orders()
+    assert o["bpfo"] + o["bpfi"] == pytest.approx(8)  # n/2 (1 - r) + n/2 (1 + r)
+    assert o["bpfo"] == pytest.approx(8 * o["ftf"])
+    tilted = BearingGeometry(8, 10.0, 50.0, contact_angle_deg=60.0).orders()  # r halves
+    assert tilted["bpfo"] == pytest.approx(4 * (1 - 0.1))

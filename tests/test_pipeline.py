@@ -77,11 +77,11 @@ def test_every_design_output_is_written(smoke):
     simulated_with = smoke_config()["model"]["mesh_stiffness_model"]
     for model in ("potential_energy", "simple"):
         calibration = json.loads((results / "calibration" / model / "params.json").read_text())
-        assert {"contact_law", "parameters", "cost", "nominal_cost", "evaluations"} <= set(calibration)
-        assert calibration["mesh_stiffness_model"] == model
+        assert {"model_variant", "parameters", "cost", "nominal_cost", "evaluations"} <= set(calibration)
+        assert calibration["mesh_stiffness_model"] == model and calibration["contact_law"] == calibration["model_variant"]
     summary = json.loads((results / "report" / "summary.json").read_text())
-    assert summary["calibration"]["mesh_stiffness_model"] == simulated_with
-    assert set(summary["calibration_by_mesh_stiffness_model"]) == {"potential_energy", "simple"}
+    assert summary["calibration"]["calibration_variant"] == simulated_with
+    assert set(summary["calibration_by_variant"]) == {"potential_energy", "simple"}
     accuracy = pd.read_csv(results / "report" / "accuracy.csv")
     assert list(accuracy.columns[:7]) == ["classifier", "protocol", "measured_percent", "repeat", "speed_rpm",
                                           "accuracy", "macro_f1"]
@@ -164,7 +164,7 @@ def test_choosing_which_models_mlflow_logs_reruns_only_the_tracking(smoke):
 def test_editing_a_simulation_setting_reruns_simulation_and_downstream_not_calibration(smoke):
     workdir, _ = smoke
     config = smoke_config()
-    config["simulation"]["perturbation_sigma"] = 0.05
+    config["model"]["variability"]["perturbation_sigma"] = 0.05
     jobs = planned_jobs(workdir, config)
     assert {"simulate", "features_simulated", "train", "track", "report"} <= set(jobs)
     assert not {"calibrate", "measured", "measured_part", "features_measured", "hybrid"} & set(jobs)

@@ -58,7 +58,7 @@ def test_summary_aggregates_over_repeats_and_labels_the_source(built_report):
     source = summary["data_source"]
     assert source["kind"] == "virtual_bench" and source["synthetic"] is True
     assert source["label"] == "virtual bench (synthetic)" and "not real" in source["note"]
-    assert summary["calibration"]["contact_law"] == "hertz"
+    assert summary["calibration"]["model_variant"] == "hertz"
     assert summary["calibration"]["evaluations"] == 40
     accuracy = pd.read_csv(out / "accuracy.csv", keep_default_na=True)
     accuracy["holdout"] = accuracy["holdout"].fillna("")
@@ -112,16 +112,17 @@ def test_unknown_confusion_percent_names_the_available_ones(train_outputs, tmp_p
     assert not (tmp_path / "a.csv").exists() and not (tmp_path / "plots").exists()
 
 
-def test_one_calibration_per_mesh_stiffness_model(train_outputs, tmp_path):
-    """Calibrations of both mesh stiffness models: the first one (the simulation's) is the
-    summary's calibration, each is listed with its costs, and the spectra plot shows both."""
+def test_one_calibration_per_calibration_variant(train_outputs, tmp_path):
+    """Calibrations of two calibration variants (e.g. the gear's mesh stiffness models): the first
+    one (the simulation's) is the summary's calibration, each is listed with its costs, and the
+    spectra plot shows both."""
     _, paths = train_outputs
     files = {}
     for model, cost in (("potential_energy", 0.21), ("simple", 0.25)):
         folder = tmp_path / "calibration" / model
         folder.mkdir(parents=True)
         params = json.loads(paths["calibration_params"].read_text())
-        params.update(cost=cost, nominal_cost=0.3, seconds=12.5, mesh_stiffness_model=model)
+        params.update(cost=cost, nominal_cost=0.3, seconds=12.5)
         (folder / "params.json").write_text(json.dumps(params))
         spectra = pd.read_parquet(paths["calibration_spectra"])
         spectra["calibrated"] *= 1.0 if model == "simple" else 0.9
@@ -134,9 +135,9 @@ def test_one_calibration_per_mesh_stiffness_model(train_outputs, tmp_path):
         {m: f / "spectra.parquet" for m, f in files.items()},
         {m: paths["calibration_history"] for m in files},
         out / "accuracy.csv", out / "summary.json", out / "plots", "demo", "virtual_bench")
-    assert summary["calibration"]["mesh_stiffness_model"] == "potential_energy"
+    assert summary["calibration"]["calibration_variant"] == "potential_energy"
     assert summary["calibration"]["cost"] == 0.21
-    by_model = summary["calibration_by_mesh_stiffness_model"]
+    by_model = summary["calibration_by_variant"]
     assert list(by_model) == ["potential_energy", "simple"]
     assert by_model["simple"]["cost"] == 0.25 and by_model["simple"]["nominal_cost"] == 0.3
     assert by_model["simple"]["seconds"] == 12.5 and by_model["simple"]["evaluations"] == 40
@@ -144,7 +145,7 @@ def test_one_calibration_per_mesh_stiffness_model(train_outputs, tmp_path):
             "spectra_measured_vs_calibrated_potential_energy.png", "calibration_convergence_simple.png",
             "calibration_convergence_potential_energy.png"} <= set(summary["plots"])
     assert "calibration_convergence.png" not in summary["plots"]
-    with pytest.raises(report.ReportInputError, match="same mesh stiffness models"):
+    with pytest.raises(report.ReportInputError, match="same calibration variants"):
         report.write_report(paths["metrics"], paths["predictions"],
                             {m: f / "params.json" for m, f in files.items()},
                             {"simple": files["simple"] / "spectra.parquet"},

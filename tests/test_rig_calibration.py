@@ -6,7 +6,7 @@ import pytest
 from conftest import system_of
 from condmon.systems.bearing.model import build_rig_parameters, rig_settings
 from condmon.calibrate import spectrum_cost
-from condmon.systems.bearing.calibration import CALIBRATION_FEATURES, calibrate_rig
+from condmon.systems.bearing.calibration import CALIBRATION_FEATURES, COSTS, calibrate_rig
 from condmon.signals import make_rows
 from condmon.models.bearing_rig import simulate_rig
 
@@ -35,8 +35,11 @@ def rig_table(health_state, noise_rms, seconds=0.7, seed=0):
 
 def test_feature_cost_is_relative_per_feature():
     measured = np.array([[[1.0, 100.0]]])
-    assert spectrum_cost(np.array([[[1.1, 100.0]]]), measured, "features_eq6") == pytest.approx(0.01)
-    assert spectrum_cost(np.array([[[1.0, 110.0]]]), measured, "features_eq6") == pytest.approx(0.01)
+    assert spectrum_cost(np.array([[[1.1, 100.0]]]), measured, "features_eq6", COSTS) == pytest.approx(0.01)
+    assert spectrum_cost(np.array([[[1.0, 110.0]]]), measured, "features_eq6", COSTS) == pytest.approx(0.01)
+    # the bearing system declares it; the shared calibration knows only the spectral costs
+    with pytest.raises(ValueError, match="unknown calibration cost 'features_eq6'"):
+        spectrum_cost(measured, measured, "features_eq6")
 
 
 def test_feature_cost_calibration_moves_the_noise_towards_the_record():

@@ -18,7 +18,7 @@ def gear():
 
 def batch(system, seed=1, calibrated=CALIBRATED, samples=2, max_failed_share=0.0):
     return simulate_batch(system, calibrated, "healthy", 775.0, 0, samples=samples,
-                          simulation={"perturbation_sigma": 0.03, "segments_per_sample": 1, "seed": seed,
+                          simulation={"segments_per_sample": 1, "seed": seed,
                                       "max_failed_share": max_failed_share})
 
 

@@ -5,8 +5,8 @@ import pytest
 
 from conftest import ROOT
 from condmon import stat_features as sf
-from condmon.stat_features import (CWRU_DE_ORDERS, SKF_6205, StatisticalFeatures,
-                                   bearing_defect_orders, default_defect_orders)
+from condmon.stat_features import StatisticalFeatures
+from condmon.systems.bearing.model import bearing_defaults, feature_orders
 
 CWRU_DIR = (ROOT / ".." / "shared" / "data" / "cwru").resolve()
 FS = 1000.0
@@ -14,24 +14,17 @@ N = 1000
 T = np.arange(N) / FS
 
 
-# -- geometry --------------------------------------------------------------------------------
-def test_skf_6205_geometry_gives_the_cwru_defect_orders():
-    orders = bearing_defect_orders(**SKF_6205)
-    for name, published in CWRU_DE_ORDERS.items():
-        assert orders[name] == pytest.approx(published, abs=1e-4), name
-    defaults = default_defect_orders()
-    assert defaults["bsf_x2"] == pytest.approx(2 * orders["bsf"])
-    assert list(defaults) == ["bpfo", "bpfi", "bsf", "bsf_x2"]
+# The envelope lines the bearing system gives its features (its default drive-end bearing): the
+# extractor itself has none of its own (tests/test_bearing_model.py checks the orders).
+ORDERS = feature_orders(bearing_defaults()["geometry"])
 
 
-def test_defect_orders_relations_and_contact_angle():
-    o = bearing_defect_orders(8, 10.0, 50.0)
-    assert o["bpfo"] + o["bpfi"] == pytest.approx(8)  # n/2 (1 - r) + n/2 (1 + r)
-    assert o["bpfo"] == pytest.approx(8 * o["ftf"])
-    tilted = bearing_defect_orders(8, 10.0, 50.0, contact_angle_deg=60.0)  # r halves
-    assert tilted["bpfo"] == pytest.approx(4 * (1 - 0.1))
-    with pytest.raises(ValueError):
-        bearing_defect_orders(8, 50.0, 10.0)
+def test_without_defect_orders_there_are_no_envelope_features():
+    X = np.random.default_rng(3).normal(size=(2, 2048))
+    for orders in (None, {}):
+        est = StatisticalFeatures(defect_orders=orders)
+        assert list(est.get_feature_names_out()) == list(sf.STUDY_FEATURES)
+        assert est.fit_transform(X).shape == (2, 15)  # and no speed needed
 
 
 # -- time domain -----------------------------------------------------------------------------
@@ -168,9 +161,9 @@ def test_envelope_line_ratio_known_spectrum():
 def test_transformer_names_the_modulated_defect_order():
     speed_rpm = 1796.0
     shaft = speed_rpm / 60
-    orders = default_defect_orders()
+    orders = ORDERS
     X = np.stack([am_signal(orders[k] * shaft, seed=i) for i, k in enumerate(["bpfo", "bpfi"])])
-    est = StatisticalFeatures()
+    est = StatisticalFeatures(defect_orders=ORDERS)
     frame = pd.DataFrame(est.fit_transform(X, speed_rpm=speed_rpm),
                          columns=est.get_feature_names_out())
     ratios = frame[["env_ratio_bpfo", "env_ratio_bpfi", "env_ratio_bsf_x2"]]
@@ -180,7 +173,7 @@ def test_transformer_names_the_modulated_defect_order():
 
 
 def test_transformer_contract():
-    est = StatisticalFeatures(prefix="DE_")
+    est = StatisticalFeatures(prefix="DE_", defect_orders=ORDERS)
     names = list(est.get_feature_names_out())
     assert names[:15] == ["DE_" + n for n in sf.STUDY_FEATURES]
     assert len(names) == 15 + 2 * 4
@@ -224,7 +217,7 @@ def cwru_features():
 
     ingest = cwru_rows(CWRU_DIR, task="ten_class")
     ids, arrays = to_arrays(pd.DataFrame(ingest.rows), ["DE"])
-    est = StatisticalFeatures()
+    est = StatisticalFeatures(defect_orders=ORDERS)
     values = est.fit_transform(arrays[:, 0], speed_rpm=ids["speed_rpm"].to_numpy())
     frame = pd.concat([ids, pd.DataFrame(values, columns=est.get_feature_names_out())], axis=1)
     ratios = frame[["env_ratio_bpfo", "env_ratio_bpfi", "env_ratio_bsf_x2"]].to_numpy()
@@ -285,7 +278,7 @@ def test_statistical_feature_table_keeps_names_logs_and_prefixes_channels():
                           segment_length=n)
     frame = pd.DataFrame(rows)
     params = {"names": ["rms", "kurtosis", "env_ratio_bpfo"], "log_names": ["kurtosis"]}
-    table = statistical_feature_table(frame, ["DE", "FE"], params)
+    table = statistical_feature_table(frame, ["DE", "FE"], params, ORDERS)
     features = [c for c in table.columns if c.startswith(("DE_", "FE_"))]
     assert features == ["DE_rms", "DE_log_kurtosis", "DE_env_ratio_bpfo",
                         "FE_rms", "FE_log_kurtosis", "FE_env_ratio_bpfo"]

@@ -43,6 +43,8 @@ SCHEMA = {
                 "unbalance": {"type": "number", "minimum": 0, "default": 1.0e-3},
                 "gap": {"type": "number", "minimum": 0, "default": 2.0e-6},
                 "looseness": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1, "default": 0.6},
+                # its own per-sample draw: a Gaussian factor on each calibrated value
+                "perturbation_sigma": {"type": "number", "minimum": 0, "default": 0.03},
                 "bench": {"type": "object", "default": {"stiffness": 2.3e+5, "damping": 45.0, "noise": 0.02,
                                                         "records": 2, "seconds": 1.0, "seed": 5}},
             },
@@ -131,13 +133,13 @@ class ToySystem(System):
 
     def calibrate(self, frame, variant, calibration, spectrum, channels, processes=1):
         return calibrate_on_spectra(self, frame, calibration, spectrum, channels, nominal=self.toy,
-                                    nominal_law=calibration["contact_laws"][0], processes=processes)
+                                    processes=processes)
 
     def nominal_values(self):
         return {"stiffness": self.toy["stiffness"], "damping": self.toy["damping"]}
 
     def sample_parameters(self, calibrated, health_state, rng, simulation):
-        sigma = simulation.get("perturbation_sigma", 0.03)
+        sigma = self.toy["perturbation_sigma"]
         return {name: value * float(rng.normal(1.0, sigma)) for name, value in sorted(calibrated["parameters"].items())}
 
     def simulate_sample(self, parameters, health_state, speed_rpm, duration_s, seed, step_refinement=1):

@@ -1,13 +1,15 @@
-"""Calibration stage: CMA-ES tunes a system's model (parameters and contact law) so its healthy
-spectra match the measured healthy spectra.
+"""Calibration stage: CMA-ES tunes a system's model (its parameters and, where the system offers
+a choice, its model variant) so its healthy spectra match the measured healthy spectra.
 
-Cost (CFRP study, eq. 4): the normalised least-squares error between simulated and measured
-amplitude spectra, sum over frequency bins of (a_sim - a_meas)^2 / sum of a_meas^2, averaged
-over every (speed, channel). The helical study's eq. 14 (sum over locations of the Euclidean
-spectral distance) is the alternative `helical_eq14`.
+The spectral costs every system may use (`SPECTRAL_COSTS`): `cfrp_eq4` (CFRP study, eq. 4), the
+normalised least-squares error between simulated and measured amplitude spectra, sum over
+frequency bins of (a_sim - a_meas)^2 / sum of a_meas^2, averaged over every (speed, channel);
+`helical_eq14` (the helical study's eq. 14), the sum over locations of the Euclidean spectral
+distance. A system declares the costs its calibration offers (`System.calibration_costs`: these,
+and any of its own); this module knows none but these.
 
-The contact law is categorical: `catcma` searches it jointly with the continuous parameters
-(CatCMA), `per_law` runs one CMA-ES per law and keeps the best.
+The model variant is categorical (`System.model_variants`): `catcma` searches it jointly with the
+continuous parameters (CatCMA), `per_law` runs one CMA-ES per variant and keeps the best.
 """
 from __future__ import annotations
 
@@ -29,21 +31,38 @@ from condmon.signals import to_arrays
 from condmon.models.numerics import SimulationError
 
 log = logging.getLogger(__name__)
-COST_FUNCTIONS = ("cfrp_eq4", "helical_eq14", "features_eq6")
 FAILED_COST = 1.0e3  # a diverged candidate is a bad candidate, not a crash of the search
 
 
-def spectrum_cost(simulated: np.ndarray, measured: np.ndarray, kind: str = "cfrp_eq4") -> float:
-    """Cost between spectra of shape (n_speeds, n_channels, n_bins)."""
-    if kind == "cfrp_eq4":
-        return float(np.mean(((simulated - measured) ** 2).sum(-1) / (measured ** 2).sum(-1)))
-    if kind == "helical_eq14":
-        return float(np.mean(np.sqrt(((simulated - measured) ** 2).sum(-1)).sum(-1)))
-    if kind == "features_eq6":
-        # the bearing study's eq. 6 on feature vectors (not spectra), each feature relative to
-        # its measured value so that features of different units weigh alike
-        return float(np.mean((((simulated - measured) / np.abs(measured)) ** 2).sum(-1)))
-    raise ValueError(f"unknown calibration cost {kind!r}; choose one of {list(COST_FUNCTIONS)}")
+def cfrp_eq4(simulated: np.ndarray, measured: np.ndarray) -> float:
+    """Normalised least squares per (speed, channel), averaged: arrays (n_speeds, n_channels, n_bins)."""
+    return float(np.mean(((simulated - measured) ** 2).sum(-1) / (measured ** 2).sum(-1)))
+
+
+def helical_eq14(simulated: np.ndarray, measured: np.ndarray) -> float:
+    """Euclidean spectral distance summed over channels, averaged over speeds."""
+    return float(np.mean(np.sqrt(((simulated - measured) ** 2).sum(-1)).sum(-1)))
+
+
+# name -> cost(simulated, measured): the costs on spectra every system may offer
+SPECTRAL_COSTS = {"cfrp_eq4": cfrp_eq4, "helical_eq14": helical_eq14}
+
+
+def cost_function(kind, costs: dict | None = None):
+    """The cost called `kind` among `costs` (default `SPECTRAL_COSTS`), or `kind` itself when it
+    is a callable (simulated, measured) -> float."""
+    if callable(kind):
+        return kind
+    costs = SPECTRAL_COSTS if costs is None else costs
+    if kind not in costs:
+        raise ValueError(f"unknown calibration cost {kind!r}; choose one of {list(costs)}")
+    return costs[kind]
+
+
+def spectrum_cost(simulated: np.ndarray, measured: np.ndarray, kind="cfrp_eq4", costs: dict | None = None) -> float:
+    """Cost `kind` (a name among `costs`, default the spectral ones, or a callable) between
+    arrays of shape (n_speeds, n_channels, n_bins)."""
+    return float(cost_function(kind, costs)(simulated, measured))
 
 
 def estimate_sensor_noise(measured: np.ndarray, segment_length: int, floor_quantile: float = 0.1) -> float:
@@ -54,7 +73,7 @@ def estimate_sensor_noise(measured: np.ndarray, segment_length: int, floor_quant
     machine's lines. Noise-only bands scatter about their mean, so the quantile reads somewhat
     low (0.78 of a model-form bench's white noise at the default 0.1). The power the measured
     spectra carry above the model's is no measure of it, because
-    that excess is mostly what the model lacks (housing modes, bearing tones, ...): taken as noise,
+    that excess is mostly what the model lacks (a bench's structural modes and tones): taken as noise,
     it buries the fault sidebands of the simulated records. A Hann-windowed, amplitude-corrected
     spectrum of white noise of RMS sigma has E|X_k|^2 = 6 sigma^2 / N per bin.
     """
@@ -101,7 +120,7 @@ def calibration_spectrum(spectrum: dict, resolution_hz: float) -> dict:
 
 class SpectrumModel:
     """Mean spectra of a system's healthy runs at the calibration speeds for one candidate, the
-    callable `Calibrator` evaluates: __call__(contact_law, values) -> (n_speeds, n_channels,
+    callable `Calibrator` evaluates: __call__(variant, values) -> (n_speeds, n_channels,
     n_bands), RMS bands of `calibration_spectrum`. Every run is `sim_seconds` long and cut into
     the system's segments; `seed` makes a model with randomness repeatable."""
 
@@ -126,8 +145,8 @@ class SpectrumModel:
             out.append(features.mean(0).reshape(len(self.channels), -1))
         return np.stack(out)
 
-    def __call__(self, contact_law: str, values: dict) -> np.ndarray:
-        return self.mean_spectra([self.system.simulate_healthy(contact_law, values, speed, self.sim_seconds,
+    def __call__(self, variant: str, values: dict) -> np.ndarray:
+        return self.mean_spectra([self.system.simulate_healthy(variant, values, speed, self.sim_seconds,
                                                                self.seed)
                                   for speed in self.speeds])
 
@@ -149,10 +168,11 @@ def measured_spectra(frame: pd.DataFrame, speeds, channels, spectrum: dict, reso
 
 
 def calibrate_on_spectra(system, frame: pd.DataFrame, calibration: dict, spectrum: dict, channels,
-                         nominal: dict, nominal_law: str, processes: int = 1):
+                         nominal: dict, processes: int = 1):
     """The spectral calibration of a system on its healthy measured records at its simulated
-    speeds: CMA-ES over `calibration.parameters` (and `contact_laws`) from the `nominal` values,
-    then the white sensor noise the model lacks. Returns (result, history, spectra frame) as
+    speeds: CMA-ES over `calibration.parameters` (and the system's `model_variants()`) from the
+    `nominal` values and its `nominal_variant`, by the system's cost `calibration.cost`, then the
+    white sensor noise the model lacks. Returns (result, history, spectra frame) as
     `System.calibrate` does."""
     start = time.perf_counter()
     fs = system.output_rate_hz
@@ -167,16 +187,17 @@ def calibrate_on_spectra(system, frame: pd.DataFrame, calibration: dict, spectru
                                    calibration["sim_seconds"], seed=calibration["seed"])
     bounds = [Bound(name, b["low"], b["high"], b.get("log", False))
               for name, b in calibration["parameters"].items()]
-    calibrator = Calibrator(bounds, calibration["contact_laws"], strategy=calibration["strategy"],
+    cost = cost_function(calibration["cost"], system.calibration_costs())
+    calibrator = Calibrator(bounds, system.model_variants(calibration), strategy=calibration["strategy"],
                             population=calibration["population"], generations=calibration["generations"],
                             sigma0=calibration["sigma0"], seed=calibration["seed"], processes=processes,
                             initial={b.name: nominal[b.name] for b in bounds})
     log.info("calibrating %s of the %s system on %d healthy speeds %s, %d processes",
              [b.name for b in bounds], system.name, len(speeds), speeds, processes)
-    best, history = calibrator.run(spectrum_model, target, calibration["cost"])
+    best, history = calibrator.run(spectrum_model, target, cost)
     nominal_values = {b.name: nominal[b.name] for b in bounds}
-    nominal_cost = spectrum_cost(spectrum_model(nominal_law, nominal_values), target, calibration["cost"])
-    calibrated = spectrum_model(best["contact_law"], best["parameters"])
+    nominal_cost = cost(spectrum_model(system.nominal_variant, nominal_values), target)
+    calibrated = spectrum_model(best["model_variant"], best["parameters"])
     freqs = spectrum_model.spectrum.band_centres()
     sensor_noise = estimate_sensor_noise(target, spectrum_model.segment_length, calibration["noise_floor_quantile"])
     # What simulated records look like: the model plus the estimated sensor noise (6 sigma^2 / N per bin).
@@ -190,7 +211,7 @@ def calibrate_on_spectra(system, frame: pd.DataFrame, calibration: dict, spectru
                   seconds_per_evaluation=float(history["seconds"].mean()),
                   failed_evaluations=int((history["error"] != "").sum()))
     log.info("best %s cost %.4g (nominal %.4g) after %d evaluations: %s; sensor noise %.3g",
-             best["contact_law"], best["cost"], nominal_cost, best["evaluations"], best["parameters"],
+             best["model_variant"], best["cost"], nominal_cost, best["evaluations"], best["parameters"],
              sensor_noise)
     return result, history, pd.concat(rows, ignore_index=True)
 
@@ -199,18 +220,18 @@ def calibrate_on_spectra(system, frame: pd.DataFrame, calibration: dict, spectru
 _WORKER = {}
 
 
-def _init_worker(spectrum_model, target, cost_kind):
+def _init_worker(spectrum_model, target, cost):
     # fork copies the script's SIGTERM handler (SystemExit for cleanup); a worker writes no file,
     # and stopping the pool relies on SIGTERM ending a worker at once, even while it waits on a lock
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    _WORKER.update(model=spectrum_model, target=target, cost=cost_kind)
+    _WORKER.update(model=spectrum_model, target=target, cost=cost)
 
 
 def _evaluate(task):
-    contact_law, values = task
+    variant, values = task
     start = time.perf_counter()
     try:
-        cost = spectrum_cost(_WORKER["model"](contact_law, values), _WORKER["target"], _WORKER["cost"])
+        cost = float(_WORKER["cost"](_WORKER["model"](variant, values), _WORKER["target"]))
         error = ""
     except SimulationError as exc:
         cost, error = FAILED_COST, str(exc)
@@ -218,13 +239,14 @@ def _evaluate(task):
 
 
 class Calibrator:
-    """CMA-ES over the unit cube of the bounded parameters (log scale where configured)."""
+    """CMA-ES over the unit cube of the bounded parameters (log scale where configured) and the
+    categorical model `variants` (a system's model_variants)."""
 
-    def __init__(self, bounds: list[Bound], contact_laws, strategy="catcma", population=8,
+    def __init__(self, bounds: list[Bound], variants, strategy="catcma", population=8,
                  generations=10, sigma0=0.3, seed=1, processes=1, initial=None):
         if strategy not in ("catcma", "per_law"):
             raise ValueError(f"unknown calibration strategy {strategy!r}; choose catcma or per_law")
-        self.bounds, self.laws = bounds, list(contact_laws)
+        self.bounds, self.variants = bounds, list(variants)
         self.strategy, self.population, self.generations = strategy, population, generations
         self.sigma0, self.seed, self.processes = sigma0, seed, processes
         self.initial = initial or {}
@@ -236,54 +258,56 @@ class Calibrator:
         return np.array([b.to_unit(self.initial[b.name]) if b.name in self.initial else 0.5
                          for b in self.bounds])
 
-    def run(self, spectrum_model, target, cost_kind="cfrp_eq4"):
-        """Returns (best dict, history DataFrame)."""
+    def run(self, spectrum_model, target, cost="cfrp_eq4"):
+        """Returns (best dict, history DataFrame). `cost`: a name of `SPECTRAL_COSTS` or a
+        callable (simulated, measured) -> float (a system's own)."""
+        cost = cost_function(cost)
         history = []
         unit_bounds = np.tile([0.0, 1.0], (len(self.bounds), 1))
         # an executor, not multiprocessing.Pool: a worker that dies breaks it with an error
         # instead of leaving its task unanswered for ever
         pool = ProcessPoolExecutor(self.processes, mp_context=multiprocessing.get_context("fork"),
-                                   initializer=_init_worker, initargs=(spectrum_model, target, cost_kind))
+                                   initializer=_init_worker, initargs=(spectrum_model, target, cost))
         try:
             def evaluate(generation, candidates):
-                tasks = [(law, self._values(z)) for law, z in candidates]
+                tasks = [(variant, self._values(z)) for variant, z in candidates]
                 try:
                     results = list(pool.map(_evaluate, tasks))
                 except BrokenProcessPool as exc:
                     raise RuntimeError(f"calibration generation {generation}: a worker process died "
                                           f"while evaluating {len(tasks)} candidates ({exc})") from None
-                for (law, values), (cost, error, seconds) in zip(tasks, results):
-                    history.append(dict(generation=generation, evaluation=len(history), contact_law=law,
+                for (variant, values), (cost, error, seconds) in zip(tasks, results):
+                    history.append(dict(generation=generation, evaluation=len(history), model_variant=variant,
                                         cost=cost, seconds=seconds, error=error, **values))
                 return [r[0] for r in results]
 
             started = time.perf_counter()
 
-            def progress(done, total, costs, law=None):
+            def progress(done, total, costs, variant=None):
                 best = min(h["cost"] for h in history)
                 left = (time.perf_counter() - started) / done * (total - done)
                 log.info("%sgeneration %d of %d: best %.4g (so far %.4g), %d evaluations, about %.0f s left",
-                         f"{law} " if law else "", done, total, min(costs), best, len(history), left)
+                         f"{variant} " if variant else "", done, total, min(costs), best, len(history), left)
 
-            if self.strategy == "catcma" and len(self.laws) > 1:
-                optimizer = CatCMA(mean=self._mean0(), sigma=self.sigma0, cat_num=np.array([len(self.laws)]),
+            if self.strategy == "catcma" and len(self.variants) > 1:
+                optimizer = CatCMA(mean=self._mean0(), sigma=self.sigma0, cat_num=np.array([len(self.variants)]),
                                    bounds=unit_bounds, seed=self.seed, population_size=self.population)
                 for generation in range(self.generations):
                     asked = [optimizer.ask() for _ in range(optimizer.population_size)]
-                    candidates = [(self.laws[int(np.argmax(c[0]))], x) for x, c in asked]
+                    candidates = [(self.variants[int(np.argmax(c[0]))], x) for x, c in asked]
                     costs = evaluate(generation, candidates)
                     optimizer.tell([(a, cost) for a, cost in zip(asked, costs)])
                     progress(generation + 1, self.generations, costs)
             else:
-                for law_index, law in enumerate(self.laws):
+                for variant_index, variant in enumerate(self.variants):
                     optimizer = CMA(mean=self._mean0(), sigma=self.sigma0, bounds=unit_bounds,
-                                    seed=self.seed + law_index, population_size=self.population)
+                                    seed=self.seed + variant_index, population_size=self.population)
                     for generation in range(self.generations):
                         asked = [optimizer.ask() for _ in range(optimizer.population_size)]
-                        costs = evaluate(generation, [(law, x) for x in asked])
+                        costs = evaluate(generation, [(variant, x) for x in asked])
                         optimizer.tell(list(zip(asked, costs)))
-                        progress(law_index * self.generations + generation + 1,
-                                 len(self.laws) * self.generations, costs, law)
+                        progress(variant_index * self.generations + generation + 1,
+                                 len(self.variants) * self.generations, costs, variant)
         finally:
             # after an error or SIGTERM only the evaluations already running finish
             pool.shutdown(wait=True, cancel_futures=True)
@@ -292,6 +316,6 @@ class Calibrator:
         if best["cost"] >= FAILED_COST:
             raise SimulationError("calibration: every candidate simulation failed; first error: "
                                   + frame["error"].iloc[0])
-        return {"contact_law": best["contact_law"], "cost": float(best["cost"]),
+        return {"model_variant": best["model_variant"], "cost": float(best["cost"]),
                 "parameters": {b.name: float(best[b.name]) for b in self.bounds},
                 "evaluations": len(frame)}, frame

@@ -3,10 +3,11 @@ keys) and the cross-field checks a schema cannot express. Every message names th
 from __future__ import annotations
 
 import copy
-from pathlib import Path
 
 import jsonschema
-import yaml
+
+# the schema helpers live apart (condmon.schema) so the systems need not import this module
+from condmon.schema import load_schema, merge_schema, schema_defaults  # noqa: F401
 
 
 class ConfigError(ValueError):
@@ -56,36 +57,6 @@ def _with_defaults(validator_class):
     return jsonschema.validators.extend(validator_class, {"properties": set_defaults})
 
 
-def load_schema(path) -> dict:
-    return yaml.safe_load(Path(path).read_text())
-
-
-def schema_defaults(schema: dict) -> dict:
-    """The defaults a JSON schema object declares, nested (what validation would fill in)."""
-    out = {}
-    for name, sub in (schema.get("properties") or {}).items():
-        if "default" in sub:
-            out[name] = sub["default"]
-            if isinstance(sub["default"], dict) and sub.get("properties"):
-                out[name] = {**schema_defaults(sub), **sub["default"]}
-        elif sub.get("type") == "object" and sub.get("properties"):
-            out[name] = schema_defaults(sub)
-    return out
-
-
-def merge_schema(base: dict, fragment: dict) -> dict:
-    """`base` with a system's schema fragment merged in, key by key (the fragment's `properties`
-    and `definitions` join the base's; its values win where both set one). A `default` is one
-    value: the fragment's replaces the base's whole."""
-    merged = copy.deepcopy(base)
-    for key, value in fragment.items():
-        if key != "default" and isinstance(value, dict) and isinstance(merged.get(key), dict):
-            merged[key] = merge_schema(merged[key], value)
-        else:
-            merged[key] = copy.deepcopy(value)
-    return merged
-
-
 def system_schema(config: dict, schema: dict) -> tuple[dict, type]:
     """The whole schema of the config's system (base + its fragment) and the system's class."""
     from condmon.systems import system_class
@@ -133,8 +104,6 @@ def cross_field_problems(config: dict) -> list[str]:
                             f"high ({bound['high']})")
         if bound.get("log") and bound["low"] <= 0:
             problems.append(f"calibration.parameters.{name}: a log-scaled bound needs low > 0")
-        if name == "restitution" and not (0 < bound["low"] and bound["high"] <= 1):
-            problems.append("calibration.parameters.restitution: bounds must lie in (0, 1]")
     if not any(c["enabled"] for c in config["classifiers"].values()):
         problems.append("classifiers: enable at least one classifier")
     families = config["features"]["kind"].split("+")

@@ -286,8 +286,8 @@ def read_feature_table(path) -> tuple[pd.DataFrame, list[str]]:
 
 def statistical_feature_table(signal_frame, channels, params: dict, defect_orders: dict | None = None):
     """Wide features table of one signal table: per channel, the statistical and envelope
-    features (columns `<channel>_<feature>`; envelope lines at `defect_orders`, default the
-    SKF 6205's), kept to `params["names"]` (feature names without
+    features (columns `<channel>_<feature>`; envelope lines at the system's `defect_orders`,
+    none without), kept to `params["names"]` (feature names without
     the channel prefix; None = all); those in `params["log_names"]` as their natural log
     (columns `<channel>_log_<feature>`, floored at 1e-12). Envelope features use each segment's
     stored speed."""

@@ -305,10 +305,10 @@ def confusion_matrix_small(counts, labels, title: str, note: str):
 def spectra_grid(spectra, note: str):
     """Grid speed x channel: mean amplitude spectrum measured vs calibrated model, log axis.
 
-    With a `mesh_stiffness_model` column (the calibrations of several models, same measured
-    spectra) one calibrated line per model."""
-    models = (list(dict.fromkeys(spectra["mesh_stiffness_model"]))
-              if "mesh_stiffness_model" in spectra.columns else [None])
+    With a `calibration_variant` column (several calibrations, same measured spectra) one
+    calibrated line per variant."""
+    models = (list(dict.fromkeys(spectra["calibration_variant"]))
+              if "calibration_variant" in spectra.columns else [None])
     model_colours = dict(zip(models, ("tab:red", "tab:blue", "tab:green", "tab:orange")))
     speeds = sorted(spectra["speed_rpm"].unique())
     channels = sorted(spectra["channel"].unique())
@@ -322,11 +322,11 @@ def spectra_grid(spectra, note: str):
                   .sort_values("freq_hz"))
             lines = []
             for model in models:
-                rows = at if model is None else at[at["mesh_stiffness_model"] == model]
+                rows = at if model is None else at[at["calibration_variant"] == model]
                 if model == models[0]:
                     lines.append((rows, "measured", "measured", {"color": "black", "lw": 1.0}))
-                lines.append((rows, "calibrated", "calibrated model" if model is None else
-                              ("calibrated rig model" if model == "rig" else f"calibrated, {model} mesh"),
+                lines.append((rows, "calibrated", "calibrated model" if len(models) == 1 else
+                              f"calibrated model ({model})",
                               {"color": model_colours[model], "lw": 1.0, "alpha": 0.8}))
             for rows, column, label, style in lines:
                 # log axis: non-positive amplitudes cannot be drawn, leave gaps
@@ -344,23 +344,23 @@ def spectra_grid(spectra, note: str):
                    note)
 
 
-def calibration_convergence(history, chosen_law: str, note: str):
-    """Best cost so far against model evaluation, one colour per contact law.
+def calibration_convergence(history, chosen: str, note: str):
+    """Best cost so far against model evaluation, one colour per model variant.
 
     Dots are single evaluations; non-finite costs (failed simulations) are left out.
     """
-    laws = sorted(history["contact_law"].unique())
-    colours = _colours(laws)
+    variants = sorted(history["model_variant"].unique())
+    colours = _colours(variants)
     fig, ax = plt.subplots(figsize=(7, 4.5))
     costs = []
-    for law in laws:
-        rows = history[history["contact_law"] == law].sort_values("evaluation")
+    for variant in variants:
+        rows = history[history["model_variant"] == variant].sort_values("evaluation")
         cost = rows["cost"].astype(float).where(np.isfinite(rows["cost"].astype(float)))
         best = cost.cummin().ffill()  # a failed evaluation does not break the line
-        label = f"{law} (chosen)" if law == chosen_law else law
-        ax.scatter(rows["evaluation"], cost, s=6, alpha=0.25, color=colours[law])
-        ax.step(rows["evaluation"], best, where="post", color=colours[law], label=label,
-                linewidth=2 if law == chosen_law else 1.2)
+        label = f"{variant} (chosen)" if variant == chosen else variant
+        ax.scatter(rows["evaluation"], cost, s=6, alpha=0.25, color=colours[variant])
+        ax.step(rows["evaluation"], best, where="post", color=colours[variant], label=label,
+                linewidth=2 if variant == chosen else 1.2)
         costs.extend(cost.dropna().tolist())
     positive = [c for c in costs if c > 0]
     if positive and len(positive) == len(costs) and max(positive) / min(positive) > 20:
@@ -368,7 +368,7 @@ def calibration_convergence(history, chosen_law: str, note: str):
     ax.set_xlabel("model evaluation (count)")
     ax.set_ylabel("cost (best so far; dots: single evaluations)")
     ax.grid(alpha=0.3)
-    ax.legend(title="contact law", fontsize=9)
+    ax.legend(title="model variant", fontsize=9)
     return _finish(fig, "Calibration convergence", note)
 
 

@@ -1,13 +1,13 @@
 """The report stage: accuracy table, summary and plots from the train and calibration outputs.
 
 Reads only the files of the stage contracts (train/<classifier>/<protocol>/metrics.csv and
-predictions.parquet, calibration/<mesh stiffness model>/params.json, spectra.parquet,
+predictions.parquet, calibration/<calibration variant>/params.json, spectra.parquet,
 history.parquet) and writes
 
 - ``accuracy.csv``: the concatenated metrics files, sorted; columns ``ACCURACY_COLUMNS``;
 - ``summary.json``: data source, calibration (the one the simulated data come from; with one
-  calibration per mesh stiffness model each one's contact law, final and nominal cost,
-  evaluations and seconds under ``calibration_by_mesh_stiffness_model``), per classifier x
+  calibration per calibration variant each one's model variant, final and nominal cost,
+  evaluations and seconds under ``calibration_by_variant``), per classifier x
   protocol x measured percentage the mean and spread of accuracy over repeats, per-speed means,
   record counts, plot list;
 - ``prediction_shares.csv``: per classifier, protocol, measured percentage and speed, the share of
@@ -186,7 +186,7 @@ def load_simulated_validation(paths) -> pd.DataFrame | None:
 
 
 def load_calibration(params_path) -> dict:
-    """The calibration summary: contact law, cost, evaluations, parameters."""
+    """The calibration summary: model variant, cost, evaluations, parameters."""
     params_path = Path(params_path)
     try:
         params = json.loads(params_path.read_text())
@@ -194,13 +194,12 @@ def load_calibration(params_path) -> dict:
         raise ReportInputError(f"{params_path}: no such calibration file") from None
     except json.JSONDecodeError as exc:
         raise ReportInputError(f"{params_path}: not valid JSON ({exc})") from exc
-    missing = [k for k in ("contact_law", "parameters", "cost", "evaluations") if k not in params]
+    missing = [k for k in ("model_variant", "parameters", "cost", "evaluations") if k not in params]
     if missing:
         raise ReportInputError(f"{params_path}: calibration file lacks keys {missing}")
-    summary = {"contact_law": params["contact_law"], "cost": params["cost"],
+    summary = {"model_variant": params["model_variant"], "cost": params["cost"],
                "evaluations": params["evaluations"], "parameters": params["parameters"]}
-    # written by the calibrate stage since calibrations per mesh stiffness model
-    for key in ("mesh_stiffness_model", "nominal_cost", "seconds", "sensor_noise"):
+    for key in ("nominal_cost", "seconds", "sensor_noise"):
         if key in params:
             summary[key] = params[key]
     return summary
@@ -327,7 +326,7 @@ def recall_per_class(predictions: pd.DataFrame) -> pd.DataFrame:
 def recall_per_record(predictions: pd.DataFrame) -> pd.DataFrame:
     """Share of every measured record's test segments predicted right, per (classifier,
     protocol, percent), pooled over repeats and holdouts: shows which records a class's recall
-    loses (CWRU's near-healthy outer-race 0.014 in records, say)."""
+    loses (a class's near-healthy records, say)."""
     hit = predictions["true_label"] == predictions["predicted_label"]
     return (predictions.assign(hit=hit)
             .groupby(["classifier", "protocol", "measured_percent", "record_id", "true_label"],
@@ -468,7 +467,7 @@ def plot_note(run_name: str, data_source: str, bench_effects: int = 0) -> str:
 
 
 def evaluation_plots(overall: pd.DataFrame, chance: float, note: str, plots_dir: Path) -> list:
-    """Accuracy per operating condition (CWRU: load, never a file's stored rpm) and, with
+    """Accuracy per operating condition (`hybrid.condition`'s value of each record) and, with
     design records, on design records against records never used in design; the file names."""
     whole = overall["condition"] == evaluation.ALL
     subsets = [("condition", overall[~whole & (overall["records"] == evaluation.ALL)],
@@ -539,20 +538,20 @@ def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: 
              f"prediction_shares_{classifier}_{protocol}.png")
     if not isinstance(spectra, dict):  # one calibration
         save(plots.spectra_grid(spectra, note), "spectra_measured_vs_calibrated.png")
-        save(plots.calibration_convergence(history, calibration["contact_law"], note),
+        save(plots.calibration_convergence(history, calibration["model_variant"], note),
              "calibration_convergence.png")
         return names
-    # one calibration per mesh stiffness model: all against the measured spectra, then each
-    save(plots.spectra_grid(pd.concat([frame.assign(mesh_stiffness_model=model)
-                                       for model, frame in spectra.items()], ignore_index=True),
+    # one calibration per calibration variant: all against the measured spectra, then each
+    save(plots.spectra_grid(pd.concat([frame.assign(calibration_variant=variant)
+                                       for variant, frame in spectra.items()], ignore_index=True),
                             note), "spectra_measured_vs_calibrated.png")
-    for model in spectra:
-        model_note = f"{note} | mesh stiffness: {model}"
+    for variant in spectra:
+        variant_note = f"{note} | calibration variant: {variant}" if len(spectra) > 1 else note
         if len(spectra) > 1:
-            save(plots.spectra_grid(spectra[model], model_note),
-                 f"spectra_measured_vs_calibrated_{model}.png")
-        save(plots.calibration_convergence(history[model], calibration[model]["contact_law"],
-                                           model_note), f"calibration_convergence_{model}.png")
+            save(plots.spectra_grid(spectra[variant], variant_note),
+                 f"spectra_measured_vs_calibrated_{variant}.png")
+        save(plots.calibration_convergence(history[variant], calibration[variant]["model_variant"],
+                                           variant_note), f"calibration_convergence_{variant}.png")
     return names
 
 
@@ -703,8 +702,8 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     labelled in summary.json and on every plot.
 
     calibration_params, calibration_spectra, calibration_history: the files of one calibration,
-    or {mesh stiffness model: file} of one calibration per model, the simulation's first (its
-    calibration is the summary's `calibration`; `calibration_by_mesh_stiffness_model` lists all)."""
+    or {calibration variant: file} of one calibration per variant, the simulation's first (its
+    calibration is the summary's `calibration`; `calibration_by_variant` lists all)."""
     accuracy = load_metrics(metrics_paths)
     # measured-only baselines (empty files where hybrid.measured_only_baseline is off)
     with_rows = [p for p in baseline_paths if len(pd.read_csv(p))]
@@ -720,15 +719,15 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     history_paths = calibration_history if per_model else {None: calibration_history}
     if not (list(params_paths) == list(spectra_paths) == list(history_paths)) or not params_paths:
         raise ReportInputError("calibration params, spectra and history must name the same "
-                               f"mesh stiffness models: {list(params_paths)}, "
+                               f"calibration variants: {list(params_paths)}, "
                                f"{list(spectra_paths)}, {list(history_paths)}")
     calibrations = {m: load_calibration(p) for m, p in params_paths.items()}
-    for model, calibration in calibrations.items():
-        if model is not None:
-            calibration.setdefault("mesh_stiffness_model", model)
+    for variant, calibration in calibrations.items():
+        if variant is not None:
+            calibration["calibration_variant"] = variant
     spectra = {m: read_table(p, ["speed_rpm", "channel", "freq_hz", "measured", "calibrated"],
                              "calibration spectra") for m, p in spectra_paths.items()}
-    history = {m: read_table(p, ["evaluation", "contact_law", "cost"], "calibration history")
+    history = {m: read_table(p, ["evaluation", "model_variant", "cost"], "calibration history")
                for m, p in history_paths.items()}
     calibration = next(iter(calibrations.values()))  # the one the simulated data come from
     if not per_model:
@@ -744,7 +743,7 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
                             baseline, healthy_state)
         summary["data_source"]["bench_effects_the_model_lacks"] = list(bench_effects)
         if per_model:
-            summary["calibration_by_mesh_stiffness_model"] = calibrations
+            summary["calibration_by_variant"] = calibrations
         summary["simulation"] = simulation_summary(simulation_reports)
         if measured_records is not None:
             summary["measured_records"] = measured_records_summary(measured_records)

@@ -1,5 +1,6 @@
-"""Statistical condition indicators of vibration segments (the bearing study's 15 features) and
-envelope-spectrum indicators at the bearing defect frequencies.
+"""Statistical condition indicators of vibration segments (the 15 features of the study behind
+the rolling-element system) and envelope-spectrum indicators at defect orders the caller gives
+(a system's `defect_orders()`; none: no envelope indicators).
 
 Small pure functions, each computing one indicator along the last axis of an array (one segment
 or a stack of segments), in the style of tsfresh's feature calculators, and `StatisticalFeatures`,
@@ -27,38 +28,6 @@ from sklearn.base import BaseEstimator, TransformerMixin
 
 from condmon.spectra import amplitude_spectrum
 
-# -- bearing geometry ------------------------------------------------------------------------
-# SKF 6205-2RS JEM (CWRU drive end): 9 balls, ball 0.3126 in, pitch 1.537 in, contact angle 0.
-SKF_6205 = dict(n_balls=9, ball_diameter=0.3126, pitch_diameter=1.537, contact_angle_deg=0.0)
-# The data centre's published defect frequencies, in orders of the shaft speed.
-CWRU_DE_ORDERS = dict(bpfi=5.4152, bpfo=3.5848, ftf=0.39828, bsf=2.3567)
-
-
-def bearing_defect_orders(n_balls: int, ball_diameter: float, pitch_diameter: float,
-                          contact_angle_deg: float = 0.0) -> dict:
-    """Kinematic defect frequencies of a rolling bearing with a rotating inner race and a fixed
-    outer race, in orders of the shaft speed (multiply by the shaft frequency for Hz).
-
-    With r = (d / D) cos(alpha) (d ball, D pitch diameter, alpha contact angle), n balls:
-      BPFO = n/2 (1 - r)              ball pass frequency, outer race
-      BPFI = n/2 (1 + r)              ball pass frequency, inner race
-      FTF  = 1/2 (1 - r)              fundamental train (cage) frequency
-      BSF  = D / (2 d) (1 - r^2)      ball spin frequency (a ball defect strikes the races at
-                                      2 x BSF: once per spin on each race)
-    (Randall & Antoni 2011, eqs. 1-4.) SKF 6205 gives the CWRU figures to 1e-4.
-    """
-    if n_balls < 1 or not (ball_diameter > 0 and pitch_diameter > ball_diameter):
-        raise ValueError("need n_balls >= 1 and 0 < ball_diameter < pitch_diameter")
-    r = ball_diameter / pitch_diameter * np.cos(np.radians(contact_angle_deg))
-    return dict(bpfo=n_balls / 2 * (1 - r), bpfi=n_balls / 2 * (1 + r), ftf=(1 - r) / 2,
-                bsf=pitch_diameter / (2 * ball_diameter) * (1 - r ** 2))
-
-
-def default_defect_orders() -> dict:
-    """Orders whose envelope lines are features: BPFO, BPFI, BSF and 2 x BSF of the SKF 6205."""
-    o = bearing_defect_orders(**SKF_6205)
-    return dict(bpfo=o["bpfo"], bpfi=o["bpfi"], bsf=o["bsf"], bsf_x2=2 * o["bsf"])
-
 
 # -- filters ---------------------------------------------------------------------------------
 def highpass(x, fs_hz: float, cutoff_hz: float = 10.0, order: int = 4) -> np.ndarray:
@@ -67,7 +36,7 @@ def highpass(x, fs_hz: float, cutoff_hz: float = 10.0, order: int = 4) -> np.nda
 
     Forward-backward filtering of a mirrored (even) extension of 3 cutoff periods (at most the
     segment): the default short odd extension leaves edge transients that raise the RMS of
-    impulsive segments by up to 35 % (CWRU 234).
+    impulsive segments by up to 35 % (a measured record of impacts).
     """
     x = np.asarray(x, dtype=np.float64)
     if not cutoff_hz:
@@ -294,12 +263,13 @@ def band_power(freqs, density, line_hz, tolerance):
 TIME_FEATURES = ("rms", "peak", "kurtosis", "crest_factor", "skewness", "impulse_factor",
                  "shape_factor", "mean", "std", "talaf", "thikat")
 FREQUENCY_FEATURES = ("mean_frequency", "rms_frequency", "frequency_centre", "std_frequency")
-STUDY_FEATURES = TIME_FEATURES + FREQUENCY_FEATURES  # the bearing study's 15
+STUDY_FEATURES = TIME_FEATURES + FREQUENCY_FEATURES  # the study's 15
 
 
 class StatisticalFeatures(TransformerMixin, BaseEstimator):
-    """The study's 15 time- and frequency-domain indicators plus envelope features at the bearing
-    defect orders, for a stack of single-channel segments.
+    """The study's 15 time- and frequency-domain indicators plus envelope features at the
+    `defect_orders` ({name: order of the shaft speed}; None or {}: no envelope features), for a
+    stack of single-channel segments.
 
     Every segment is high-pass filtered first (`highpass_hz`, default 10 Hz: no DC offset or
     drift, which differ between sensors and records and would let a classifier learn the record).
@@ -329,11 +299,11 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
         self.prefix = prefix
 
     def _orders(self) -> dict:
-        return default_defect_orders() if self.defect_orders is None else dict(self.defect_orders)
+        return dict(self.defect_orders or {})
 
     def get_feature_names_out(self, input_features=None) -> np.ndarray:
         names = list(STUDY_FEATURES)
-        if self.envelope:
+        if self.envelope and self._orders():
             orders = self._orders()
             names += [f"env_energy_{k}" for k in orders] + [f"env_ratio_{k}" for k in orders]
         return np.asarray([f"{self.prefix}{n}" for n in names], dtype=object)
@@ -360,7 +330,7 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
                    thikat(x, self.rms_ref)]
         columns += [mean_frequency(x, fs), rms_frequency(x, fs), frequency_centre(x, fs),
                     std_frequency(x, fs)]
-        if self.envelope:
+        if self.envelope and self._orders():
             if speed_rpm is None:
                 raise ValueError("envelope features need the shaft speed of every segment "
                                  "(speed_rpm)")
@@ -401,7 +371,7 @@ def statistical_features_from_params(params: dict, fs_hz: float, prefix: str = "
                                      defect_orders: dict | None = None) -> StatisticalFeatures:
     """The extractor a `features.statistical` config section describes (band_hz, highpass_hz,
     line_tolerance, floor_halfwidth_orders, rms_ref), with envelope lines at `defect_orders` (the
-    system's; default the SKF 6205's)."""
+    system's; None: none)."""
     keys = ("band_hz", "highpass_hz", "line_tolerance", "floor_halfwidth_orders", "rms_ref")
     kwargs = {k: params[k] for k in keys if k in params}
     if "band_hz" in kwargs:

@@ -1,5 +1,5 @@
 # Stage 2: CMA-ES calibration of the system's model on the healthy measured records, one job per
-# calibration variant (the gear: per mesh stiffness model; the bearing rig: one, "rig").
+# calibration variant (System.calibration_variants; a system without a choice has one, "rig").
 
 
 rule calibrate:
@@ -15,7 +15,7 @@ rule calibrate:
         system=lambda wc: SYSTEM.job_spec("calibrate", wc.variant),
         variant=lambda wc: wc.variant,
         # the variants are wildcards, so the list of them never reruns a calibration
-        calibration={k: v for k, v in config["calibration"].items() if k != "mesh_stiffness_models"},
+        calibration=SYSTEM.calibration_settings(config["calibration"]),
         channels=config["features"]["channels"],
         spectrum=config["features"]["spectrum"],
         data_source=data_source(),

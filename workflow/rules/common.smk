@@ -35,7 +35,7 @@ CONDITION = config["hybrid"]["condition"]
 CLASSIFIERS = [name for name, c in config["classifiers"].items() if c["enabled"]]
 PROTOCOLS = config["hybrid"]["protocols"]
 N_BATCHES = -(-config["simulation"]["samples_per_state"] // config["simulation"]["samples_per_job"])
-# One calibration job per variant (the gear: per mesh stiffness model), the simulation's first.
+# One calibration job per variant (System.calibration_variants), the simulation's first.
 CALIBRATIONS = SYSTEM.calibration_variants()
 SIM_CALIBRATION = CALIBRATIONS[0]
 MEASURED_PARTS = SYSTEM.measured_parts()  # a synthetic bench's jobs, or none

@@ -1,5 +1,5 @@
 # Stage 1: measured records into one signal table (a synthetic bench's parts, the user's table, or
-# the system's own records, e.g. CWRU .mat files), with a list of what was kept and what was left out.
+# the system's own record files), with a list of what was kept and what was left out.
 
 
 rule measured_part:

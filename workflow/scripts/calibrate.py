@@ -1,5 +1,5 @@
 """Calibrate the system's model on the healthy measured records with CMA-ES (one calibration
-variant: the wildcard's, e.g. the gear's mesh stiffness model)."""
+variant: the wildcard's, one of the system's calibration_variants())."""
 from condmon.atomic import write_frame, write_json
 from condmon.hybrid import calibration_frame
 from condmon.plots import calibration_convergence, save_figure
@@ -18,7 +18,7 @@ result, history, spectra = system.calibrate(frame, p.variant, p.calibration, p.s
                                             processes=snakemake.threads)
 write_frame(spectra, snakemake.output.spectra)
 write_frame(history, snakemake.output.history)
-save_figure(calibration_convergence(history, result["contact_law"], data_source_label(p.data_source)),
+save_figure(calibration_convergence(history, result["model_variant"], data_source_label(p.data_source)),
             snakemake.output.plot)
 write_json(result, snakemake.output.params)
 log.info("%s calibration %s (%s): cost %s (nominal %s), %d evaluations, %s s: %s", system.name, p.variant,

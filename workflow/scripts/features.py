@@ -18,7 +18,7 @@ statistical = dict(getattr(snakemake.params, "statistical", None) or {})
 order = dict(getattr(snakemake.params, "order", None) or {})
 shafts = getattr(snakemake.params, "shafts", None)  # the system's geared shafts (order family)
 
-# the system says where its envelope lines are (bearing defect orders), if it has any
+# the system says where its envelope lines are (its defect orders), if it has any
 defect_orders = load_system(snakemake.params.system).defect_orders()
 frame = compute_feature_table_from_files(signal_paths, channels, spectrum, kind, statistical, defect_orders,
                                          order, shafts)

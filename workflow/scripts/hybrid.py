@@ -17,7 +17,7 @@ condition = getattr(params, "condition", "speed_rpm")
 share = float(getattr(params, "simulated_validation_share", 0.0))
 simulated = (pd.read_parquet(snakemake.input.simulated,
                              columns=["record_id", "health_state", condition]) if share else None)
-# the physical specimen of every record, where the measured stage knows it (CWRU files)
+# the physical specimen of every record, where the system's measured stage knows it
 records = pd.read_csv(snakemake.input.records, dtype=str, keep_default_na=False)
 specimens = records if {"specimen", "specimen_group"} <= set(records.columns) else None
 splits = make_splits(measured[["record_id", "segment", "health_state", condition]],

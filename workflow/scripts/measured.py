@@ -1,5 +1,5 @@
 """The measured signal table (the system's records: a bench's parts merged, the user's table
-validated, or e.g. the CWRU .mat files of measured_dir), plus records.csv (what was kept, what was
+validated, or the system's own record files), plus records.csv (what was kept, what was
 left out and why)."""
 from condmon.atomic import write_text
 from condmon.runlog import setup_logging

@@ -8,7 +8,8 @@ a user's own rig. The stages are the same for all; what differs lives behind thi
 - its measured data (`measured_files`, `read_measured`; a synthetic bench as `measured_parts`);
 - its parameters (nominal, calibrated, the per-sample draw `sample_parameters`) and one sample's
   simulation (`simulate_sample`, raising `SimulationError`);
-- its calibration (`calibrate`: target, cost, search) and what its features need
+- its calibration (`calibrate`: target, search; the costs it offers, `calibration_costs`; the
+  categorical model variants it searches, `model_variants`) and what its features need
   (`defect_orders`, `shafts`).
 
 A system object is built on a config: the whole validated config in the Snakefile, or the part
@@ -118,6 +119,12 @@ class System(ABC):
         """Parameter names `calibration.parameters` may bound."""
         return ()
 
+    def calibration_settings(self, calibration: dict) -> dict:
+        """The `calibration` section a calibrate job depends on: all of it by default; a system
+        drops the keys that only list its calibration variants (those are wildcards, so editing
+        the list never reruns a calibration)."""
+        return dict(calibration)
+
     def calibration_variants(self) -> list[str]:
         """Names of the calibrations a run makes (one job each, `calibration/<name>/`); the
         first one's parameters make the simulated data."""
@@ -183,6 +190,10 @@ class System(ABC):
         if unknown:
             problems.append(f"features.channels: {unknown} are not channels of the {self.name} system "
                             f"({self.channels})")
+        costs = list(self.calibration_costs())
+        if config["calibration"]["cost"] not in costs:
+            problems.append(f"calibration.cost: {config['calibration']['cost']!r} is not a cost of the "
+                            f"{self.name} system; choose one of {costs}")
         wrong = sorted(set(config["calibration"]["parameters"]) - set(self.calibratable))
         if wrong:
             problems.append(f"calibration.parameters: {wrong} are not parameters of the {self.name} "
@@ -266,19 +277,35 @@ class System(ABC):
     def calibrate(self, frame: pd.DataFrame, variant: str, calibration: dict, spectrum: dict, channels,
                   processes: int = 1) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
         """Fit the model to the healthy measured records: (params.json dict with at least
-        `contact_law`, `parameters`, `cost`, `nominal_cost`, `evaluations`, `sensor_noise`;
+        `model_variant`, `parameters`, `cost`, `nominal_cost`, `evaluations`, `sensor_noise`;
         the history of every evaluation; the spectra frame `speed_rpm, channel, freq_hz,
         measured, calibrated, model_only`). A candidate whose simulation raises SimulationError
         scores `condmon.calibrate.FAILED_COST` and the search goes on."""
 
-    def simulate_healthy(self, contact_law: str, values: dict, speed_rpm: float, duration_s: float,
+    def calibration_costs(self) -> dict:
+        """The costs `calibration.cost` may name, {name: cost(simulated, measured) -> float}: the
+        spectral ones of `condmon.calibrate` by default; a system adds its own."""
+        from condmon.calibrate import SPECTRAL_COSTS
+
+        return dict(SPECTRAL_COSTS)
+
+    def model_variants(self, calibration: dict) -> list[str]:
+        """The categorical choices calibration searches with the parameters (a model family's
+        variants), given the `calibration` section; by default the one `nominal_variant`."""
+        return [self.nominal_variant]
+
+    def simulate_healthy(self, variant: str, values: dict, speed_rpm: float, duration_s: float,
                          seed: int) -> dict[str, np.ndarray]:
-        """One healthy run of a calibration candidate (`values` overriding the nominal model)."""
-        parameters = {**values, "contact_law": contact_law}
-        return self.simulate_sample(parameters, self.healthy_state, speed_rpm, duration_s, seed)
+        """One healthy run of a calibration candidate: model variant `variant` (one of
+        `model_variants`), `values` overriding the nominal model. A system with variants
+        overrides this; by default there is one."""
+        if variant != self.nominal_variant:
+            raise ValueError(f"the {self.name} system has one model variant, {self.nominal_variant!r}, "
+                             f"not {variant!r}")
+        return self.simulate_sample(dict(values), self.healthy_state, speed_rpm, duration_s, seed)
 
     # -- parameters and simulation -----------------------------------------------------------
-    nominal_law: ClassVar[str] = "none"  # contact law of the nominal model, where it has one
+    nominal_variant: ClassVar[str] = "nominal"  # model variant of the nominal model
 
     @abstractmethod
     def nominal_values(self) -> dict:
@@ -289,7 +316,7 @@ class System(ABC):
         nominal values of `names` (default: every calibratable parameter), no sensor noise."""
         values = self.nominal_values()
         names = self.calibratable if names is None else names
-        return {"contact_law": self.nominal_law, "parameters": {name: values[name] for name in names},
+        return {"model_variant": self.nominal_variant, "parameters": {name: values[name] for name in names},
                 "sensor_noise": 0.0}
 
     @abstractmethod

@@ -176,9 +176,14 @@ class BearingSystem(System):
 
         return calibrate_rig(self, frame, calibration, spectrum, processes=processes)
 
-    def simulate_healthy(self, contact_law, values, speed_rpm, duration_s, seed):
-        if contact_law != "hertz":
-            raise ValueError(f"the bearing rig has the Hertz contact only, not {contact_law!r}")
+    def calibration_costs(self) -> dict:
+        from condmon.systems.bearing.calibration import COSTS
+
+        return dict(COSTS)
+
+    def simulate_healthy(self, variant, values, speed_rpm, duration_s, seed):
+        if variant != self.nominal_variant:
+            raise ValueError(f"the bearing rig has the Hertz contact only, not {variant!r}")
         params = self._parameters(values, self.healthy_state, speed_rpm)
         return simulate_rig(params, rig_settings(self.numerics, duration=duration_s),
                             job_rng(seed, "calibrate", float(speed_rpm)))
@@ -191,7 +196,7 @@ class BearingSystem(System):
         except ValueError as exc:  # a drawn value outside the model's domain
             raise SimulationError(f"invalid parameters: {exc}") from exc
 
-    nominal_law = "hertz"
+    nominal_variant = "hertz"  # its one model variant: Hertz ball contacts
 
     def nominal_values(self) -> dict:
         return {**{scale: 1.0 for scale in SCALES}, **self.model}

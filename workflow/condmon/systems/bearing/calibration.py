@@ -1,6 +1,6 @@
 """Calibration of the bearing rig (`condmon.models.bearing_rig`) on the measured healthy records.
 
-CMA-ES (`condmon.calibrate.Calibrator`, one Hertz contact law) tunes the `calibration.parameters`
+CMA-ES (`condmon.calibrate.Calibrator`, one model variant: Hertz contacts) tunes the `calibration.parameters`
 of the rig (contact stiffness, clearance, damping, the transfer path's resonance scales, gain,
 noise) so the simulated healthy drive-end signal matches the measured one, by either cost:
 - a spectral cost (`cfrp_eq4`, `helical_eq14`: RMS band spectra, as on the gear rig), or
@@ -19,7 +19,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from condmon.calibrate import Bound, Calibrator, SpectrumModel, measured_spectra, spectrum_cost
+from condmon.calibrate import SPECTRAL_COSTS, Bound, Calibrator, SpectrumModel, measured_spectra
 from condmon.systems.bearing.model import CHANNEL
 from condmon.signals import to_arrays
 from condmon.stat_features import StatisticalFeatures
@@ -29,7 +29,16 @@ log = logging.getLogger(__name__)
 # Dimension-bearing statistics of the healthy signal: level, shape and spectral balance.
 CALIBRATION_FEATURES = ("rms", "kurtosis", "crest_factor", "shape_factor", "mean_frequency",
                         "frequency_centre", "std_frequency")
-COSTS = ("cfrp_eq4", "helical_eq14", "features_eq6")
+
+
+def features_eq6(simulated: np.ndarray, measured: np.ndarray) -> float:
+    """The bearing study's eq. 6 on feature vectors (not spectra), each feature relative to its
+    measured value so that features of different units weigh alike."""
+    return float(np.mean((((simulated - measured) / np.abs(measured)) ** 2).sum(-1)))
+
+
+# the costs this system's calibration offers (`BearingSystem.calibration_costs`)
+COSTS = {**SPECTRAL_COSTS, "features_eq6": features_eq6}
 
 
 class RigFeatureModel(SpectrumModel):
@@ -82,7 +91,7 @@ def calibrate_rig(system, frame: pd.DataFrame, calibration: dict, spectrum: dict
     parameters, `calibrated: false` and the reason; the spectra then show the nominal model at
     `fallback_speeds` with no measured line."""
     start = time.perf_counter()
-    cost_kind = calibration["cost"]
+    cost_kind, variant = calibration["cost"], system.nominal_variant
     if cost_kind not in COSTS:
         raise ValueError(f"calibration.cost: {cost_kind!r} is not a cost of the bearing rig; "
                          f"choose one of {list(COSTS)}")
@@ -102,13 +111,13 @@ def calibrate_rig(system, frame: pd.DataFrame, calibration: dict, spectrum: dict
     freqs = plot_model.spectrum.band_centres()
     if not speeds:
         log.warning("no measured %r record: the rig keeps its nominal parameters", healthy)
-        model_only = plot_model("hertz", nominal)
-        result = dict(contact_law="hertz", parameters=nominal, cost=None, nominal_cost=None,
+        model_only = plot_model(variant, nominal)
+        result = dict(model_variant=variant, parameters=nominal, cost=None, nominal_cost=None,
                       evaluations=0, calibrated=False,
                       reason=f"no measured {healthy!r} record to calibrate on",
                       cost_function=cost_kind, speeds_rpm=[], sensor_noise=0.0,
                       seconds=round(time.perf_counter() - start, 1))
-        history = pd.DataFrame([dict(generation=0, evaluation=0, contact_law="hertz", cost=np.nan,
+        history = pd.DataFrame([dict(generation=0, evaluation=0, model_variant=variant, cost=np.nan,
                                      seconds=0.0, error="not calibrated", **nominal)])
         return result, history, _spectra_frame(list(fallback_speeds), freqs, None, model_only)
 
@@ -119,14 +128,15 @@ def calibrate_rig(system, frame: pd.DataFrame, calibration: dict, spectrum: dict
         target = measured_features(frame, speeds, fs, healthy)
     else:
         evaluated, target = plot_model, measured
-    calibrator = Calibrator(bounds, ["hertz"], strategy="per_law", population=calibration["population"],
+    calibrator = Calibrator(bounds, [variant], strategy="per_law", population=calibration["population"],
                             generations=calibration["generations"], sigma0=calibration["sigma0"],
                             seed=calibration["seed"], processes=processes, initial=nominal)
     log.info("calibrating the rig (%s) on healthy speeds %s: %s", cost_kind, speeds,
              [b.name for b in bounds])
-    best, history = calibrator.run(evaluated, target, cost_kind)
-    nominal_cost = spectrum_cost(evaluated("hertz", nominal), target, cost_kind)
-    calibrated_spectra = plot_model("hertz", best["parameters"])
+    cost = COSTS[cost_kind]
+    best, history = calibrator.run(evaluated, target, cost)
+    nominal_cost = cost(evaluated(variant, nominal), target)
+    calibrated_spectra = plot_model(variant, best["parameters"])
     result = dict(best, nominal_cost=nominal_cost, calibrated=True, cost_function=cost_kind,
                   speeds_rpm=speeds, sensor_noise=0.0, strategy="per_law",
                   seconds=round(time.perf_counter() - start, 1),

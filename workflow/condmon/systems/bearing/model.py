@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from condmon.config import load_schema, schema_defaults
+from condmon.schema import load_schema, schema_defaults
 from condmon.models.bearing_rig import INCH, BearingGeometry, BearingRigParameters, RigSettings
 
 CHANNEL = "DE"

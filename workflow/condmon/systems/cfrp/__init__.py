@@ -16,7 +16,7 @@ from pathlib import Path
 
 import yaml
 
-from condmon.config import merge_schema
+from condmon.schema import merge_schema
 from condmon.systems.cfrp.parameters import build_cfrp_parameters
 from condmon.systems.gear import GearSystem
 

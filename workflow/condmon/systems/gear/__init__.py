@@ -6,7 +6,8 @@ segment length), `model` (geometry, shafts, bearings, housings, mesh, faults and
 `variability`), `numerics`, `virtual_bench` (hidden truth and the effects the model lacks; never
 passed to a calibration job). One
 calibration per mesh stiffness model (`calibration.mesh_stiffness_models`), the simulation's
-(`model.mesh_stiffness_model`) first.
+(`model.mesh_stiffness_model`) first; its model variants (searched by each calibration) are the
+contact laws of `calibration.contact_laws`, the nominal one `model.contact_law`.
 """
 from __future__ import annotations
 
@@ -76,6 +77,9 @@ class GearSystem(System):
         simulated = self.config["model"]["mesh_stiffness_model"]
         return [simulated] + [m for m in self.config["calibration"]["mesh_stiffness_models"] if m != simulated]
 
+    def calibration_settings(self, calibration: dict) -> dict:
+        return {k: v for k, v in calibration.items() if k != "mesh_stiffness_models"}
+
     def measured_parts(self) -> list[str]:
         if self.measured_table:
             return []
@@ -83,6 +87,10 @@ class GearSystem(System):
 
     def job_config(self, stage: str, variant: str | None = None) -> dict:
         config = super().job_config(stage, variant)
+        if stage != "simulate" and "model" in config:
+            # the per-sample perturbation of the calibrated values concerns the simulation only
+            variability = {k: v for k, v in config["model"].get("variability", {}).items() if k != "perturbation_sigma"}
+            config["model"] = dict(config["model"], variability=variability)
         if stage != "bench":
             config.pop("virtual_bench", None)  # the hidden truth reaches the bench jobs only
         if stage == "bench":
@@ -137,9 +145,9 @@ class GearSystem(System):
                 self.parameters(**dict(config["virtual_bench"]["model_overrides"]))
             except (ValueError, TypeError) as exc:
                 problems.append(f"virtual_bench.model_overrides: {exc}")
-        if config["calibration"]["cost"] == "features_eq6":
-            problems.append("calibration.cost: features_eq6 is the bearing rig's cost; the gear model "
-                            "uses cfrp_eq4 or helical_eq14")
+        bound = config["calibration"]["parameters"].get("restitution")
+        if bound is not None and not (0 < bound["low"] and bound["high"] <= 1):
+            problems.append("calibration.parameters.restitution: bounds must lie in (0, 1]")
         return problems
 
     # -- measured: the virtual bench ---------------------------------------------------------
@@ -173,25 +181,35 @@ class GearSystem(System):
     def calibrate(self, frame, variant, calibration, spectrum, channels, processes=1):
         model = self.config["model"]
         result, history, spectra = calibrate_on_spectra(self, frame, calibration, spectrum, channels,
-                                                        nominal=model, nominal_law=model["contact_law"],
-                                                        processes=processes)
+                                                        nominal=model, processes=processes)
         # K and n trade off at one load; the stiffness the vibration sees is what the data pin down.
-        best = self.parameters(contact_law=result["contact_law"], **result["parameters"])
-        result = dict(result, mesh_stiffness_model=model["mesh_stiffness_model"],
+        best = self.parameters(contact_law=result["model_variant"], **result["parameters"])
+        result = dict(result, contact_law=result["model_variant"], mesh_stiffness_model=model["mesh_stiffness_model"],
                       operating_mesh_stiffness=operating_mesh_stiffness(best))
         return result, history, spectra
 
     # -- simulation --------------------------------------------------------------------------
     @property
-    def nominal_law(self) -> str:
+    def nominal_variant(self) -> str:
         return self.config["model"]["contact_law"]
+
+    def model_variants(self, calibration: dict) -> list[str]:
+        return list(calibration["contact_laws"])
+
+    def simulate_healthy(self, variant, values, speed_rpm, duration_s, seed):
+        # the model variant is the mesh's contact law
+        return self.simulate_sample({**values, "contact_law": variant}, self.healthy_state, speed_rpm,
+                                    duration_s, seed)
+
+    def nominal_calibration(self, names=None) -> dict:
+        return dict(super().nominal_calibration(names), contact_law=self.nominal_variant)
 
     def nominal_values(self) -> dict:
         return {name: self.config["model"][name] for name in CALIBRATABLE}
 
     def sample_parameters(self, calibrated, health_state, rng, simulation) -> dict:
         values = perturb(calibrated["parameters"], list(calibrated["parameters"]),
-                         simulation["perturbation_sigma"], rng)
+                         self.config["model"]["variability"]["perturbation_sigma"], rng)
         return {"contact_law": calibrated["contact_law"], **values}
 
     def simulate_sample(self, parameters, health_state, speed_rpm, duration_s, seed, step_refinement=1):
