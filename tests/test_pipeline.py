@@ -66,7 +66,8 @@ def test_every_design_output_is_written(smoke):
     _, results = smoke
     for name in ("measured/signals.parquet", *(f"calibration/{model}/{file}" for model in ("potential_energy", "simple")
                                                for file in ("params.json", "history.parquet", "convergence.png",
-                                                            "spectra.parquet")),
+                                                            "spectra.parquet", "background.parquet",
+                                                            "background.png")),
                  "features/measured.parquet",
                  "features/simulated.parquet", "report/accuracy.csv", "report/summary.json",
                  "report/mlflow_run.json", "report/plots/accuracy_vs_measured_percent.png",
@@ -168,6 +169,18 @@ def test_editing_a_simulation_setting_reruns_simulation_and_downstream_not_calib
     jobs = planned_jobs(workdir, config)
     assert {"simulate", "features_simulated", "train", "track", "report"} <= set(jobs)
     assert not {"calibrate", "measured", "measured_part", "features_measured", "hybrid"} & set(jobs)
+
+
+def test_editing_the_background_reruns_calibration_and_simulation_not_the_bench(smoke):
+    """calibration.background (on in the smoke config): its runs change the calibrate jobs'
+    background.parquet, which the simulate jobs read; switched off, simulate no longer needs it."""
+    workdir, _ = smoke
+    for edit in ({"background_runs": 3}, {"background": False}):
+        config = smoke_config()
+        config["calibration"].update(edit)
+        jobs = planned_jobs(workdir, config)
+        assert {"calibrate", "simulate", "features_simulated", "train", "report"} <= set(jobs), edit
+        assert not {"measured", "measured_part", "features_measured"} & set(jobs), edit
 
 
 def test_switching_the_mesh_stiffness_model_reruns_simulation_not_the_bench_or_calibration(smoke):

@@ -344,6 +344,36 @@ def spectra_grid(spectra, note: str):
                    note)
 
 
+def background_grid(table, note: str):
+    """Grid speed x channel: PSD (dB re 1 (m/s²)²/Hz) of the measured healthy records, of the
+    calibrated model and the background between them (`condmon.background`'s table)."""
+    speeds = sorted(table["speed_rpm"].unique())
+    channels = list(dict.fromkeys(table["channel"]))
+    fig, axes = plt.subplots(len(speeds), len(channels),
+                             figsize=(max(4.2 * len(channels), 7.0), 2.8 * len(speeds) + 0.8),
+                             sharex=True, squeeze=False)
+    # the background underneath, the measured record thin on top: where they coincide the model adds nothing
+    styles = (("background_psd", "background (measured - model, >= 0)", {"color": "tab:cyan", "lw": 1.6}),
+              ("model_psd", "calibrated model (mean of runs)", {"color": "tab:red", "lw": 0.7, "alpha": 0.8}),
+              ("measured_psd", "measured", {"color": "black", "lw": 0.5}))
+    for i, speed in enumerate(speeds):
+        for j, channel in enumerate(channels):
+            ax = axes[i, j]
+            rows = table[(table["speed_rpm"] == speed) & (table["channel"] == channel)].sort_values("freq_hz")
+            for column, label, style in styles:
+                # dB: a zero (clipped) background is a gap, not minus infinity
+                values = rows[column].where(rows[column] > 0)
+                ax.plot(rows["freq_hz"], 10 * np.log10(values), label=label, **style)
+            ax.set_title(f"{speed:g} rpm, {channel}", fontsize=9)
+            ax.grid(alpha=0.3, linewidth=0.4)
+            if i == len(speeds) - 1:
+                ax.set_xlabel("frequency (Hz)")
+            if j == 0:
+                ax.set_ylabel("PSD (dB re 1 (m/s²)²/Hz)")
+    return _finish(fig, "Background of healthy records: measured vs calibrated model PSD", note,
+                   legend_from=axes[0, 0])
+
+
 def calibration_convergence(history, chosen: str, note: str):
     """Best cost so far against model evaluation, one colour per model variant.
 

@@ -33,21 +33,34 @@ def simulate_with_retry(system, parameters: dict, health_state: str, speed_rpm: 
 
 
 def simulate_batch(system, calibrated: dict, health_state: str, speed_rpm: float, batch: int, samples: int,
-                   simulation: dict):
+                   simulation: dict, background=None):
     """Signal-table rows for `samples` runs of one (health state, speed, batch), and a report
     (timings, failures with their parameters).
 
     Every sample draws its parameters (`system.sample_parameters`) and then a run seed from the
     job's stream, seeded by (simulation.seed, health state, speed, batch): reruns and any job order
-    give the same records. White noise of the calibrated `sensor_noise` RMS (when the calibration
-    estimated one) stands in for the measurement chain the model lacks, so classifiers do not learn
-    a noise-free floor. A sample whose simulation fails twice is left out and reported; more than
-    `simulation.max_failed_share` of the batch failing stops the job.
+    give the same records. With a `background` (`condmon.background.Background`, the calibration's
+    estimate of what healthy records carry and the model lacks) every sample gets a random-phase
+    Gaussian realisation of it per channel, drawn from the sample's own stream; without one (or on a
+    channel it does not cover), white noise of the calibrated `sensor_noise` RMS (when the
+    calibration estimated one) stands in for the measurement chain the model lacks, so classifiers
+    do not learn a noise-free floor. A sample whose simulation fails twice is left out and reported;
+    more than `simulation.max_failed_share` of the batch failing stops the job.
     """
     rng = job_rng(simulation["seed"], "simulate", health_state, float(speed_rpm), batch)
     fs, segment_length = system.output_rate_hz, system.segment_length
     duration = segment_length * simulation["segments_per_sample"] / fs
     sensor_noise = float(calibrated.get("sensor_noise") or 0.0)
+    if background:
+        source = background.source_speed(speed_rpm)
+        if source != float(speed_rpm):
+            log.warning("no measured healthy records at %g rpm: its samples take the background of the nearest "
+                        "measured speed, %g rpm, as it is (its shaft-synchronous lines are not moved)",
+                        speed_rpm, source)
+        else:
+            log.info("adding the calibrated background of %g rpm to every sample", source)
+    elif background is not None:
+        log.info("the calibration found no measured healthy records: no background, white sensor noise only")
     rows, failures, seconds = [], [], []
     for i in range(samples):
         values = system.sample_parameters(calibrated, health_state, rng, simulation)
@@ -63,9 +76,12 @@ def simulate_batch(system, calibrated: dict, health_state: str, speed_rpm: float
             continue
         log.info("%s: %.2f s (%d of %d, about %.0f s left)", record_id, seconds[-1], i + 1, samples,
                  sum(seconds) / (i + 1) * (samples - i - 1))
-        if sensor_noise > 0:
+        white = list(signals)
+        if background:
+            signals, white = background.add(signals, float(speed_rpm), fs, job_rng(sample_seed, "background"))
+        if sensor_noise > 0 and white:
             noise = job_rng(sample_seed, "noise")
-            signals = {name: signal + noise.normal(0.0, sensor_noise, size=signal.shape)
+            signals = {name: signal + noise.normal(0.0, sensor_noise, size=signal.shape) if name in white else signal
                        for name, signal in signals.items()}
         rows += make_rows(record_id, "simulated", health_state, speed_rpm, system.sample_load(speed_rpm, values),
                           fs, signals, segment_length=segment_length, params={**values, "seed": sample_seed})

@@ -11,6 +11,8 @@ rule calibrate:
         history=f"{RESULTS}/calibration/{{variant}}/history.parquet",
         spectra=f"{RESULTS}/calibration/{{variant}}/spectra.parquet",
         plot=f"{RESULTS}/calibration/{{variant}}/convergence.png",
+        # calibration.background: what healthy records carry that the model lacks, and its plot
+        **calibration_background_outputs("{variant}"),
     params:
         system=lambda wc: SYSTEM.job_spec("calibrate", wc.variant),
         variant=lambda wc: wc.variant,

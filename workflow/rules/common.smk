@@ -73,6 +73,17 @@ def calibration_outputs(name, calibration=None):
     return {m: f"{RESULTS}/calibration/{m}/{name}" for m in CALIBRATIONS}
 
 
+def calibration_background_outputs(calibration, plot=True):
+    """{background: calibration/<calibration>/background.parquet (and background_plot: its PNG)}
+    with calibration.background on, else nothing."""
+    if not config["calibration"]["background"]:
+        return {}
+    outputs = {"background": f"{RESULTS}/calibration/{calibration}/background.parquet"}
+    if plot:
+        outputs["background_plot"] = f"{RESULTS}/calibration/{calibration}/background.png"
+    return outputs
+
+
 def train_outputs(name):
     return expand(f"{RESULTS}/train/{{classifier}}/{{protocol}}/{name}",
                   classifier=CLASSIFIERS, protocol=PROTOCOLS)

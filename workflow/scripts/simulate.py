@@ -2,6 +2,7 @@
 import json
 
 from condmon.atomic import write_json
+from condmon.background import read_background
 from condmon.runlog import setup_logging
 from condmon.signals import write_signal_table
 from condmon.simulate import simulate_batch
@@ -11,9 +12,11 @@ log = setup_logging(snakemake)
 p = snakemake.params
 with open(snakemake.input.calibration) as handle:
     calibrated = json.load(handle)
+# calibration.background: the input is there only when it is on
+background = read_background(snakemake.input.background) if "background" in snakemake.input.keys() else None
 rows, report = simulate_batch(load_system(p.system), calibrated, snakemake.wildcards.health,
                               float(snakemake.wildcards.speed), int(snakemake.wildcards.batch),
-                              samples=p.samples, simulation=p.simulation)
+                              samples=p.samples, simulation=p.simulation, background=background)
 write_signal_table(rows, snakemake.output.signals, config=dict(p.items()))
 write_json(report, snakemake.output.report)
 log.info("wrote %d rows; %d of %d samples failed", len(rows), len(report["failures"]), report["samples"])
