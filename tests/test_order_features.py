@@ -13,12 +13,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from condmon.features import (FeatureTableError, compute_feature_table_from_files, feature_families,
-                              order_feature_table)
-from condmon.order_features import (INDICATORS, OrderFeatures, angular_resample, condition_indicators,
-                                    difference_signal, energy_ratio, fm0, fm4, keep_orders, m6a, m8a, na4,
-                                    regular_signal, residual_signal, shaft_angle, sideband_level_factor,
-                                    time_synchronous_average)
+from condmon.features import FeatureTableError, compute_feature_table_from_files, feature_families
+from condmon.systems.gear.order_features import (INDICATORS, OrderFeatures, angular_resample, condition_indicators,
+                                                 difference_signal, energy_ratio, fm0, fm4, keep_orders, m6a, m8a,
+                                                 na4, order_feature_table, regular_signal, residual_signal,
+                                                 shaft_angle, sideband_level_factor, time_synchronous_average)
 from condmon.signals import make_rows, write_signal_table
 from conftest import config_of, system_of
 
@@ -200,7 +199,7 @@ def test_a_missing_tooth_like_impulse_raises_fm4_and_na4(record):
 def test_weak_mesh_line_falls_back_to_the_nominal_speed(caplog):
     noise = np.random.default_rng(5).normal(size=(1, 1, SEGMENT))
     extractor = OrderFeatures(shafts=SHAFTS, channels=["A1_x"])
-    with caplog.at_level(logging.DEBUG, logger="condmon.order_features"):
+    with caplog.at_level(logging.DEBUG, logger="condmon.systems.gear.order_features"):
         values = extractor.fit_transform(noise, fs_hz=FS, speed_rpm=SPEED_RPM)
     assert extractor.phase_methods_ == ["nominal"]
     assert "from the nominal speed" in caplog.text and "1 of 1 segments on the nominal speed" in caplog.text
@@ -243,9 +242,9 @@ def test_spectrum_and_order_families_side_by_side(tmp_path, record):
     signals, _ = record
     path = signal_table(tmp_path, signals)
     spectrum = {"f_min_hz": 0.0, "f_max_hz": 2000.0, "resolution_hz": 2.0, "scale": "log", "band_statistic": "rms"}
-    both = compute_feature_table_from_files([path], CHANNELS, spectrum, "spectrum+order", order_params={},
-                                            shafts=SHAFTS)
-    alone = compute_feature_table_from_files([path], CHANNELS, spectrum, "order", order_params={}, shafts=SHAFTS)
+    order = {"order": (order_feature_table, {"shafts": SHAFTS})}  # the gear system's own family
+    both = compute_feature_table_from_files([path], CHANNELS, spectrum, "spectrum+order", system_families=order)
+    alone = compute_feature_table_from_files([path], CHANNELS, spectrum, "order", system_families=order)
     columns = [c for c in both.columns if c.startswith(("fft_", "ord_", "ci_"))]
     assert columns[0].startswith("fft_A1_x") and columns[4000].startswith("ord_A1_x")
     assert len(columns) == 4 * 1000 + 4 * 120 + 4 * 2 * len(INDICATORS)
@@ -256,27 +255,30 @@ def test_spectrum_and_order_families_side_by_side(tmp_path, record):
 def test_unknown_family_and_missing_shafts_are_refused(tmp_path, record):
     with pytest.raises(FeatureTableError, match=r"unknown feature family \['wavelet'\]"):
         feature_families("spectrum+wavelet")
+    with pytest.raises(FeatureTableError, match=r"unknown feature family \['order'\]"):
+        feature_families("spectrum+order")  # a system's own family, unknown without it
     with pytest.raises(FeatureTableError, match="appears twice"):
-        feature_families("order+order")
-    assert feature_families("spectrum+order") == ["spectrum", "order"]
+        feature_families("order+order", ("order",))
+    assert feature_families("spectrum+order", ("order",)) == ["spectrum", "order"]
     path = signal_table(tmp_path, record[0])
     with pytest.raises(FeatureTableError, match=r"unknown feature family \['orders'\]"):
         compute_feature_table_from_files([path], CHANNELS, {}, "orders")
     frame = pd.read_parquet(path)
     with pytest.raises(FeatureTableError, match=r"System.shafts\(\) is None"):
-        order_feature_table(frame, CHANNELS, {}, None)
+        order_feature_table(frame, CHANNELS, {})
     with pytest.raises(FeatureTableError, match=r"unknown features.order parameter\(s\) \['teeth'\]"):
-        order_feature_table(frame, CHANNELS, {"teeth": 3}, SHAFTS)
+        order_feature_table(frame, CHANNELS, {"teeth": 3, "shafts": SHAFTS})
 
 
 # -- system, config, classifiers ---------------------------------------------------------------------
-def test_gear_systems_name_their_shafts_and_the_bearing_rig_has_none():
+def test_gear_systems_name_their_shafts_and_only_they_have_the_order_family():
     assert system_of("config/config.yaml").shafts() == SHAFTS
     cfrp = system_of("config/cfrp.yaml")
     geometry = cfrp.config["model"]["geometry"]
     assert cfrp.shafts() == [("pinion", 1.0, geometry["teeth_pinion"]),
                              ("gear", geometry["teeth_pinion"] / geometry["teeth_gear"], geometry["teeth_gear"])]
-    assert system_of("config/cwru-smoke.yaml").shafts() is None
+    assert "order" in cfrp.feature_families()
+    assert system_of("config/cwru-smoke.yaml").feature_families() == {}
 
 
 def test_config_takes_the_order_family_and_names_what_cannot_work():
@@ -284,13 +286,15 @@ def test_config_takes_the_order_family_and_names_what_cannot_work():
 
     config = config_of("config/config.yaml", {"features": {"kind": "spectrum+order"}})
     assert config["features"]["order"]["resolution_orders"] == 1.0
-    with pytest.raises(ConfigError, match="does not match"):
+    with pytest.raises(ConfigError, match="'wavelet' is not a feature family of the gear system"):
         config_of("config/config.yaml", {"features": {"kind": "spectrum+wavelet"}})
+    with pytest.raises(ConfigError, match="does not match"):
+        config_of("config/config.yaml", {"features": {"kind": "spectrum, order"}})
     with pytest.raises(ConfigError, match="classifiers.cnn: the CNN reads the Hz band spectra"):
         config_of("config/config.yaml", {"features": {"kind": "order"}})
     with pytest.raises(ConfigError, match="order_max: 200.5 is above the Nyquist order 139.6"):
         config_of("config/config.yaml", {"features": {"kind": "spectrum+order", "order": {"order_max": 200.5}}})
-    with pytest.raises(ConfigError, match="the bearing system has none"):
+    with pytest.raises(ConfigError, match="'order' is not a feature family of the bearing system"):
         config_of("config/cwru-smoke.yaml", {"features": {"kind": "statistical+order"}})
 
 

@@ -3,8 +3,8 @@ synthesis (simulation).
 
 The background of a channel at one speed is the power spectral density of the measured healthy
 segments minus the mean PSD of the calibrated model's healthy runs, clipped at zero: whatever the
-measurement carries that the model does not make (sensor noise, white or coloured, tones of parts
-the model lacks such as rolling bearings or a motor's ripple). The simulation adds a random-phase
+measurement carries that the model does not make (sensor noise, white or coloured,
+tones of parts the model lacks, a motor's ripple). The simulation adds a random-phase
 Gaussian realisation of it to every simulated sample, so a classifier trained on simulation sees
 the floor and tones a healthy measured record has.
 

@@ -109,9 +109,10 @@ def cross_field_problems(config: dict) -> list[str]:
     families = config["features"]["kind"].split("+")
     if len(set(families)) != len(families):
         problems.append(f"features.kind: {config['features']['kind']!r} names a family twice")
-    if config["classifiers"]["cnn"]["enabled"] and "order" in families and "spectrum" not in families:
+    if config["classifiers"]["cnn"]["enabled"] and "spectrum" not in families and families != ["statistical"]:
         problems.append(f"classifiers.cnn: the CNN reads the Hz band spectra and features.kind "
-                        f"{config['features']['kind']!r} has none; use spectrum+order or disable the CNN")
+                        f"{config['features']['kind']!r} has none; add spectrum (e.g. spectrum+{families[0]}) "
+                        "or disable the CNN")
     names = config["features"]["statistical"]["names"]
     n_features = config["features"]["selection"]["n_features"]
     n_channels = len(config["features"]["channels"])

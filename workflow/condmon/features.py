@@ -1,8 +1,8 @@
 """Features tables: band-averaged amplitude spectra of every channel, concatenated (the
-`spectrum` family), and the `statistical` and `order` families beside them.
+`spectrum` family), the `statistical` family and a system's own families beside them.
 
 The spectra are the input of the CFRP study's classifiers (eq. 5: FFT = [FFT_X, FFT_Y] per
-sensor). `features.kind` names one family or several joined by "+" (`spectrum+order`): their
+sensor). `features.kind` names one family or several joined by "+" (e.g. `spectrum+order`): their
 columns side by side, in that order. The features table is wide Parquet: the signal table's id
 columns, then one float32 column per feature; its file metadata lists the feature columns in
 order (see ARCHITECTURE.md).
@@ -21,12 +21,11 @@ from sklearn.base import BaseEstimator, TransformerMixin
 from condmon.atomic import write_table
 from condmon.signals import (ID_COLUMNS, SCHEMA, config_hash, package_versions,
                              read_signal_table, to_arrays)
-from condmon.order_features import order_features_from_params
 from condmon.spectra import amplitude_spectrum, band_values
 from condmon.stat_features import statistical_features_from_params
 
 __all__ = ["amplitude_spectrum", "SpectrumFeatures", "compute_feature_table", "compute_feature_table_from_files",
-           "statistical_feature_table", "order_feature_table", "feature_families", "read_feature_table",
+           "statistical_feature_table", "feature_families", "read_feature_table",
            "write_feature_table", "FeatureTableError"]
 
 log = logging.getLogger(__name__)
@@ -36,7 +35,7 @@ LOG_FLOOR = 1e-6  # added before log10 so silent bands stay finite
 FEATURE_NAMES_KEY = b"condmon.feature_names"
 FEATURE_KIND_KEY = b"condmon.feature_kind"
 BAND_STATISTICS = ("mean", "rms")
-FEATURE_KINDS = ("spectrum", "statistical", "order")  # the families `features.kind` joins with "+"
+FEATURE_KINDS = ("spectrum", "statistical")  # built-in families; a system may add its own (System.feature_families)
 SPECTRUM_PARAMS = ("f_min_hz", "f_max_hz", "resolution_hz", "scale", "band_statistic")
 
 
@@ -153,7 +152,7 @@ def spectrum_features_from_params(channels, spectrum_params: dict) -> SpectrumFe
     return SpectrumFeatures(channels=list(channels), **spectrum_params)
 
 
-def _single_sampling_rate(ids: pd.DataFrame, where: str = "signal table") -> float:
+def single_sampling_rate(ids: pd.DataFrame, where: str = "signal table") -> float:
     """The one fs_hz of all segments; an error naming the records of each rate otherwise."""
     rates = ids.groupby("fs_hz")["record_id"].unique()
     if len(rates) != 1:
@@ -176,21 +175,22 @@ def compute_feature_table(signal_frame: pd.DataFrame, channels,
     if missing:
         raise FeatureTableError(f"channel(s) {missing} not in the signal table "
                                 f"(it has {sorted(present)})")
-    fs_hz = _single_sampling_rate(signal_frame)
+    fs_hz = single_sampling_rate(signal_frame)
     ids, arrays = to_arrays(signal_frame, extractor.channels)
     names = extractor.feature_names(fs_hz, arrays.shape[2])
     values = pd.DataFrame(extractor.transform(arrays, fs_hz), columns=names)
     return pd.concat([ids.reset_index(drop=True), values], axis=1)
 
 
-def feature_families(kind: str) -> list[str]:
-    """The families of a `features.kind` value: one of FEATURE_KINDS or several joined by "+"
-    (`spectrum+order`), each at most once."""
+def feature_families(kind: str, system_families=()) -> list[str]:
+    """The families of a `features.kind` value: one of FEATURE_KINDS or of the system's own
+    (`system_families`), or several joined by "+" (`spectrum+order`), each at most once."""
     families = str(kind).split("+")
-    unknown = [f for f in families if f not in FEATURE_KINDS]
+    known = list(FEATURE_KINDS) + list(system_families)
+    unknown = [f for f in families if f not in known]
     if unknown:
         raise FeatureTableError(f"features.kind {kind!r}: unknown feature famil{'ies' if len(unknown) > 1 else 'y'} "
-                                f"{unknown}; choose one of {list(FEATURE_KINDS)} or several joined by '+'")
+                                f"{unknown}; choose one of {known} or several joined by '+'")
     if len(set(families)) != len(families):
         raise FeatureTableError(f"features.kind {kind!r}: a family appears twice")
     return families
@@ -198,15 +198,17 @@ def feature_families(kind: str) -> list[str]:
 
 def compute_feature_table_from_files(paths, channels, spectrum_params: dict, kind: str = "spectrum",
                                      statistical_params: dict | None = None,
-                                     defect_orders: dict | None = None, order_params: dict | None = None,
-                                     shafts=None) -> pd.DataFrame:
+                                     defect_orders: dict | None = None, system_families: dict | None = None
+                                     ) -> pd.DataFrame:
     """Features of several signal tables in one table (read one at a time to bound memory).
 
     Families (`kind`, "+" joins several, columns in that order): "spectrum": band spectra
     (`spectrum_params`); "statistical": time/frequency statistics and envelope features at the
-    system's `defect_orders` (`condmon.stat_features`, `statistical_params`); "order": order-domain
-    gear diagnostics on the system's `shafts` (`condmon.order_features`, `order_params`)."""
-    families = feature_families(kind)
+    system's `defect_orders` (`condmon.stat_features`, `statistical_params`); any other: a family
+    the system provides (`System.feature_families()`), `system_families` = {family: (its table
+    function(signals, channels, params), its params)}."""
+    system_families = system_families or {}
+    families = feature_families(kind, tuple(system_families))
     frames = []
     for path in paths:
         log.info("%s features of %s", kind, path)
@@ -215,15 +217,16 @@ def compute_feature_table_from_files(paths, channels, spectrum_params: dict, kin
         for family in families:
             if family == "statistical":
                 parts.append(statistical_feature_table(signals, channels, statistical_params or {}, defect_orders))
-            elif family == "order":
-                parts.append(order_feature_table(signals, channels, order_params or {}, shafts))
+            elif family in system_families:
+                table, params = system_families[family]
+                parts.append(table(signals, channels, params))
             else:
                 parts.append(compute_feature_table(signals, channels, spectrum_params))
         frames.append(_side_by_side(parts))
     if not frames:
         raise FeatureTableError("no signal tables given")
     frame = pd.concat(frames, ignore_index=True)
-    _single_sampling_rate(frame, where="signal tables " + ", ".join(map(str, paths)))
+    single_sampling_rate(frame, where="signal tables " + ", ".join(map(str, paths)))
     duplicated = frame.duplicated(["record_id", "segment"])
     if duplicated.any():
         first = frame.loc[duplicated].iloc[0]
@@ -296,7 +299,7 @@ def statistical_feature_table(signal_frame, channels, params: dict, defect_order
     if missing:
         raise FeatureTableError(f"channel(s) {missing} not in the signal table "
                                 f"(it has {sorted(present)})")
-    fs_hz = _single_sampling_rate(signal_frame)
+    fs_hz = single_sampling_rate(signal_frame)
     ids, arrays = to_arrays(signal_frame, list(channels))
     wanted = params.get("names")
     logged = set(params.get("log_names") or [])
@@ -319,24 +322,3 @@ def statistical_feature_table(signal_frame, channels, params: dict, defect_order
     return pd.concat([ids.reset_index(drop=True), pd.DataFrame(columns)], axis=1)
 
 
-def order_feature_table(signal_frame, channels, params: dict, shafts) -> pd.DataFrame:
-    """Wide features table of one signal table: order-spectrum bands and gear condition indicators
-    per channel (`condmon.order_features.OrderFeatures`, configured by `params` = the config's
-    `features.order`) on the rig's `shafts` [(name, speed ratio, teeth)] (`System.shafts()`), with
-    each segment's stored input-shaft speed."""
-    try:
-        extractor = order_features_from_params(channels, shafts, params)
-    except ValueError as exc:
-        raise FeatureTableError(f"features.order: {exc}") from exc
-    present = set(signal_frame["channel"])
-    missing = [ch for ch in extractor.channels if ch not in present]
-    if missing:
-        raise FeatureTableError(f"channel(s) {missing} not in the signal table (it has {sorted(present)})")
-    fs_hz = _single_sampling_rate(signal_frame)
-    ids, arrays = to_arrays(signal_frame, extractor.channels)
-    try:
-        values = extractor.transform(arrays, fs_hz, ids["speed_rpm"].to_numpy())
-    except ValueError as exc:
-        raise FeatureTableError(f"order features: {exc}") from exc
-    return pd.concat([ids.reset_index(drop=True),
-                      pd.DataFrame(values, columns=extractor.feature_names())], axis=1)

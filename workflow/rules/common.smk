@@ -138,19 +138,16 @@ def statistical_feature_params():
     return dict(config["features"]["statistical"])
 
 
-def order_feature_params():
-    """features.order; None without the order family (as statistical_feature_params)."""
-    if "order" not in FEATURE_FAMILIES:
+def system_family_params():
+    """{family: features.<family> plus what the system adds} of the system's own feature families
+    in features.kind; None without any, so a system edit never
+    reruns another run's features."""
+    own = SYSTEM.feature_families()
+    chosen = [family for family in FEATURE_FAMILIES if family in own]
+    if not chosen:
         return None
-    return dict(config["features"]["order"])
-
-
-def order_shafts():
-    """The system's geared shafts [(name, speed ratio, teeth)] the order family needs; None
-    without it, so a gear edit never reruns another run's features."""
-    if "order" not in FEATURE_FAMILIES:
-        return None
-    return [list(shaft) for shaft in SYSTEM.shafts() or []]
+    return {family: dict(config["features"].get(family) or {}, **SYSTEM.feature_family_params(family))
+            for family in chosen}
 
 
 def final_outputs():

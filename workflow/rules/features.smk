@@ -1,5 +1,5 @@
-# Stage 4: features (FFT spectra of every channel, concatenated; statistical features; order-domain
-# gear diagnostics; or several of these families side by side).
+# Stage 4: features (FFT spectra of every channel, concatenated; statistical features; a system's own
+# families; or several of these side by side).
 
 
 rule features_measured:
@@ -12,8 +12,7 @@ rule features_measured:
         spectrum=config["features"]["spectrum"],
         kind=config["features"]["kind"],
         statistical=statistical_feature_params(),
-        order=order_feature_params(),
-        shafts=order_shafts(),
+        families=system_family_params(),
         system=SYSTEM.job_spec("features"),
     conda:
         "../envs/learning.yaml"
@@ -35,8 +34,7 @@ rule features_simulated:
         spectrum=config["features"]["spectrum"],
         kind=config["features"]["kind"],
         statistical=statistical_feature_params(),
-        order=order_feature_params(),
-        shafts=order_shafts(),
+        families=system_family_params(),
         system=SYSTEM.job_spec("features"),
     conda:
         "../envs/learning.yaml"

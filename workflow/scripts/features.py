@@ -1,5 +1,5 @@
-"""Snakemake script: signal table(s) -> features table (band spectra, statistical features, order-domain
-gear diagnostics, or several of these families side by side).
+"""Snakemake script: signal table(s) -> features table (band spectra, statistical features, a
+system's own families, or several of these side by side).
 
 `snakemake` is injected by Snakemake's script directive.
 """
@@ -15,17 +15,16 @@ channels = list(snakemake.params.channels)
 spectrum = dict(snakemake.params.spectrum)
 kind = getattr(snakemake.params, "kind", "spectrum")
 statistical = dict(getattr(snakemake.params, "statistical", None) or {})
-order = dict(getattr(snakemake.params, "order", None) or {})
-shafts = getattr(snakemake.params, "shafts", None)  # the system's geared shafts (order family)
+families = dict(getattr(snakemake.params, "families", None) or {})  # the system's own, with their params
 
-# the system says where its envelope lines are (its defect orders), if it has any
-defect_orders = load_system(snakemake.params.system).defect_orders()
-frame = compute_feature_table_from_files(signal_paths, channels, spectrum, kind, statistical, defect_orders,
-                                         order, shafts)
+# the system says where its envelope lines are (its defect orders), if it has any, and computes its own families
+system = load_system(snakemake.params.system)
+own = system.feature_families()
+frame = compute_feature_table_from_files(signal_paths, channels, spectrum, kind, statistical, system.defect_orders(),
+                                         {family: (own[family], dict(params)) for family, params in families.items()})
 names = feature_columns(frame)
 config = {"channels": channels, "spectrum": spectrum, "kind": kind, "statistical": statistical}
-if order:  # only with the order family, so the other families' config hash stays as it was
-    config.update(order=order, shafts=shafts)
+config.update(families)  # only with a system family, so the other families' config hash stays as it was
 write_feature_table(frame, names, snakemake.output.features, kind=kind, config=config)
 log.info("wrote %d segments x %d features to %s", len(frame), len(names),
          snakemake.output.features)

@@ -210,43 +210,19 @@ class System(ABC):
         nyquist = self.output_rate_hz / 2
         spectrum = config["features"]["spectrum"]
         families = str(config["features"]["kind"]).split("+")
-        if "order" in families:
-            problems += self.order_problems(config["features"]["order"])
+        own = self.feature_families()
+        for family in families:
+            if family in own:
+                problems += self.feature_family_problems(family, config["features"].get(family) or {})
+            elif family not in ("spectrum", "statistical"):
+                problems.append(f"features.kind: {family!r} is not a feature family of the {self.name} system "
+                                f"(built in: spectrum, statistical; its own: {sorted(own) or 'none'})")
         if "spectrum" in families or self.calibrates_on_spectra:
             if spectrum["f_max_hz"] > nyquist:
                 problems.append(f"features.spectrum.f_max_hz: {spectrum['f_max_hz']} Hz is above the "
                                 f"Nyquist frequency {nyquist:g} Hz of the {self.name} system's rate")
             if spectrum["f_min_hz"] >= spectrum["f_max_hz"]:
                 problems.append("features.spectrum.f_min_hz: must be below features.spectrum.f_max_hz")
-        return problems
-
-    def order_problems(self, order: dict) -> list[str]:
-        """What keeps the order features (`features.order`) from working on this rig's records:
-        no gears, orders above the Nyquist order at the highest speed, a segment shorter than one
-        revolution of a shaft or too short for the order bands."""
-        shafts = self.shafts()
-        if not shafts:
-            return [f"features.kind: the order features need gears, and the {self.name} system has none "
-                    "(System.shafts() is None)"]
-        problems = []
-        fastest, slowest = max(self.speeds_rpm) / 60, min(self.speeds_rpm) / 60
-        seconds = (self.segment_length - 1) / self.output_rate_hz
-        nyquist_order = self.output_rate_hz / 2 / fastest
-        if order["order_max"] > nyquist_order:
-            problems.append(f"features.order.order_max: {order['order_max']} is above the Nyquist order "
-                            f"{nyquist_order:.1f} at the highest speed {max(self.speeds_rpm):g} rpm")
-        if 1 / (seconds * slowest) > order["resolution_orders"]:
-            problems.append(f"features.order.resolution_orders: {order['resolution_orders']} is finer than the "
-                            f"{1 / (seconds * slowest):.3g} orders a segment resolves at {min(self.speeds_rpm):g} rpm")
-        for name, ratio, teeth in shafts:
-            if seconds * slowest * ratio < 1:
-                problems.append(f"rig: a segment holds less than one revolution of the {name} at "
-                                f"{min(self.speeds_rpm):g} rpm; the order features average whole revolutions")
-            top = (order["mesh_harmonics"] * teeth + 1) * ratio
-            if top > nyquist_order:
-                problems.append(f"features.order.mesh_harmonics: the {name}'s harmonic {order['mesh_harmonics']} "
-                                f"and its sideband (input order {top:g}) lie above the Nyquist order "
-                                f"{nyquist_order:.1f} at {max(self.speeds_rpm):g} rpm")
         return problems
 
     # -- measured stage ----------------------------------------------------------------------
@@ -353,11 +329,20 @@ class System(ABC):
         (no envelope features)."""
         return None
 
-    def shafts(self) -> list[tuple[str, float, int]] | None:
-        """The rig's geared shafts as [(name, speed ratio to the input shaft, teeth)], the one whose
-        speed the records carry (`speed_rpm`, ratio 1) first; what the order features need
-        (angular resampling, TSA per shaft, mesh orders). None: a rig without gears."""
-        return None
+    def feature_families(self) -> dict:
+        """The system's own feature families beside the built-in ones: {name: function(signal
+        frame, channels, params) -> wide features table}; `params` is `features.<name>` (its
+        schema in the system's schema file) plus what `feature_family_params` adds. None by default."""
+        return {}
+
+    def feature_family_params(self, family: str) -> dict:
+        """What the system adds to `features.<family>` for its own family's table function (the
+        rule's params, so an edit of it reruns the features)."""
+        return {}
+
+    def feature_family_problems(self, family: str, params: dict) -> list[str]:
+        """What keeps an own family (`features.<family>`) from working on this rig's records."""
+        return []
 
 
 def kept_records(frame: pd.DataFrame) -> pd.DataFrame:

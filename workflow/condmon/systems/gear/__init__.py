@@ -230,6 +230,42 @@ class GearSystem(System):
         return float(self.config["model"]["load_torque"])
 
     # -- features ----------------------------------------------------------------------------
+    # -- features: the order-domain gear diagnostics (order_features.py) ----------------------
+    def feature_families(self) -> dict:
+        from condmon.systems.gear.order_features import order_feature_table
+
+        return {"order": order_feature_table}
+
+    def feature_family_params(self, family: str) -> dict:
+        return {"shafts": [list(shaft) for shaft in self.shafts()]}
+
+    def feature_family_problems(self, family: str, order: dict) -> list[str]:
+        """What keeps the order features (`features.order`) from working on this rig's records:
+        no gears, orders above the Nyquist order at the highest speed, a segment shorter than one
+        revolution of a shaft or too short for the order bands."""
+        shafts = self.shafts()
+        problems = []
+        fastest, slowest = max(self.speeds_rpm) / 60, min(self.speeds_rpm) / 60
+        seconds = (self.segment_length - 1) / self.output_rate_hz
+        nyquist_order = self.output_rate_hz / 2 / fastest
+        if order["order_max"] > nyquist_order:
+            problems.append(f"features.order.order_max: {order['order_max']} is above the Nyquist order "
+                            f"{nyquist_order:.1f} at the highest speed {max(self.speeds_rpm):g} rpm")
+        if 1 / (seconds * slowest) > order["resolution_orders"]:
+            problems.append(f"features.order.resolution_orders: {order['resolution_orders']} is finer than the "
+                            f"{1 / (seconds * slowest):.3g} orders a segment resolves at {min(self.speeds_rpm):g} rpm")
+        for name, ratio, teeth in shafts:
+            if seconds * slowest * ratio < 1:
+                problems.append(f"rig: a segment holds less than one revolution of the {name} at "
+                                f"{min(self.speeds_rpm):g} rpm; the order features average whole revolutions")
+            top = (order["mesh_harmonics"] * teeth + 1) * ratio
+            if top > nyquist_order:
+                problems.append(f"features.order.mesh_harmonics: the {name}'s harmonic {order['mesh_harmonics']} "
+                                f"and its sideband (input order {top:g}) lie above the Nyquist order "
+                                f"{nyquist_order:.1f} at {max(self.speeds_rpm):g} rpm")
+        return problems
+
+
     def shafts(self) -> list[tuple[str, float, int]]:
         """The pinion on the input shaft (ratio 1) and the gear on the output shaft (ratio
         teeth_pinion / teeth_gear), with their teeth (`model.geometry`)."""

@@ -43,10 +43,13 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+import pandas as pd
 from scipy.interpolate import CubicSpline
 from scipy.signal import butter, sosfiltfilt
 from sklearn.base import BaseEstimator, TransformerMixin
 
+from condmon.features import FeatureTableError, single_sampling_rate
+from condmon.signals import to_arrays
 from condmon.spectra import amplitude_spectrum, band_values
 from condmon.stat_features import crest_factor, kurtosis, rms
 
@@ -506,3 +509,28 @@ def order_features_from_params(channels, shafts, order_params: dict) -> OrderFea
         raise ValueError("order features need the rig's geared shafts, and this system has none "
                          "(System.shafts() is None)")
     return OrderFeatures(shafts=[tuple(s) for s in shafts], channels=list(channels), **order_params)
+
+
+def order_feature_table(signal_frame, channels, params: dict) -> pd.DataFrame:
+    """Wide features table of one signal table: order-spectrum bands and gear condition indicators
+    per channel (`condmon.order_features.OrderFeatures`, configured by `params` = the config's
+    `features.order` with the rig's `shafts` [(name, speed ratio, teeth)], `GearSystem.shafts()`),
+    with each segment's stored input-shaft speed."""
+    params = dict(params)
+    shafts = params.pop("shafts", None)
+    try:
+        extractor = order_features_from_params(channels, shafts, params)
+    except ValueError as exc:
+        raise FeatureTableError(f"features.order: {exc}") from exc
+    present = set(signal_frame["channel"])
+    missing = [ch for ch in extractor.channels if ch not in present]
+    if missing:
+        raise FeatureTableError(f"channel(s) {missing} not in the signal table (it has {sorted(present)})")
+    fs_hz = single_sampling_rate(signal_frame)
+    ids, arrays = to_arrays(signal_frame, extractor.channels)
+    try:
+        values = extractor.transform(arrays, fs_hz, ids["speed_rpm"].to_numpy())
+    except ValueError as exc:
+        raise FeatureTableError(f"order features: {exc}") from exc
+    return pd.concat([ids.reset_index(drop=True),
+                      pd.DataFrame(values, columns=extractor.feature_names())], axis=1)
