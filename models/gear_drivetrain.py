@@ -191,10 +191,12 @@ class GearDrivetrainParameters:
     health_state: str = "healthy"
     faulty_tooth: int = 0
     surface_fault_teeth: int = 3
-    surface_fault_model: str = "wear"      # or "stiffness_loss" (the CFRP study's)
+    surface_fault_model: str = "wear"      # "pitting", or "stiffness_loss" (the CFRP study's)
     wear_depth: float = 2.0e-5             # material removed at root and tip, m
     wear_roughness: float = 2.0e-6         # rms of the worn surface, m
-    wear_seed: int = 0                     # the worn surfaces' roughness
+    pit_depth: float = 3.0e-5              # pitting: the deepest crater, m
+    pitted_area: float = 0.3               # pitting: share of the dedendum pitted
+    wear_seed: int = 0                     # the damaged surfaces' draw
     surface_fault_stiffness_loss: float = 0.15
     spall_profile: tuple = (0.35, 0.65)
     spall_face: tuple = (0.25, 0.75)

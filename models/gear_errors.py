@@ -196,3 +196,22 @@ def wear_flank_map(depth: float, roughness: float, rng: np.random.Generator, row
     if roughness:
         removed = removed + rng.normal(0.0, roughness, (rows, columns))
     return FlankMap.of(np.maximum(removed, 0.0))
+
+
+def pitted_flank_map(pit_depth: float, pitted_area: float, rng: np.random.Generator, rows: int = 31,
+                     columns: int = 16) -> FlankMap:
+    """Pitting of a flank (the gear model's other surface fault): craters in the dedendum, where
+    the sliding opposes the rolling and contact fatigue starts (roll fraction 0.1-0.5), each a
+    Gaussian bowl up to `pit_depth` deep, added until `pitted_area` of that zone is pitted."""
+    roll, face = np.meshgrid(np.linspace(0, 1, rows), np.linspace(0, 1, columns), indexing="ij")
+    zone = (roll >= 0.1) & (roll <= 0.5)
+    removed = np.zeros_like(roll)
+    for _ in range(500):
+        if (removed[zone] > 0.1 * pit_depth).mean() >= pitted_area:
+            break
+        centre_roll, centre_face = rng.uniform(0.1, 0.5), rng.uniform(0.0, 1.0)
+        width_roll, width_face = rng.uniform(0.02, 0.06), rng.uniform(0.04, 0.12)
+        bowl = pit_depth * rng.uniform(0.4, 1.0) * np.exp(-0.5 * (((roll - centre_roll) / width_roll) ** 2
+                                                                  + ((face - centre_face) / width_face) ** 2))
+        removed = np.maximum(removed, bowl)
+    return FlankMap.of(removed)

@@ -32,7 +32,7 @@ import math
 import numpy as np
 
 from condmon.models.contact_laws import hysteresis_factor
-from condmon.models.gear_errors import add_flank_maps, wear_flank_map
+from condmon.models.gear_errors import add_flank_maps, pitted_flank_map, wear_flank_map
 from condmon.models.gear_mesh import GearMesh, ProfileDeviation, ToothDamage
 from condmon.models.numerics import SimulationError
 
@@ -41,9 +41,11 @@ MESH_HEALTH_STATES = ("healthy", "surface_fault", "missing_tooth", "spall", "chi
 SHAFT_HEALTH_STATES = ("shaft_crack", "delamination")
 HEALTH_STATES = MESH_HEALTH_STATES + SHAFT_HEALTH_STATES
 MESH_STIFFNESS_MODELS = ("potential_energy", "simple")
-# A surface fault as material removed by sliding wear (`wear_depth`, `wear_roughness`), or as the
-# CFRP study's loss of contact stiffness (`surface_fault_stiffness_loss`), kept to compare with it.
-SURFACE_FAULT_MODELS = ("wear", "stiffness_loss")
+# A surface fault as material removed by sliding wear (`wear_depth`, `wear_roughness`) or by
+# pitting (`pit_depth`, `pitted_area`), or as the CFRP study's loss of contact stiffness
+# (`surface_fault_stiffness_loss`), kept to compare with it.
+# `wear_or_pitting`: one of the two, by the parity of `wear_seed` (a random seed: half and half).
+SURFACE_FAULT_MODELS = ("wear", "pitting", "wear_or_pitting", "stiffness_loss")
 DEFLECTION_REF = 1.0e-6  # m; K = mesh stiffness at this deflection keeps K's unit N/m for any n
 INVERSE_DEFLECTION_REF = 1.0 / DEFLECTION_REF
 MAX_DEFLECTION = 1.0e-3  # m; a mesh deflection beyond this is divergence
@@ -73,14 +75,21 @@ def surface_fault_teeth(p) -> list[int]:
     return [(p.faulty_tooth + k) % p.geometry.teeth_pinion for k in range(p.surface_fault_teeth)]
 
 
-def contact_stiffness_factors(p) -> list[float]:
-    """Factor on the contact stiffness of every pinion tooth: 1 - surface_fault_stiffness_loss on
-    the surface fault's teeth (`surface_fault_model: stiffness_loss`), 1 elsewhere."""
+def surface_fault_form(p) -> str:
+    """The surface fault's form in `p`: its `surface_fault_model`, with `wear_or_pitting` resolved."""
     if p.surface_fault_model not in SURFACE_FAULT_MODELS:
         raise ValueError(f"unknown surface_fault_model {p.surface_fault_model!r}; "
                          f"choose one of {list(SURFACE_FAULT_MODELS)}")
+    if p.surface_fault_model == "wear_or_pitting":
+        return "wear" if int(p.wear_seed) % 2 == 0 else "pitting"
+    return p.surface_fault_model
+
+
+def contact_stiffness_factors(p) -> list[float]:
+    """Factor on the contact stiffness of every pinion tooth: 1 - surface_fault_stiffness_loss on
+    the surface fault's teeth (`surface_fault_model: stiffness_loss`), 1 elsewhere."""
     factors = [1.0] * p.geometry.teeth_pinion
-    if p.health_state == "surface_fault" and p.surface_fault_model == "stiffness_loss":
+    if p.health_state == "surface_fault" and surface_fault_form(p) == "stiffness_loss":
         for tooth in surface_fault_teeth(p):
             factors[tooth] = 1.0 - p.surface_fault_stiffness_loss
     return factors
@@ -88,16 +97,20 @@ def contact_stiffness_factors(p) -> list[float]:
 
 def flank_maps(p) -> tuple:
     """Every pinion tooth's flank map: the manufacturing deviations `flank_maps_pinion` plus, for a
-    surface fault by wear, the wear of its teeth (each tooth its own rough surface, from `wear_seed`)."""
-    if p.health_state != "surface_fault" or p.surface_fault_model != "wear":
+    surface fault by wear or pitting, the damage of its teeth (each tooth its own surface, from
+    `wear_seed`)."""
+    form = surface_fault_form(p)
+    if p.health_state != "surface_fault" or form not in ("wear", "pitting"):
         return tuple(p.flank_maps_pinion)
-    if p.wear_depth <= 0:
-        raise ValueError(f"wear_depth {p.wear_depth} m: a worn flank has lost material (> 0)")
+    depth = p.wear_depth if form == "wear" else p.pit_depth
+    if depth <= 0:
+        raise ValueError(f"{form}: a damaged flank has lost material (depth {depth} m, > 0)")
     rng = np.random.default_rng([int(p.wear_seed), 0x3EA2])
-    wear = [None] * p.geometry.teeth_pinion
+    damage = [None] * p.geometry.teeth_pinion
     for tooth in surface_fault_teeth(p):
-        wear[tooth] = wear_flank_map(p.wear_depth, p.wear_roughness, rng)
-    return add_flank_maps(tuple(p.flank_maps_pinion), tuple(wear))
+        damage[tooth] = (wear_flank_map(p.wear_depth, p.wear_roughness, rng) if form == "wear"
+                         else pitted_flank_map(p.pit_depth, p.pitted_area, rng))
+    return add_flank_maps(tuple(p.flank_maps_pinion), tuple(damage))
 
 
 def gear_mesh(p) -> GearMesh:

@@ -165,3 +165,20 @@ def test_bench_variants_layer_over_the_default_config(variant):
     assert set(system.bench_effects()) != set(default.bench_effects())
     assert set(changes) <= {"run_name", "virtual_bench"}  # the model section is the default run's
     assert deep_update({}, changes)  # plain mapping
+
+
+def test_pitting_craters_the_dedendum_and_either_form_is_drawn():
+    from condmon.models.gear_errors import pitted_flank_map
+    from condmon.models.mesh_force import flank_maps, surface_fault_form
+
+    pits = pitted_flank_map(3e-5, 0.3, np.random.default_rng(4)).array()
+    roll = np.linspace(0, 1, pits.shape[0])
+    assert pits.max() <= 3e-5 and pits[roll > 0.7].max() < 1e-7  # none on the addendum
+    assert (pits[(roll >= 0.1) & (roll <= 0.5)] > 3e-6).mean() >= 0.3
+    p = GearDrivetrainParameters(health_state="surface_fault", surface_fault_model="wear_or_pitting")
+    forms = {surface_fault_form(p.replace(wear_seed=seed)) for seed in range(4)}
+    assert forms == {"wear", "pitting"}
+    maps = flank_maps(p.replace(wear_seed=1))  # pitting on the surface fault's three teeth
+    assert [i for i, m in enumerate(maps) if m is not None] == [0, 1, 2]
+    with pytest.raises(ValueError, match="unknown surface_fault_model"):
+        surface_fault_form(p.replace(surface_fault_model="rust"))

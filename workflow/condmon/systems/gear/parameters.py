@@ -59,8 +59,9 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
       (`gear_errors.draw_gear_errors`: pitch pattern, eccentricity, profile and helix slopes);
     - slow sinusoidal speed and load fluctuations (`model.variability`: amplitude uniform up to
       the configured one, frequency uniform in its range, random phase);
-    - the severity of its faults (`model.fault_severity`: the wear depth, the spall's depth and the
-      root crack's depth, each uniform in its range) and the worn surfaces' roughness seed."""
+    - the severity of its faults (`model.fault_severity`: the wear depth, the pits' depth and
+      pitted area, the spall's depth and the root crack's depth, each uniform in its range) and the
+      damaged surfaces' seed (its parity picks wear or pitting under `wear_or_pitting`)."""
     def uniform(low, high):
         return float(rng.uniform(low, high))
 
@@ -84,6 +85,8 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
         load_fluctuation_hz=uniform(*variability["load_fluctuation_hz"]),
         load_fluctuation_phase=uniform(0.0, 2 * math.pi),
         wear_depth=uniform(*severity["wear_depth"]),
+        pit_depth=uniform(*severity["pit_depth"]),
+        pitted_area=uniform(*severity["pitted_area"]),
         spall_depth=uniform(*severity["spall_depth"]),
         crack_depth=uniform(*severity["crack_depth"]),
         wear_seed=int(rng.integers(2 ** 31)),
