@@ -136,7 +136,9 @@ def final_outputs():
 # Recorded with the MLflow runs so a comparison can group runs of the same config.
 from condmon.signals import config_hash as _config_hash
 
-config_hash = _config_hash(config)
+# The run's config: all but the predict_* keys (what a model is applied to changes no run).
+RUN_CONFIG = {key: value for key, value in config.items() if not key.startswith("predict_")}
+config_hash = _config_hash(RUN_CONFIG)
 
 
 # hybrid.simulated_validation_share > 0: the split table also lists the simulated records held out
@@ -171,3 +173,17 @@ def plot_category(wildcards):
         if wildcards.name.startswith(prefix):
             return category
     return "Accuracy"
+
+
+# -- the predict job (predict.smk) ------------------------------------------------------------
+PREDICT_INPUT = config["predict_input"]
+PREDICT_NAME = Path(PREDICT_INPUT).stem if PREDICT_INPUT else "unset"
+
+
+def predict_inputs():
+    if not PREDICT_INPUT:
+        raise ValueError("snakemake predict needs the measurements: name them with --config "
+                         "predict_input=PATH (a signal table, or a folder or file of the system's own records)")
+    # this run's model store unless predict_model names another model
+    return {"data": PREDICT_INPUT,
+            **({} if config["predict_model"] else {"models": rules.track.output.models})}

@@ -13,16 +13,27 @@ rule track:
         simulated_signals=simulated_batches(),
         features_simulated=rules.features_simulated.output.features,
         features_measured=rules.features_measured.output.features,
+        # each fit's measured training records (the speeds its packaged model was trained at)
+        splits=expand(rules.hybrid.output.splits, protocol=PROTOCOLS),
+        plots=f"{RESULTS}/report/plots",  # the report rule's; logged as artifacts of the parent run
     output:
         run_info=f"{RESULTS}/report/mlflow_run.json",
+        # every fit as a model from raw segments, in a folder of this config's own (model_store.py)
+        models=directory(f"{RESULTS}/models/{config_hash}"),
     params:
         tracking_uri=config["tracking"]["uri"],
         log_models=config["tracking"]["log_models"],
         run_name=config["run_name"],
         config_hash=config_hash,
-        config=config,  # the parent run's params (any edit changes config_hash anyway)
+        config=RUN_CONFIG,  # the parent run's params (any edit changes config_hash anyway)
         data_source=data_source(),
         healthy_state=SYSTEM.healthy_state,
+        protocols=PROTOCOLS,
+        # what a packaged model computes from a signal table, and how the system reads its records
+        features=dict(channels=config["features"]["channels"], spectrum=config["features"]["spectrum"],
+                      kind=config["features"]["kind"], statistical=statistical_feature_params()),
+        features_system=SYSTEM.job_spec("features"),
+        measured_system=SYSTEM.job_spec("measured"),
     conda:
         "../envs/report.yaml"
     benchmark:
