@@ -71,6 +71,7 @@ def test_a_measured_speed_that_rig_speeds_lacks_is_refused_naming_it(tmp_path):
 
 
 def test_snakemake_refuses_it_before_any_job(tmp_path):
+    shutil.copy(ROOT / "Snakefile", tmp_path)
     for name in ("workflow", "config", "models", "profiles"):
         shutil.copytree(ROOT / name, tmp_path / name, ignore=shutil.ignore_patterns("__pycache__"))
     path = gear_table(tmp_path / "measured.parquet", [450.0, 900.0])

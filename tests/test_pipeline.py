@@ -30,7 +30,7 @@ def snakemake(workdir, *args, check=True):
 
 def copy_project(target: Path) -> Path:
     target.mkdir(parents=True, exist_ok=True)
-    for name in ("workflow", "config", "models", "profiles"):
+    for name in ("Snakefile", "workflow", "config", "models", "profiles"):
         source = ROOT / name
         if source.is_dir():
             shutil.copytree(source, target / name, ignore=shutil.ignore_patterns("__pycache__"))
@@ -231,6 +231,18 @@ def test_the_predict_rule_runs_only_the_prediction(smoke, tmp_path):
     out = results / "predict" / "new"
     assert pd.read_csv(out / "health_summary.csv")["record_id"].nunique() == new_records(results)["record_id"].nunique()
     assert (results / "logs" / "predict" / "new.log").is_file()
+
+
+def test_a_nested_config_override_is_typed_and_reruns_only_the_svm(smoke):
+    """Snakemake hands `--config classifiers='{svm: {C: 3.0}}'` over as text; read as the schema's
+    number it plans the SVM's train jobs and what follows them, nothing else."""
+    workdir, _ = smoke
+    out = snakemake(workdir, "-n", "--configfile", "config/smoke.yaml", "--config",
+                    "classifiers={svm: {C: 3.0}}").stdout
+    table = out.split("Job stats:")[1].split("total")[0]
+    jobs = {name: int(count) for name, count in (line.split() for line in table.strip().splitlines()[2:])}
+    assert jobs == {"train": len(smoke_config()["hybrid"]["protocols"]), "report": 1, "track": 1, "all": 1}
+    assert out.count("classifier=svm") == jobs["train"] and "classifier=knn" not in out
 
 
 def test_choosing_which_models_mlflow_logs_reruns_only_the_tracking(smoke):

@@ -95,7 +95,9 @@ def build_store(directory, train_dirs, split_tables, measured_signals, simulated
                 joblib.dump(signal_model, tmp / name)
                 entries.append({**key, "file": name, "digest": signal_model.digest(),
                                 "leaky": protocol in LEAKY_PROTOCOLS, "accuracy": signal_model.info["accuracy"],
-                                "classes": signal_model.classes, "domain": domain})
+                                "classes": signal_model.classes, "domain": domain,
+                                # where it was fitted: the CNN's device, scikit-learn's CPU
+                                "device": getattr(signal_model.estimator, "device_", "cpu")})
         index = {"config_hash": config_hash, "best": best_model(entries), "models": entries}
         (tmp / INDEX_FILE).write_text(json.dumps(index, indent=1, default=float))
     return index

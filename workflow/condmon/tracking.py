@@ -398,11 +398,10 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
         mlflow.log_text(metrics.to_csv(index=False), "accuracy.csv")
         # counts per run (rows: true label, columns: predicted label)
         mlflow.log_text(confusion.reset_index().to_csv(index=False), "confusion_matrices.csv")
-        for folder, path in (artifacts or {}).items():
-            if Path(path).is_dir():
-                mlflow.log_artifacts(str(path), folder)
-            else:
-                mlflow.log_artifact(str(path), folder)
+        for folder, path in (artifacts or {}).items():  # hidden files (Snakemake's marks) left out
+            for file in sorted(Path(path).iterdir()) if Path(path).is_dir() else [Path(path)]:
+                if file.is_file() and not file.name.startswith("."):
+                    mlflow.log_artifact(str(file), folder)
         logged_digests = logged_model_digests(experiment_id) if store else {}
         n_reused = 0
         for key, params, values in runs:
@@ -415,6 +414,8 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
             run_id = client.create_run(experiment_id, run_name=name,
                                        tags={**run_tags, "mlflow.parentRunId": parent_id}).info.run_id
             model_id = None
+            if store:  # the device it was fitted on (the CNN: cpu or cuda:<n> (<GPU>))
+                params = {**params, "device": by_key[run_key]["device"]}
             if wants_model(log_models, key) and store:
                 digest = by_key[run_key]["digest"]
                 model_id = logged_digests.get(digest)

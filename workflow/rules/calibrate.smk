@@ -6,8 +6,12 @@ rule calibrate:
     input:
         measured=rules.measured.output[0],
     output:
-        params=report(f"{RESULTS}/calibration/{{variant}}/params.json", caption="../report/calibration.rst",
-                      category="Calibration", labels={"name": "calibrated parameters ({variant})"}),
+        params=report(
+            f"{RESULTS}/calibration/{{variant}}/params.json",
+            caption="../report/calibration.rst",
+            category="Calibration",
+            labels={"name": "calibrated parameters ({variant})"},
+        ),
         history=f"{RESULTS}/calibration/{{variant}}/history.parquet",
         spectra=f"{RESULTS}/calibration/{{variant}}/spectra.parquet",
         plot=f"{RESULTS}/calibration/{{variant}}/convergence.png",
@@ -15,7 +19,11 @@ rule calibrate:
         system=lambda wc: SYSTEM.job_spec("calibrate", wc.variant),
         variant=lambda wc: wc.variant,
         # the variants are wildcards, so the list of them never reruns a calibration
-        calibration={k: v for k, v in config["calibration"].items() if k != "mesh_stiffness_models"},
+        calibration={
+            k: v
+            for k, v in config["calibration"].items()
+            if k != "mesh_stiffness_models"
+        },
         channels=config["features"]["channels"],
         spectrum=config["features"]["spectrum"],
         data_source=data_source(),

@@ -1,0 +1,6 @@
+# The workflow's entry: `snakemake --cores all [--configfile config/<run>.yaml]` in this folder.
+# The pipeline itself is workflow/Snakefile (where the Snakemake workflow catalog's standardized
+# usage looks for it, with its rules in workflow/rules/); this file only includes it.
+
+
+include: "workflow/Snakefile"
