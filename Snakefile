@@ -4,3 +4,7 @@
 
 
 include: "workflow/Snakefile"
+
+
+# An include drops the included file's default target; the pipeline's is its rule `all`.
+workflow.default_target = "all"

@@ -1,5 +1,6 @@
 """Nested `--config` overrides read as the schema's types (Snakemake hands their values over as
 text), and a measured speed that rig.speeds_rpm lacks refused before any job runs."""
+import re
 import shutil
 import subprocess
 import sys
@@ -84,3 +85,5 @@ def test_snakemake_refuses_it_before_any_job(tmp_path):
                              "--config", "classifiers={svm: {C: 3}, knn: {n_neighbors: 3}}"], cwd=tmp_path,
                             capture_output=True, text=True)
     assert result.returncode == 0, result.stderr[-2000:]
+    # through the top-level Snakefile, whose default target is the pipeline's rule all
+    assert re.search(r"^all\s+1$", result.stdout, re.M) and re.search(r"^train\s+4$", result.stdout, re.M)
