@@ -131,6 +131,13 @@ def test_the_mlflow_pyfunc_model_takes_a_signal_table_and_gives_the_same_labels(
     assert list(out.columns) == ["record_id", "segment", "predicted_label", "p_fault", "p_healthy"]
     with pytest.raises(Exception, match="speed 900 rpm"):
         loaded.predict(records(9, speeds=(900.0,), per_state=1).drop(columns=["params"]))
+    # condmon predict takes it by its run (the run's only model) or by its model URI
+    for source in (f"runs:/{info.run_id}", info.model_uri):
+        out = tmp_path / source.replace(":", "").replace("/", "_")
+        write_signal_table(records(8), tmp_path / "new.parquet")
+        assert main(["predict", "--model", source, "--tracking-uri", f"sqlite:///{tmp_path / 'mlflow.db'}",
+                     "--input", str(tmp_path / "new.parquet"), "--output", str(out)]) == 0
+        assert list(pd.read_csv(out / "segments.csv")["predicted_label"]) == list(model.predict(table))
 
 
 @pytest.mark.skipif(not CWRU.is_dir(), reason=f"no CWRU data at {CWRU}")
