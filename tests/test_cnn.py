@@ -135,6 +135,8 @@ def test_early_stopping_history_and_member_info():
         assert info["best_epoch"] == rows.epoch[rows.val_loss.idxmin()]
         assert info["n_val"] > 0
     assert any(info["epochs_run"] < 30 for info in model.member_info_)  # stopped early
+    # where it trained, as the MLflow run logs it (device "auto": the GPU if PyTorch sees one)
+    assert model.device_.startswith("cuda:") if torch.cuda.is_available() else model.device_ == "cpu"
 
 
 def test_epochs_are_logged_at_most_every_few_seconds(caplog, monkeypatch):

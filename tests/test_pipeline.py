@@ -30,7 +30,7 @@ def snakemake(workdir, *args, check=True):
 
 def copy_project(target: Path) -> Path:
     target.mkdir(parents=True, exist_ok=True)
-    for name in ("workflow", "config", "models", "profiles"):
+    for name in ("Snakefile", "workflow", "config", "models", "profiles"):
         source = ROOT / name
         if source.is_dir():
             shutil.copytree(source, target / name, ignore=shutil.ignore_patterns("__pycache__"))
@@ -51,6 +51,11 @@ def planned_jobs(workdir, config: dict) -> dict:
     path = workdir / "edited.yaml"
     path.write_text(yaml.safe_dump(config))
     out = snakemake(workdir, "-n", "--configfile", str(path)).stdout
+    return job_counts(out)
+
+
+def job_counts(out: str) -> dict:
+    """{rule: jobs} of a dry run's "Job stats" table ({} when nothing is to be done)."""
     if "Nothing to be done" in out:
         return {}
     table = out.split("Job stats:")[1].split("total")[0]
@@ -123,7 +128,7 @@ def copy_of_run(workdir: Path, target: Path) -> Path:
     shutil.copytree(workdir, target, symlinks=True)
     with sqlite3.connect(target / "results" / "mlflow.db") as db:
         for table, column in (("experiments", "artifact_location"), ("runs", "artifact_uri"),
-                              ("logged_models", "artifact_location")):
+                              ("logged_models", "artifact_location"), ("model_versions", "storage_location")):
             db.execute(f"UPDATE {table} SET {column} = replace({column}, ?, ?)", (workdir.as_uri(), target.as_uri()))
     return target
 
@@ -153,6 +158,95 @@ def test_two_runs_differing_in_svm_C_compared_through_mlflow(smoke, tmp_path):
     assert {c.split(".")[2] for c in summary} == {"svm", "knn"} and runs[summary].notna().all().all()
     knn = [c for c in summary if ".knn." in c]
     assert (runs[knn].nunique() == 1).all()  # the k-NN did not rerun: the same numbers
+
+    # each config's models in a folder of their own: both load, the SVMs differ, the k-NNs are one
+    # model, logged once (the second run links them)
+    import joblib
+    from condmon.model_store import read_index
+    stores = {h: read_index(workdir / "results" / "smoke" / "models" / h) for h in runs["tags.config_hash"]}
+    assert len(stores) == 2
+    first, second = ({e["file"]: e for e in store["models"]} for store in stores.values())
+    assert first.keys() == second.keys()
+    for name in first:
+        same = first[name]["digest"] == second[name]["digest"]
+        assert same == name.startswith("knn/"), name
+    svm = "svm/record_split/p100_r0.joblib"
+    models = [joblib.load(workdir / "results" / "smoke" / "models" / h / svm) for h in stores]
+    assert models[0].estimator.named_steps["svm"].C != models[1].estimator.named_steps["svm"].C
+    for run_id in runs["run_id"]:  # every nested run names a file of its own config's folder
+        children = mlflow.search_runs(experiment_names=["smoke"], filter_string=f"tags.mlflow.parentRunId = '{run_id}'")
+        config_hash = runs.set_index("run_id").loc[run_id, "tags.config_hash"]
+        assert children["tags.model_file"].str.contains(f"/models/{config_hash}/").all()
+    info = json.loads((workdir / "results" / "smoke" / "report" / "mlflow_run.json").read_text())
+    n_knn = sum(name.startswith("knn/") for name in first)
+    assert info["n_models_linked_not_logged"] >= n_knn
+    # condmon-compare names the key that differs
+    result = subprocess.run([sys.executable, "-c", "import sys; from condmon.compare import main; "
+                             f"sys.exit(main(['--tracking-uri', 'sqlite:///{workdir}/results/mlflow.db', "
+                             "'--experiment', 'smoke', '--percent', '100']))"], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert "config keys that differ between these 2 runs: classifiers.svm.C\n" in result.stdout
+    # the report's plots are artifacts of the parent run
+    client = mlflow.MlflowClient()
+    plots = {f.path for f in client.list_artifacts(info["parent_run_id"], "plots")}
+    assert plots and all(p.endswith(".png") for p in plots)
+
+
+def new_records(results, speed=None):
+    """A signal table of records the run never measured: its simulated 450 rpm samples."""
+    frame = pd.concat([read_signal_table(p) for p in sorted((results / "simulated").glob("*/450rpm/batch000.parquet"))],
+                      ignore_index=True)
+    return frame if speed is None else frame.assign(speed_rpm=speed)
+
+
+def test_condmon_predict_and_the_registered_model_give_the_same_labels(smoke, tmp_path):
+    import mlflow
+    from condmon.signals import write_signal_table
+    workdir, results = smoke
+    write_signal_table(new_records(results), tmp_path / "new.parquet")
+    predict = [sys.executable, "-m", "condmon.predict", "predict", "--model", str(results),
+               "--input", str(tmp_path / "new.parquet")]
+    subprocess.run([*predict, "--output", str(tmp_path / "out")], check=True, cwd=workdir)
+    segments = pd.read_csv(tmp_path / "out" / "segments.csv")
+    assert {"health_summary.csv", "records.csv", "predictions.png"} <= {p.name for p in (tmp_path / "out").iterdir()}
+    mlflow.set_tracking_uri(f"sqlite:///{workdir}/results/mlflow.db")
+    registered = mlflow.pyfunc.load_model("models:/condmon-smoke@best")
+    labels = registered.predict(read_signal_table(tmp_path / "new.parquet"))
+    assert list(labels["predicted_label"]) == list(segments["predicted_label"])
+    assert list(labels["record_id"]) == list(segments["record_id"])
+    info = json.loads((results / "report" / "mlflow_run.json").read_text())
+    used = json.loads((tmp_path / "out" / "model.json").read_text())
+    assert used["classifier"] == info["best_model"]["classifier"] and used["config_hash"] == info["config_hash"]
+    # a record at a speed the model was never trained at is refused by name; nothing written
+    write_signal_table(new_records(results, speed=900.0), tmp_path / "at900.parquet")
+    refused = subprocess.run([sys.executable, "-m", "condmon.predict", "predict", "--model", str(results),
+                              "--input", str(tmp_path / "at900.parquet"), "--output", str(tmp_path / "no")],
+                             cwd=workdir, capture_output=True, text=True)
+    assert refused.returncode == 2 and "speed 900 rpm" in refused.stderr
+    assert not (tmp_path / "no").exists()
+
+
+def test_the_predict_rule_runs_only_the_prediction(smoke, tmp_path):
+    from condmon.signals import write_signal_table
+    workdir, results = smoke
+    write_signal_table(new_records(results), tmp_path / "new.parquet")
+    args = ["predict", "--configfile", "config/smoke.yaml", "--config", f"predict_input={tmp_path / 'new.parquet'}"]
+    assert job_counts(snakemake(workdir, "-n", *args).stdout) == {"predict": 1}  # nothing else reruns
+    snakemake(workdir, "--cores", "1", *args)
+    out = results / "predict" / "new"
+    assert pd.read_csv(out / "health_summary.csv")["record_id"].nunique() == new_records(results)["record_id"].nunique()
+    assert (results / "logs" / "predict" / "new.log").is_file()
+
+
+def test_a_nested_config_override_is_typed_and_reruns_only_the_svm(smoke):
+    """Snakemake hands `--config classifiers='{svm: {C: 3.0}}'` over as text; read as the schema's
+    number it plans the SVM's train jobs and what follows them, nothing else."""
+    workdir, _ = smoke
+    out = snakemake(workdir, "-n", "--configfile", "config/smoke.yaml", "--config",
+                    "classifiers={svm: {C: 3.0}}").stdout
+    jobs = job_counts(out)
+    assert jobs == {"train": len(smoke_config()["hybrid"]["protocols"]), "report": 1, "track": 1, "all": 1}
+    assert out.count("classifier=svm") == jobs["train"] and "classifier=knn" not in out
 
 
 def test_choosing_which_models_mlflow_logs_reruns_only_the_tracking(smoke):

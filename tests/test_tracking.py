@@ -179,7 +179,13 @@ def test_a_rerun_rewrites_nothing_and_counts_once(logged, capsys):
     assert all("superseded" not in r.data.tags for r in [first_parent, *first_children])
     # condmon-compare: the newest finished parent per config hash, one row per setting
     assert compare.main(["--tracking-uri", uri, "--experiment", "demo", "--percent", "0"]) == 0
-    lines = capsys.readouterr().out.strip().splitlines()
+    out, _, differing = capsys.readouterr().out.strip().partition("\n\n")
+    lines = out.splitlines()
+    # and the config key that differs between the two configs listed, with each one's value
+    assert differing.splitlines()[0] == "config keys that differ between these 2 runs: classifiers.svm.C"
+    keys = differing.splitlines()[1:]
+    assert keys[0].split() == ["parent_run_id", "config_hash", "classifiers.svm.C"]
+    assert sorted(line.split()[1:] for line in keys[1:]) == [["hash-a", "1.0"], ["hash-b", "0.02"]]
     header, rows = lines[0].split(), lines[1:]
     assert header[:4] == ["experiment", "parent_run_id", "started_utc", "config_hash"]
     assert len(rows) == 2 * 2 * len(fake.PROTOCOL_HOLDOUTS)  # 2 parents x classifiers x protocols
@@ -196,7 +202,7 @@ def test_a_rerun_rewrites_nothing_and_counts_once(logged, capsys):
     assert row.n_repeats == 2
     # --all: every invocation
     assert compare.main(["--tracking-uri", uri, "--all"]) == 0
-    rows = capsys.readouterr().out.strip().splitlines()[1:]
+    rows = capsys.readouterr().out.strip().partition("\n\n")[0].splitlines()[1:]
     assert len(rows) == 3 * 2 * len(fake.PROTOCOL_HOLDOUTS) * len(fake.PERCENTS)
     assert sum(first["parent_run_id"] in row and " no " in row for row in rows) == 8  # not the latest
 

@@ -371,6 +371,9 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
                 self.history_ += history
                 self.member_info_.append(info)
         self.fit_seconds_ = time.perf_counter() - started
+        # where it trained (logged with the MLflow run): "cpu", or "cuda:<n> (<GPU name>)"
+        self.device_ = (f"cuda:{device.index or 0} ({torch.cuda.get_device_name(device)})"
+                        if device.type == "cuda" else "cpu")
         self._modules = None
         return self
 

@@ -2,7 +2,8 @@
 
 One row per parent run x classifier x protocol x measured percentage: mean accuracy and macro-F1
 over repeats (held-out conditions of a repeat averaged first), the parent run's start time and
-config hash. A config logged more than once (a rerun) counts once: the newest finished parent
+config hash; then the config keys whose values differ between the parents listed, with their
+values (``differing_keys``). A config logged more than once (a rerun) counts once: the newest finished parent
 per experiment and config hash, decided here at query time (``latest_parents``); unfinished
 parents (a job killed, a server gone mid-way) never count. ``--all`` shows every invocation.
 
@@ -99,6 +100,18 @@ def comparison_table(runs: pd.DataFrame, experiment_names: dict, percents=None,
     return table[columns].sort_values(["experiment", "started_utc", *KEYS]).reset_index(drop=True)
 
 
+def differing_keys(runs: pd.DataFrame, parent_ids) -> pd.DataFrame:
+    """The config keys (the parents' ``params.*``) whose values differ between the given parents:
+    one row per parent (parent_run_id, config_hash), one column per key; a key a parent lacks
+    counts as differing (shown empty)."""
+    parents = runs[runs["run_id"].isin(list(parent_ids))].set_index("run_id")
+    params = parents[[c for c in parents.columns if c.startswith("params.")]]
+    differing = [c for c in params.columns if params[c].nunique(dropna=False) > 1]
+    table = params[differing].rename(columns=lambda c: c[len("params."):])
+    table.insert(0, "config_hash", parents["tags.config_hash"])
+    return table.rename_axis("parent_run_id").reset_index()
+
+
 def main(argv=None) -> int:
     args = parse_args(argv)
     import mlflow
@@ -129,6 +142,14 @@ def main(argv=None) -> int:
         return 0
     with pd.option_context("display.width", 200, "display.float_format", "{:.3f}".format):
         print(table.to_string(index=False))
+        parents = table["parent_run_id"].unique()
+        if len(parents) > 1:
+            keys = differing_keys(runs, parents)
+            names = list(keys.columns[2:])
+            print(f"\nconfig keys that differ between these {len(parents)} runs: "
+                  + (", ".join(names) if names else "none (reruns of one config)"))
+            if names:
+                print(keys.fillna("").to_string(index=False))
     return 0
 
 

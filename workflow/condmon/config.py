@@ -3,6 +3,8 @@ keys) and the cross-field checks a schema cannot express. Every message names th
 from __future__ import annotations
 
 import copy
+import re
+from pathlib import Path
 
 import jsonschema
 
@@ -28,8 +30,9 @@ def _describe(error: jsonschema.ValidationError) -> str:
     if error.validator == "enum":
         return f"{key}: {error.instance!r} is not allowed; allowed values: {error.validator_value}"
     if error.validator == "type" and isinstance(error.instance, str) and _is_number(error.instance):
-        return (f"{key}: {error.instance!r} is text, not a number; YAML reads exponents without a sign "
-                f"as text, write e.g. 4.0e+8")
+        hint = ("YAML 1.1 reads an exponent without a sign as text, write e.g. 4.0e+8"
+                if re.search(r"[eE]\d", error.instance) else "write it without quotes")
+        return f"{key}: {error.instance!r} is text, not a number; {hint}"
     if error.validator == "oneOf" and "gamma" in key:
         return f"{key}: {error.instance!r} must be 'scale', 'auto' or a positive number"
     return f"{key}: {error.message}"
@@ -121,3 +124,94 @@ def cross_field_problems(config: dict) -> list[str]:
         problems.append(f"features.selection.n_features: {n_features} must be below the number of "
                         f"candidate features ({len(names) * n_channels})")
     return problems
+
+
+# -- typed --config overrides -------------------------------------------------------------------
+# Snakemake reads a nested `--config classifiers='{svm: {C: 3}}'` with YAML's BaseLoader: every
+# value inside it is text ("3", "true", "null"). The schema says what each key is, so such text is
+# read as the schema's type here, before validation; values of config files are never touched.
+
+def _schemas_at(schema: dict, root: dict) -> list[dict]:
+    """The schema alternatives a value must match ($ref resolved, oneOf/anyOf flattened)."""
+    if "$ref" in schema:
+        target = root
+        for part in schema["$ref"].lstrip("#/").split("/"):
+            target = target[part]
+        return _schemas_at({**target, **{k: v for k, v in schema.items() if k != "$ref"}}, root)
+    alternatives = schema.get("oneOf") or schema.get("anyOf")
+    if alternatives:
+        return [s for alt in alternatives for s in _schemas_at(alt, root)]
+    return [schema]
+
+
+def _types(schemas: list[dict]) -> set[str]:
+    types = set()
+    for schema in schemas:
+        kind = schema.get("type")
+        types.update(kind if isinstance(kind, list) else [kind] if kind else [])
+    return types
+
+
+def _typed(text: str, schemas: list[dict]):
+    """``text`` as the first schema type it reads as (YAML 1.2 numbers: 4e8 is a number); the
+    text itself when none fits (validation then names the key)."""
+    if any("string" in _types([s]) and text in s.get("enum", [text]) for s in schemas):
+        return text  # text the key takes as it is (a name, or one of its words: gamma "scale")
+    types = _types(schemas)
+    word = text.strip().lower()
+    if "null" in types and word in ("null", "~", "none", ""):
+        return None
+    if "boolean" in types and word in ("true", "false"):
+        return word == "true"
+    if "integer" in types:
+        try:
+            return int(word)
+        except ValueError:
+            pass
+    if "number" in types:
+        try:
+            number = float(word)
+            return int(number) if number.is_integer() and "." not in word and "e" not in word else number
+        except ValueError:
+            pass
+    return text
+
+
+def _coerce(value, schema: dict, root: dict):
+    schemas = _schemas_at(schema, root)
+    if isinstance(value, str):
+        return _typed(value, schemas)
+    if isinstance(value, dict):
+        out = {}
+        for key, item in value.items():
+            sub = next((s["properties"][key] for s in schemas if key in s.get("properties", {})), None)
+            if sub is None:
+                sub = next((s["additionalProperties"] for s in schemas
+                            if isinstance(s.get("additionalProperties"), dict)), None)
+            out[key] = item if sub is None else _coerce(item, sub, root)
+        return out
+    if isinstance(value, list):
+        items = next((s["items"] for s in schemas if isinstance(s.get("items"), dict)), None)
+        return value if items is None else [_coerce(item, items, root) for item in value]
+    return value
+
+
+def apply_typed_overrides(config: dict, overrides: dict, schema: dict) -> dict:
+    """Read the text values of the command line's ``--config`` overrides (already merged into
+    ``config``) as the types the schema (with the system's fragment) gives their keys; in place."""
+    full, _ = system_schema(config, schema)
+
+    def walk(target: dict, override: dict, where: dict):
+        for key, value in override.items():
+            sub = where.get("properties", {}).get(key)
+            if sub is None or key not in target:
+                continue
+            if isinstance(value, dict) and isinstance(target[key], dict):
+                resolved = _schemas_at(sub, full)
+                merged = {k: v for s in resolved for k, v in s.items()}
+                walk(target[key], value, merged)
+            else:
+                target[key] = _coerce(target[key], sub, full)
+
+    walk(config, overrides or {}, full)
+    return config

@@ -20,6 +20,11 @@
   parent's ``confusion_matrices.csv``;
 - the models ``tracking.log_models`` picks (see ``wants_model``) as LoggedModels of their nested
   run, with a signature, the run's metrics linked to them (``model_id``, on the measured features).
+  With the run's model store (``condmon.model_store``, the pipeline's case) they are the packaged
+  SignalModels as pyfunc models that take a signal table; one whose digest the experiment already
+  has is linked, not logged again; the store's best model is registered (``register_best``:
+  ``condmon-<run>``, aliases ``best`` and ``config-<hash>``), the parent tagged ``best_model_id``,
+  and the report's plots logged as its artifacts.
 
 Older runs are never rewritten: a rerun logs a new parent, and queries keep the newest finished
 parent per config hash (``condmon.compare``). A remote server (http/https) is probed first and
@@ -334,12 +339,17 @@ def curves(history) -> list[tuple[str, float, int]]:
 
 def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_source: str,
                      train_dirs, datasets: dict, config: dict | None = None, log_models="all",
-                     healthy_state: str | None = None, workdir=".") -> dict:
+                     healthy_state: str | None = None, workdir=".", model_store=None,
+                     artifacts: dict | None = None) -> dict:
     """Log one pipeline invocation (see module docstring); returns the run_info dict.
 
     ``train_dirs``: the train/<classifier>/<protocol> folders; ``datasets``: name -> files, with
     ``measured_features`` among them (the models' signatures); ``log_models``: see wants_model.
-    Every input is read and checked before the first MLflow call.
+    ``model_store``: the run's packaged models (``condmon.model_store``): then the logged models are
+    those SignalModels (pyfunc, a signal table in), a model already logged in the experiment (same
+    digest) is linked rather than logged again, and the store's best model is registered
+    (``register_best``); ``artifacts``: {artifact folder: local file or folder} of the parent
+    (the report's plots). Every input is read and checked before the first MLflow call.
     """
     if not isinstance(log_models, dict) and log_models not in MODEL_POLICIES:
         raise ValueError(f"log_models={log_models!r}; expected one of {MODEL_POLICIES} or a filter")
@@ -352,6 +362,16 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
     runs = nested_runs(metrics, predictions, clf_params, histories)
     if missing := [key for key, _, _ in runs if tuple(key.values()) not in files]:
         raise TrackingError(f"no model file in info.json for {missing[:3]}")
+    store = None
+    if model_store is not None:
+        from condmon.model_store import read_index
+
+        store = read_index(model_store)
+        by_key = {(e["classifier"], e["protocol"], e["measured_percent"], e["repeat"], e["holdout"]): e
+                  for e in store["models"]}
+        if missing := [key for key, _, _ in runs if tuple(key.values()) not in by_key]:
+            raise TrackingError(f"{model_store}: no packaged model for {missing[:3]}")
+        files = {key: Path(model_store) / entry["file"] for key, entry in by_key.items()}
     labels = report.label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
     confusion = (predictions.groupby([*KEYS, "true_label", "predicted_label"]).size()
                  .unstack(fill_value=0).reindex(columns=labels, fill_value=0))
@@ -378,6 +398,12 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
         mlflow.log_text(metrics.to_csv(index=False), "accuracy.csv")
         # counts per run (rows: true label, columns: predicted label)
         mlflow.log_text(confusion.reset_index().to_csv(index=False), "confusion_matrices.csv")
+        for folder, path in (artifacts or {}).items():  # hidden files (Snakemake's marks) left out
+            for file in sorted(Path(path).iterdir()) if Path(path).is_dir() else [Path(path)]:
+                if file.is_file() and not file.name.startswith("."):
+                    mlflow.log_artifact(str(file), folder)
+        logged_digests = logged_model_digests(experiment_id) if store else {}
+        n_reused = 0
         for key, params, values in runs:
             run_key = tuple(key.values())
             name = f"{key['classifier']}/{key['protocol']}/p{key['measured_percent']}/r{key['repeat']}"
@@ -388,7 +414,18 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
             run_id = client.create_run(experiment_id, run_name=name,
                                        tags={**run_tags, "mlflow.parentRunId": parent_id}).info.run_id
             model_id = None
-            if wants_model(log_models, key):
+            if store:  # the device it was fitted on (the CNN: cpu or cuda:<n> (<GPU>))
+                params = {**params, "device": by_key[run_key]["device"]}
+            if wants_model(log_models, key) and store:
+                digest = by_key[run_key]["digest"]
+                model_id = logged_digests.get(digest)
+                n_reused += model_id is not None
+                if model_id is None:  # unchanged models are linked, not logged again
+                    model_id = log_signal_model(files[run_key], run_id, re.sub(r"[^\w-]+", "-", name),
+                                                params, {**run_tags, "model_digest": digest})
+                    logged_digests[digest] = model_id
+                model_ids.append(model_id)
+            elif wants_model(log_models, key):
                 model_id = log_model(files[run_key], example, run_id, re.sub(r"[^\w-]+", "-", name),
                                      params, run_tags)
                 model_ids.append(model_id)
@@ -401,6 +438,14 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
                                 "training_history.csv")
             client.log_batch(run_id, metrics=points, params=[Param(k, v) for k, v in params.items()])
             client.set_terminated(run_id)
+        registered = {}
+        if store and store["best"] is not None:
+            best = next(e for e in store["models"] if e["file"] == store["best"])
+            best_id = logged_digests.get(best["digest"])
+            if best_id is not None:
+                registered = register_best(client, best_id, run_name, config_hash, best)
+                mlflow.set_tags({"best_model_id": best_id, "best_model_file": str(files[
+                    tuple(best[k] for k in KEYS)].resolve())})
         mlflow.end_run()
     except Exception as exc:
         with contextlib.suppress(Exception):  # the server may be gone: best effort
@@ -417,6 +462,8 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
     return {"parent_run_id": parent_id, "experiment_id": experiment_id,
             "experiment_name": run_name, "tracking_uri": uri, "tracking_uri_configured": tracking_uri,
             "n_nested_runs": len(runs), "models_logged": log_models, "n_models_logged": len(model_ids),
+            "config_hash": config_hash,
+            **({"n_models_linked_not_logged": n_reused, "best_model": registered} if store else {}),
             "datasets": {name: dataset.digest for name, dataset in inputs.items()},
             "seconds": round(elapsed, 2)}
 
@@ -458,6 +505,64 @@ def log_model(path: Path, features: pd.DataFrame, run_id: str, name: str, params
         # pipeline's own outputs, so their types are listed with the model; others stay refused
         skops_trusted_types=skops.io.get_untrusted_types(data=skops.io.dumps(model)), **common)
     return info.model_id
+
+
+def logged_model_digests(experiment_id: str) -> dict[str, str]:
+    """{model_digest tag: model id} of the signal models already logged in the experiment."""
+    import mlflow
+
+    models = mlflow.search_logged_models(experiment_ids=[experiment_id], output_format="list")
+    return {m.tags["model_digest"]: m.model_id for m in sorted(models, key=lambda m: m.creation_timestamp)
+            if m.tags.get("model_digest") and m.status == "READY"}
+
+
+def log_signal_model(path: Path, run_id: str, name: str, params: dict, tags: dict) -> str:
+    """A packaged SignalModel (``condmon.model_store``) as a pyfunc LoggedModel of ``run_id``:
+    a signal table in, per-segment labels and probabilities out, its signature naming the
+    columns."""
+    import joblib
+
+    from condmon.signal_model import log_pyfunc
+
+    model = joblib.load(path)
+    extra = ("torch",) if hasattr(model.estimator, "to_torch_module") else ()
+    import mlflow
+
+    # pyfunc's log_model takes no run id: the nested run is resumed for it (the parent stays active)
+    with mlflow.start_run(run_id=run_id, nested=True):
+        info = log_pyfunc(path, model, name=name, params=params, tags=tags,
+                          pip_requirements=list(pip_requirements(*extra)))
+    return info.model_id
+
+
+def registered_model_name(run_name: str) -> str:
+    return f"condmon-{run_name}"
+
+
+def register_best(client, model_id: str, run_name: str, config_hash: str, entry: dict) -> dict:
+    """Register the config's best model as a version of ``condmon-<run name>`` (once per model
+    digest) with the aliases ``best`` (the latest tracked config's) and ``config-<hash>``."""
+    import mlflow
+    from mlflow.exceptions import MlflowException
+
+    name = registered_model_name(run_name)
+    try:
+        client.create_registered_model(name, description=f"the best model of each config of run {run_name} "
+                                                          "(condmon.model_store.best_model)")
+    except MlflowException as exc:
+        if exc.error_code != "RESOURCE_ALREADY_EXISTS":
+            raise
+    versions = client.search_model_versions(f"name = '{name}'")
+    version = next((v.version for v in versions if v.tags.get("model_digest") == entry["digest"]), None)
+    if version is None:
+        version = mlflow.register_model(f"models:/{model_id}", name,
+                                        tags={"model_digest": entry["digest"], "config_hash": config_hash,
+                                              **{k: str(entry[k]) for k in KEYS}}).version
+    aliases = ["best", f"config-{config_hash[:12]}"]
+    for alias in aliases:
+        client.set_registered_model_alias(name, alias, version)
+    return {"name": name, "version": str(version), "aliases": aliases, "model_id": model_id,
+            "uri": f"models:/{name}@best", **{k: entry[k] for k in KEYS}}
 
 
 def write_run_info(info: dict, path) -> None:

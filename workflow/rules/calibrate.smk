@@ -6,8 +6,12 @@ rule calibrate:
     input:
         measured=rules.measured.output[0],
     output:
-        params=report(f"{RESULTS}/calibration/{{variant}}/params.json", caption="../report/calibration.rst",
-                      category="Calibration", labels={"name": "calibrated parameters ({variant})"}),
+        params=report(
+            f"{RESULTS}/calibration/{{variant}}/params.json",
+            caption="../report/calibration.rst",
+            category="Calibration",
+            labels={"name": "calibrated parameters ({variant})"},
+        ),
         history=f"{RESULTS}/calibration/{{variant}}/history.parquet",
         spectra=f"{RESULTS}/calibration/{{variant}}/spectra.parquet",
         plot=f"{RESULTS}/calibration/{{variant}}/convergence.png",

@@ -2,6 +2,7 @@
 import json
 from pathlib import Path
 
+
 def canonical(section):
     """A config section with its keys sorted at every level: Snakemake compares params as
     written, so reordering keys in a config file must not rerun jobs."""
@@ -34,7 +35,10 @@ SPEEDS = [speed_label(s) for s in SYSTEM.speeds_rpm]
 CONDITION = config["hybrid"]["condition"]
 CLASSIFIERS = [name for name, c in config["classifiers"].items() if c["enabled"]]
 PROTOCOLS = config["hybrid"]["protocols"]
-N_BATCHES = -(-config["simulation"]["samples_per_state"] // config["simulation"]["samples_per_job"])
+N_BATCHES = -(
+    -config["simulation"]["samples_per_state"]
+    // config["simulation"]["samples_per_job"]
+)
 # One calibration job per variant (System.calibration_variants), the simulation's first.
 CALIBRATIONS = SYSTEM.calibration_variants()
 SIM_CALIBRATION = CALIBRATIONS[0]
@@ -54,7 +58,10 @@ wildcard_constraints:
 def batch_samples(batch):
     """Samples in one simulation job: full batches, then the remainder."""
     sim = config["simulation"]
-    return min(sim["samples_per_job"], sim["samples_per_state"] - int(batch) * sim["samples_per_job"])
+    return min(
+        sim["samples_per_job"],
+        sim["samples_per_state"] - int(batch) * sim["samples_per_job"],
+    )
 
 
 BATCHES = [f"{b:03d}" for b in range(N_BATCHES)]
@@ -62,8 +69,12 @@ BATCHES = [f"{b:03d}" for b in range(N_BATCHES)]
 
 def simulated_batches(extension="parquet"):
     """Every simulation job's signal table (or its .json report)."""
-    return expand(f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.{extension}",
-                  health=HEALTH_STATES, speed=SPEEDS, batch=BATCHES)
+    return expand(
+        f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.{extension}",
+        health=HEALTH_STATES,
+        speed=SPEEDS,
+        batch=BATCHES,
+    )
 
 
 def calibration_outputs(name, calibration=None):
@@ -85,8 +96,11 @@ def calibration_background_outputs(calibration, plot=True):
 
 
 def train_outputs(name):
-    return expand(f"{RESULTS}/train/{{classifier}}/{{protocol}}/{name}",
-                  classifier=CLASSIFIERS, protocol=PROTOCOLS)
+    return expand(
+        f"{RESULTS}/train/{{classifier}}/{{protocol}}/{name}",
+        classifier=CLASSIFIERS,
+        protocol=PROTOCOLS,
+    )
 
 
 # Keys of a classifier section that choose what it trains on, not how it is built: the CNN may
@@ -95,22 +109,35 @@ from condmon.classifiers import SELECTION_KEYS
 
 
 def classifier_params(name):
-    return {k: v for k, v in config["classifiers"][name].items() if k not in SELECTION_KEYS}
+    return {
+        k: v for k, v in config["classifiers"][name].items() if k not in SELECTION_KEYS
+    }
 
 
 def classifier_selection(name):
     """measured_percent / repeats of classifiers.<name> (None = all of hybrid's), checked here
     so a bad subset fails before any job runs."""
     section = config["classifiers"][name]
-    selection = {"measured_percent": section.get("measured_percent"),
-                 "repeats": section.get("repeats")}
+    selection = {
+        "measured_percent": section.get("measured_percent"),
+        "repeats": section.get("repeats"),
+    }
     percents = selection["measured_percent"]
-    if percents is not None and not set(percents) <= set(config["hybrid"]["measured_percent"]):
-        raise ValueError(f"classifiers.{name}.measured_percent: {sorted(set(percents))} must be "
-                         f"among hybrid.measured_percent {config['hybrid']['measured_percent']}")
-    if selection["repeats"] is not None and selection["repeats"] > config["hybrid"]["repeats"]:
-        raise ValueError(f"classifiers.{name}.repeats: {selection['repeats']} is more than "
-                         f"hybrid.repeats ({config['hybrid']['repeats']})")
+    if percents is not None and not set(percents) <= set(
+        config["hybrid"]["measured_percent"]
+    ):
+        raise ValueError(
+            f"classifiers.{name}.measured_percent: {sorted(set(percents))} must be "
+            f"among hybrid.measured_percent {config['hybrid']['measured_percent']}"
+        )
+    if (
+        selection["repeats"] is not None
+        and selection["repeats"] > config["hybrid"]["repeats"]
+    ):
+        raise ValueError(
+            f"classifiers.{name}.repeats: {selection['repeats']} is more than "
+            f"hybrid.repeats ({config['hybrid']['repeats']})"
+        )
     return {key: value for key, value in selection.items() if value is not None}
 
 
@@ -120,7 +147,9 @@ for _name in CLASSIFIERS:
 
 def measured_inputs(wildcards):
     """The system's measured files (a signal table, a folder of records), or every bench part."""
-    return SYSTEM.measured_files() + expand(f"{RESULTS}/measured/parts/{{part}}.parquet", part=MEASURED_PARTS)
+    return SYSTEM.measured_files() + expand(
+        f"{RESULTS}/measured/parts/{{part}}.parquet", part=MEASURED_PARTS
+    )
 
 
 def data_source():
@@ -156,13 +185,20 @@ def final_outputs():
         f"{RESULTS}/report/accuracy.csv",
         f"{RESULTS}/report/summary.json",
         f"{RESULTS}/report/mlflow_run.json",
+        # requested, so a config without its packaged models reruns track (Snakemake checks
+        # only the requested outputs of a job for being missing)
+        f"{RESULTS}/models/{config_hash}",
     ]
 
 
 # Recorded with the MLflow runs so a comparison can group runs of the same config.
 from condmon.signals import config_hash as _config_hash
 
-config_hash = _config_hash(config)
+# The run's config: all but the predict_* keys (what a model is applied to changes no run).
+RUN_CONFIG = {
+    key: value for key, value in config.items() if not key.startswith("predict_")
+}
+config_hash = _config_hash(RUN_CONFIG)
 
 
 # hybrid.simulated_validation_share > 0: the split table also lists the simulated records held out
@@ -179,21 +215,49 @@ def upstream_benchmarks():
     """{rule: the benchmark file of each of its jobs} of every job before the report (from the
     rules' `benchmark:` patterns), so the report's job timings cover exactly this run's jobs. The
     track job runs beside the report."""
-    return {"measured_part": expand(rules.measured_part.benchmark, part=MEASURED_PARTS),
-            "measured": [rules.measured.benchmark],
-            "calibrate": expand(rules.calibrate.benchmark, variant=CALIBRATIONS),
-            "simulate": expand(rules.simulate.benchmark, health=HEALTH_STATES, speed=SPEEDS, batch=BATCHES),
-            "features_measured": [rules.features_measured.benchmark],
-            "features_simulated": [rules.features_simulated.benchmark],
-            "hybrid": expand(rules.hybrid.benchmark, protocol=PROTOCOLS),
-            "train": expand(rules.train.benchmark, classifier=CLASSIFIERS, protocol=PROTOCOLS)}
+    return {
+        "measured_part": expand(rules.measured_part.benchmark, part=MEASURED_PARTS),
+        "measured": [rules.measured.benchmark],
+        "calibrate": expand(rules.calibrate.benchmark, variant=CALIBRATIONS),
+        "simulate": expand(
+            rules.simulate.benchmark, health=HEALTH_STATES, speed=SPEEDS, batch=BATCHES
+        ),
+        "features_measured": [rules.features_measured.benchmark],
+        "features_simulated": [rules.features_simulated.benchmark],
+        "hybrid": expand(rules.hybrid.benchmark, protocol=PROTOCOLS),
+        "train": expand(
+            rules.train.benchmark, classifier=CLASSIFIERS, protocol=PROTOCOLS
+        ),
+    }
 
 
 def plot_category(wildcards):
     """The report section of a plot in report/plots/, by its file name."""
-    for prefix, category in (("confusion", "Confusion matrices"), ("prediction_shares", "Confusion matrices"),
-                             ("spectra", "Calibration"), ("calibration", "Calibration"),
-                             ("job_timings", "Job timings")):
+    for prefix, category in (
+        ("confusion", "Confusion matrices"),
+        ("prediction_shares", "Confusion matrices"),
+        ("spectra", "Calibration"),
+        ("calibration", "Calibration"),
+        ("job_timings", "Job timings"),
+    ):
         if wildcards.name.startswith(prefix):
             return category
     return "Accuracy"
+
+
+# -- the predict job (predict.smk) ------------------------------------------------------------
+PREDICT_INPUT = config["predict_input"]
+PREDICT_NAME = Path(PREDICT_INPUT).stem if PREDICT_INPUT else "unset"
+
+
+def predict_inputs():
+    if not PREDICT_INPUT:
+        raise ValueError(
+            "snakemake predict needs the measurements: name them with --config "
+            "predict_input=PATH (a signal table, or a folder or file of the system's own records)"
+        )
+    # this run's model store unless predict_model names another model
+    return {
+        "data": PREDICT_INPUT,
+        **({} if config["predict_model"] else {"models": rules.track.output.models}),
+    }

@@ -1,14 +1,24 @@
 # Stage 5: hybrid training sets: which measured records train and which test, per protocol.
 
+
 rule hybrid:
     input:
+        **(
+            {"simulated": rules.features_simulated.output.features}
+            if SIMULATED_VALIDATION_SHARE
+            else {}
+        ),
         features=rules.features_measured.output.features,
         records=rules.measured.output.records,  # specimens (specimen_holdout)
         # the simulated record list, only with hybrid.simulated_validation_share > 0 (common.smk)
-        **({"simulated": rules.features_simulated.output.features} if SIMULATED_VALIDATION_SHARE else {}),
     output:
         splits=f"{RESULTS}/hybrid/{{protocol}}.parquet",
     params:
+        **(
+            {"simulated_validation_share": SIMULATED_VALIDATION_SHARE}
+            if SIMULATED_VALIDATION_SHARE
+            else {}
+        ),
         protocol=lambda wc: wc.protocol,
         measured_percent=config["hybrid"]["measured_percent"],
         repeats=config["hybrid"]["repeats"],
@@ -17,11 +27,16 @@ rule hybrid:
         condition=CONDITION,
         healthy_state=SYSTEM.healthy_state,
         reserve=config["calibration"]["reserve"],  # the calibration set: never in a split
-        measured_classes=lambda wc: (config["hybrid"]["measured_classes"]
-                                     if wc.protocol == "unseen_fault" else None),
-        condition_split=lambda wc: (config["hybrid"]["condition_split"]
-                                    if wc.protocol == "condition_holdout" else None),
-        **({"simulated_validation_share": SIMULATED_VALIDATION_SHARE} if SIMULATED_VALIDATION_SHARE else {}),
+        measured_classes=lambda wc: (
+            config["hybrid"]["measured_classes"]
+            if wc.protocol == "unseen_fault"
+            else None
+        ),
+        condition_split=lambda wc: (
+            config["hybrid"]["condition_split"]
+            if wc.protocol == "condition_holdout"
+            else None
+        ),
     conda:
         "../envs/learning.yaml"
     benchmark:

@@ -7,15 +7,19 @@ rule train:
         measured=rules.features_measured.output.features,
         splits=rules.hybrid.output.splits,
     output:
+        **(
+            {
+                "simulated_validation": f"{RESULTS}/train/{{classifier}}/{{protocol}}/simulated_validation.csv"
+            }
+            if SIMULATED_VALIDATION_SHARE
+            else {}
+        ),
         predictions=f"{RESULTS}/train/{{classifier}}/{{protocol}}/predictions.parquet",
         metrics=f"{RESULTS}/train/{{classifier}}/{{protocol}}/metrics.csv",
         models=directory(f"{RESULTS}/train/{{classifier}}/{{protocol}}/models"),
         info=f"{RESULTS}/train/{{classifier}}/{{protocol}}/info.json",
         measured_only=f"{RESULTS}/train/{{classifier}}/{{protocol}}/measured_only.csv",
         # metrics on the held-out simulated records: only with hybrid.simulated_validation_share > 0
-        **({"simulated_validation":
-            f"{RESULTS}/train/{{classifier}}/{{protocol}}/simulated_validation.csv"}
-           if SIMULATED_VALIDATION_SHARE else {}),
     params:
         classifier=lambda wc: wc.classifier,
         classifier_params=lambda wc: classifier_params(wc.classifier),

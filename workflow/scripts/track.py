@@ -7,18 +7,30 @@ never race on it. The logic lives in condmon.tracking.
 import sys
 from pathlib import Path
 
+from condmon.model_store import build_store
 from condmon.runlog import setup_logging
-from condmon.tracking import TrackingError, log_pipeline_run, write_run_info
+from condmon.systems import load_system
+from condmon.tracking import (TrackingError, check_tracking_server, log_pipeline_run,
+                              resolve_tracking_uri, write_run_info)
 
 log = setup_logging(snakemake)  # to snakemake.log[0]
 params, inputs = snakemake.params, snakemake.input
+train_dirs = [Path(path).parent for path in inputs.info]  # train/<classifier>/<protocol>
 try:
+    check_tracking_server(resolve_tracking_uri(params.tracking_uri))  # a dead server: before any work
+    # every fit as a model from raw segments (the features and training domain with it)
+    features = {**dict(params.features), "defect_orders": load_system(params.features_system).defect_orders()}
+    index = build_store(snakemake.output.models, train_dirs, dict(zip(params.protocols, inputs.splits)),
+                        inputs.measured_signals, inputs.features_simulated, inputs.features_measured,
+                        features, params.healthy_state, dict(params.measured_system), params.config_hash)
+    log.info("packaged %d models in %s; best %s", len(index["models"]), snakemake.output.models,
+             index["best"])
     info = log_pipeline_run(
         tracking_uri=params.tracking_uri,
         run_name=params.run_name,
         config_hash=params.config_hash,
         data_source=params.data_source,
-        train_dirs=[Path(path).parent for path in inputs.info],  # train/<classifier>/<protocol>
+        train_dirs=train_dirs,
         datasets={"measured_signals": [inputs.measured_signals],
                   "simulated_signals": list(inputs.simulated_signals),
                   "measured_features": [inputs.features_measured],
@@ -26,6 +38,8 @@ try:
         config=dict(params.config),
         log_models=params.log_models,
         healthy_state=params.healthy_state,
+        model_store=snakemake.output.models,
+        artifacts={"plots": inputs.plots},
     )
 except TrackingError as error:  # a store that is down, inconsistent inputs: say so plainly
     log.error("%s", error)

@@ -26,6 +26,29 @@ def speed_label(speed) -> str:
     return f"{float(speed):g}"
 
 
+def unlisted_measured_speeds(measured_table, speeds_rpm) -> list[str]:
+    """A problem naming the measured table's speeds that rig.speeds_rpm lacks: the rig is
+    calibrated and simulated at its listed speeds only, so such records would be tested against
+    a model never run at their speed (a table that cannot be read is the measured job's to name)."""
+    if not measured_table or not Path(measured_table).is_file():
+        return []
+    import pyarrow.parquet as pq
+
+    try:
+        table = pq.read_table(measured_table, columns=["record_id", "speed_rpm"]).to_pandas()
+    except Exception:  # pyarrow raises several types; the measured job names the file's problem
+        return []
+    listed = np.asarray(speeds_rpm, float)
+    unlisted = table[~np.isclose(table["speed_rpm"].to_numpy(float)[:, None], listed[None, :]).any(axis=1)]
+    if unlisted.empty:
+        return []
+    speeds = sorted(unlisted["speed_rpm"].unique())
+    records = sorted(unlisted["record_id"].unique())
+    return [f"measured_table: records at {[float(f'{s:g}') for s in speeds]} rpm ({records[:3]}"
+            f"{' ...' if len(records) > 3 else ''}) but rig.speeds_rpm is {list(speeds_rpm)}; add "
+            "those speeds to rig.speeds_rpm (calibrated and simulated there) or leave the records out"]
+
+
 class GearSystem(System):
     name = "gear"
     schema_file = Path(__file__).with_name("schema.yaml")
@@ -130,6 +153,7 @@ class GearSystem(System):
             problems.append("calibration.sim_seconds: shorter than rig.segment_seconds")
         if "condition_holdout" in config["hybrid"]["protocols"] and len(rig["speeds_rpm"]) < 2:
             problems.append("hybrid.protocols: condition_holdout needs at least two rig.speeds_rpm")
+        problems += unlisted_measured_speeds(config["measured_table"], rig["speeds_rpm"])
         try:
             Drivetrain(self.parameters())
         except (ValueError, TypeError) as exc:

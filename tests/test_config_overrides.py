@@ -1,0 +1,89 @@
+"""Nested `--config` overrides read as the schema's types (Snakemake hands their values over as
+text), and a measured speed that rig.speeds_rpm lacks refused before any job runs."""
+import re
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from condmon.config import ConfigError, apply_typed_overrides, load_schema, validate_config
+from condmon.signals import make_rows, write_signal_table
+from conftest import ROOT, config_of, deep_update
+
+SCHEMA = load_schema(ROOT / "config" / "schema.yaml")
+
+
+def smoke_with(overrides: dict) -> dict:
+    """The smoke config with ``overrides`` merged in as Snakemake merges --config, then typed."""
+    config = deep_update(yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text()), overrides)
+    return apply_typed_overrides(config, overrides, SCHEMA)
+
+
+def test_text_values_of_a_nested_override_take_the_schemas_types():
+    config = smoke_with({"classifiers": {"svm": {"C": "3", "gamma": "0.5", "enabled": "true"},
+                                         "knn": {"n_neighbors": "7", "weights": "distance"}},
+                         "rig": {"speeds_rpm": ["450", "1.1e3"]}, "hybrid": {"min_test_records": "2"}})
+    validate_config(config, SCHEMA)
+    svm, knn = config["classifiers"]["svm"], config["classifiers"]["knn"]
+    assert (svm["C"], svm["gamma"], svm["enabled"]) == (3, 0.5, True)
+    assert (knn["n_neighbors"], knn["weights"]) == (7, "distance")
+    assert config["rig"]["speeds_rpm"] == [450, 1100.0]
+    assert config["hybrid"]["min_test_records"] == 2
+    assert smoke_with({"classifiers": {"svm": {"gamma": "scale"}}})["classifiers"]["svm"]["gamma"] == "scale"
+
+
+def test_text_that_is_no_value_of_the_key_still_fails_naming_it():
+    with pytest.raises(ConfigError, match=r"classifiers\.svm\.C: 'three' is not of type 'number'"):
+        validate_config(smoke_with({"classifiers": {"svm": {"C": "three"}}}), SCHEMA)
+
+
+def test_a_config_files_text_is_not_retyped_and_the_hint_fits_the_text():
+    config = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    config["model"]["mesh_stiffness"] = "4e8"  # YAML 1.1: text
+    config["classifiers"]["svm"]["C"] = "3"
+    apply_typed_overrides(config, {}, SCHEMA)
+    with pytest.raises(ConfigError) as error:
+        validate_config(config, SCHEMA)
+    assert "model.mesh_stiffness: '4e8' is text, not a number; YAML 1.1 reads an exponent" in str(error.value)
+    assert "classifiers.svm.C: '3' is text, not a number; write it without quotes" in str(error.value)
+
+
+def gear_table(path, speeds):
+    rows = []
+    for speed in speeds:
+        for state in ("healthy", "missing_tooth"):
+            signals = {ch: np.random.default_rng(1).normal(size=5120) for ch in ("A1_x", "A1_y", "A2_x", "A2_y")}
+            rows += make_rows(f"{state}-{speed:g}", "measured", state, speed, 10.0, 5120.0, signals,
+                              segment_length=1280)
+    write_signal_table(pd.DataFrame(rows), path)
+    return path
+
+
+def test_a_measured_speed_that_rig_speeds_lacks_is_refused_naming_it(tmp_path):
+    path = gear_table(tmp_path / "measured.parquet", [450.0, 900.0])
+    with pytest.raises(ConfigError, match=r"measured_table: records at \[900.0\] rpm \(\['healthy-900', "
+                                          r"'missing_tooth-900'\]\) but rig.speeds_rpm is \[450, 1100\]"):
+        config_of("config/smoke.yaml", {"measured_table": str(path)})
+    config_of("config/smoke.yaml", {"measured_table": str(gear_table(tmp_path / "ok.parquet", [450.0, 1100.0]))})
+
+
+def test_snakemake_refuses_it_before_any_job(tmp_path):
+    shutil.copy(ROOT / "Snakefile", tmp_path)
+    for name in ("workflow", "config", "models", "profiles"):
+        shutil.copytree(ROOT / name, tmp_path / name, ignore=shutil.ignore_patterns("__pycache__"))
+    path = gear_table(tmp_path / "measured.parquet", [450.0, 900.0])
+    result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--configfile", "config/smoke.yaml",
+                             "--config", f"measured_table={path}"], cwd=tmp_path, capture_output=True, text=True)
+    assert result.returncode != 0
+    assert "records at [900.0] rpm" in result.stderr + result.stdout
+    # a nested override is typed: the dry run plans the whole (fresh) run
+    result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--configfile", "config/smoke.yaml",
+                             "--config", "classifiers={svm: {C: 3}, knn: {n_neighbors: 3}}"], cwd=tmp_path,
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr[-2000:]
+    # through the top-level Snakefile, whose default target is the pipeline's rule all
+    assert re.search(r"^all\s+1$", result.stdout, re.M) and re.search(r"^train\s+4$", result.stdout, re.M)

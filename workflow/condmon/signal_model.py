@@ -1,0 +1,282 @@
+"""A trained classifier that carries its features: raw signal segments in, health labels out.
+
+`SignalModel` wraps one fitted estimator of a train job (it takes feature vectors) with what it
+needs to see a signal table as its training data was seen: the feature extraction (kind,
+channels, spectrum or statistical settings, the system's defect orders) and the training domain
+(sampling rate, samples per segment, channels, the speeds it was trained at). Records outside
+that domain are refused with the reason (`UnsupportedRecords`), never classified: a spectrum at
+another rate or speed puts the lines in other bands, and the classifier would still answer.
+
+`SignalModelPyfunc` is its MLflow pyfunc face: `mlflow.pyfunc.load_model(uri).predict(table)`
+takes a signal table (long form, the columns of `condmon.signals.SCHEMA`; `source`,
+`health_state`, `load` and `params` may be left out) and returns one row per segment with the
+label and the class probabilities. Loading it needs condmon, as the train job's joblib files do.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+
+import numpy as np
+import pandas as pd
+
+from condmon.features import compute_feature_table, statistical_feature_table
+from condmon.signals import COLUMNS, validate
+
+# Relative distance to the nearest trained speed a record may have (CWRU files of one load differ
+# by a few rpm; the gear rig's speeds are hundreds of rpm apart).
+SPEED_TOLERANCE = 0.02
+UNKNOWN_LABEL = "unknown"  # health_state of a record whose truth is not known
+# optional signal-table columns and what a record without them gets
+OPTIONAL_COLUMNS = {"source": "measured", "health_state": UNKNOWN_LABEL, "load": np.nan, "params": ""}
+
+
+class UnsupportedRecords(ValueError):
+    """Records the model was not trained for; ``problems`` lists (record_id, reason)."""
+
+    def __init__(self, problems: pd.DataFrame):
+        self.problems = problems
+        lines = [f"{row.record_id}: {row.reason}" for row in problems.head(10).itertuples()]
+        more = f"\n  ... and {len(problems) - 10} more" if len(problems) > 10 else ""
+        super().__init__(f"{problems['record_id'].nunique()} record(s) outside what the model was "
+                         "trained for:\n  " + "\n  ".join(lines) + more)
+
+
+def complete_signal_table(frame: pd.DataFrame) -> pd.DataFrame:
+    """A signal table with the optional columns filled in (a record of unknown health state gets
+    `unknown`), checked against the signal-table contract (segments of several lengths allowed)."""
+    frame = frame.copy()
+    for column, default in OPTIONAL_COLUMNS.items():
+        if column not in frame.columns:
+            frame[column] = default
+        elif column == "health_state":
+            blank = frame[column].isna() | (frame[column].astype(str).str.strip() == "")
+            frame.loc[blank, column] = UNKNOWN_LABEL
+    if "signal" not in frame.columns:
+        validate(frame, "signal table")  # names the missing columns
+    frame["signal"] = [np.asarray(s, dtype=np.float32) for s in frame["signal"]]
+    # every check of the contract but one length for all: records of another segment length are
+    # the model's to refuse by name (SignalModel.problems)
+    for _, part in frame.groupby(frame["signal"].map(len)):
+        validate(part, "signal table")
+    return frame[COLUMNS]
+
+
+class SignalModel:
+    """One fitted estimator plus its feature extraction and training domain.
+
+    ``features``: kind ("spectrum"/"statistical"), channels, spectrum, statistical, defect_orders,
+    feature_names (the estimator's columns, in order). ``domain``: fs_hz, n_samples, channels,
+    speeds_rpm (every speed in its training data), speed_tolerance. ``info``: what it is (classifier,
+    protocol, measured_percent, repeat, holdout, config_hash, accuracy, ...), kept for the record.
+    ``system``: the system's `job_spec("measured")`, so a folder of the system's own records (CWRU
+    .mat files) can be read by the system's reader.
+    """
+
+    def __init__(self, estimator, features: dict, domain: dict, healthy_state: str,
+                 system: dict | None = None, info: dict | None = None):
+        self.estimator = estimator
+        self.features = features
+        self.domain = domain
+        self.healthy_state = healthy_state
+        self.system = system
+        self.info = info or {}
+
+    @property
+    def classes(self) -> list[str]:
+        return [str(c) for c in self.estimator.classes_]
+
+    @property
+    def has_probabilities(self) -> bool:
+        """Whether the estimator gives class probabilities (KNN: the neighbours' vote, the CNN
+        ensemble: its members' mean); the SVM has none (SVC without probability estimates)."""
+        return hasattr(self.estimator, "predict_proba")
+
+    # -- the training domain ---------------------------------------------------------------
+    def problems(self, frame: pd.DataFrame) -> pd.DataFrame:
+        """(record_id, reason) of every record outside the training domain (rate, channels,
+        samples per segment, speed); empty if all are inside."""
+        domain, rows = self.domain, []
+        speeds = np.asarray(domain["speeds_rpm"], float)
+        tolerance = float(domain.get("speed_tolerance", SPEED_TOLERANCE))
+        for record_id, records in frame.groupby("record_id", sort=True):
+            fs = float(records["fs_hz"].iloc[0])
+            if not np.isclose(fs, domain["fs_hz"], rtol=1e-9):
+                rows.append((record_id, f"sampling rate {fs:g} Hz; the model was trained at "
+                                        f"{domain['fs_hz']:g} Hz"))
+            missing = sorted(set(domain["channels"]) - set(records["channel"]))
+            if missing:
+                rows.append((record_id, f"no channel(s) {missing}; the model needs "
+                                        f"{list(domain['channels'])}"))
+            lengths = sorted({len(s) for s in records["signal"]})
+            if lengths != [domain["n_samples"]]:
+                rows.append((record_id, f"segments of {lengths} samples; the model was trained on "
+                                        f"{domain['n_samples']} ({domain['n_samples'] / domain['fs_hz']:g} s)"))
+            speed = float(records["speed_rpm"].iloc[0])
+            nearest = speeds[np.argmin(np.abs(speeds - speed))]
+            if abs(speed - nearest) > tolerance * nearest:
+                rows.append((record_id, f"speed {speed:g} rpm; the model was trained at "
+                                        f"{sorted({float(f'{s:.6g}') for s in speeds})} rpm "
+                                        f"(within {tolerance:.0%})"))
+        return pd.DataFrame(rows, columns=["record_id", "reason"])
+
+    def check(self, frame: pd.DataFrame) -> None:
+        problems = self.problems(frame)
+        if len(problems):
+            raise UnsupportedRecords(problems)
+
+    # -- features and predictions ----------------------------------------------------------
+    def feature_matrix(self, frame: pd.DataFrame) -> tuple[pd.DataFrame, np.ndarray]:
+        """(ids, features) of a checked signal table, one row per (record, segment)."""
+        f = self.features
+        if f["kind"] == "statistical":
+            table = statistical_feature_table(frame, f["channels"], f["statistical"] or {},
+                                              f.get("defect_orders"))
+        else:
+            table = compute_feature_table(frame, f["channels"], f["spectrum"])
+        missing = [name for name in f["feature_names"] if name not in table.columns]
+        if missing:  # a feature-code change since training: never classify other features
+            raise ValueError(f"the features of this signal table lack {missing[:5]} that the model "
+                             "was trained on; is condmon newer than the model?")
+        ids = table[["record_id", "segment", "health_state", "speed_rpm", "load"]]
+        return ids, table[f["feature_names"]].to_numpy(np.float32)
+
+    def predict_segments(self, frame: pd.DataFrame) -> pd.DataFrame:
+        """One row per segment: record_id, segment, speed_rpm, load, true_label (the table's
+        health_state), predicted_label, p_<class> (NaN without probabilities). Refuses records
+        outside the training domain (UnsupportedRecords)."""
+        frame = complete_signal_table(frame)
+        self.check(frame)
+        ids, x = self.feature_matrix(frame)
+        labels = self.estimator.predict(x).astype(str)
+        out = ids.rename(columns={"health_state": "true_label"}).reset_index(drop=True)
+        out["predicted_label"] = labels
+        if self.has_probabilities:
+            probabilities = self.estimator.predict_proba(x)
+        else:
+            probabilities = np.full((len(x), len(self.classes)), np.nan)
+        for j, label in enumerate(self.classes):
+            out[f"p_{label}"] = probabilities[:, j].astype(float)
+        return out
+
+    def predict(self, frame: pd.DataFrame) -> np.ndarray:
+        """The label of every segment, in the order of ``predict_segments``."""
+        return self.predict_segments(frame)["predicted_label"].to_numpy()
+
+    def digest(self) -> str:
+        """What the model computes, as a digest: the estimator's pickle, the features and the
+        domain (not ``info``: the same model trained in two runs is one model)."""
+        import pickle
+
+        digest = hashlib.sha256(pickle.dumps(self.estimator, protocol=4))
+        digest.update(json.dumps([self.features, self.domain, self.healthy_state], sort_keys=True,
+                                 default=str).encode())
+        return digest.hexdigest()[:16]
+
+
+# -- per record ------------------------------------------------------------------------------
+
+def record_predictions(segments: pd.DataFrame, classes, healthy_state: str) -> pd.DataFrame:
+    """One row per record: the majority label over its segments (a tie goes to the higher mean
+    probability, then the fault), each class's vote share (``vote_<class>``) and mean probability
+    (``p_<class>``), n_segments, and the true label where the table gave one."""
+    classes = list(classes)
+    votes = (pd.crosstab(segments["record_id"], segments["predicted_label"], normalize="index")
+             .reindex(columns=classes, fill_value=0.0))
+    probabilities = segments.groupby("record_id")[[f"p_{c}" for c in classes]].mean()
+    first = segments.groupby("record_id")[["speed_rpm", "load", "true_label"]].first()
+    rows = []
+    for record_id, share in votes.iterrows():
+        p = probabilities.loc[record_id].to_numpy()
+        # ties: higher mean probability, then a fault before the healthy state (a missed fault costs more)
+        order = sorted(range(len(classes)), key=lambda j: (-share.iloc[j], -np.nan_to_num(p[j], nan=0.0),
+                                                           classes[j] == healthy_state, classes[j]))
+        rows.append({"record_id": record_id, **first.loc[record_id].to_dict(),
+                     "n_segments": int((segments["record_id"] == record_id).sum()),
+                     "predicted_label": classes[order[0]],
+                     **{f"vote_{c}": float(share[c]) for c in classes},
+                     **{f"p_{c}": float(v) for c, v in zip(classes, p)}})
+    return pd.DataFrame(rows)
+
+
+def health_summary(records: pd.DataFrame, classes, healthy_state: str) -> pd.DataFrame:
+    """Per record: status (``healthy`` / ``fault``), the likeliest fault and its vote share,
+    the share of segments called healthy, and whether the label agrees with a known truth."""
+    faults = [c for c in classes if c != healthy_state]
+    rows = []
+    for row in records.to_dict("records"):
+        likeliest = max(faults, key=lambda c: (row[f"vote_{c}"], np.nan_to_num(row[f"p_{c}"], nan=0.0))) \
+            if faults else None
+        known = row["true_label"] in classes
+        rows.append({"record_id": row["record_id"], "speed_rpm": row["speed_rpm"], "load": row["load"],
+                     "status": "healthy" if row["predicted_label"] == healthy_state else "fault",
+                     "predicted_label": row["predicted_label"],
+                     "confidence": row[f"vote_{row['predicted_label']}"],
+                     "healthy_share": row.get(f"vote_{healthy_state}", 0.0),
+                     "likeliest_fault": likeliest,
+                     "likeliest_fault_share": row[f"vote_{likeliest}"] if likeliest else np.nan,
+                     "n_segments": row["n_segments"], "true_label": row["true_label"],
+                     "correct": (row["predicted_label"] == row["true_label"]) if known else None})
+    return pd.DataFrame(rows)
+
+
+# -- MLflow ------------------------------------------------------------------------------------
+
+def input_schema():
+    """The pyfunc signature's inputs: the signal table's columns by name (``signal``: one
+    segment's samples of one channel)."""
+    from mlflow.types import DataType
+    from mlflow.types.schema import Array, ColSpec, Schema
+
+    return Schema([ColSpec(DataType.string, "record_id"), ColSpec(DataType.long, "segment"),
+                   ColSpec(DataType.string, "source", required=False),
+                   ColSpec(DataType.string, "health_state", required=False),
+                   ColSpec(DataType.double, "speed_rpm"),
+                   ColSpec(DataType.double, "load", required=False),
+                   ColSpec(DataType.double, "fs_hz"), ColSpec(DataType.string, "channel"),
+                   ColSpec(Array(DataType.float), "signal"),
+                   ColSpec(DataType.string, "params", required=False)])
+
+
+def output_schema(classes):
+    from mlflow.types import DataType
+    from mlflow.types.schema import ColSpec, Schema
+
+    return Schema([ColSpec(DataType.string, "record_id"), ColSpec(DataType.long, "segment"),
+                   ColSpec(DataType.string, "predicted_label"),
+                   *[ColSpec(DataType.double, f"p_{c}") for c in classes]])
+
+
+def signature(model: SignalModel):
+    from mlflow.models import ModelSignature
+
+    return ModelSignature(inputs=input_schema(), outputs=output_schema(model.classes))
+
+
+def _pyfunc_class():
+    import mlflow.pyfunc
+
+    class SignalModelPyfunc(mlflow.pyfunc.PythonModel):
+        """A signal table in, one row per segment out (record_id, segment, predicted_label,
+        p_<class>); the SignalModel's joblib file is the artifact ``signal_model``."""
+
+        def load_context(self, context):
+            import joblib
+
+            self.model = joblib.load(context.artifacts["signal_model"])
+
+        def predict(self, context, model_input, params=None):
+            segments = self.model.predict_segments(pd.DataFrame(model_input))
+            columns = ["record_id", "segment", "predicted_label", *[f"p_{c}" for c in self.model.classes]]
+            return segments[columns].astype({"segment": "int64"})
+
+    return SignalModelPyfunc
+
+
+def log_pyfunc(model_path, model: SignalModel, **options):
+    """Log the SignalModel saved at ``model_path`` as an MLflow pyfunc model (``options``: name,
+    run_id, params, tags, pip_requirements); returns the ModelInfo."""
+    import mlflow.pyfunc
+
+    return mlflow.pyfunc.log_model(python_model=_pyfunc_class()(), artifacts={"signal_model": str(model_path)},
+                                   signature=signature(model), **options)
