@@ -6,6 +6,7 @@ rule calibrate:
     input:
         measured=rules.measured.output[0],
     output:
+        **calibration_background_outputs("{variant}"),
         params=report(
             f"{RESULTS}/calibration/{{variant}}/params.json",
             caption="../report/calibration.rst",
@@ -16,7 +17,6 @@ rule calibrate:
         spectra=f"{RESULTS}/calibration/{{variant}}/spectra.parquet",
         plot=f"{RESULTS}/calibration/{{variant}}/convergence.png",
         # calibration.background: what healthy records carry that the model lacks, and its plot
-        **calibration_background_outputs("{variant}"),
     params:
         system=lambda wc: SYSTEM.job_spec("calibrate", wc.variant),
         variant=lambda wc: wc.variant,

@@ -91,7 +91,9 @@ def calibration_background_outputs(calibration, plot=True):
         return {}
     outputs = {"background": f"{RESULTS}/calibration/{calibration}/background.parquet"}
     if plot:
-        outputs["background_plot"] = f"{RESULTS}/calibration/{calibration}/background.png"
+        outputs["background_plot"] = (
+            f"{RESULTS}/calibration/{calibration}/background.png"
+        )
     return outputs
 
 
@@ -156,7 +158,9 @@ def data_source():
     return SYSTEM.data_source()
 
 
-FEATURE_FAMILIES = config["features"]["kind"].split("+")  # e.g. spectrum+order: both families
+FEATURE_FAMILIES = config["features"]["kind"].split(
+    "+"
+)  # e.g. spectrum+order: both families
 
 
 def statistical_feature_params():
@@ -175,8 +179,12 @@ def system_family_params():
     chosen = [family for family in FEATURE_FAMILIES if family in own]
     if not chosen:
         return None
-    return {family: dict(config["features"].get(family) or {}, **SYSTEM.feature_family_params(family))
-            for family in chosen}
+    return {
+        family: dict(
+            config["features"].get(family) or {}, **SYSTEM.feature_family_params(family)
+        )
+        for family in chosen
+    }
 
 
 def final_outputs():

@@ -3,9 +3,9 @@
 
 rule simulate:
     input:
+        **calibration_background_outputs(SIM_CALIBRATION, plot=False),
         calibration=calibration_outputs("params.json", SIM_CALIBRATION),
         # the background the simulation adds (calibration.background), so an edit of it reruns simulate
-        **calibration_background_outputs(SIM_CALIBRATION, plot=False),
     output:
         signals=f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.parquet",
         report=f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.json",
