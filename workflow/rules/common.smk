@@ -78,6 +78,10 @@ def train_outputs(name):
                   classifier=CLASSIFIERS, protocol=PROTOCOLS)
 
 
+def physics_baseline_outputs(name):
+    return expand(f"{RESULTS}/baselines/{{protocol}}/{name}", protocol=PROTOCOLS)
+
+
 # Keys of a classifier section that choose what it trains on, not how it is built: the CNN may
 # train on fewer measured percentages and repeats than hybrid lists (its fits are costly).
 from condmon.classifiers import SELECTION_KEYS
@@ -160,7 +164,8 @@ def upstream_benchmarks():
             "features_measured": [rules.features_measured.benchmark],
             "features_simulated": [rules.features_simulated.benchmark],
             "hybrid": expand(rules.hybrid.benchmark, protocol=PROTOCOLS),
-            "train": expand(rules.train.benchmark, classifier=CLASSIFIERS, protocol=PROTOCOLS)}
+            "train": expand(rules.train.benchmark, classifier=CLASSIFIERS, protocol=PROTOCOLS),
+            "physics_baseline": expand(rules.physics_baseline.benchmark, protocol=PROTOCOLS)}
 
 
 def plot_category(wildcards):

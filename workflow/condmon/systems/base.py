@@ -33,7 +33,7 @@ from condmon.models.numerics import SimulationError
 __all__ = ["System", "SimulationError"]
 
 # Stages whose jobs build a system object (job_config's `stage`).
-STAGES = ("bench", "measured", "calibrate", "simulate", "features")
+STAGES = ("bench", "measured", "calibrate", "simulate", "features", "baselines")
 # Stages whose outputs come from the model code: their `system` param carries its digest.
 MODEL_STAGES = ("bench", "calibrate", "simulate")
 
@@ -293,6 +293,15 @@ class System(ABC):
         """Envelope lines the statistical features measure, in orders of the shaft speed, or None
         (no envelope features)."""
         return None
+
+    # -- baselines ---------------------------------------------------------------------------
+    def physics_baselines(self, feature_names) -> dict:
+        """{name: rule} of the training-free physics baselines this system offers on features
+        `feature_names` (none by default). A rule has `fit(frame)`, which sees only the healthy
+        calibration segments' feature rows (its thresholds come from them, never from a test
+        segment), `predict(frame)` -> labels, and `describe()` -> a JSON-able dict. The
+        `baselines` job evaluates each on every split's test set (condmon.baselines)."""
+        return {}
 
 
 def kept_records(frame: pd.DataFrame) -> pd.DataFrame:

@@ -10,6 +10,7 @@ randomisation), `cwru` (the task and manifest of the CWRU reader), `measured_dir
 """
 from __future__ import annotations
 
+import logging
 import math
 from pathlib import Path
 
@@ -21,6 +22,9 @@ from condmon.seeds import job_rng
 from condmon.systems.base import System
 from condmon.systems.bearing.model import (SCALES, build_rig_parameters, defect_of_label, feature_orders,
                                            load_of_speed, rig_settings, sample_values)
+
+
+log = logging.getLogger(__name__)
 
 
 class BearingSystem(System):
@@ -104,6 +108,10 @@ class BearingSystem(System):
         config = super().job_config(stage, variant)
         if stage == "features":
             return {"bearing": {"geometry": self.bearing["geometry"]}}
+        if stage == "baselines":  # the labels and the envelope rule's setting, nothing else
+            return {"bearing": {key: self.bearing[key] for key in
+                                ("health_states", "healthy_state", "envelope_rule")},
+                    "cwru": {"task": self.config["cwru"]["task"]}}
         if stage != "measured":
             config.pop("measured_dir", None)
         return config
@@ -220,6 +228,29 @@ class BearingSystem(System):
 
     def defect_orders(self) -> dict:
         return feature_orders(self.bearing["geometry"])
+
+    def physics_baselines(self, feature_names) -> dict:
+        """The envelope rule (baselines.py), where the features hold the line ratios at BPFO,
+        BPFI and 2 x BSF and every fault location is one label (the location task; not the
+        ten-class or severity labels, which the rule cannot tell apart)."""
+        from condmon.systems.bearing.baselines import LINE_OF_DEFECT, EnvelopeRule, envelope_columns
+
+        columns = envelope_columns(feature_names)
+        if columns is None:
+            log.warning("no envelope rule: the features lack the line ratios at %s",
+                        sorted(LINE_OF_DEFECT.values()))
+            return {}
+        by_defect = {}
+        for label in self.health_states:
+            by_defect.setdefault(self.defect(label)[0], []).append(label)
+        if self.healthy_state not in self.health_states or any(
+                len(by_defect.get(defect, [])) != 1 for defect in LINE_OF_DEFECT):
+            log.warning("no envelope rule: it names a fault location, and the labels %s are not "
+                        "one per location plus %r", self.health_states, self.healthy_state)
+            return {}
+        labels = {line: by_defect[defect][0] for defect, line in LINE_OF_DEFECT.items()}
+        return {"envelope_rule": EnvelopeRule(columns, labels, self.healthy_state,
+                                              self.bearing["envelope_rule"]["quantile"])}
 
     def defect(self, health_state: str):
         """(defect kind, (low, high) diameter in inches) of a label."""
