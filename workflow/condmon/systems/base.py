@@ -104,6 +104,11 @@ class System(ABC):
         """Samples per segment (one feature vector)."""
 
     @property
+    def segment_hop(self) -> int:
+        """Samples from one measured segment's start to the next (default: no overlap)."""
+        return self.segment_length
+
+    @property
     @abstractmethod
     def speeds_rpm(self) -> list[float]:
         """Simulated speeds."""

@@ -69,6 +69,10 @@ class BearingSystem(System):
         return int(self.bearing["segment_length"])
 
     @property
+    def segment_hop(self) -> int:
+        return int(self.bearing.get("segment_hop") or self.segment_length)
+
+    @property
     def speeds_rpm(self) -> list[float]:
         return [float(s) for s in self.config["rig"]["speeds_rpm"]]
 
@@ -152,11 +156,12 @@ class BearingSystem(System):
         guard = config["calibration"]["reserve"]["guard_segments"]
         if hop is not None and hop > length:
             problems.append(f"bearing.segment_hop {hop} exceeds bearing.segment_length {length}")
-        elif hop and guard < math.ceil(length / hop) - 1:
-            # overlapping segments: the guard gap must keep calibration and test samples apart
-            problems.append(f"calibration.reserve.guard_segments {guard} lets overlapping "
-                            f"segments (bearing.segment_hop {hop} of {length}) share samples "
-                            f"across the guard gap; use at least {math.ceil(length / hop) - 1}")
+        elif hop and guard < math.ceil(2 * length / hop) - 1:
+            # the guard gap between a lone healthy record's calibration block and its test
+            # blocks must be at least one segment long in samples (hybrid.time_blocks)
+            problems.append(f"calibration.reserve.guard_segments {guard} leaves a guard gap "
+                            f"shorter than one segment ({length} samples) with bearing.segment_hop "
+                            f"{hop}; use at least {math.ceil(2 * length / hop) - 1}")
         if config["hybrid"]["condition"] == "speed_rpm" and "condition_holdout" in config["hybrid"]["protocols"]:
             problems.append("hybrid.condition: CWRU records of one load differ by a few rpm; hold out "
                             "loads (condition: load)")
