@@ -523,7 +523,7 @@ def evaluation_plots(overall: pd.DataFrame, chance: float, note: str, plots_dir:
 
 
 def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: Path,
-               run_name: str, data_source: str, confusion_percent, baseline=None,
+               run_name: str, data_source: str, confusion_percent,
                healthy_state: str | None = None, bench_effects: int = 0,
                shares: pd.DataFrame | None = None) -> list[str]:
     """Write every report plot into ``plots_dir``; returns the file names. bench_effects: how many
@@ -792,7 +792,7 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
 
     with staging_directory(plots_dir) as staging:
         plot_names = make_plots(accuracy, predictions, spectra, history, calibrations, staging,
-                                run_name, data_source, confusion_percent, baseline, healthy_state,
+                                run_name, data_source, confusion_percent, healthy_state,
                                 len(bench_effects), shares)
         summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names,
                             baseline, healthy_state)
