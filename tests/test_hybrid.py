@@ -269,11 +269,48 @@ def test_of_several_healthy_records_per_condition_the_first_calibrates():
     second = segments[segments.record_id == "normal-0"].assign(record_id="normal-0b")
     layout = measured_layout(pd.concat([segments, second]), "normal", "load", RESERVE)
     calibrating = layout[layout.fixed_role == "calibration"]
-    whole = calibrating.groupby("record_id").size()
-    assert whole["normal-0"] == 10  # the first of two: whole
-    assert whole["normal-1"] == 4  # load 1's lone record: a calibration block, then time blocks
-    assert set(layout.unit[layout.record_id == "normal-1"]) >= {"normal-1@block0",
-                                                                "normal-1@block1"}
+    assert calibrating.groupby("record_id").size().to_dict() == {"normal-0": 10}  # whole
+    # load 1's lone record is never cut in time: its healthy data test away from calibration
+    assert set(layout.unit[layout.record_id == "normal-1"]) == {"normal-1"}
+    assert set(layout.fixed_role[layout.record_id == "normal-1"]) == {""}
+
+
+def test_with_one_healthy_record_per_load_one_calibrates_and_the_others_test():
+    """CWRU's full set has one healthy record per load: the calibration takes one whole, the
+    others are whole split units, so every healthy test segment is of a record the calibration
+    never saw (cutting each in time would test beside its own calibration block)."""
+    segments = bearing_segments()  # normal-0 (load 0), normal-1 (load 1)
+    layout = measured_layout(segments, "normal", "load", RESERVE)
+    assert set(layout.record_id[layout.fixed_role == "calibration"]) == {"normal-0"}
+    assert (layout.unit == layout.record_id).all()
+    for protocol in ("unseen_fault", "record_split", "condition_holdout"):
+        splits = with_healthy(protocol, segments, reserve=RESERVE)
+        assert set(splits.role[splits.record_id == "normal-0"]) == {"calibration"}
+        assert set(splits.record_id[splits.segment >= 0]) <= {"normal-0"}  # its calibration rows
+        tested = splits[(splits.role == "test") & (splits.record_id == "normal-1")]
+        assert len(tested.groupby(["measured_percent", "repeat", "holdout"])) == \
+            len(splits.groupby(["measured_percent", "repeat", "holdout"]))
+
+
+def test_a_guard_gap_shorter_than_a_segment_is_refused():
+    """Overlapping segments: the guard gap between a lone healthy record's calibration block and
+    its next block must hold one segment length of samples."""
+    segments = bearing_segments()
+    segments = segments[segments.record_id != "normal-1"]  # one healthy record: cut in time
+    # 50 % overlap (2048 every 1024): one guard segment leaves 0 samples, three leave 2048
+    with pytest.raises(SplitError, match=r"guard gap of 0 samples .* guard_segments >= 3"):
+        with_healthy("record_split", segments, reserve=RESERVE, segment_samples=(2048, 1024))
+    with pytest.raises(SplitError, match=r"guard gap of 1024 samples"):
+        with_healthy("record_split", segments, reserve=dict(RESERVE, guard_segments=2,
+                                                            calibration_segments=2),
+                     segment_samples=(2048, 1024))
+    splits = with_healthy("record_split", segments,
+                          reserve=dict(RESERVE, guard_segments=3, calibration_segments=2,
+                                       blocks=2), segment_samples=(2048, 1024))
+    unused = splits[(splits.record_id == "normal-0") & (splits.role == "unused")]
+    assert {2, 3, 4} <= set(unused.segment)
+    # no overlap: one guard segment is one segment length
+    with_healthy("record_split", segments, reserve=RESERVE, segment_samples=(4096, 4096))
 
 
 def test_a_split_without_healthy_test_data_is_an_error():
@@ -427,6 +464,8 @@ def test_the_pdm_bench_config_asks_for_its_split_and_checks_the_guard_gap():
     assert config["hybrid"]["condition_split"] == {"train": [0, 1, 2], "test": [3]}
     assert (config["bearing"]["segment_length"], config["bearing"]["segment_hop"]) == (2048, 1024)
     assert config["hybrid"]["protocols"] == ["condition_holdout"]
-    raw["bearing"]["segment_hop"] = 512  # 75 % overlap: one guard segment no longer separates
-    with pytest.raises(ConfigError, match="guard_segments 1 .* use at least 3"):
+    assert config["calibration"]["reserve"]["guard_segments"] == 3  # 2048 samples of gap
+    raw["bearing"]["segment_hop"] = 512  # 75 % overlap: three guard segments leave 512 samples
+    with pytest.raises(ConfigError, match="guard_segments 3 leaves a guard gap shorter than one "
+                                          r"segment .* use at least 7"):
         validate_config(raw, schema)

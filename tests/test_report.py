@@ -91,10 +91,11 @@ def test_plots_exist_are_listed_and_are_real_images(built_report):
                 "confusion_knn_record_split_all.png", "confusion_logreg_condition_holdout_600rpm.png",
                 "prediction_shares_knn_record_split.png",
                 "prediction_shares_logreg_condition_holdout.png", "accuracy_per_condition.png",
-                "accuracy_design_vs_evaluation.png"}
+                "accuracy_design_vs_evaluation.png", "simulation_gain.png"}
     assert expected <= set(plots)
-    # classifiers x protocols x (all + 2 speeds confusion figures + prediction shares), 7 others
-    assert len(plots) == 2 * 2 * 4 + 7
+    # classifiers x protocols x (all + 2 speeds confusion figures + prediction shares), 8 others
+    # (the gain against the strongest baseline is drawn with or without a measured-only one)
+    assert len(plots) == 2 * 2 * 4 + 8
     for name in plots:
         data = (out / "plots" / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n", name
@@ -360,3 +361,47 @@ def test_summary_intervals_count_a_tested_segment_once():
     for name in ("accuracy_ci_low", "accuracy_ci_high", "false_alarm_ci_low",
                  "record_accuracy_ci_high"):
         assert three[name] == one[name], name
+
+
+def test_a_physics_baseline_that_wins_gives_a_negative_gain(train_outputs, tmp_path):
+    """A training-free rule on the same test sets is a candidate of the strongest baseline; where
+    it beats the classifier the gain is negative and said so, in the tables, summary.json and
+    the plot."""
+    _, paths = train_outputs
+    physics = []
+    for path in paths["predictions"]:
+        if "/knn/" not in str(path):
+            continue
+        frame = pd.read_parquet(path)
+        # a rule that is always right: no classifier can beat it
+        frame = frame.assign(classifier="oracle_rule", predicted_label=frame["true_label"])
+        target = tmp_path / "baselines" / path.parent.name / "predictions.parquet"
+        target.parent.mkdir(parents=True)
+        frame.to_parquet(target)
+        physics.append(target)
+    out = tmp_path / "report"
+    summary = report.write_report(
+        paths["metrics"], paths["predictions"], paths["calibration_params"],
+        paths["calibration_spectra"], paths["calibration_history"],
+        accuracy_path=out / "accuracy.csv", summary_path=out / "summary.json",
+        plots_dir=out / "plots", run_name="demo", data_source="virtual_bench",
+        confusion_percent=[0], healthy_state="healthy",
+        measured_features_path=paths["features_measured"], condition="speed_rpm",
+        evaluation_path=out / "evaluation.csv", evaluation_summary_path=out / "evaluation_summary.csv",
+        physics_paths=physics, physics_baselines_path=out / "physics_baselines.csv")
+    table = pd.read_csv(out / "evaluation.csv")
+    whole = table[(table.condition == "all") & (table.records == "all")]
+    assert (whole.physics_baseline == "oracle_rule").all()
+    assert np.allclose(whole.physics_baseline_accuracy, 1.0)
+    assert (whole.strongest_baseline == "oracle_rule").all()
+    assert np.allclose(whole.gain_vs_strongest, whole.accuracy - 1.0)
+    assert (whole.gain_vs_strongest < 0).any()
+    for result in summary["results"]:
+        assert result["strongest_baseline"] == "oracle_rule"
+        assert result["gain_vs_strongest_mean"] <= 0
+        assert result["physics_baseline_accuracy_mean"] == pytest.approx(1.0)
+    own = pd.read_csv(out / "physics_baselines.csv")
+    assert set(own.classifier) == {"oracle_rule"} and np.allclose(own.accuracy_mean, 1.0)
+    entry = summary["physics_baselines"][0]
+    assert entry["baseline"] == "oracle_rule" and set(entry["recall_per_class"].values()) == {1.0}
+    assert "simulation_gain.png" in summary["plots"]

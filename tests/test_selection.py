@@ -136,3 +136,50 @@ def test_select_then_classify_names_its_features_and_predicts_on_them():
     assert (model.predict(shuffled) == model.predict(X)).all()
     assert (model.predict(X) == y).mean() > 0.9
     assert selected_features(SVC().fit(X, y), names) is None  # no selection step
+
+
+# -- the measured-only baseline's own choice: never forced through the selection ------------------
+def records_of(y, per_record=10):
+    """Record ids: every `per_record` segments of a class one record (y sorted by class)."""
+    return np.array([f"r{label}_{i // per_record}" for i, label in enumerate(y)])
+
+
+def candidates(n_features):
+    from condmon.selection import SelectionByInnerCV, select_then_classify
+    knn = Pipeline([("scale", StandardScaler()), ("knn", KNeighborsClassifier(n_neighbors=5))])
+    selected = select_then_classify(SequentialBackwardSelector(n_features=n_features, cv=3),
+                                    clone(knn))
+    return SelectionByInnerCV(knn, selected, cv=3)
+
+
+def test_the_baseline_keeps_all_features_when_they_score_better():
+    from condmon.selection import ALL_FEATURES
+    # every feature carries a little of the class: selecting one of six loses
+    rng = np.random.default_rng(0)
+    y = np.repeat(np.arange(2), 60)
+    X = rng.normal(size=(120, 6)) + 0.8 * y[:, None]
+    model = candidates(1).fit(X, y, groups=records_of(y))
+    assert model.choice_ == ALL_FEATURES
+    assert model.inner_scores_[ALL_FEATURES] > model.inner_scores_["backward selection"]
+    assert not isinstance(model.model_, Pipeline) or "select" not in model.model_.named_steps
+
+
+def test_the_baseline_selects_when_its_own_records_say_so():
+    from condmon.selection import BACKWARD
+    rng = np.random.default_rng(3)
+    y = np.repeat(np.arange(2), 60)
+    X = rng.normal(size=(120, 12))
+    X[:, :2] += 2.0 * y[:, None]  # two informative features among ten of noise
+    model = candidates(2).fit(X, y, groups=records_of(y))
+    assert model.choice_ == BACKWARD, model.inner_scores_
+    assert list(np.flatnonzero(model.model_.named_steps["select"].get_support())) == [0, 1]
+
+
+def test_too_few_records_for_an_inner_cv_means_no_selection():
+    from condmon.selection import ALL_FEATURES
+    X, y = blobs([0, 1, 2], n_per_class=20, n_features=8, n_classes=2)
+    one_record_per_class = np.where(y == 0, "a", "b")
+    model = candidates(3).fit(X, y, groups=one_record_per_class)
+    assert model.choice_ == ALL_FEATURES and model.reason_ == "too few records for an inner CV"
+    assert model.inner_scores_ == {} and model.model_.predict(X[:3]).shape == (3,)
+    assert list(model.predict(X)) == list(model.model_.predict(X))

@@ -333,3 +333,29 @@ def test_backward_selection_inside_each_fit_keeps_the_informative_features(tmp_p
         assert not set(records[train]) & set(records[test])
     entries = write_models(models, tmp_path / "models", FEATURES)
     assert entries[0]["selected_features"] == chosen
+
+
+def test_the_measured_only_baseline_is_never_forced_through_the_selection(tmp_path):
+    """With features.selection configured, the hybrid fit selects 3 features; the baseline
+    chooses by its own inner CV, here all features (they score as well), and says so."""
+    from condmon.selection import ALL_FEATURES, SelectionByInnerCV
+    from condmon.train import BASELINE_COLUMNS
+
+    splits = splits_for(MEASURED, percents=(50,), repeats=1)
+    selection = {"n_features": 3, "cv": 3}
+    _, _, hybrid = run_protocol("knn", {}, SIMULATED, MEASURED, splits, FEATURES, seed=0,
+                                feature_selection=selection)
+    assert len(selected_features(hybrid[(50, 0, "")], FEATURES)) == 3
+    _, baseline, models = run_protocol("knn", {}, None, MEASURED, splits, FEATURES, seed=0,
+                                       feature_selection=selection)
+    model = models[(50, 0, "")]
+    assert isinstance(model, SelectionByInnerCV) and model.choice_ == ALL_FEATURES
+    assert selected_features(model.model_, FEATURES) is None  # no selection step at all
+    assert set(model.inner_scores_) == {ALL_FEATURES, "backward selection"}
+    assert (baseline.selection == ALL_FEATURES).all()
+    assert (baseline.selected_features == ";".join(FEATURES)).all()
+    assert baseline.selection_reason.str.startswith("inner CV").all()
+    write_metrics(baseline, tmp_path / "measured_only.csv", BASELINE_COLUMNS)
+    written = pd.read_csv(tmp_path / "measured_only.csv")
+    assert list(written.columns) == BASELINE_COLUMNS
+    assert written.inner_cv_all_features.notna().all()

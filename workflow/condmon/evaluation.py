@@ -8,9 +8,11 @@ per operating condition (`hybrid.condition`, e.g. load: never a file's stored rp
 - the false-alarm rate: the share of healthy test segments called faulty;
 - a 95 % Wilson interval on every accuracy and rate (segments of one record are not independent:
   the per-segment interval is optimistic) and `small_test_set` under 30 test segments;
-- baselines that can lose: chance (1 / classes), the majority class of the test set, and the best
-  measured-only classifier the split allows (any classifier's `measured_only.csv`); the gain is
-  taken against the strongest of them.
+- baselines that can win: chance (1 / classes), the majority class of the test set, the best
+  measured-only classifier the split allows (any classifier's `measured_only.csv`: the same
+  candidate features, its selection chosen by its own inner CV), and the system's training-free
+  physics baselines on the same test set (the bearing's envelope rule, `condmon.baselines`); the
+  gain is taken against the strongest of them, and is negative where a baseline wins.
 Aggregated over repeats and holdouts (`summarise`): means, Wilson intervals on one repeat's
 distinct test segments (a segment tested again by another repeat or holdout is no new data, so
 identical repeats do not narrow them), and how many repeats differ (identical repeats are one
@@ -35,8 +37,8 @@ EVALUATION_COLUMNS = KEYS + [
     "n_records", "record_accuracy", "record_accuracy_ci_low", "record_accuracy_ci_high",
     "balanced_accuracy", "n_healthy", "false_alarm_rate", "false_alarm_ci_low",
     "false_alarm_ci_high", "small_test_set", "leaky", "chance", "majority_class",
-    "measured_only_best", "strongest_baseline", "strongest_baseline_accuracy",
-    "gain_vs_strongest"]
+    "measured_only_best", "physics_baseline", "physics_baseline_accuracy", "strongest_baseline",
+    "strongest_baseline_accuracy", "gain_vs_strongest"]
 
 
 def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
@@ -112,17 +114,20 @@ def subsets(test: pd.DataFrame, design: set):
 
 def evaluation_table(predictions: pd.DataFrame, healthy_state: str | None, labels,
                      conditions: dict, condition: str, design_records=(),
-                     measured_only: pd.DataFrame | None = None) -> pd.DataFrame:
+                     measured_only: pd.DataFrame | None = None,
+                     physics: pd.DataFrame | None = None) -> pd.DataFrame:
     """One row per evaluation and subset (columns EVALUATION_COLUMNS).
 
     `conditions`: {record_id: value of `condition`}; `labels`: the task's classes (chance);
     `design_records`: records design choices were tuned on (subsets `design` and `evaluation`
     besides `all`); `measured_only`: the measured-only metrics rows of every classifier (all
-    speeds rows used). Baselines and the gain are given on the `all` x `all` rows.
+    speeds rows used); `physics`: the physics baselines' predictions (`classifier` = the rule's
+    name) on the same splits. Baselines and the gain are given on the `all` x `all` rows.
     """
     design = set(map(str, design_records))
     predictions = with_conditions(predictions, conditions, condition)
     best_alone = _best_measured_only(measured_only)
+    by_rule = _physics_accuracy(physics)
     rows = []
     for key, test in predictions.groupby(KEYS, sort=True):
         for condition_label, records, part in subsets(test, design):
@@ -131,7 +136,7 @@ def evaluation_table(predictions: pd.DataFrame, healthy_state: str | None, label
                        leaky=key[1] in LEAKY_PROTOCOLS)
             if condition_label == ALL and records == ALL:
                 row.update(_baselines(part, row["accuracy"], len(labels),
-                                      best_alone.get(key[1:])))
+                                      best_alone.get(key[1:]), by_rule.get(key[1:], {})))
             rows.append(row)
     return pd.DataFrame(rows, columns=EVALUATION_COLUMNS)
 
@@ -145,15 +150,34 @@ def _best_measured_only(measured_only: pd.DataFrame | None) -> dict:
     return {(p, int(m), int(r), h): float(a) for (p, m, r, h), a in best.items()}
 
 
-def _baselines(test: pd.DataFrame, accuracy: float, n_labels: int, measured_only) -> dict:
-    """Chance, majority class of the test set, best measured-only; the strongest and the gain."""
+def _physics_accuracy(physics: pd.DataFrame | None) -> dict:
+    """{(protocol, percent, repeat, holdout): {rule: accuracy on that split's test set}}."""
+    if physics is None or physics.empty:
+        return {}
+    hits = physics.assign(_hit=physics["true_label"] == physics["predicted_label"])
+    accuracy = hits.groupby(["classifier"] + KEYS[1:])["_hit"].mean()
+    found = {}
+    for (rule, protocol, percent, repeat, holdout), value in accuracy.items():
+        found.setdefault((protocol, int(percent), int(repeat), holdout), {})[rule] = float(value)
+    return found
+
+
+def _baselines(test: pd.DataFrame, accuracy: float, n_labels: int, measured_only,
+               physics: dict | None = None) -> dict:
+    """Chance, majority class of the test set, best measured-only, the best physics baseline
+    ({rule: accuracy}); the strongest of all and the gain against it."""
     candidates = {"chance": 1.0 / n_labels,
                   "majority_class": float(test["true_label"].value_counts(normalize=True).max())}
     if measured_only is not None:
         candidates["measured_only_best"] = measured_only
+    best_rule = max(physics, key=physics.get) if physics else None
+    if best_rule is not None:
+        candidates[best_rule] = physics[best_rule]
     strongest = max(candidates, key=candidates.get)
     return {"chance": candidates["chance"], "majority_class": candidates["majority_class"],
             "measured_only_best": measured_only if measured_only is not None else np.nan,
+            "physics_baseline": best_rule or "",
+            "physics_baseline_accuracy": physics[best_rule] if best_rule else np.nan,
             "strongest_baseline": strongest,
             "strongest_baseline_accuracy": candidates[strongest],
             "gain_vs_strongest": accuracy - candidates[strongest]}
@@ -172,6 +196,7 @@ def distinct_repeats(predictions: pd.DataFrame) -> pd.Series:
 
 
 SUMMARY_MEANS = ["accuracy", "record_accuracy", "balanced_accuracy", "false_alarm_rate",
+                 "majority_class", "measured_only_best", "physics_baseline_accuracy",
                  "strongest_baseline_accuracy", "gain_vs_strongest"]
 
 
@@ -231,6 +256,7 @@ def summarise(table: pd.DataFrame, predictions: pd.DataFrame, healthy_state: str
                    n_test_distinct=repeats["distinct_segments"].mean(),
                    **{f"{c}_mean": part[c].mean() for c in SUMMARY_MEANS},
                    accuracy_std=part.groupby("repeat")["accuracy"].mean().std(),
+                   physics_baseline=",".join(sorted(set(part["physics_baseline"].dropna()) - {""})),
                    strongest_baseline=",".join(sorted(set(part["strongest_baseline"].dropna()))))
         row["accuracy_ci_low"], row["accuracy_ci_high"] = _pooled_interval(
             repeats, "_hits", "n_test", "distinct_segments")

@@ -200,7 +200,8 @@ def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats:
                 simulated_validation_share: float = 0.0, healthy_state: str | None = None,
                 reserve: dict | None = None,
                 specimens: pd.DataFrame | None = None,
-                condition_split: dict | None = None) -> pd.DataFrame:
+                condition_split: dict | None = None,
+                segment_samples: tuple[int, int] | None = None) -> pd.DataFrame:
     """The split table for one protocol (columns SPLIT_COLUMNS, one row per record, or per
     segment for segment_share, and split).
 
@@ -218,13 +219,15 @@ def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats:
     "calibration" and guard gaps "unused" in every split, blocks are split like records.
     `specimens`: record_id, specimen, specimen_group of the measured records (specimen_holdout).
     `condition_split`: condition_holdout's fixed sides, {train: [values], test: [values]}.
+    `segment_samples`: (segment length, hop) of the measured segments in samples: a record split
+    in time is refused where its guard gap is shorter than one segment (`time_blocks`).
     """
     percents = _check_arguments(protocol, measured_percent, repeats, seed, min_test_records)
     layout = None
     if reserve is not None:
         if "segment" not in records.columns:
             raise SplitError("calibration.reserve needs the segment column of the measured records")
-        layout = measured_layout(records, healthy_state, condition, reserve)
+        layout = measured_layout(records, healthy_state, condition, reserve, segment_samples)
         free = layout[layout["fixed_role"] == ""]
         records = (free.assign(record_id=free["unit"]) if protocol != "segment_share" else free)
         records = records.rename(columns={"condition": condition})
@@ -297,18 +300,22 @@ BLOCK_MARK = "@block"  # the split unit of a record's time block: "<record_id>@b
 
 
 def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition: str,
-                    reserve: dict) -> pd.DataFrame:
+                    reserve: dict, segment_samples: tuple[int, int] | None = None) -> pd.DataFrame:
     """Per measured segment: the split unit it belongs to and a fixed role.
 
     Columns record_id, segment, health_state, condition, unit, fixed_role: CALIBRATION (the
     calibration set: never trained on, never tested), "unused" (a guard gap) or "" (the
     protocol decides, per unit). `reserve` is calibration.reserve:
     - `records` listed: those healthy records, whole, are the calibration set;
-    - none listed: per condition, the first (by id) of several healthy records is reserved
-      whole; a condition's only healthy record is split in time: its first
-      `calibration_segments` segments calibrate, then `blocks` blocks of equal length follow,
-      each after a guard gap of `guard_segments`; every block is a split unit (a record to the
-      protocols), so healthy data can train and test without a segment on both sides.
+    - none listed, several healthy records: per condition the first (by id) of several
+      calibrates, whole; where no condition has several (CWRU's full set: one per load), the
+      first overall does; every other healthy record is a whole split unit, so healthy test
+      data come from records the calibration never saw;
+    - one healthy record: it is split in time: its first `calibration_segments` segments
+      calibrate, then `blocks` blocks of equal length follow, each after a guard gap of
+      `guard_segments`; every block is a split unit (a record to the protocols), so healthy
+      data can train and test without a segment on both sides. With `segment_samples`
+      (length, hop) a guard gap shorter than one segment in samples is refused (`time_blocks`).
     The same table rows in, the same layout out: the calibrate and hybrid jobs agree.
     """
     missing = [c for c in ("record_id", "segment", "health_state", condition)
@@ -338,24 +345,49 @@ def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition
     if healthy_state is None:
         raise SplitError(f"{RESERVE_KEY} needs the healthy state")
     healthy = frame[frame["health_state"] == healthy_state]
-    for _, group in healthy.groupby("condition", sort=True):
-        ids = sorted(group["record_id"].unique())
-        if len(ids) > 1:
-            frame.loc[frame["record_id"] == ids[0], "fixed_role"] = CALIBRATION
-            continue
-        rows = group.index  # sorted by segment
+    ids = sorted(healthy["record_id"].unique())
+    # the first of several healthy records of a condition calibrates (the gear bench: one per
+    # speed); with one healthy record per condition (CWRU: one per load), the first overall
+    calibrating = [sorted(group.unique())[0] for _, group in
+                   healthy.groupby("condition", sort=True)["record_id"] if group.nunique() > 1]
+    if not calibrating and len(ids) > 1:
+        calibrating = ids[:1]
+    if calibrating:  # calibrate on whole records, test healthy data on the others
+        frame.loc[frame["record_id"].isin(calibrating), "fixed_role"] = CALIBRATION
+    elif ids:
+        rows = healthy.index  # sorted by segment
         units, roles = time_blocks(ids[0], len(rows), int(reserve["calibration_segments"]),
-                                   int(reserve["guard_segments"]), int(reserve["blocks"]))
+                                   int(reserve["guard_segments"]), int(reserve["blocks"]),
+                                   segment_samples)
         frame.loc[rows, "unit"] = units
         frame.loc[rows, "fixed_role"] = roles
     return frame
 
 
+def guard_gap_samples(guard: int, segment_length: int, segment_hop: int) -> int:
+    """Samples between the end of the last segment before a guard gap of `guard` segments and
+    the start of the first after it: (guard + 1) x hop - length (negative: they overlap)."""
+    return (int(guard) + 1) * int(segment_hop) - int(segment_length)
+
+
 def time_blocks(record_id: str, n_segments: int, calibration: int, guard: int,
-                blocks: int) -> tuple[list[str], list[str]]:
+                blocks: int, segment_samples: tuple[int, int] | None = None
+                ) -> tuple[list[str], list[str]]:
     """(unit, fixed role) of each segment of a lone healthy record, in time order:
     `calibration` segments, then `blocks` equal blocks, each after `guard` unused segments;
-    segments left over at the end are unused."""
+    segments left over at the end are unused. With `segment_samples` (length, hop): a guard gap
+    shorter than one segment length in samples is an error (a calibration or training block
+    would sit within one segment of a test block: the same stretch of signal, nearly)."""
+    if segment_samples is not None:
+        length, hop = (int(v) for v in segment_samples)
+        gap = guard_gap_samples(guard, length, hop)
+        if gap < length:
+            need = -(-2 * length // hop) - 1
+            raise SplitError(
+                f"{RESERVE_KEY}.guard_segments {guard}: record {record_id!r} is split in time "
+                f"with a guard gap of {gap} samples between its calibration block and the next "
+                f"block (segments of {length} samples every {hop}), shorter than one segment; "
+                f"use guard_segments >= {need}")
     size = (n_segments - calibration - blocks * guard) // blocks
     if size < 1:
         raise SplitError(f"{RESERVE_KEY}: record {record_id!r} has {n_segments} segments, too "

@@ -82,29 +82,49 @@ def _wrapped(text: str, width: int = 48) -> str:
 
 
 def simulation_gain(gain, chance: float, note: str, protocol_labels: dict):
-    """One panel per protocol: accuracy with the simulated data (solid) and of the same
-    classifier on the measured training data alone (dashed), per classifier; the gap is the
-    simulation's gain. ``gain``: columns classifier, protocol, measured_percent, hybrid,
-    measured_only."""
+    """Per protocol, top: accuracy with the simulated data (solid, per classifier) against the
+    strongest baseline at each share (dashed: the strongest of the measured-only classifier,
+    the physics baseline and the majority class; whichever columns ``gain`` has are drawn thin
+    and grey); bottom: the gain against the strongest, negative where a baseline wins.
+    ``gain``: columns classifier, protocol, measured_percent, hybrid, strongest, gain, and
+    optionally measured_only_best, physics_baseline_accuracy, majority_class."""
     protocols = sorted(gain["protocol"].unique())
     colours = _colours(sorted(gain["classifier"].unique()))
-    fig, axes = plt.subplots(1, len(protocols), figsize=(5.5 * len(protocols), 4.8),
-                             sharey=True, squeeze=False)
-    for ax, protocol in zip(axes[0], protocols):
-        for classifier, group in gain[gain["protocol"] == protocol].groupby("classifier"):
+    others = [(column, label, style) for column, label, style in (
+        ("measured_only_best", "measured only (best classifier)", "--"),
+        ("physics_baseline_accuracy", "physics baseline (no training)", "-."),
+        ("majority_class", "majority class", ":")) if column in gain.columns]
+    fig, axes = plt.subplots(2, len(protocols), figsize=(5.5 * len(protocols), 7.6),
+                             sharey="row", sharex=True, squeeze=False,
+                             gridspec_kw={"height_ratios": [3, 2]})
+    for top, bottom, protocol in zip(axes[0], axes[1], protocols):
+        rows = gain[gain["protocol"] == protocol]
+        for column, label, style in others:
+            line = rows.groupby("measured_percent")[column].mean()
+            if line.notna().any():
+                top.plot(line.index, line.to_numpy(), linestyle=style, color="0.55", linewidth=1,
+                         label=label)
+        for classifier, group in rows.groupby("classifier"):
             group = group.sort_values("measured_percent")
-            ax.plot(group["measured_percent"], group["hybrid"], marker="o",
-                    color=colours[classifier], label=f"{classifier}: simulated + measured")
-            ax.plot(group["measured_percent"], group["measured_only"], marker="x", linestyle="--",
-                    color=colours[classifier], label=f"{classifier}: measured only")
-        ax.axhline(chance, linestyle=":", color="0.4", label=f"chance ({chance:.2f})")
-        ax.set_title(_wrapped(f"{protocol}: {protocol_labels.get(protocol, '')}"), fontsize=9)
-        ax.set_xlabel(PERCENT_LABEL)
-        ax.set_ylim(0, 1.05)
-        ax.grid(alpha=0.3)
+            top.plot(group["measured_percent"], group["hybrid"], marker="o",
+                     color=colours[classifier], label=f"{classifier}: simulated + measured")
+            top.plot(group["measured_percent"], group["strongest"], marker="x", linestyle="--",
+                     color=colours[classifier], label=f"{classifier}: strongest baseline")
+            bottom.plot(group["measured_percent"], group["gain"], marker="o",
+                        color=colours[classifier])
+        top.axhline(chance, linestyle=":", color="0.75", label=f"chance ({chance:.2f})")
+        top.set_title(_wrapped(f"{protocol}: {protocol_labels.get(protocol, '')}"), fontsize=9)
+        top.set_ylim(0, 1.05)
+        top.grid(alpha=0.3)
+        bottom.axhline(0.0, color="0.2", linewidth=1)
+        bottom.axhspan(min(-0.05, float(gain["gain"].min()) - 0.05), 0, color="tab:red",
+                       alpha=0.08)  # below 0: a baseline wins
+        bottom.set_xlabel(PERCENT_LABEL)
+        bottom.grid(alpha=0.3)
     axes[0, 0].set_ylabel(f"{ACCURACY_LABEL} (fraction)")
-    return _finish(fig, "The simulation's gain: with vs without the simulated data",
-                   note, legend_from=axes[0, 0])
+    axes[1, 0].set_ylabel("gain vs strongest\n(red: a baseline wins)")
+    return _finish(fig, "The simulation's gain against the strongest baseline "
+                        "(a negative gain: a baseline wins)", note, legend_from=axes[0, 0])
 
 
 def recall_per_class(recalls, note: str, protocol_labels: dict):

@@ -351,6 +351,40 @@ def simulation_gain(accuracy: pd.DataFrame, baseline: pd.DataFrame) -> pd.DataFr
     return gain
 
 
+def gain_against_strongest(overall: pd.DataFrame) -> pd.DataFrame:
+    """The simulation_gain plot's table from evaluation_summary's `all` rows: per classifier,
+    protocol and percent the hybrid accuracy, the strongest baseline's, the gain, and each
+    baseline's (best measured-only, physics baseline, majority class)."""
+    whole = overall[(overall["condition"] == evaluation.ALL) & (overall["records"] == evaluation.ALL)]
+    return whole.rename(columns={
+        "accuracy_mean": "hybrid", "strongest_baseline_accuracy_mean": "strongest",
+        "gain_vs_strongest_mean": "gain", "measured_only_best_mean": "measured_only_best",
+        "physics_baseline_accuracy_mean": "physics_baseline_accuracy",
+        "majority_class_mean": "majority_class"})[
+        ["classifier", "protocol", "measured_percent", "hybrid", "strongest", "gain",
+         "measured_only_best", "physics_baseline_accuracy", "majority_class"]]
+
+
+def physics_baselines_summary(table: pd.DataFrame, predictions: pd.DataFrame) -> list[dict]:
+    """summary.json's `physics_baselines`: per rule, protocol and percent its mean accuracy,
+    balanced accuracy, false-alarm rate and recall per class on the same test sets."""
+    whole = table[(table["condition"] == evaluation.ALL) & (table["records"] == evaluation.ALL)]
+    recalls = recall_per_class(predictions)
+    entries = []
+    for row in whole.itertuples(index=False):
+        mine = recalls[(recalls["classifier"] == row.classifier)
+                       & (recalls["protocol"] == row.protocol)
+                       & (recalls["measured_percent"] == row.measured_percent)]
+        entries.append({"baseline": row.classifier, "protocol": row.protocol,
+                        "measured_percent": int(row.measured_percent),
+                        "accuracy_mean": _json_number(row.accuracy_mean),
+                        "balanced_accuracy_mean": _json_number(row.balanced_accuracy_mean),
+                        "false_alarm_rate_mean": _json_number(row.false_alarm_rate_mean),
+                        "recall_per_class": {r.true_label: _json_number(r.recall)
+                                             for r in mine.itertuples()}})
+    return entries
+
+
 def accuracy_entry(row, speeds: pd.DataFrame) -> dict:
     """The accuracy part of a summary entry: one row of over_repeats and its per_speed rows."""
     speed_rows = speeds[(speeds["classifier"] == row.classifier)
@@ -439,7 +473,10 @@ def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: di
                             "classifier on the same measured training data alone (null: no "
                             "measured-only baseline, or no measured training data); the "
                             "headline is gain_vs_strongest_mean, against the strongest of "
-                            "chance, majority class and the best measured-only classifier"),
+                            "chance, majority class, the best measured-only classifier (its "
+                            "feature selection chosen by its own inner CV) and the system's "
+                            "training-free physics baseline (physics_baselines); negative where "
+                            "a baseline wins"),
         "results": results,
         "plots": plot_names,
     }
@@ -485,7 +522,7 @@ def evaluation_plots(overall: pd.DataFrame, chance: float, note: str, plots_dir:
 
 
 def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: Path,
-               run_name: str, data_source: str, confusion_percent, baseline=None,
+               run_name: str, data_source: str, confusion_percent,
                healthy_state: str | None = None, bench_effects: int = 0,
                shares: pd.DataFrame | None = None) -> list[str]:
     """Write every report plot into ``plots_dir``; returns the file names. bench_effects: how many
@@ -507,9 +544,6 @@ def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: 
          "accuracy_vs_measured_percent.png")
     save(plots.accuracy_per_speed(accuracy[accuracy["speed_rpm"].notna()], percents, chance, note),
          "accuracy_per_speed.png")
-    if baseline is not None and not baseline.empty:
-        save(plots.simulation_gain(simulation_gain(accuracy, baseline), chance, note,
-                                   PROTOCOL_LABELS), "simulation_gain.png")
     save(plots.recall_per_class(recall_per_class(predictions), note, PROTOCOL_LABELS),
          "recall_per_class.png")
     for (classifier, protocol), group in predictions.groupby(["classifier", "protocol"]):
@@ -556,14 +590,22 @@ def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: 
 
 
 def evaluation_tables(predictions, baseline, labels, healthy_state, measured_features_path,
-                      condition, design_records) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """condmon.evaluation's tables: per evaluation, and over repeats."""
+                      condition, design_records, physics=None):
+    """condmon.evaluation's tables: per evaluation, and over repeats; and the physics
+    baselines' own summary over repeats (None without physics predictions)."""
     features = pd.read_parquet(measured_features_path, columns=["record_id", condition])
     conditions = dict(zip(features["record_id"].astype(str), features[condition].astype(float)))
     table = evaluation.evaluation_table(predictions, healthy_state, labels, conditions, condition,
-                                        design_records, baseline)
-    return table, evaluation.summarise(table, predictions, healthy_state, conditions, condition,
-                                       design_records)
+                                        design_records, baseline, physics)
+    overall = evaluation.summarise(table, predictions, healthy_state, conditions, condition,
+                                   design_records)
+    physics_overall = None
+    if physics is not None:
+        physics_table = evaluation.evaluation_table(physics, healthy_state, labels, conditions,
+                                                    condition, design_records)
+        physics_overall = evaluation.summarise(physics_table, physics, healthy_state, conditions,
+                                               condition, design_records)
+    return table, overall, physics_overall
 
 
 def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFrame,
@@ -573,8 +615,9 @@ def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFra
     figures = ["n_repeats", "distinct_repeats", "accuracy_ci_low", "accuracy_ci_high",
                "record_accuracy_mean", "record_accuracy_ci_low", "record_accuracy_ci_high",
                "balanced_accuracy_mean", "false_alarm_rate_mean", "false_alarm_ci_low",
-               "false_alarm_ci_high", "small_test_set", "strongest_baseline",
-               "strongest_baseline_accuracy_mean", "gain_vs_strongest_mean"]
+               "false_alarm_ci_high", "small_test_set", "majority_class_mean",
+               "measured_only_best_mean", "physics_baseline", "physics_baseline_accuracy_mean",
+               "strongest_baseline", "strongest_baseline_accuracy_mean", "gain_vs_strongest_mean"]
     specimens = {}
     if measured_records is not None:
         records = pd.read_csv(measured_records, dtype=str, keep_default_na=False)
@@ -636,8 +679,10 @@ def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFra
         "intervals (per evaluation on its test set; over repeats on one repeat's distinct test "
         "segments/records: repeats and holdouts that test a segment again add no data; still "
         "optimistic: segments of a record are not independent), false-alarm rate (healthy test segments called faulty), gain against "
-        "the strongest of chance, the test set's majority class and the best measured-only "
-        "classifier; evaluation.csv per evaluation, evaluation_summary.csv over repeats")
+        "the strongest of chance, the test set's majority class, the best measured-only "
+        "classifier and the physics baseline (negative: a baseline wins); evaluation.csv per "
+        "evaluation, evaluation_summary.csv over repeats, physics_baselines.csv the physics "
+        "baselines' own figures on the same test sets")
 
 
 def simulation_summary(report_paths) -> dict:
@@ -684,7 +729,8 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
                  bench_effects=(), prediction_shares_path=None,
                  simulated_validation_paths=(), measured_features_path=None,
                  condition: str = "speed_rpm", design_records=(), evaluation_path=None,
-                 evaluation_summary_path=None) -> dict:
+                 evaluation_summary_path=None, physics_paths=(),
+                 physics_baselines_path=None) -> dict:
     """Build the whole report; returns the summary dict. Every output is written atomically.
 
     prediction_shares_path: where prediction_shares.csv goes (None: not written).
@@ -697,6 +743,11 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     operating condition); with them, evaluation_path and evaluation_summary_path get
     condmon.evaluation's tables (per evaluation; over repeats), `design_records` apart, and
     summary.json's results the per-record, balanced, false-alarm and baseline figures.
+    physics_paths: the physics baselines' predictions (condmon.baselines; files without rows
+    are skipped): a candidate of the strongest baseline, their own figures in
+    physics_baselines_path (evaluation_summary's columns) and summary.json's
+    `physics_baselines`. plots/simulation_gain.png: the gain against the strongest baseline
+    (without measured features: against the same classifier's measured-only baseline).
 
     bench_effects: what the virtual bench has and the model lacks (its difference in form),
     labelled in summary.json and on every plot.
@@ -709,6 +760,9 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     with_rows = [p for p in baseline_paths if len(pd.read_csv(p))]
     baseline = load_metrics(with_rows) if with_rows else None
     predictions = load_predictions(predictions_paths)
+    # the system's physics baselines (empty files where it has none)
+    physics_with_rows = [p for p in physics_paths if len(pd.read_parquet(p, columns=["record_id"]))]
+    physics = load_predictions(physics_with_rows) if physics_with_rows else None
     simulated_validation = load_simulated_validation(simulated_validation_paths)
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
                          healthy_state)
@@ -737,7 +791,7 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
 
     with staging_directory(plots_dir) as staging:
         plot_names = make_plots(accuracy, predictions, spectra, history, calibrations, staging,
-                                run_name, data_source, confusion_percent, baseline, healthy_state,
+                                run_name, data_source, confusion_percent, healthy_state,
                                 len(bench_effects), shares)
         summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names,
                             baseline, healthy_state)
@@ -757,17 +811,31 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
         if benchmarks is not None:
             summary["job_timings"] = write_job_timings(benchmarks, job_timings_path, staging, summary["plots"],
                                                        note=f"run {run_name}")
+        note = plot_note(run_name, data_source, len(bench_effects))
         if measured_features_path is not None:
-            table, overall = evaluation_tables(predictions, baseline, labels, healthy_state,
-                                               measured_features_path, condition, design_records)
+            table, overall, physics_overall = evaluation_tables(
+                predictions, baseline, labels, healthy_state, measured_features_path, condition,
+                design_records, physics)
             add_evaluation(summary, overall, predictions, measured_records, design_records)
-            summary["plots"] += evaluation_plots(
-                overall, 1.0 / len(labels), plot_note(run_name, data_source, len(bench_effects)),
-                staging)
+            plots.save_figure(plots.simulation_gain(gain_against_strongest(overall),
+                                                    1.0 / len(labels), note, PROTOCOL_LABELS),
+                              staging / "simulation_gain.png")
+            summary["plots"].append("simulation_gain.png")
+            if physics_overall is not None:
+                summary["physics_baselines"] = physics_baselines_summary(physics_overall, physics)
+            if physics_baselines_path is not None:
+                write_text((physics_overall if physics_overall is not None else pd.DataFrame())
+                           .to_csv(index=False), physics_baselines_path)
+            summary["plots"] += evaluation_plots(overall, 1.0 / len(labels), note, staging)
             if evaluation_path is not None:
                 write_text(table.to_csv(index=False), evaluation_path)
             if evaluation_summary_path is not None:
                 write_text(overall.to_csv(index=False), evaluation_summary_path)
+        elif baseline is not None:  # no evaluation tables: the same classifier's baseline
+            gains = simulation_gain(accuracy, baseline).rename(columns={"measured_only": "strongest"})
+            plots.save_figure(plots.simulation_gain(gains, 1.0 / len(labels), note,
+                                                    PROTOCOL_LABELS), staging / "simulation_gain.png")
+            summary["plots"].append("simulation_gain.png")
         write_text(labelled_accuracy(accuracy).to_csv(index=False), accuracy_path)
         if record_recall_path is not None:
             write_text(recall_per_record(predictions).to_csv(index=False), record_recall_path)

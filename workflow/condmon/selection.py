@@ -16,16 +16,22 @@ the smallest class has samples), a scale-aware default estimator and errors nami
 `select_then_classify` puts it in front of a classifier as a Pipeline. Fitted with sklearn's
 metadata routing on, `fit(X, y, groups=record_ids)` hands the groups to the selector (it
 requests them) and to the classifier only if that asks for them too.
+
+`SelectionByInnerCV` is the measured-only baseline's own choice: the classifier on all features
+or behind the selection, whichever an inner cross-validation over its training records scores
+higher; never forced (too few records for an inner CV: all features).
 """
 from __future__ import annotations
 
 import numpy as np
-from sklearn.base import BaseEstimator, clone
+import sklearn
+from sklearn.base import BaseEstimator, ClassifierMixin, clone
 from sklearn.feature_selection import SelectorMixin, SequentialFeatureSelector
 from sklearn.model_selection import GroupKFold, StratifiedKFold
 from sklearn.neighbors import KNeighborsClassifier
 from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
+from sklearn.utils.metadata_routing import get_routing_for_object
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 
@@ -124,3 +130,79 @@ def selected_features(model, feature_names) -> list[str] | None:
         return None
     mask = model.named_steps[SELECT_STEP].get_support()
     return [str(name) for name, keep in zip(feature_names, mask, strict=True) if keep]
+
+
+# -- a baseline's own choice: with or without the selection ------------------------------------
+ALL_FEATURES = "all features"
+BACKWARD = "backward selection"
+
+
+def record_folds(y, groups, n_splits: int):
+    """GroupKFold folds over the records (at most one fold per record), or None when they
+    cannot score a classifier: fewer than two records, or a training fold with fewer than two
+    classes."""
+    y, groups = np.asarray(y), np.asarray(groups)
+    n_groups = len(np.unique(groups))
+    if n_groups < 2:
+        return None
+    folds = list(GroupKFold(n_splits=min(int(n_splits), n_groups)).split(y, y, groups))
+    if any(len(np.unique(y[train])) < 2 for train, _ in folds):
+        return None
+    return folds
+
+
+class SelectionByInnerCV(ClassifierMixin, BaseEstimator):
+    """`classifier` on all features, or `selected` (the same classifier behind a backward
+    selection, a `select_then_classify` Pipeline), whichever has the higher mean accuracy in
+    an inner cross-validation over the training records (folds: `record_folds` with `cv`; a
+    tie keeps all features). The selection is never forced: where the training records are too
+    few for an inner CV, or for the selector's own folds inside every inner training fold, the
+    classifier keeps all features.
+
+    Fitted attributes: `model_` (the chosen estimator refitted on all the training data),
+    `choice_` (ALL_FEATURES or BACKWARD), `reason_` (why), `inner_scores_` ({choice: mean inner
+    CV accuracy}; empty without an inner CV). `fit(X, y, groups=record_ids)`.
+    """
+
+    __metadata_request__fit = {"groups": True}
+
+    def __init__(self, classifier, selected: Pipeline, cv=3):
+        self.classifier = classifier
+        self.selected = selected
+        self.cv = cv
+
+    def fit(self, X, y, groups=None):
+        X, y = np.asarray(X), np.asarray(y)
+        groups = np.arange(len(y)) if groups is None else np.asarray(groups)
+        self.inner_scores_ = {}
+        folds = record_folds(y, groups, self.cv)
+        selector_cv = self.selected.named_steps[SELECT_STEP].cv
+        if folds is None:
+            self.choice_, self.reason_ = ALL_FEATURES, "too few records for an inner CV"
+        elif any(record_folds(y[train], groups[train], selector_cv) is None for train, _ in folds):
+            self.choice_ = ALL_FEATURES
+            self.reason_ = "too few records for the selector's folds inside the inner CV"
+        else:
+            for choice, estimator in ((ALL_FEATURES, self.classifier), (BACKWARD, self.selected)):
+                scores = [np.mean(_fit(clone(estimator), X[train], y[train], groups[train])
+                                  .predict(X[test]) == y[test]) for train, test in folds]
+                self.inner_scores_[choice] = float(np.mean(scores))
+            better = self.inner_scores_[BACKWARD] > self.inner_scores_[ALL_FEATURES]
+            self.choice_ = BACKWARD if better else ALL_FEATURES
+            self.reason_ = f"inner CV over {len(folds)} record folds"
+        chosen = self.selected if self.choice_ == BACKWARD else self.classifier
+        self.model_ = _fit(clone(chosen), X, y, groups)
+        self.classes_ = self.model_.classes_
+        return self
+
+    def predict(self, X):
+        check_is_fitted(self, "model_")
+        return self.model_.predict(X)
+
+
+def _fit(estimator, X, y, groups):
+    """Fit, handing the record ids to the steps that request them (the selector's folds)."""
+    with sklearn.config_context(enable_metadata_routing=True):
+        if get_routing_for_object(estimator).consumes("fit", ["groups"]):
+            return estimator.fit(X, y, groups=groups)
+        return estimator.fit(X, y)

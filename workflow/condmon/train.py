@@ -13,8 +13,12 @@ model is evaluated on them too: ``fit_and_evaluate`` returns these metrics apart
 predictions and metrics.
 
 The measured-only baseline (`run_protocol` without simulated features) fits the same
-classifier on the same measured training segments alone, so the report can give the
-simulation's gain. With one measured class it predicts that class; with none, it is skipped.
+classifier on the same measured training segments alone, with the same candidate features, so
+the report can give the simulation's gain. It is never forced through the backward selection:
+with `feature_selection` it chooses by an inner CV over its own training records whether to
+select (`selection.SelectionByInnerCV`; too few records for one: all features), and its
+metrics (`measured_only.csv`, BASELINE_COLUMNS) record the choice. With one measured class it
+predicts that class; with none, it is skipped.
 
 A classifier may train on a subset of the split table (``measured_percent``, ``repeats``: the
 CNN, whose fits cost far more than an SVM's). Estimators that request ``feature_names`` /
@@ -47,7 +51,9 @@ from condmon.atomic import staging_directory, write_frame, write_table, write_te
 from condmon.hybrid import (SIMULATED_VALIDATION, measured_rows, simulated_validation_ids,
                             sorted_holdouts, validate_splits)
 from condmon.seeds import derive_seed, stable_int
-from condmon.selection import SequentialBackwardSelector, select_then_classify, selected_features
+from condmon.selection import (ALL_FEATURES, BACKWARD, SelectionByInnerCV,
+                                SequentialBackwardSelector, select_then_classify,
+                                selected_features)
 from condmon.signals import package_versions
 
 log = logging.getLogger(__name__)
@@ -69,6 +75,10 @@ PREDICTION_COLUMNS = PREDICTION_SCHEMA.names
 METRIC_COLUMNS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "speed_rpm",
                   "accuracy", "macro_f1", "n_train_simulated", "n_train_measured", "n_test",
                   "fit_seconds"]
+# measured_only.csv: the baseline's metrics plus its own selection choice (SelectionByInnerCV):
+# "all features" or "backward selection", why, the kept features and the inner CV accuracies
+BASELINE_COLUMNS = METRIC_COLUMNS + ["selection", "selection_reason", "selected_features",
+                                     "inner_cv_all_features", "inner_cv_backward_selection"]
 # simulated_validation.csv: the metrics of every fit on the held-out simulated records, labelled
 SIMULATED_VALIDATION_COLUMNS = METRIC_COLUMNS[:2] + ["test_source"] + METRIC_COLUMNS[2:]
 REQUIRED_COLUMNS = ["record_id", "segment", "health_state", "speed_rpm"]
@@ -179,6 +189,33 @@ def build_model(classifier_name, classifier_params, seed, feature_selection=None
         if get_routing_for_object(model).consumes("fit", ["feature_names"]):
             model.set_fit_request(feature_names=False)  # they name the columns before selection
     return select_then_classify(selector, model)
+
+
+def build_baseline_model(classifier_name, classifier_params, seed, feature_selection=None):
+    """The measured-only baseline's estimator: the classifier on every candidate feature, or,
+    with a configured selection, `SelectionByInnerCV` between it and the selected pipeline
+    (chosen by the baseline's own training records, never forced)."""
+    model = classifiers.make_classifier(classifier_name, classifier_params, seed)
+    if not feature_selection or feature_selection.get("n_features") is None:
+        return model
+    selected = build_model(classifier_name, classifier_params, seed, feature_selection)
+    return SelectionByInnerCV(model, selected, cv=int(feature_selection.get("cv", 3)))
+
+
+def baseline_choice(model, feature_names) -> dict:
+    """What a fitted baseline estimator chose (BASELINE_COLUMNS' extra columns)."""
+    if isinstance(model, SelectionByInnerCV):
+        kept = (selected_features(model.model_, feature_names) if model.choice_ == BACKWARD
+                else list(feature_names))
+        return {"selection": model.choice_, "selection_reason": model.reason_,
+                "selected_features": ";".join(kept),
+                "inner_cv_all_features": model.inner_scores_.get(ALL_FEATURES, np.nan),
+                "inner_cv_backward_selection": model.inner_scores_.get(BACKWARD, np.nan)}
+    reason = ("one measured class: predicts it" if isinstance(model, DummyClassifier)
+              else "no selection configured (features.selection.n_features)")
+    return {"selection": ALL_FEATURES, "selection_reason": reason,
+            "selected_features": ";".join(feature_names), "inner_cv_all_features": np.nan,
+            "inner_cv_backward_selection": np.nan}
 
 
 class ProtocolResult(NamedTuple):
@@ -292,6 +329,9 @@ def fit_and_evaluate(classifier_name: str, classifier_params: dict | None,
         elif len(set(y_train)) < 2:
             raise ValueError(f"{where}: training data has only class(es) {sorted(set(y_train))}; "
                              "a classifier needs at least two")
+        elif measured_only:
+            model = build_baseline_model(classifier_name, classifier_params, fit_seed,
+                                         feature_selection)
         else:
             model = build_model(classifier_name, classifier_params, fit_seed, feature_selection)
         start = time.perf_counter()
@@ -312,6 +352,8 @@ def fit_and_evaluate(classifier_name: str, classifier_params: dict | None,
                   "measured_percent": percent, "repeat": repeat, "holdout": holdout,
                   "n_train_simulated": int((~held_out).sum()),
                   "n_train_measured": int(train.sum()), "fit_seconds": fit_seconds}
+        if measured_only:
+            common.update(baseline_choice(model, feature_names))
         rows = metric_rows(common, y_true, y_pred, meas_speed[test])
         metrics += rows
         log.info("%s: %d simulated + %d measured training segments, %d test segments, "
@@ -330,7 +372,7 @@ def fit_and_evaluate(classifier_name: str, classifier_params: dict | None,
     predictions = predictions.astype({"measured_percent": "int32", "repeat": "int32",
                                       "segment": "int32", "speed_rpm": float,
                                       "uncertainty": float})
-    metrics = pd.DataFrame(metrics, columns=METRIC_COLUMNS)
+    metrics = pd.DataFrame(metrics, columns=BASELINE_COLUMNS if measured_only else METRIC_COLUMNS)
     validation = pd.DataFrame(validation, columns=SIMULATED_VALIDATION_COLUMNS)
     return ProtocolResult(predictions[PREDICTION_COLUMNS], metrics, models, validation)
 
@@ -399,9 +441,10 @@ def write_predictions(predictions: pd.DataFrame, path) -> None:
                                       preserve_index=False), path)
 
 
-def write_metrics(metrics: pd.DataFrame, path) -> None:
-    """metrics.csv; speed_rpm is empty on the all-speeds rows."""
-    write_text(metrics[METRIC_COLUMNS].to_csv(index=False), path)
+def write_metrics(metrics: pd.DataFrame, path, columns=METRIC_COLUMNS) -> None:
+    """metrics.csv (measured_only.csv: columns BASELINE_COLUMNS); speed_rpm is empty on the
+    all-speeds rows."""
+    write_text(metrics.reindex(columns=columns).to_csv(index=False), path)
 
 
 def write_simulated_validation(validation: pd.DataFrame, path) -> None:

@@ -105,6 +105,10 @@ def train_outputs(name):
     )
 
 
+def physics_baseline_outputs(name):
+    return expand(f"{RESULTS}/baselines/{{protocol}}/{name}", protocol=PROTOCOLS)
+
+
 # Keys of a classifier section that choose what it trains on, not how it is built: the CNN may
 # train on fewer measured percentages and repeats than hybrid lists (its fits are costly).
 from condmon.classifiers import SELECTION_KEYS
@@ -236,6 +240,7 @@ def upstream_benchmarks():
         "train": expand(
             rules.train.benchmark, classifier=CLASSIFIERS, protocol=PROTOCOLS
         ),
+        "physics_baseline": expand(rules.physics_baseline.benchmark, protocol=PROTOCOLS),
     }
 
 

@@ -27,6 +27,8 @@ rule hybrid:
         condition=CONDITION,
         healthy_state=SYSTEM.healthy_state,
         reserve=config["calibration"]["reserve"],  # the calibration set: never in a split
+        # (length, hop) of the measured segments: a guard gap under one segment is refused
+        segment_samples=[SYSTEM.segment_length, SYSTEM.segment_hop],
         measured_classes=lambda wc: (
             config["hybrid"]["measured_classes"]
             if wc.protocol == "unseen_fault"

@@ -68,6 +68,8 @@ rule report:
         # one calibration per variant (dict keys of the same order in each)
         simulation_reports=simulated_batches("json"),
         measured_only=train_outputs("measured_only.csv"),
+        # the system's training-free physics baselines on the same test sets (may be empty)
+        physics_baselines=physics_baseline_outputs("predictions.parquet"),
         measured_records=rules.measured.output.records,
         measured_features=rules.features_measured.output.features,  # each record's condition
         # accuracy on the held-out simulated records (hybrid.simulated_validation_share > 0)
@@ -99,6 +101,7 @@ rule report:
         ),
         evaluation=f"{RESULTS}/report/evaluation.csv",
         evaluation_summary=f"{RESULTS}/report/evaluation_summary.csv",
+        physics_baselines=f"{RESULTS}/report/physics_baselines.csv",
         job_timings=report(
             f"{RESULTS}/report/job_timings.csv",
             caption="../report/job_timings.rst",

@@ -37,3 +37,24 @@ rule train:
         f"{LOGS}/train/{{classifier}}_{{protocol}}.log",
     script:
         "../scripts/train.py"
+
+
+# The system's training-free physics baselines (the bearing's envelope rule), on the same test
+# sets: their thresholds come from the calibration segments only.
+rule physics_baseline:
+    input:
+        measured=rules.features_measured.output.features,
+        splits=rules.hybrid.output.splits,
+    output:
+        predictions=f"{RESULTS}/baselines/{{protocol}}/predictions.parquet",
+        info=f"{RESULTS}/baselines/{{protocol}}/info.json",
+    params:
+        system=SYSTEM.job_spec("baselines"),
+    conda:
+        "../envs/learning.yaml"
+    benchmark:
+        f"{BENCHMARKS}/physics_baseline/{{protocol}}.tsv"
+    log:
+        f"{LOGS}/physics_baseline/{{protocol}}.log",
+    script:
+        "../scripts/physics_baseline.py"

@@ -31,7 +31,8 @@ splits = make_splits(measured[["record_id", "segment", "health_state", condition
                      simulated_records=simulated, simulated_validation_share=share,
                      healthy_state=params.healthy_state, reserve=dict(params.reserve),
                      specimens=specimens,
-                     condition_split=getattr(params, "condition_split", None))
+                     condition_split=getattr(params, "condition_split", None),
+                     segment_samples=getattr(params, "segment_samples", None))
 write_split_table(splits, snakemake.output.splits)
 log.info("%s: %d rows, %d records, roles %s", params.protocol, len(splits),
          splits["record_id"].nunique(), splits["role"].value_counts().to_dict())

@@ -42,6 +42,8 @@ summary = write_report(
     design_records=list(snakemake.params.design_records),
     evaluation_path=snakemake.output.evaluation,
     evaluation_summary_path=snakemake.output.evaluation_summary,
+    physics_paths=list(snakemake.input.physics_baselines),
+    physics_baselines_path=snakemake.output.physics_baselines,
 )
 log.info("report of run %s: %d result rows, %d plots", summary["run_name"],
          len(summary["results"]), len(summary["plots"]))

@@ -9,8 +9,8 @@ from condmon.atomic import write_json
 from condmon.features import read_feature_table
 from condmon.hybrid import read_split_table
 from condmon.runlog import setup_logging
-from condmon.train import (fit_and_evaluate, matching_feature_names, run_protocol, train_info,
-                           write_metrics, write_models, write_predictions,
+from condmon.train import (BASELINE_COLUMNS, fit_and_evaluate, matching_feature_names,
+                           run_protocol, train_info, write_metrics, write_models, write_predictions,
                            write_simulated_validation)
 
 log = setup_logging(snakemake)  # to snakemake.log[0]
@@ -34,7 +34,8 @@ subset = dict(measured_percent=selection.get("measured_percent"), repeats=select
 predictions, metrics, models, validation = fit_and_evaluate(name, params, simulated, measured,
                                                             splits, feature_names, seed, **subset)
 if snakemake.params.measured_only_baseline:
-    # the same classifier on the same measured training data alone: the simulation's gain
+    # the same classifier on the same measured training data alone: the simulation's gain (its
+    # selection chosen by its own inner CV, never forced)
     _, baseline, _ = run_protocol(name, params, None, measured, splits, feature_names, seed, **subset)
     log.info("measured-only baseline: %d metric rows", len(baseline))
 else:
@@ -43,7 +44,7 @@ else:
 out = snakemake.output
 write_predictions(predictions, out.predictions)
 write_metrics(metrics, out.metrics)
-write_metrics(baseline, out.measured_only)
+write_metrics(baseline, out.measured_only, BASELINE_COLUMNS)
 # declared by the rule only when hybrid.simulated_validation_share > 0
 validation_path = getattr(out, "simulated_validation", None)
 if validation_path is not None:

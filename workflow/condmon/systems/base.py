@@ -34,7 +34,7 @@ from condmon.models.numerics import SimulationError
 __all__ = ["System", "SimulationError"]
 
 # Stages whose jobs build a system object (job_config's `stage`).
-STAGES = ("bench", "measured", "calibrate", "simulate", "features")
+STAGES = ("bench", "measured", "calibrate", "simulate", "features", "baselines")
 # Stages whose outputs come from the model code: their `system` param carries its digest.
 MODEL_STAGES = ("bench", "calibrate", "simulate")
 
@@ -103,6 +103,11 @@ class System(ABC):
     @abstractmethod
     def segment_length(self) -> int:
         """Samples per segment (one feature vector)."""
+
+    @property
+    def segment_hop(self) -> int:
+        """Samples from one measured segment's start to the next (default: no overlap)."""
+        return self.segment_length
 
     @property
     @abstractmethod
@@ -343,6 +348,15 @@ class System(ABC):
     def feature_family_problems(self, family: str, params: dict) -> list[str]:
         """What keeps an own family (`features.<family>`) from working on this rig's records."""
         return []
+
+    # -- baselines ---------------------------------------------------------------------------
+    def physics_baselines(self, feature_names) -> dict:
+        """{name: rule} of the training-free physics baselines this system offers on features
+        `feature_names` (none by default). A rule has `fit(frame)`, which sees only the healthy
+        calibration segments' feature rows (its thresholds come from them, never from a test
+        segment), `predict(frame)` -> labels, and `describe()` -> a JSON-able dict. The
+        `baselines` job evaluates each on every split's test set (condmon.baselines)."""
+        return {}
 
 
 def kept_records(frame: pd.DataFrame) -> pd.DataFrame:

@@ -10,6 +10,7 @@ randomisation), `cwru` (the task and manifest of the CWRU reader), `measured_dir
 """
 from __future__ import annotations
 
+import logging
 import math
 from pathlib import Path
 
@@ -21,6 +22,9 @@ from condmon.seeds import job_rng
 from condmon.systems.base import System
 from condmon.systems.bearing.model import (SCALES, build_rig_parameters, defect_of_label, feature_orders,
                                            load_of_speed, rig_settings, sample_values)
+
+
+log = logging.getLogger(__name__)
 
 
 class BearingSystem(System):
@@ -65,6 +69,10 @@ class BearingSystem(System):
         return int(self.bearing["segment_length"])
 
     @property
+    def segment_hop(self) -> int:
+        return int(self.bearing.get("segment_hop") or self.segment_length)
+
+    @property
     def speeds_rpm(self) -> list[float]:
         return [float(s) for s in self.config["rig"]["speeds_rpm"]]
 
@@ -104,6 +112,10 @@ class BearingSystem(System):
         config = super().job_config(stage, variant)
         if stage == "features":
             return {"bearing": {"geometry": self.bearing["geometry"]}}
+        if stage == "baselines":  # the labels and the envelope rule's setting, nothing else
+            return {"bearing": {key: self.bearing[key] for key in
+                                ("health_states", "healthy_state", "envelope_rule")},
+                    "cwru": {"task": self.config["cwru"]["task"]}}
         if stage != "measured":
             config.pop("measured_dir", None)
         return config
@@ -144,11 +156,12 @@ class BearingSystem(System):
         guard = config["calibration"]["reserve"]["guard_segments"]
         if hop is not None and hop > length:
             problems.append(f"bearing.segment_hop {hop} exceeds bearing.segment_length {length}")
-        elif hop and guard < math.ceil(length / hop) - 1:
-            # overlapping segments: the guard gap must keep calibration and test samples apart
-            problems.append(f"calibration.reserve.guard_segments {guard} lets overlapping "
-                            f"segments (bearing.segment_hop {hop} of {length}) share samples "
-                            f"across the guard gap; use at least {math.ceil(length / hop) - 1}")
+        elif hop and guard < math.ceil(2 * length / hop) - 1:
+            # the guard gap between a lone healthy record's calibration block and its test
+            # blocks must be at least one segment long in samples (hybrid.time_blocks)
+            problems.append(f"calibration.reserve.guard_segments {guard} leaves a guard gap "
+                            f"shorter than one segment ({length} samples) with bearing.segment_hop "
+                            f"{hop}; use at least {math.ceil(2 * length / hop) - 1}")
         if config["hybrid"]["condition"] == "speed_rpm" and "condition_holdout" in config["hybrid"]["protocols"]:
             problems.append("hybrid.condition: CWRU records of one load differ by a few rpm; hold out "
                             "loads (condition: load)")
@@ -225,6 +238,29 @@ class BearingSystem(System):
 
     def defect_orders(self) -> dict:
         return feature_orders(self.bearing["geometry"])
+
+    def physics_baselines(self, feature_names) -> dict:
+        """The envelope rule (baselines.py), where the features hold the line ratios at BPFO,
+        BPFI and 2 x BSF and every fault location is one label (the location task; not the
+        ten-class or severity labels, which the rule cannot tell apart)."""
+        from condmon.systems.bearing.baselines import LINE_OF_DEFECT, EnvelopeRule, envelope_columns
+
+        columns = envelope_columns(feature_names)
+        if columns is None:
+            log.warning("no envelope rule: the features lack the line ratios at %s",
+                        sorted(LINE_OF_DEFECT.values()))
+            return {}
+        by_defect = {}
+        for label in self.health_states:
+            by_defect.setdefault(self.defect(label)[0], []).append(label)
+        if self.healthy_state not in self.health_states or any(
+                len(by_defect.get(defect, [])) != 1 for defect in LINE_OF_DEFECT):
+            log.warning("no envelope rule: it names a fault location, and the labels %s are not "
+                        "one per location plus %r", self.health_states, self.healthy_state)
+            return {}
+        labels = {line: by_defect[defect][0] for defect, line in LINE_OF_DEFECT.items()}
+        return {"envelope_rule": EnvelopeRule(columns, labels, self.healthy_state,
+                                              self.bearing["envelope_rule"]["quantile"])}
 
     def defect(self, health_state: str):
         """(defect kind, (low, high) diameter in inches) of a label."""

@@ -1,0 +1,96 @@
+"""The system's training-free physics baselines: the bearing's envelope rule names an outer-race
+fault in a simulated outer-race record, takes its healthy threshold from calibration segments
+only, and is evaluated on the test sets of the splits (condmon.baselines)."""
+import numpy as np
+import pandas as pd
+import pytest
+
+from condmon.baselines import physics_predictions
+from condmon.features import statistical_feature_table
+from condmon.hybrid import make_splits
+from condmon.models.bearing_rig import BearingRigParameters, RigSettings, simulate_rig
+from condmon.signals import make_rows
+from condmon.systems.bearing import BearingSystem
+
+SPEED = 1797.0
+FS = 12000.0
+# config/cwru.yaml's features
+STATISTICAL = {"names": ["env_ratio_bpfo", "env_ratio_bpfi", "env_ratio_bsf", "env_ratio_bsf_x2",
+                         "kurtosis", "std_frequency"],
+               "log_names": ["env_ratio_bpfo", "env_ratio_bpfi", "env_ratio_bsf",
+                             "env_ratio_bsf_x2", "kurtosis"],
+               "band_hz": [2000.0, 5000.0], "highpass_hz": 10.0}
+
+
+def bearing_system(task="location", quantile=0.95):
+    """The bearing system as the baselines job sees it (job_config("baselines"))."""
+    return BearingSystem({"bearing": {"health_states": None, "healthy_state": "normal",
+                                      "envelope_rule": {"quantile": quantile}},
+                          "cwru": {"task": task}})
+
+
+def simulated_features(kind, record_id, seconds=2.0, seed=3):
+    """The statistical features of a simulated record of the rig model (its default noise and
+    machine background; an outer-race defect at 6:00), segments of 4096 samples."""
+    params = BearingRigParameters(speed_rpm=SPEED, defect_kind=kind)
+    signal = simulate_rig(params, RigSettings(duration=seconds, settle_time=0.1),
+                          np.random.default_rng(seed))["DE"]
+    label = {"none": "normal"}.get(kind, kind)
+    rows = make_rows(record_id, "simulated", label, SPEED, 0.0, FS, {"DE": signal},
+                     segment_length=4096)
+    return statistical_feature_table(pd.DataFrame(rows), ["DE"], STATISTICAL)
+
+
+@pytest.fixture(scope="module")
+def records():
+    return simulated_features("none", "healthy"), simulated_features("outer_race", "outer")
+
+
+def test_the_envelope_rule_says_outer_race_on_a_simulated_outer_race_record(records):
+    healthy, outer = records
+    names = [c for c in outer.columns if c.startswith("DE_")]
+    rules = bearing_system().physics_baselines(names)
+    rule = rules["envelope_rule"].fit(healthy)  # the healthy segments set the threshold
+    assert list(rule.predict(outer)) == ["outer_race"] * len(outer)
+    assert (rule.predict(healthy) != "normal").sum() <= 1  # the 0.95 quantile of 5 segments
+    ratios = rule.line_ratios(outer)
+    assert (ratios["bpfo"] > rule.threshold_).all()
+    assert rule.threshold_ == pytest.approx(
+        np.quantile(rule.line_ratios(healthy).max(axis=1), 0.95))
+    assert "calibration" in rule.describe()["threshold_from"]
+
+
+def test_no_envelope_rule_without_one_label_per_location_or_without_the_lines():
+    names = ["DE_log_env_ratio_bpfo", "DE_log_env_ratio_bpfi", "DE_log_env_ratio_bsf_x2"]
+    assert set(bearing_system().physics_baselines(names)) == {"envelope_rule"}
+    assert bearing_system("ten_class").physics_baselines(names) == {}  # three labels a location
+    assert bearing_system().physics_baselines(names[:2] + ["DE_kurtosis"]) == {}
+
+
+def test_the_threshold_comes_from_calibration_segments_only(records):
+    """On every split the rule is fitted on the calibration segments (role "calibration") and
+    predicts exactly the test segments; test data never move the threshold."""
+    healthy, outer = records
+    measured = pd.concat([healthy.assign(load=0.0), outer.assign(load=0.0)], ignore_index=True)
+    reserve = {"records": [], "calibration_segments": 2, "guard_segments": 1, "blocks": 1}
+    # a second faulty record, so the split has something to test besides the healthy block
+    measured = pd.concat([measured, outer.assign(record_id="outer2", load=0.0)], ignore_index=True)
+    splits = make_splits(measured[["record_id", "segment", "health_state", "load"]],
+                         "unseen_fault", [0], 1, 0, condition="load", measured_classes=["normal"],
+                         healthy_state="normal", reserve=reserve)
+    names = [c for c in measured.columns if c.startswith("DE_")]
+    rules = bearing_system().physics_baselines(names)
+    predictions, info = physics_predictions(rules, measured, splits)
+    tested = splits[splits.role == "test"]
+    whole = set(tested.record_id[tested.segment < 0])
+    expected = {(r, s) for r, s in zip(measured.record_id, measured.segment) if r in whole}
+    expected |= set(zip(tested.record_id[tested.segment >= 0], tested.segment[tested.segment >= 0]))
+    assert set(zip(predictions.record_id, predictions.segment)) == expected
+    assert not set(zip(predictions.record_id, predictions.segment)) & {("healthy", 0), ("healthy", 1)}
+    calibration = healthy[healthy.segment < 2]
+    expected = np.quantile(rules["envelope_rule"].line_ratios(calibration).max(axis=1), 0.95)
+    assert info["envelope_rule"]["threshold"] == pytest.approx(expected)
+    assert info["envelope_rule"]["n_calibration_segments"] == 2
+    assert (predictions.classifier == "envelope_rule").all()
+    outer_rows = predictions[predictions.true_label == "outer_race"]
+    assert (outer_rows.predicted_label == "outer_race").all()
