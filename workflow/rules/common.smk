@@ -240,7 +240,9 @@ def upstream_benchmarks():
         "train": expand(
             rules.train.benchmark, classifier=CLASSIFIERS, protocol=PROTOCOLS
         ),
-        "physics_baseline": expand(rules.physics_baseline.benchmark, protocol=PROTOCOLS),
+        "physics_baseline": expand(
+            rules.physics_baseline.benchmark, protocol=PROTOCOLS
+        ),
     }
 
 
