@@ -15,7 +15,7 @@ FS, N = 2048.0, 512  # the toy system's rate and segment length: 4 Hz bins
 TOY = {"run_name": "toy-background", "system": "toy", "system_modules": [str(ROOT / "tests" / "toy_system.py")],
        "features": {"channels": ["acc"], "spectrum": {"f_min_hz": 0.0, "f_max_hz": 1000.0, "resolution_hz": 8.0,
                                                       "scale": "log", "band_statistic": "rms"}},
-       "calibration": {"contact_laws": ["flores"], "resolution_hz": 8.0}}
+       "calibration": {"resolution_hz": 8.0}}
 
 
 def band_powers(freqs, psd, edges):
@@ -119,7 +119,7 @@ def test_a_coloured_noise_and_a_tone_the_model_lacks_are_recovered(toy):
         return noise + tone * np.sin(2 * np.pi * 317.0 * t + rng.uniform(0, 2 * np.pi))
 
     frame = toy_frame(toy, extra)
-    calibrated = {"contact_law": "flores", "parameters": {}}
+    calibrated = {"model_variant": toy.nominal_variant, "parameters": {}}
     table = estimate_background(toy, frame, calibrated, ["acc"], runs=2, sim_seconds=1.0, seed=3, processes=2)
     assert sorted(table["speed_rpm"].unique()) == [600.0]  # the only speed with healthy records
     freqs, got = table["freq_hz"].to_numpy(), table["background_psd"].to_numpy()
@@ -140,7 +140,7 @@ def test_the_background_is_zero_where_the_model_is_louder_than_the_measurement(t
     """Records at half the model's amplitude: at its 10 Hz line the model has more power than
     the measurement, and the background there is zero, not negative."""
     frame = toy_frame(toy, lambda rng, n: rng.normal(0, 1e-4, n), records=2, scale=0.5)
-    table = estimate_background(toy, frame, {"contact_law": "flores", "parameters": {}}, ["acc"], runs=1,
+    table = estimate_background(toy, frame, {"model_variant": toy.nominal_variant, "parameters": {}}, ["acc"], runs=1,
                                 sim_seconds=1.0, seed=3)
     line = (table["freq_hz"] - 10.0).abs() <= 4.0
     assert (table.loc[line, "model_psd"] > table.loc[line, "measured_psd"]).all()
@@ -149,6 +149,6 @@ def test_the_background_is_zero_where_the_model_is_louder_than_the_measurement(t
 
 def test_no_healthy_record_at_a_simulated_speed_gives_no_background(toy):
     frame = toy_frame(toy, lambda rng, n: 0.0, records=1).assign(speed_rpm=700.0)
-    table = estimate_background(toy, frame, {"contact_law": "flores", "parameters": {}}, ["acc"], runs=1,
+    table = estimate_background(toy, frame, {"model_variant": toy.nominal_variant, "parameters": {}}, ["acc"], runs=1,
                                 sim_seconds=1.0, seed=3)
     assert table.empty and not Background(table)
