@@ -84,18 +84,8 @@ class FlankMap:
         roll = np.clip(np.asarray(roll, dtype=float), 0.0, 1.0)
         face = np.clip(np.asarray(face, dtype=float), 0.0, 1.0)
         rows, cols = grid.shape
-        if rows > 1:
-            x = roll * (rows - 1)
-            i = np.minimum(x.astype(int), rows - 2)
-            fx = x - i
-        else:
-            i, fx = np.zeros(roll.shape, int), np.zeros(roll.shape)
-        if cols > 1:
-            y = face * (cols - 1)
-            j = np.minimum(y.astype(int), cols - 2)
-            fy = y - j
-        else:
-            j, fy = np.zeros(face.shape, int), np.zeros(face.shape)
+        i, fx = _cell(roll, rows)
+        j, fy = _cell(face, cols)
         i1, j1 = np.minimum(i + 1, rows - 1), np.minimum(j + 1, cols - 1)
         return ((1 - fx) * (1 - fy) * grid[i, j] + fx * (1 - fy) * grid[i1, j]
                 + (1 - fx) * fy * grid[i, j1] + fx * fy * grid[i1, j1])
@@ -106,6 +96,15 @@ class FlankMap:
         rows, cols = max(a.shape[0], b.shape[0]), max(a.shape[1], b.shape[1])
         roll, face = np.meshgrid(np.linspace(0, 1, rows), np.linspace(0, 1, cols), indexing="ij")
         return FlankMap.of(self.at(roll, face) + other.at(roll, face))
+
+
+def _cell(fraction: np.ndarray, points: int) -> tuple[np.ndarray, np.ndarray]:
+    """(index of the grid cell, position within it) of fractions 0..1 on `points` even points."""
+    if points == 1:
+        return np.zeros(fraction.shape, int), np.zeros(fraction.shape)
+    x = fraction * (points - 1)
+    index = np.minimum(x.astype(int), points - 2)
+    return index, x - index
 
 
 def add_flank_maps(first: tuple, second: tuple) -> tuple:
