@@ -216,13 +216,18 @@ def test_sensor_noise_estimate_does_not_take_the_form_gap_for_noise(bench):
     and coloured noise. Those raise the measured spectra above the model's in most bands but
     not the floor: the estimate stays near the bench's white plus coloured noise (1 and
     2 mm/s^2, most of the coloured below the floor's bands), not the several times larger excess
-    the old median-of-excess estimate returned (6.3 mm/s^2 in the default run)."""
+    the old median-of-excess estimate returned (6.3 mm/s^2 in the default run). The bench's gears
+    are perfect here: a real pair's errors put lines at every shaft order, in every band, which is
+    machine content and no floor at all (12.8 mm/s^2 with the default bench's grade-5 gears); the
+    gear configs take the background the healthy records carry instead (calibration.background)."""
     config, _, models = bench
-    full_bench = dict(config["virtual_bench"], records_per_state=1, record_seconds=2.0)
+    full_bench = dict(config["virtual_bench"], records_per_state=1, record_seconds=2.0,
+                      gear_deviation_share=0.0, misalignment=0.0)
     real = _bench_spectra(config, full_bench, [450.0, 1100.0], config["features"]["channels"])
     estimate = estimate_sensor_noise(real, models["potential_energy"].segment_length)
     print(f"noise floor on the virtual bench: {estimate:.4g} m/s^2")
-    assert config["virtual_bench"]["sensor_noise"] <= estimate < 2.5e-3
+    # the quantile of noise-only bands reads low (0.78 of white noise alone: estimate_sensor_noise)
+    assert 0.7 * config["virtual_bench"]["sensor_noise"] <= estimate < 2.5e-3
 
 
 def test_sensor_noise_estimate_names_a_bad_quantile():

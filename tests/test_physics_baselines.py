@@ -7,6 +7,7 @@ import pytest
 
 from condmon.baselines import physics_predictions
 from condmon.features import statistical_feature_table
+from conftest import system_of
 from condmon.hybrid import make_splits
 from condmon.models.bearing_rig import BearingRigParameters, RigSettings, simulate_rig
 from condmon.signals import make_rows
@@ -38,7 +39,9 @@ def simulated_features(kind, record_id, seconds=2.0, seed=3):
     label = {"none": "normal"}.get(kind, kind)
     rows = make_rows(record_id, "simulated", label, SPEED, 0.0, FS, {"DE": signal},
                      segment_length=4096)
-    return statistical_feature_table(pd.DataFrame(rows), ["DE"], STATISTICAL)
+    # the envelope lines where the bearing system puts them (its geometry, SKF 6205)
+    return statistical_feature_table(pd.DataFrame(rows), ["DE"], STATISTICAL,
+                                     system_of("config/cwru-smoke.yaml").defect_orders())
 
 
 @pytest.fixture(scope="module")

@@ -98,7 +98,8 @@ def test_every_design_output_is_written(smoke):
     assert set(measured["source"]) == {"virtual_bench"}  # synthetic data is never labelled measured
     timings = pd.read_csv(results / "report" / "job_timings.csv").set_index("rule")
     assert set(timings.index) == {"measured_part", "measured", "calibrate", "simulate", "features_measured",
-                                  "features_simulated", "hybrid", "train"}  # every job before the report
+                                  "features_simulated", "hybrid", "train",
+                                  "physics_baseline"}  # every job before the report
     assert timings.loc["simulate", "jobs"] == 6 and (timings["peak_rss_mb_max"] > 0).all()
     assert "job_timings.png" in summary["plots"] and (results / "report" / "plots" / "job_timings.png").is_file()
     assert set(summary["job_timings"]) == set(timings.index)
@@ -321,10 +322,13 @@ def test_missing_tooth_adds_sidebands_at_the_input_shaft_frequency(smoke):
         return spectrum[np.argmin(np.abs(freqs - f))]
 
     sidebands = [gmf + k * shaft for k in (-3, -2, -1, 1, 2, 3)]
-    # Sidebands rise well above the healthy spectrum (potential-energy mesh: far less than with the
-    # simple one, as the helical pair's neighbouring teeth carry the load over the gap; measured
-    # 2.4x at 1100 rpm in the smoke run, over 10x with the simple mesh) ...
-    rise = 10 if smoke_config()["model"]["mesh_stiffness_model"] == "simple" else 1.8
+    # Sidebands rise above the healthy spectrum (potential-energy mesh: far less than with the
+    # simple one, as the helical pair's neighbouring teeth carry the load over the gap; over 10x
+    # with the simple mesh). Each simulated sample is a new gear pair of ISO grade 4-6 whose own
+    # errors put lines at every shaft order, and the background of the bench's healthy records is
+    # added: 1.76x here (the median over the six sidebands; 2.4x with the old 0.05 um gears). The
+    # noise-free 2x criterion is the model's own test (test_gear_model.py); here, no more than a rise.
+    rise = 10 if smoke_config()["model"]["mesh_stiffness_model"] == "simple" else 1.3
     assert np.median([at(missing, f) / at(healthy, f) for f in sidebands]) > rise
     # ... and stand out of the missing-tooth spectrum between them (lines every shaft frequency).
     between = [gmf + (k + 0.5) * shaft for k in (-3, -2, 1, 2)]

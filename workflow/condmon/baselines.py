@@ -1,7 +1,7 @@
 """Training-free physics baselines a system supplies, evaluated on every split's test set.
 
 A simulation-trained classifier must beat what physics alone says. A system offers such rules
-(`System.physics_baselines(feature_names)`, e.g. the bearing's envelope rule); this module runs
+(`System.physics_baselines(feature_names)`, e.g. a rule on the defect lines' envelope ratios); this module runs
 each on the measured features of every split of a split table: `fit` on the split's calibration
 segments only (role "calibration": healthy data that never train or test), `predict` on its test
 segments. The predictions have train's columns plus `classifier` (the rule's name), so the

@@ -11,7 +11,7 @@ per operating condition (`hybrid.condition`, e.g. load: never a file's stored rp
 - baselines that can win: chance (1 / classes), the majority class of the test set, the best
   measured-only classifier the split allows (any classifier's `measured_only.csv`: the same
   candidate features, its selection chosen by its own inner CV), and the system's training-free
-  physics baselines on the same test set (the bearing's envelope rule, `condmon.baselines`); the
+  physics baselines on the same test set (`System.physics_baselines`, `condmon.baselines`); the
   gain is taken against the strongest of them, and is negative where a baseline wins.
 Aggregated over repeats and holdouts (`summarise`): means, Wilson intervals on one repeat's
 distinct test segments (a segment tested again by another repeat or holdout is no new data, so

@@ -2,10 +2,10 @@
 
     condmon predict --model results/smoke --input new_records.parquet --output predictions/
     condmon predict --model models:/condmon-smoke@best --tracking-uri sqlite:///results/mlflow.db \\
-        --input /data/cwru --output predictions/
+        --input /data/rig-records --output predictions/
 
 ``--input``: a signal table (Parquet, the project's schema; ``health_state`` may be left out or
-``unknown``), or a folder or single file of the system's own records (CWRU ``.mat`` files), read by
+``unknown``), or a folder or single file of the system's own records (in its own format), read by
 the system's reader with the settings the model was trained with. ``--model``: a run's results
 folder (its best model, or the one ``--classifier/--protocol/--percent/--repeat`` pick), a model
 store folder (``results/<run>/models/<config_hash>``), a packaged model file, or an MLflow model

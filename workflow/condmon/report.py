@@ -824,7 +824,8 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
             if physics_overall is not None:
                 summary["physics_baselines"] = physics_baselines_summary(physics_overall, physics)
             if physics_baselines_path is not None:
-                write_text((physics_overall if physics_overall is not None else pd.DataFrame())
+                # without any rule, a header alone: the evaluation summary's columns, no rows
+                write_text((physics_overall if physics_overall is not None else overall.iloc[:0])
                            .to_csv(index=False), physics_baselines_path)
             summary["plots"] += evaluation_plots(overall, 1.0 / len(labels), note, staging)
             if evaluation_path is not None:

@@ -23,8 +23,8 @@ import pandas as pd
 from condmon.features import compute_feature_table, statistical_feature_table
 from condmon.signals import COLUMNS, validate
 
-# Relative distance to the nearest trained speed a record may have (CWRU files of one load differ
-# by a few rpm; the gear rig's speeds are hundreds of rpm apart).
+# Relative distance to the nearest trained speed a record may have (records of one operating point
+# differ by a few rpm in some rigs; distinct operating speeds lie hundreds of rpm apart).
 SPEED_TOLERANCE = 0.02
 UNKNOWN_LABEL = "unknown"  # health_state of a record whose truth is not known
 # optional signal-table columns and what a record without them gets
@@ -69,8 +69,8 @@ class SignalModel:
     feature_names (the estimator's columns, in order). ``domain``: fs_hz, n_samples, channels,
     speeds_rpm (every speed in its training data), speed_tolerance. ``info``: what it is (classifier,
     protocol, measured_percent, repeat, holdout, config_hash, accuracy, ...), kept for the record.
-    ``system``: the system's `job_spec("measured")`, so a folder of the system's own records (CWRU
-    .mat files) can be read by the system's reader.
+    ``system``: the system's `job_spec("measured")`, so a folder of the system's own records (its own
+    file format) can be read by the system's reader.
     """
 
     def __init__(self, estimator, features: dict, domain: dict, healthy_state: str,

@@ -39,7 +39,7 @@ rule train:
         "../scripts/train.py"
 
 
-# The system's training-free physics baselines (the bearing's envelope rule), on the same test
+# The system's training-free physics baselines (System.physics_baselines), on the same test
 # sets: their thresholds come from the calibration segments only.
 rule physics_baseline:
     input:
