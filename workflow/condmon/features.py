@@ -222,7 +222,7 @@ def compute_feature_table_from_files(paths, channels, spectrum_params: dict, kin
                 parts.append(table(signals, channels, params))
             else:
                 parts.append(compute_feature_table(signals, channels, spectrum_params))
-        frames.append(_side_by_side(parts))
+        frames.append(side_by_side(parts))
     if not frames:
         raise FeatureTableError("no signal tables given")
     frame = pd.concat(frames, ignore_index=True)
@@ -235,7 +235,7 @@ def compute_feature_table_from_files(paths, channels, spectrum_params: dict, kin
     return frame.sort_values(["record_id", "segment"]).reset_index(drop=True)
 
 
-def _side_by_side(parts: list[pd.DataFrame]) -> pd.DataFrame:
+def side_by_side(parts: list[pd.DataFrame]) -> pd.DataFrame:
     """The feature columns of several families' tables of one signal table, after its id columns
     (every family's rows come in the same (record_id, segment) order from `to_arrays`)."""
     ids = parts[0][ID_COLUMNS]

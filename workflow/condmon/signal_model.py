@@ -20,7 +20,7 @@ import json
 import numpy as np
 import pandas as pd
 
-from condmon.features import compute_feature_table, statistical_feature_table
+from condmon.features import compute_feature_table, side_by_side, statistical_feature_table
 from condmon.signals import COLUMNS, validate
 
 # Relative distance to the nearest trained speed a record may have (records of one operating point
@@ -65,7 +65,8 @@ def complete_signal_table(frame: pd.DataFrame) -> pd.DataFrame:
 class SignalModel:
     """One fitted estimator plus its feature extraction and training domain.
 
-    ``features``: kind ("spectrum"/"statistical"), channels, spectrum, statistical, defect_orders,
+    ``features``: kind ("spectrum", "statistical", a system's own family or several joined by "+"),
+    channels, spectrum, statistical, defect_orders, families (a system family's params),
     feature_names (the estimator's columns, in order). ``domain``: fs_hz, n_samples, channels,
     speeds_rpm (every speed in its training data), speed_tolerance. ``info``: what it is (classifier,
     protocol, measured_percent, repeat, holdout, config_hash, accuracy, ...), kept for the record.
@@ -129,11 +130,19 @@ class SignalModel:
     def feature_matrix(self, frame: pd.DataFrame) -> tuple[pd.DataFrame, np.ndarray]:
         """(ids, features) of a checked signal table, one row per (record, segment)."""
         f = self.features
-        if f["kind"] == "statistical":
-            table = statistical_feature_table(frame, f["channels"], f["statistical"] or {},
-                                              f.get("defect_orders"))
-        else:
-            table = compute_feature_table(frame, f["channels"], f["spectrum"])
+        parts = []
+        for family in str(f["kind"]).split("+"):
+            if family == "statistical":
+                parts.append(statistical_feature_table(frame, f["channels"], f["statistical"] or {},
+                                                       f.get("defect_orders")))
+            elif family == "spectrum":
+                parts.append(compute_feature_table(frame, f["channels"], f["spectrum"]))
+            else:  # a family of the system's own (System.feature_families), with its params
+                from condmon.systems import load_system
+
+                own = load_system(self.system).feature_families()
+                parts.append(own[family](frame, f["channels"], dict((f.get("families") or {})[family])))
+        table = side_by_side(parts)
         missing = [name for name in f["feature_names"] if name not in table.columns]
         if missing:  # a feature-code change since training: never classify other features
             raise ValueError(f"the features of this signal table lack {missing[:5]} that the model "

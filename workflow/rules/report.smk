@@ -35,6 +35,7 @@ rule track:
             spectrum=config["features"]["spectrum"],
             kind=config["features"]["kind"],
             statistical=statistical_feature_params(),
+            families=system_family_params(),
         ),
         features_system=SYSTEM.job_spec("features"),
         measured_system=SYSTEM.job_spec("measured"),
