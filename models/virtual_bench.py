@@ -64,8 +64,10 @@ class BenchForm:
         on = []
         for key, text in EFFECTS.items():
             value = getattr(self, key)
+            gears = key == "gear_grade" and (self.gear_deviation_share > 0 or self.misalignment > 0)
             if (key == "housing_model" and value == "block") or (key == "shaft_model" and value == "flexible") \
-                    or key in ("housing_stiffness", "gear_grade") or (isinstance(value, float) and value > 0):
+                    or key == "housing_stiffness" or gears or (key != "gear_grade" and isinstance(value, float)
+                                                              and value > 0):
                 on.append(text)
         return on
 
