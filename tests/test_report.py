@@ -15,19 +15,23 @@ def train_outputs(tmp_path_factory):
     return root, fake.build(root)
 
 
-@pytest.fixture(scope="module")
-def built_report(train_outputs):
-    root, paths = train_outputs
-    out = root / "report"
-    summary = report.write_report(
+def evaluated_report(paths, out, **extra):
+    """write_report on the fake train outputs with the evaluation tables, into `out`."""
+    return report.write_report(
         paths["metrics"], paths["predictions"], paths["calibration_params"],
         paths["calibration_spectra"], paths["calibration_history"],
         accuracy_path=out / "accuracy.csv", summary_path=out / "summary.json",
         plots_dir=out / "plots", run_name="demo", data_source="virtual_bench",
         confusion_percent=[0], healthy_state="healthy",
         measured_features_path=paths["features_measured"], condition="speed_rpm",
-        design_records=DESIGN, evaluation_path=out / "evaluation.csv",
-        evaluation_summary_path=out / "evaluation_summary.csv")
+        evaluation_path=out / "evaluation.csv", evaluation_summary_path=out / "evaluation_summary.csv", **extra)
+
+
+@pytest.fixture(scope="module")
+def built_report(train_outputs):
+    root, paths = train_outputs
+    out = root / "report"
+    summary = evaluated_report(paths, out, design_records=DESIGN)
     return out, paths, summary
 
 
@@ -380,15 +384,8 @@ def test_a_physics_baseline_that_wins_gives_a_negative_gain(train_outputs, tmp_p
         frame.to_parquet(target)
         physics.append(target)
     out = tmp_path / "report"
-    summary = report.write_report(
-        paths["metrics"], paths["predictions"], paths["calibration_params"],
-        paths["calibration_spectra"], paths["calibration_history"],
-        accuracy_path=out / "accuracy.csv", summary_path=out / "summary.json",
-        plots_dir=out / "plots", run_name="demo", data_source="virtual_bench",
-        confusion_percent=[0], healthy_state="healthy",
-        measured_features_path=paths["features_measured"], condition="speed_rpm",
-        evaluation_path=out / "evaluation.csv", evaluation_summary_path=out / "evaluation_summary.csv",
-        physics_paths=physics, physics_baselines_path=out / "physics_baselines.csv")
+    summary = evaluated_report(paths, out, physics_paths=physics,
+                               physics_baselines_path=out / "physics_baselines.csv")
     table = pd.read_csv(out / "evaluation.csv")
     whole = table[(table.condition == "all") & (table.records == "all")]
     assert (whole.physics_baseline == "oracle_rule").all()
