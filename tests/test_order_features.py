@@ -290,8 +290,7 @@ def test_config_takes_the_order_family_and_names_what_cannot_work():
         config_of("config/config.yaml", {"features": {"kind": "spectrum+wavelet"}})
     with pytest.raises(ConfigError, match="does not match"):
         config_of("config/config.yaml", {"features": {"kind": "spectrum, order"}})
-    with pytest.raises(ConfigError, match="classifiers.cnn: the CNN reads the Hz band spectra"):
-        config_of("config/config.yaml", {"features": {"kind": "order"}})
+    assert config_of("config/config.yaml", {"features": {"kind": "order"}})["classifiers"]["cnn"]["enabled"]
     with pytest.raises(ConfigError, match="order_max: 200.5 is above the Nyquist order 139.6"):
         config_of("config/config.yaml", {"features": {"kind": "spectrum+order", "order": {"order_max": 200.5}}})
     with pytest.raises(ConfigError, match="'order' is not a feature family of the bearing system"):
@@ -318,3 +317,19 @@ def test_cnn_reads_the_spectra_and_leaves_the_order_features_out():
     np.testing.assert_allclose(beside.predict_proba(mixed), alone.predict_proba(x), atol=1e-6)
     module = beside.to_torch_module()
     np.testing.assert_allclose(module(mixed).detach().numpy(), beside.predict_proba(mixed), atol=1e-5)
+
+
+def test_without_hz_spectra_the_cnn_reads_the_order_bands_and_leaves_the_indicators_out():
+    from condmon.cnn import CNNEnsembleClassifier
+
+    rng = np.random.default_rng(3)
+    labels = np.repeat(["healthy", "missing_tooth"], 24)
+    spectra = rng.normal(-3, 0.3, (48, 2, 12))
+    spectra[labels == "missing_tooth", :, 4] += 2.0
+    orders = [f"ord_{c}_{b + 1:05.1f}x" for c in ("A1_x", "A2_y") for b in range(12)]
+    indicators = ["ci_A1_x_pinion_FM4", "ci_A2_y_gear_FM4"]
+    x = np.hstack([spectra.reshape(48, -1), rng.normal(size=(48, 2))]).astype(np.float32)
+    cnn = CNNEnsembleClassifier(members=2, epochs=2, batch_size=16, conv_channels=[4], input_pool=1,
+                                dense_units=[8], random_state=0).fit(x, labels, feature_names=orders + indicators)
+    assert cnn.input_shape_ == (2, 12)
+    np.testing.assert_array_equal(cnn.feature_columns_, np.arange(24))

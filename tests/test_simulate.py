@@ -79,3 +79,24 @@ def test_the_calibrated_background_replaces_the_white_noise_reproducibly(gear):
     assert [r["params"] for r in with_background] == [r["params"] for r in plain]
     difference = signals_of(with_background) - signals_of(plain)
     assert difference.std() == pytest.approx(0.5, rel=0.1)
+
+
+def test_with_a_healthy_reference_every_health_state_draws_the_same_machines(gear):
+    """features.healthy_reference: sample i of (speed, batch) is one machine in every health state
+    (the same parameters and run seed), with its own measurement noise per state; the healthy
+    sample runs the reference segments longer. Without it the states draw apart."""
+    def run(state, reference_segments):
+        return simulate_batch(gear, CALIBRATED, state, 775.0, 0, samples=2,
+                              simulation={"segments_per_sample": 1, "seed": 1, "max_failed_share": 0.0},
+                              reference_segments=reference_segments)[0]
+
+    healthy, damaged = run("healthy", 1), run("surface_fault", 1)
+    assert [r["params"] for r in healthy if r["segment"] == 0] == [r["params"] for r in damaged]
+    assert {r["segment"] for r in healthy} == {0, 1} and {r["segment"] for r in damaged} == {0}
+    assert sorted({r["record_id"] for r in damaged}) == ["sim-surface_fault-775rpm-b000-s000",
+                                                         "sim-surface_fault-775rpm-b000-s001"]
+    # the twins' noise differs: the first segments (same time window) are not equal
+    first = [r for r in healthy if r["segment"] == 0]
+    assert not np.array_equal(signals_of(first), signals_of(damaged))
+    apart = [r["params"] for r in run("surface_fault", 0)]
+    assert apart != [r["params"] for r in run("healthy", 0) if r["segment"] == 0]

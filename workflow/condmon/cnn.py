@@ -59,7 +59,10 @@ log = logging.getLogger(__name__)
 # alive without thousands of lines in the job log.
 EPOCH_LOG_SECONDS = 10.0
 
+# band spectra the CNN reads, per channel: Hz bands, or a system's order bands (``ord_<channel>_<order>x``)
+# when there are no Hz bands (features.kind: order)
 FEATURE_NAME = re.compile(r"fft_(?P<channel>.+)_(?P<band>[0-9.]+)Hz")
+ORDER_NAME = re.compile(r"ord_(?P<channel>.+)_(?P<band>[0-9.]+)x")
 HISTORY_COLUMNS = ["member", "epoch", "train_loss", "train_accuracy", "val_loss",
                    "val_accuracy"]
 DEVICES = ("auto", "cpu", "cuda")
@@ -139,12 +142,21 @@ class EnsembleModule(nn.Module):
 
 # --------------------------------------------------------------------------- helpers
 
+def band_pattern(feature_names):
+    """The band-spectrum names among `feature_names`: the Hz bands if there are any, else the
+    order bands."""
+    names = [str(name) for name in feature_names]
+    return FEATURE_NAME if any(FEATURE_NAME.fullmatch(n) for n in names) else ORDER_NAME
+
+
 def channels_from_feature_names(feature_names) -> int | None:
-    """Number of sensor channels in ``fft_<channel>_<band>Hz`` names (concatenated channel
-    blocks of equal size), or None if the names do not follow that pattern."""
+    """Number of sensor channels in band-spectrum names (``fft_<channel>_<band>Hz``, or
+    ``ord_<channel>_<order>x`` without Hz bands; concatenated channel blocks of equal size), or
+    None if the names do not follow that pattern."""
     channels = []
+    pattern = band_pattern(feature_names)
     for name in feature_names:
-        match = FEATURE_NAME.fullmatch(str(name))
+        match = pattern.fullmatch(str(name))
         if match is None:
             return None
         channel = match["channel"]
@@ -158,13 +170,14 @@ def channels_from_feature_names(feature_names) -> int | None:
 
 
 def spectrum_columns(feature_names) -> np.ndarray | None:
-    """Positions of the ``fft_<channel>_<band>Hz`` names when other features sit beside them
-    (``spectrum+order``: the CNN reads the band spectra only); None when all or none of the names
-    are spectrum bands (then every column is an input, as before)."""
+    """Positions of the band-spectrum names when other features sit beside them (``spectrum+order``:
+    the Hz bands; ``order``: the order bands, not the condition indicators); None when all or none
+    of the names are spectrum bands (then every column is an input, as before)."""
     if feature_names is None:
         return None
     names = [str(name) for name in feature_names]
-    columns = np.array([i for i, name in enumerate(names) if FEATURE_NAME.fullmatch(name)], dtype=np.int64)
+    pattern = band_pattern(names)
+    columns = np.array([i for i, name in enumerate(names) if pattern.fullmatch(name)], dtype=np.int64)
     if len(columns) in (0, len(names)):
         return None
     return columns
@@ -301,7 +314,7 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
                         if feature_names is not None else None)
             if channels is None:
                 channels = 1  # unknown layout: the whole vector is one sequence
-                log.info("input_channels=auto: no fft_<channel>_<band>Hz feature names, "
+                log.info("input_channels=auto: no band-spectrum feature names per channel, "
                          "treating the %d features as one channel", n_features)
         else:
             channels = int(self.input_channels)
@@ -336,7 +349,7 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
         self.feature_columns_ = spectrum_columns(feature_names)
         if self.feature_columns_ is not None:
             others = [str(feature_names[i]) for i in sorted(set(range(X.shape[1])) - set(self.feature_columns_))]
-            log.info("CNN: reads the %d band-spectrum features (fft_<channel>_<band>Hz) and leaves out the %d "
+            log.info("CNN: reads the %d band-spectrum features (per channel) and leaves out the %d "
                      "others (%s ...)", len(self.feature_columns_), len(others), ", ".join(others[:3]))
             X = X[:, self.feature_columns_]
             feature_names = [feature_names[i] for i in self.feature_columns_]

@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from condmon.features import compute_feature_table, side_by_side, statistical_feature_table
+from condmon.reference import nearest_reference, reference_from_table
 from condmon.signals import COLUMNS, validate
 
 # Relative distance to the nearest trained speed a record may have (records of one operating point
@@ -67,7 +68,9 @@ class SignalModel:
 
     ``features``: kind ("spectrum", "statistical", a system's own family or several joined by "+"),
     channels, spectrum, statistical, defect_orders, families (a system family's params),
-    feature_names (the estimator's columns, in order). ``domain``: fs_hz, n_samples, channels,
+    feature_names (the estimator's columns, in order), and with features.healthy_reference the
+    machine's healthy reference: {"condition": column, "table": {column: [...], feature: [...]}}
+    (`condmon.reference`), which every record is taken against at its condition. ``domain``: fs_hz, n_samples, channels,
     speeds_rpm (every speed in its training data), speed_tolerance. ``info``: what it is (classifier,
     protocol, measured_percent, repeat, holdout, config_hash, accuracy, ...), kept for the record.
     ``system``: the system's `job_spec("measured")`, so a folder of the system's own records (its own
@@ -113,6 +116,13 @@ class SignalModel:
             if lengths != [domain["n_samples"]]:
                 rows.append((record_id, f"segments of {lengths} samples; the model was trained on "
                                         f"{domain['n_samples']} ({domain['n_samples'] / domain['fs_hz']:g} s)"))
+            reference = self.reference()
+            if reference is not None:
+                condition, table = reference
+                value = float(records[condition].iloc[0])
+                if nearest_reference(table, [value], tolerance)[1]:
+                    rows.append((record_id, f"{condition} {value:g}: the model's healthy reference was "
+                                            f"taken at {sorted(table.index.tolist())} only"))
             speed = float(records["speed_rpm"].iloc[0])
             nearest = speeds[np.argmin(np.abs(speeds - speed))]
             if abs(speed - nearest) > tolerance * nearest:
@@ -120,6 +130,14 @@ class SignalModel:
                                         f"{sorted({float(f'{s:.6g}') for s in speeds})} rpm "
                                         f"(within {tolerance:.0%})"))
         return pd.DataFrame(rows, columns=["record_id", "reason"])
+
+    def reference(self):
+        """(condition column, reference table indexed by it) or None without a healthy reference."""
+        reference = self.features.get("reference")
+        if not reference:
+            return None
+        condition = reference["condition"]
+        return condition, reference_from_table(pd.DataFrame(reference["table"]), condition)
 
     def check(self, frame: pd.DataFrame) -> None:
         problems = self.problems(frame)
@@ -148,7 +166,14 @@ class SignalModel:
             raise ValueError(f"the features of this signal table lack {missing[:5]} that the model "
                              "was trained on; is condmon newer than the model?")
         ids = table[["record_id", "segment", "health_state", "speed_rpm", "load"]]
-        return ids, table[f["feature_names"]].to_numpy(np.float32)
+        x = table[f["feature_names"]].to_numpy(np.float64)
+        reference = self.reference()
+        if reference is not None:  # the change since the machine was known healthy, as in training
+            condition, values = reference
+            nearest, _ = nearest_reference(values, table[condition],
+                                           float(self.domain.get("speed_tolerance", SPEED_TOLERANCE)))
+            x = x - values[f["feature_names"]].to_numpy(np.float64)[nearest]
+        return ids, x.astype(np.float32)
 
     def predict_segments(self, frame: pd.DataFrame) -> pd.DataFrame:
         """One row per segment: record_id, segment, speed_rpm, load, true_label (the table's

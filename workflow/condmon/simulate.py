@@ -32,8 +32,21 @@ def simulate_with_retry(system, parameters: dict, health_state: str, speed_rpm: 
     return None, errors
 
 
+def machine_id(speed_rpm: float, batch: int, index: int) -> str:
+    """The simulated machine a sample is: the same in every health state (``reference_segments``)."""
+    return f"{speed_rpm:g}rpm-b{batch:03d}-s{index:03d}"
+
+
+def machine_of(record_id: str) -> str:
+    """The machine id of a simulated record id (``sim-<health state>-<machine id>``)."""
+    parts = str(record_id).rsplit("-", 3)
+    if len(parts) != 4 or not parts[0].startswith("sim-") or not parts[1].endswith("rpm"):
+        raise ValueError(f"{record_id!r} is not a simulated record id (sim-<health state>-<speed>rpm-b<batch>-s<sample>)")
+    return "-".join(parts[1:])
+
+
 def simulate_batch(system, calibrated: dict, health_state: str, speed_rpm: float, batch: int, samples: int,
-                   simulation: dict, background=None):
+                   simulation: dict, background=None, reference_segments: int = 0):
     """Signal-table rows for `samples` runs of one (health state, speed, batch), and a report
     (timings, failures with their parameters).
 
@@ -46,10 +59,22 @@ def simulate_batch(system, calibrated: dict, health_state: str, speed_rpm: float
     calibration estimated one) stands in for the measurement chain the model lacks, so classifiers
     do not learn a noise-free floor. A sample whose simulation fails twice is left out and reported;
     more than `simulation.max_failed_share` of the batch failing stops the job.
+
+    With `reference_segments` (features.healthy_reference) every sample has twins: the stream
+    leaves the health state out, so sample i of (speed, batch) draws the same parameters and run
+    seed (the system's manufacturing scatter, fluctuations and fault severities) in every health
+    state (common random numbers): one machine, healthy and damaged; only the measurement noise
+    and background differ. A healthy sample runs `reference_segments` segments longer: its last
+    segments are that machine's healthy reference (`condmon.reference`), its others coincide in
+    time with its damaged twins' samples.
     """
-    rng = job_rng(simulation["seed"], "simulate", health_state, float(speed_rpm), batch)
+    paired = reference_segments > 0
+    stream = ("simulate", float(speed_rpm), batch) if paired else ("simulate", health_state, float(speed_rpm), batch)
+    rng = job_rng(simulation["seed"], *stream)
+    acquisition = (health_state,) if paired else ()  # paired twins: each state its own noise
     fs, segment_length = system.output_rate_hz, system.segment_length
-    duration = segment_length * simulation["segments_per_sample"] / fs
+    segments = simulation["segments_per_sample"] + (reference_segments if health_state == system.healthy_state else 0)
+    duration = segment_length * segments / fs
     sensor_noise = float(calibrated.get("sensor_noise") or 0.0)
     if background:
         source = background.source_speed(speed_rpm)
@@ -65,7 +90,7 @@ def simulate_batch(system, calibrated: dict, health_state: str, speed_rpm: float
     for i in range(samples):
         values = system.sample_parameters(calibrated, health_state, rng, simulation)
         sample_seed = int(rng.integers(2 ** 32))  # drawn for every sample, failed or not: streams stay aligned
-        record_id = f"sim-{health_state}-{speed_rpm:g}rpm-b{batch:03d}-s{i:03d}"
+        record_id = f"sim-{health_state}-{machine_id(speed_rpm, batch, i)}"
         start = time.perf_counter()
         signals, errors = simulate_with_retry(system, values, health_state, float(speed_rpm), duration, sample_seed)
         seconds.append(time.perf_counter() - start)
@@ -78,9 +103,9 @@ def simulate_batch(system, calibrated: dict, health_state: str, speed_rpm: float
                  sum(seconds) / (i + 1) * (samples - i - 1))
         white = list(signals)
         if background:
-            signals, white = background.add(signals, float(speed_rpm), fs, job_rng(sample_seed, "background"))
+            signals, white = background.add(signals, float(speed_rpm), fs, job_rng(sample_seed, "background", *acquisition))
         if sensor_noise > 0 and white:
-            noise = job_rng(sample_seed, "noise")
+            noise = job_rng(sample_seed, "noise", *acquisition)
             signals = {name: signal + noise.normal(0.0, sensor_noise, size=signal.shape) if name in white else signal
                        for name, signal in signals.items()}
         rows += make_rows(record_id, "simulated", health_state, speed_rpm, system.sample_load(speed_rpm, values),

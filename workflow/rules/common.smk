@@ -213,6 +213,38 @@ RUN_CONFIG = {
 config_hash = _config_hash(RUN_CONFIG)
 
 
+# features.healthy_reference: each machine's features against its own healthy reference
+# (condmon/reference.py). Off, no job gets its params or the reference table: the jobs are those
+# of a run without the key.
+HEALTHY_REFERENCE = config["features"]["healthy_reference"]
+REFERENCE_SEGMENTS = (
+    HEALTHY_REFERENCE["simulated_segments"] if HEALTHY_REFERENCE["enabled"] else 0
+)
+
+
+def healthy_reference_params(source):
+    """The features job's {"healthy_reference": ...} param for `source` (measured or simulated)."""
+    if not HEALTHY_REFERENCE["enabled"]:
+        return {}
+    params = dict(
+        source=source,
+        healthy_state=SYSTEM.healthy_state,
+        reference_segments=REFERENCE_SEGMENTS,
+    )
+    if source == "measured":  # the calibration set per condition
+        params.update(condition=CONDITION, reserve=config["calibration"]["reserve"])
+    else:  # each sample's healthy twin
+        params.update(segments_per_sample=config["simulation"]["segments_per_sample"])
+    return {"healthy_reference": params}
+
+
+def measured_reference_output():
+    """The measured features job's reference table, only with the reference on."""
+    if not HEALTHY_REFERENCE["enabled"]:
+        return {}
+    return {"reference": f"{RESULTS}/features/measured_reference.parquet"}
+
+
 # hybrid.simulated_validation_share > 0: the split table also lists the simulated records held out
 # as the simulated validation set, so the hybrid jobs read the simulated record list and the train
 # jobs score them. At 0 (default) neither gets that input, param or output: the jobs are those of

@@ -6,8 +6,11 @@ rule features_measured:
     input:
         signals=[rules.measured.output[0]],
     output:
+        # + the calibration set's mean features per condition (features.healthy_reference)
+        **measured_reference_output(),
         features=f"{RESULTS}/features/measured.parquet",
     params:
+        **healthy_reference_params("measured"),
         channels=config["features"]["channels"],
         spectrum=config["features"]["spectrum"],
         kind=config["features"]["kind"],
@@ -30,6 +33,7 @@ rule features_simulated:
     output:
         features=f"{RESULTS}/features/simulated.parquet",
     params:
+        **healthy_reference_params("simulated"),
         channels=config["features"]["channels"],
         spectrum=config["features"]["spectrum"],
         kind=config["features"]["kind"],

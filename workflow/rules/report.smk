@@ -4,6 +4,8 @@
 
 rule track:
     input:
+        # + the machine's healthy reference a packaged model takes new records against
+        **measured_reference_output(),
         predictions=train_outputs("predictions.parquet"),
         metrics=train_outputs("metrics.csv"),
         models=train_outputs("models"),
@@ -39,6 +41,7 @@ rule track:
         ),
         features_system=SYSTEM.job_spec("features"),
         measured_system=SYSTEM.job_spec("measured"),
+        condition=CONDITION,
     conda:
         "../envs/report.yaml"
     benchmark:

@@ -10,6 +10,8 @@ rule simulate:
         signals=f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.parquet",
         report=f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.json",
     params:
+        # + features.healthy_reference: twins in every health state, healthy samples this much longer
+        **({"reference_segments": REFERENCE_SEGMENTS} if REFERENCE_SEGMENTS else {}),
         system=SYSTEM.job_spec("simulate"),
         simulation=config["simulation"],
         samples=lambda wc: batch_samples(wc.batch),

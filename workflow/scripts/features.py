@@ -3,7 +3,9 @@ system's own families, or several of these side by side).
 
 `snakemake` is injected by Snakemake's script directive.
 """
+from condmon.atomic import write_frame
 from condmon.features import compute_feature_table_from_files, feature_columns, write_feature_table
+from condmon import reference
 from condmon.runlog import setup_logging
 from condmon.systems import load_system
 
@@ -25,6 +27,23 @@ frame = compute_feature_table_from_files(signal_paths, channels, spectrum, kind,
 names = feature_columns(frame)
 config = {"channels": channels, "spectrum": spectrum, "kind": kind, "statistical": statistical}
 config.update(families)  # only with a system family, so the other families' config hash stays as it was
+
+# features.healthy_reference: each machine's features against its own healthy reference
+against = getattr(snakemake.params, "healthy_reference", None)
+if against:
+    config["healthy_reference"] = dict(against)
+    if against["source"] == "measured":
+        table = reference.measured_reference(frame, names, against["healthy_state"], against["condition"],
+                                             dict(against["reserve"]))
+        frame = reference.refer_measured(frame, names, table, against["condition"])
+        write_frame(reference.reference_table(table, against["condition"]), snakemake.output.reference)
+        log.info("measured segments taken against the calibration set's mean at %s %s", against["condition"],
+                 sorted(table.index.tolist()))
+    else:
+        before = frame["record_id"].nunique()
+        frame = reference.refer_simulated(frame, names, against["healthy_state"], int(against["segments_per_sample"]))
+        log.info("simulated samples taken against their healthy twins' last %s segment(s): %d of %d records kept",
+                 against["reference_segments"], frame["record_id"].nunique(), before)
 write_feature_table(frame, names, snakemake.output.features, kind=kind, config=config)
 log.info("wrote %d segments x %d features to %s", len(frame), len(names),
          snakemake.output.features)

@@ -16,7 +16,8 @@ with open(snakemake.input.calibration) as handle:
 background = read_background(snakemake.input.background) if "background" in snakemake.input.keys() else None
 rows, report = simulate_batch(load_system(p.system), calibrated, snakemake.wildcards.health,
                               float(snakemake.wildcards.speed), int(snakemake.wildcards.batch),
-                              samples=p.samples, simulation=p.simulation, background=background)
+                              samples=p.samples, simulation=p.simulation, background=background,
+                              reference_segments=int(getattr(p, "reference_segments", 0)))
 write_signal_table(rows, snakemake.output.signals, config=dict(p.items()))
 write_json(report, snakemake.output.report)
 log.info("wrote %d rows; %d of %d samples failed", len(rows), len(report["failures"]), report["samples"])

@@ -7,6 +7,8 @@ never race on it. The logic lives in condmon.tracking.
 import sys
 from pathlib import Path
 
+import pandas as pd
+
 from condmon.model_store import build_store
 from condmon.runlog import setup_logging
 from condmon.systems import load_system
@@ -24,6 +26,9 @@ try:
     store = snakemake.output.models if "models" in snakemake.output.keys() else None
     if store is not None:
         features = {**dict(params.features), "defect_orders": load_system(params.features_system).defect_orders()}
+        if "reference" in inputs.keys():  # features.healthy_reference: new records taken against it too
+            features["reference"] = {"condition": params.condition,
+                                     "table": pd.read_parquet(inputs.reference).to_dict("list")}
         index = build_store(store, train_dirs, dict(zip(params.protocols, inputs.splits)),
                             inputs.measured_signals, inputs.features_simulated, inputs.features_measured,
                             features, params.healthy_state, dict(params.measured_system), params.config_hash)
