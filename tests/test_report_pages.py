@@ -188,7 +188,8 @@ def test_a_confusion_matrix_keeps_its_whole_footnote_inside_the_figure():
     fig = plots.confusion_matrices({0: (counts, 2), 100: (counts, 2)}, fake.LABELS, "svm",
                                    "record_split", None, LONG_NOTE)
     assert texts_outside(fig) == []
-    small = plots.confusion_matrix_small(counts, fake.LABELS, "svm, record_split, 0 %", LONG_NOTE)
+    small = plots.confusion_matrix_small(counts, fake.LABELS, "svm, record_split, 0 % measured, "
+                                         "repeat 0, held out: speed_rpm=600", LONG_NOTE)
     assert texts_outside(small) == []
     assert "counts summed over repeats" in " ".join(t.get_text() for t in fig.texts).replace("\n", " ")
 

@@ -133,7 +133,7 @@ def simulation_gain(gain, chance: float, note: str):
             bottom.plot(group["measured_percent"], group["gain"], marker="o",
                         color=colours[classifier])
         top.axhline(chance, linestyle=":", color="0.75", label=f"chance ({chance:.2f})")
-        # the protocol's test set is described in the caption (plots.rst) and summary.json
+        # what the protocol tests: the report's protocols table
         top.set_title(short_title(protocol_title(protocol)), fontsize=10)
         top.set_ylim(0, 1.05)
         top.grid(alpha=0.3)
@@ -166,7 +166,7 @@ def recall_per_class(recalls, note: str):
                 group = group.sort_values("measured_percent")
                 ax.plot(group["measured_percent"], group["recall"], marker="o",
                         color=colours[label], label=label)
-            # one or two lines: the protocol's test set is described in the caption
+            # one or two lines; what the protocol tests: the report's protocols table
             ax.set_title(short_title(f"{classifier}, {protocol_title(protocol)}"), fontsize=10)
             ax.set_ylim(0, 1.05)
             ax.grid(alpha=0.3)
@@ -238,9 +238,11 @@ def confusion_figure(panels, labels, title: str, note: str, colour_bar: bool = T
     """
     n, k = len(labels), len(panels)
     side, gap, left = max(1.8, 0.65 * n), 0.25, 1.5  # inches
-    top = 0.5 + (0.45 if any(panel_title for _, panel_title in panels) else 0.0)
     right = 1.1 if colour_bar else 0.3
     width = left + k * side + (k - 1) * gap + right
+    # the title wrapped to the figure's width, and room for its lines and the panels' titles
+    title_lines = wrap_to_width(title, width - 0.2, 10)
+    top = 0.3 + 0.18 * len(title_lines) + (0.45 if any(t for _, t in panels) else 0.0)
     # the footnote wrapped to the figure's width, under the tick labels (1.2 in)
     note_lines = wrap_to_width(note, width - 0.2, 7)
     note_height = len(note_lines) * 7 * 1.3 / 72
@@ -269,8 +271,7 @@ def confusion_figure(panels, labels, title: str, note: str, colour_bar: bool = T
         colour_axes = fig.add_axes(((width - right + 0.2) / width, bottom / height,
                                     0.15 / width, side / height))
         fig.colorbar(image, cax=colour_axes).set_label("share of true class (row)", fontsize=8)
-    fig.suptitle("\n".join(wrap_to_width(title, width - 0.2, 10)), fontsize=10,
-                 y=1 - 0.1 / height, va="top")
+    fig.suptitle("\n".join(title_lines), fontsize=10, y=1 - 0.1 / height, va="top")
     fig.text(0.1 / width, 0.05 / height, "\n".join(note_lines), fontsize=7, color="0.3",
              va="bottom")
     return fig
