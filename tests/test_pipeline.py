@@ -144,7 +144,8 @@ def test_two_runs_differing_in_svm_C_compared_through_mlflow(smoke, tmp_path):
     config = smoke_config()
     config["classifiers"]["svm"]["C"] = 2.5
     jobs = planned_jobs(workdir, config)
-    assert set(jobs) == {"train", "track", "report", "all"}
+    # and the report's pages with the edited config
+    assert set(jobs) == {"train", "track", "report", "run_config", "report_pages", "all"}
     assert jobs["train"] == len(config["hybrid"]["protocols"])  # the SVM's jobs only
     snakemake(workdir, "--cores", "2", "--configfile", "edited.yaml")
 
@@ -246,15 +247,17 @@ def test_a_nested_config_override_is_typed_and_reruns_only_the_svm(smoke):
     out = snakemake(workdir, "-n", "--configfile", "config/smoke.yaml", "--config",
                     "classifiers={svm: {C: 3.0}}").stdout
     jobs = job_counts(out)
-    assert jobs == {"train": len(smoke_config()["hybrid"]["protocols"]), "report": 1, "track": 1, "all": 1}
+    assert jobs == {"train": len(smoke_config()["hybrid"]["protocols"]), "report": 1, "track": 1,
+                    "run_config": 1, "report_pages": 1, "all": 1}
     assert out.count("classifier=svm") == jobs["train"] and "classifier=knn" not in out
 
 
 def test_choosing_which_models_mlflow_logs_reruns_only_the_tracking(smoke):
+    """... and the report's pages, which show the full config."""
     workdir, _ = smoke
     config = smoke_config()
     config["tracking"]["log_models"] = "first_repeat"
-    assert set(planned_jobs(workdir, config)) == {"track", "all"}
+    assert set(planned_jobs(workdir, config)) == {"track", "run_config", "report_pages", "all"}
 
 
 def test_editing_a_simulation_setting_reruns_simulation_and_downstream_not_calibration(smoke):
@@ -474,7 +477,8 @@ def test_snakemake_report_embeds_the_plots_and_chromium_renders_them(smoke, tmp_
     categories = json.loads(re.search(r"var categories = (\{.*?\});\n", html, re.S).group(1))
     section = {path: name for name, subcategories in categories.items()
                for paths in subcategories.values() for path in paths}
-    plots = sorted((results / "report" / "plots").glob("*.png"))
+    plots = sorted((results / "report" / "pages" / "plots").glob("*.png"))
+    assert [p.name for p in plots] == sorted(p.name for p in (results / "report" / "plots").glob("*.png"))
     for plot in plots:
         key = str(plot.relative_to(workdir))
         assert entries[key]["data_uri"].startswith("data:image/png")
@@ -482,14 +486,15 @@ def test_snakemake_report_embeds_the_plots_and_chromium_renders_them(smoke, tmp_
         assert entries[key]["caption"], key
     assert {section[str(p.relative_to(workdir))] for p in plots} == {"Accuracy", "Confusion matrices", "Calibration",
                                                                       "Job timings"}
-    assert {Path(key).name for key in entries} >= {"accuracy.csv", "job_timings.csv", "params.json"}
+    assert {Path(key).name for key in entries} >= {"accuracy.html", "job_timings.html", "headline.html",
+                                                   "calibration_simple.html", "config.yaml"}
 
     def plot_colour_share(image):  # matplotlib's C0 and C1: the first two classifiers' lines
         return sum((np.abs(image - colour).max(axis=2) < 30).mean() for colour in ([31, 119, 180], [255, 127, 14]))
 
     front = screenshot(chromium, report, tmp_path / "front.png")
     assert front.std() > 10  # not a blank page
-    key = str(results.relative_to(workdir) / "report" / "plots" / "accuracy_vs_measured_percent.png")
+    key = str(results.relative_to(workdir) / "report" / "pages" / "plots" / "accuracy_vs_measured_percent.png")
     page, end = html.rsplit("</body>", 1)
     opened = tmp_path / "report_opened.html"
     opened.write_text(page + "<script>window.addEventListener('load', () => setTimeout(() => app.setView({content: 'img', "
@@ -497,6 +502,46 @@ def test_snakemake_report_embeds_the_plots_and_chromium_renders_them(smoke, tmp_
                       "</script></body>" + end)
     shot = screenshot(chromium, opened, tmp_path / "accuracy.png")
     assert plot_colour_share(shot) > 5e-4 and plot_colour_share(shot) > 10 * plot_colour_share(front)
+
+
+def test_the_report_front_page_opens_on_the_headline_table_and_shows_tables_as_tables(smoke, tmp_path):
+    """`snakemake --report`: the front page holds the headline table with accuracy.csv's numbers
+    (mean over repeats at 0 and 100 % measured); every report table is an HTML page; a result's
+    details pane lists the few params that identify the run."""
+    import re
+
+    workdir, results = smoke
+    report = tmp_path / "report.html"
+    snakemake(workdir, "--configfile", "config/smoke.yaml", "--report", str(report))
+    html = report.read_text()
+    front = json.loads(re.search(r"var workflow_desc = (.*?);\n", html, re.S).group(1))
+    table = front.split("<table", 1)[1].split("</table>", 1)[0]
+    rows = [re.findall(r"<td>(.*?)</td>", row, re.S) for row in re.findall(r"<tr>(.*?)</tr>", table, re.S)]
+    cells = {(row[0], row[1]): row[2:] for row in rows if row}
+    accuracy = pd.read_csv(results / "report" / "accuracy.csv")
+    whole = accuracy[accuracy["speed_rpm"].isna()]
+    means = whole.groupby(["classifier", "protocol", "measured_percent", "repeat"])["accuracy"].mean() \
+                 .groupby(level=[0, 1, 2]).mean()
+    assert len(means) > 0
+    for (classifier, protocol, percent), mean in means.items():
+        if percent in (0, 100):
+            shown = cells[(protocol, f"{classifier} (simulated + measured)")][0 if percent == 0 else 1]
+            assert float(shown.split()[0]) == pytest.approx(mean, abs=5e-4), (classifier, protocol, percent)
+    assert {model for _, model in cells} >= {"chance"}
+    entries = json.loads(re.search(r"var results = (\{.*?\});\n", html, re.S).group(1))
+    pages = {Path(key).name: entry for key, entry in entries.items()}
+    for name in ("accuracy", "evaluation_summary", "prediction_shares", "recall_per_record", "job_timings",
+                 "headline", "calibration_potential_energy"):
+        assert pages[f"{name}.html"]["mime_type"] == "text/html", name
+    assert not any(name.endswith(".csv") and name != "headline.csv" for name in pages)
+    params = {entry["job_properties"]["params"] for entry in entries.values()}
+    assert len(params) == 1
+    shown = dict(item.split("=", 1) for item in re.split(r", (?=[a-z_]+=)", params.pop()))
+    assert set(shown) == {"run_name", "system", "config_hash", "protocols", "classifiers", "full_config"}
+    assert shown["run_name"] == "smoke" and shown["full_config"].endswith("report/pages/config.yaml")
+    full = yaml.safe_load((results / "report" / "pages" / "config.yaml").read_text())
+    assert full["run_name"] == "smoke" and full["classifiers"]["svm"]["C"] == smoke_config()["classifiers"]["svm"]["C"]
+    assert set(full) >= set(smoke_config()) - {"predict_input"}
 
 
 def node_profile(workdir: Path, node: dict) -> str:

@@ -258,10 +258,12 @@ def test_a_systems_own_simulation_knob_reruns_its_simulations_only_and_never_ano
     # real Snakemake plans (params trigger) on a project whose jobs look done
     workdir, run = touched_project(tmp_path / "gear", "config/smoke.yaml")
     knob = {"model": {"variability": {"perturbation_sigma": 0.05}}}
-    assert planned_rules(workdir, run, knob) == {"simulate", "features_simulated", "train", "track", "report", "all"}
+    # and the report's pages (they show the full config)
+    after = {"train", "track", "report", "run_config", "report_pages", "all"}
+    assert planned_rules(workdir, run, knob) == {"simulate", "features_simulated", *after}
     workdir, run = touched_project(tmp_path / "bearing", "config/cwru-smoke.yaml", f"measured_dir={CWRU}")
     assert planned_rules(workdir, run, {"simulation": {"max_failed_share": 0.2}}) == {
-        "simulate", "features_simulated", "train", "track", "report", "all"}
+        "simulate", "features_simulated", *after}
     assert "unknown key model" in planned_rules(workdir, run, knob)  # a CWRU run has no gear knob
 
 

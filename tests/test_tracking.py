@@ -3,6 +3,7 @@ datasets, parent summaries, two configs compared through mlflow.search_runs, rer
 at query time, condmon-compare, a dead server."""
 import json
 import os
+import re
 import sqlite3
 import subprocess
 import time
@@ -369,3 +370,28 @@ def test_track_script_fails_in_seconds_naming_a_dead_server(tmp_path):
     assert "Traceback" not in log_text  # a plain message, not a stack
     assert not (tmp_path / "mlflow_run.json").exists()
     assert elapsed < 30, elapsed  # imports included; MLflow's own retries would take minutes
+
+
+def test_parent_runs_have_readable_names_with_the_changed_keys(logged):
+    """A parent is named by its run and time, not its hash (kept as a tag); a parent of another
+    config than the experiment's previous parent names the keys that changed."""
+    uri, _, first, second, other = logged
+    client = mlflow.MlflowClient(uri)
+    names = {info["config_hash"] + str(i): client.get_run(info["parent_run_id"]).info.run_name
+             for i, info in enumerate((first, second, other))}
+    stamp = r"demo \d{4}-\d\d-\d\d \d\d:\d\d"
+    assert re.fullmatch(stamp, names["hash-a0"])  # the experiment's first parent
+    assert re.fullmatch(stamp, names["hash-a1"])  # a rerun of the same config
+    assert re.fullmatch(stamp + r" \(classifiers\.svm\.C=0\.02\)", names["hash-b2"])
+    assert all("hash" not in name for name in names.values())
+    assert client.get_run(other["parent_run_id"]).data.tags["config_hash"] == "hash-b"
+    # MLflow 3's UI opens the experiment as "Machine learning" (its runs), not on a GenAI overview
+    experiment = client.get_experiment(first["experiment_id"])
+    assert experiment.tags["mlflow.experimentKind"] == "custom_model_development"
+
+
+def test_changed_keys_are_few_and_short():
+    assert tracking.changed_keys({"a": "1", "b": "2"}, {"a": "1", "b": "3"}) == "b=2"
+    assert tracking.changed_keys({"a": "x" * 30}, {}) == "a"  # a long value by its key alone
+    assert tracking.changed_keys({k: "1" for k in "abcde"}, {}) == "a=1, b=1, c=1, +2 more"
+    assert tracking.changed_keys({"a": "1"}, {"a": "1", "gone": "2"}) == "gone"

@@ -24,17 +24,43 @@ def _colours(names):
     return {name: cycle[i % len(cycle)] for i, name in enumerate(names)}
 
 
+# inches per character of DejaVu Sans at 1 pt, on average (wrapping text to a figure's width)
+CHAR_WIDTH_PER_POINT = 0.0085
+
+
+def wrap_to_width(text: str, width_inches: float, fontsize: float) -> list[str]:
+    """`text` in lines that fit `width_inches` at `fontsize` (a footnote must never run off the
+    figure; matplotlib neither wraps nor clips a figure text to the figure)."""
+    import textwrap
+
+    chars = max(20, int(width_inches / (CHAR_WIDTH_PER_POINT * fontsize)))
+    return textwrap.wrap(text, chars) or [""]
+
+
+def short_title(text: str, width: int = 48, max_lines: int = 2) -> str:
+    """A panel title wrapped at `width` characters, at most `max_lines` lines (the rest cut with
+    an ellipsis): detail belongs in the caption, not over a panel."""
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, width, max_lines=max_lines, placeholder=" ..."))
+
+
 def _finish(fig, title: str, note: str, legend_from=None):
-    """Title, data-source footnote and, from axes ``legend_from``, one legend below the panels
-    (inside a panel it would hide bars or lines)."""
+    """Title, data-source footnote (wrapped to the figure's width) and, from axes
+    ``legend_from``, one legend below the panels (inside a panel it would hide bars or lines)."""
     fig.suptitle(title, fontsize=13)
-    fig.text(0.01, 0.005, note, fontsize=9, color="0.3", ha="left", va="bottom")
-    bottom = 0.03
+    lines = wrap_to_width(note, fig.get_figwidth() - 0.2, 9)
+    fig.text(0.01, 0.005, "\n".join(lines), fontsize=9, color="0.3", ha="left", va="bottom")
+    bottom = 0.01 + len(lines) * 9 * 1.3 / 72 / fig.get_figheight()  # the note's lines
     if legend_from is not None:
         handles, labels = legend_from.get_legend_handles_labels()
-        fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 6), fontsize=9,
-                   bbox_to_anchor=(0.5, 0.03), frameon=False)
-        bottom = 0.03 + 0.35 / fig.get_figheight()  # inches of legend -> figure fraction
+        # as many columns as fit the figure's width (an entry: its handle, its text, a gap)
+        entry = 1.0 + max((len(label) for label in labels), default=0) * CHAR_WIDTH_PER_POINT * 9
+        ncol = max(1, min(len(labels), 6, int((fig.get_figwidth() - 0.2) // entry)))
+        rows = -(-len(labels) // ncol)
+        fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=9,
+                   bbox_to_anchor=(0.5, bottom), frameon=False)
+        bottom += (0.1 + 0.25 * rows) / fig.get_figheight()  # inches of legend -> figure fraction
     fig.tight_layout(rect=(0, bottom, 1, 1))
     return fig
 
@@ -75,13 +101,7 @@ def accuracy_vs_measured_percent(per_repeat, chance: float, note: str):
                         "(line: mean over repeats, band: min-max)", note, legend_from=axes[0, 0])
 
 
-def _wrapped(text: str, width: int = 48) -> str:
-    import textwrap
-
-    return "\n".join(textwrap.wrap(text, width))
-
-
-def simulation_gain(gain, chance: float, note: str, protocol_labels: dict):
+def simulation_gain(gain, chance: float, note: str):
     """Per protocol, top: accuracy with the simulated data (solid, per classifier) against the
     strongest baseline at each share (dashed: the strongest of the measured-only classifier,
     the physics baseline and the majority class; whichever columns ``gain`` has are drawn thin
@@ -113,7 +133,8 @@ def simulation_gain(gain, chance: float, note: str, protocol_labels: dict):
             bottom.plot(group["measured_percent"], group["gain"], marker="o",
                         color=colours[classifier])
         top.axhline(chance, linestyle=":", color="0.75", label=f"chance ({chance:.2f})")
-        top.set_title(_wrapped(f"{protocol}: {protocol_labels.get(protocol, '')}"), fontsize=9)
+        # what the protocol tests: the report's protocols table
+        top.set_title(short_title(protocol_title(protocol)), fontsize=10)
         top.set_ylim(0, 1.05)
         top.grid(alpha=0.3)
         bottom.axhline(0.0, color="0.2", linewidth=1)
@@ -127,7 +148,7 @@ def simulation_gain(gain, chance: float, note: str, protocol_labels: dict):
                         "(a negative gain: a baseline wins)", note, legend_from=axes[0, 0])
 
 
-def recall_per_class(recalls, note: str, protocol_labels: dict):
+def recall_per_class(recalls, note: str):
     """Grid protocol x classifier: recall of every class against the measured percentage
     (pooled over repeats and holdouts). ``recalls``: columns classifier, protocol,
     measured_percent, true_label, recall."""
@@ -145,8 +166,8 @@ def recall_per_class(recalls, note: str, protocol_labels: dict):
                 group = group.sort_values("measured_percent")
                 ax.plot(group["measured_percent"], group["recall"], marker="o",
                         color=colours[label], label=label)
-            ax.set_title(_wrapped(f"{classifier}, {protocol}: "
-                                  f"{protocol_labels.get(protocol, '')}"), fontsize=8)
+            # one or two lines; what the protocol tests: the report's protocols table
+            ax.set_title(short_title(f"{classifier}, {protocol_title(protocol)}"), fontsize=10)
             ax.set_ylim(0, 1.05)
             ax.grid(alpha=0.3)
             if i == len(protocols) - 1:
@@ -216,10 +237,17 @@ def confusion_figure(panels, labels, title: str, note: str, colour_bar: bool = T
     shares in colour with counts in the text and blank untested rows would override all of it.)
     """
     n, k = len(labels), len(panels)
-    side, gap, left, bottom = max(1.8, 0.65 * n), 0.25, 1.5, 1.3  # inches
-    top = 0.5 + (0.45 if any(panel_title for _, panel_title in panels) else 0.0)
+    side, gap, left = max(1.8, 0.65 * n), 0.25, 1.5  # inches
     right = 1.1 if colour_bar else 0.3
-    width, height = left + k * side + (k - 1) * gap + right, bottom + side + top
+    width = left + k * side + (k - 1) * gap + right
+    # the title wrapped to the figure's width, and room for its lines and the panels' titles
+    title_lines = wrap_to_width(title, width - 0.2, 10)
+    top = 0.3 + 0.18 * len(title_lines) + (0.45 if any(t for _, t in panels) else 0.0)
+    # the footnote wrapped to the figure's width, under the tick labels (1.2 in)
+    note_lines = wrap_to_width(note, width - 0.2, 7)
+    note_height = len(note_lines) * 7 * 1.3 / 72
+    bottom = 1.2 + note_height + 0.1
+    height = bottom + side + top
     fig = plt.figure(figsize=(width, height))
     image = None
     for i, (counts, panel_title) in enumerate(panels):
@@ -243,32 +271,48 @@ def confusion_figure(panels, labels, title: str, note: str, colour_bar: bool = T
         colour_axes = fig.add_axes(((width - right + 0.2) / width, bottom / height,
                                     0.15 / width, side / height))
         fig.colorbar(image, cax=colour_axes).set_label("share of true class (row)", fontsize=8)
-    fig.suptitle(title, fontsize=10, y=1 - 0.1 / height, va="top")
-    fig.text(0.01, 0.01, note, fontsize=7, color="0.3")
+    fig.suptitle("\n".join(title_lines), fontsize=10, y=1 - 0.1 / height, va="top")
+    fig.text(0.1 / width, 0.05 / height, "\n".join(note_lines), fontsize=7, color="0.3",
+             va="bottom")
     return fig
 
 
+def condition_label(condition: str, value) -> str | None:
+    """An operating condition's value as titles and ticks show it: "450 rpm", "load 2" (None:
+    all conditions)."""
+    if value is None:
+        return None
+    return f"{float(value):g} rpm" if condition == "speed_rpm" else f"{condition} {float(value):g}"
+
+
+def condition_axis_label(condition: str) -> str:
+    return "speed (rpm)" if condition == "speed_rpm" else f"operating condition: {condition}"
+
+
 def confusion_matrices(matrices: dict, labels, classifier: str, protocol: str,
-                       speed: str | None, note: str):
-    """One panel per measured percentage; ``matrices`` maps percent -> (counts, n_repeats)."""
+                       where: str | None, note: str):
+    """One panel per measured percentage; ``matrices`` maps percent -> (counts, n_repeats);
+    ``where``: the operating condition's value (condition_label; None: all conditions)."""
     panels = []
     for percent, (counts, n_repeats) in sorted(matrices.items()):
         training = "simulation only" if percent == 0 else f"{percent} % measured"
         panels.append((counts, f"training: {training}\n{int(counts.sum())} test segments, "
                                f"{n_repeats} repeat(s)"))
-    where = "all speeds" if speed is None else f"{speed} rpm"
+    where = "all conditions" if where is None else where
     return confusion_figure(panels, labels,
                             f"Confusion matrix: {classifier}, {protocol_title(protocol)}, {where}",
                             note + " | counts summed over repeats")
 
 
-def prediction_shares(shares, labels, classifier: str, protocol: str, percents, note: str):
+def prediction_shares(shares, labels, classifier: str, protocol: str, percents, note: str,
+                      condition: str = "speed_rpm"):
     """The CFRP study's Fig. 9 for one classifier and protocol: a panel per (measured percentage,
-    true class), in it per speed a stacked bar of the percentage of that class's test segments
-    predicted as each class (text: shares of 8 % and more; tick: speed and test segments).
+    true class), in it per operating condition (speed, or e.g. load) a stacked bar of the
+    percentage of that class's test segments predicted as each class (text: shares of 8 % and
+    more; tick: the condition's value and test segments).
 
     ``shares``: rows of report.prediction_shares (classifier, protocol, measured_percent,
-    speed_rpm, true_label, predicted_label, share, n) of this classifier and protocol.
+    `condition`, true_label, predicted_label, share, n) of this classifier and protocol.
     """
     true_labels = [label for label in labels if label in set(shares["true_label"])]
     colours = _colours(labels)
@@ -294,13 +338,13 @@ def prediction_shares(shares, labels, classifier: str, protocol: str, percents, 
                 ax.set_xticks([])
                 continue
             legend_ax = legend_ax or ax
-            speeds = sorted(rows["speed_rpm"].unique())
-            counts = rows.groupby("speed_rpm")["n"].first().reindex(speeds)
+            speeds = sorted(rows[condition].unique())
+            counts = rows.groupby(condition)["n"].first().reindex(speeds)
             x = np.arange(len(speeds))
             bottom = np.zeros(len(speeds))
             for predicted in labels:
                 percent_of = 100 * (rows[rows["predicted_label"] == predicted]
-                                    .set_index("speed_rpm")["share"].reindex(speeds)
+                                    .set_index(condition)["share"].reindex(speeds)
                                     .fillna(0.0).to_numpy())
                 ax.bar(x, percent_of, 0.6, bottom=bottom, color=colours[predicted],
                        label=predicted, edgecolor="white", linewidth=0.5)
@@ -310,9 +354,10 @@ def prediction_shares(shares, labels, classifier: str, protocol: str, percents, 
                                 fontsize=7)
                 bottom += percent_of
             ax.set_xticks(x, [f"{s:g}\nn={int(c)}" for s, c in zip(speeds, counts)], fontsize=7)
-            ax.set_xlabel("speed (rpm)", fontsize=8)
+            ax.set_xlabel(condition_axis_label(condition), fontsize=8)
         axes[a * blocks, 0].set_ylabel("predicted as (% of true class)")
-    title = (f"Prediction shares per speed: {classifier}, {protocol_title(protocol)}\n"
+    per = "speed" if condition == "speed_rpm" else condition
+    title = (f"Prediction shares per {per}: {classifier}, {protocol_title(protocol)}\n"
              "(bar: a true class's test segments by predicted class, pooled over repeats)")
     return _finish(fig, title, note, legend_from=legend_ax)
 

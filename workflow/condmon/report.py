@@ -37,7 +37,7 @@ from sklearn.metrics import confusion_matrix
 from condmon import evaluation, job_timings, plots
 from condmon.evaluation import SMALL_TEST_SET, wilson_interval
 from condmon.atomic import staging_directory, write_text
-from condmon.hybrid import LEAKY_PROTOCOLS, SIMULATED_VALIDATION, format_speed
+from condmon.hybrid import LEAKY_PROTOCOLS, SIMULATED_VALIDATION, format_speed, protocol_title
 
 log = logging.getLogger(__name__)
 
@@ -259,18 +259,43 @@ def share_rows(key: tuple, counts: np.ndarray, labels) -> list[tuple]:
             for j, predicted in enumerate(labels)]
 
 
-def prediction_shares(predictions: pd.DataFrame, labels) -> pd.DataFrame:
+def prediction_shares(predictions: pd.DataFrame, labels,
+                      condition: str = "speed_rpm") -> pd.DataFrame:
     """The study's prediction percentages (Fig. 9): per (classifier, protocol, measured percent,
-    speed), the share of each true class's test segments predicted as each class, counts pooled
-    over repeats and holdouts as in the confusion matrices and recall (with equal test sets per
-    repeat, the mean over repeats). ``labels``: the class order (label_order). Columns
-    SHARE_COLUMNS; n = the true class's test segments at that speed."""
+    operating condition), the share of each true class's test segments predicted as each class,
+    counts pooled over repeats and holdouts as in the confusion matrices and recall (with equal
+    test sets per repeat, the mean over repeats). ``labels``: the class order (label_order).
+    ``condition``: the predictions' column of the operating condition (speed_rpm, or e.g. the
+    load: with_condition). Columns SHARE_COLUMNS, `condition` in place of speed_rpm; n = the true
+    class's test segments at that condition."""
+    keys = [condition if key == "speed_rpm" else key for key in SHARE_KEYS]
+    columns = [condition if key == "speed_rpm" else key for key in SHARE_COLUMNS]
     rows = []
-    for key, group in predictions.groupby(SHARE_KEYS, sort=True):
+    for key, group in predictions.groupby(keys, sort=True):
         counts = confusion_counts(group["true_label"], group["predicted_label"], labels)
         rows += share_rows(key, counts, labels)
-    shares = pd.DataFrame(rows, columns=SHARE_COLUMNS)
-    return shares.astype({"measured_percent": int, "speed_rpm": float, "share": float, "n": int})
+    shares = pd.DataFrame(rows, columns=columns)
+    return shares.astype({"measured_percent": int, condition: float, "share": float, "n": int})
+
+
+def record_conditions(measured_features_path, condition: str) -> dict:
+    """{record_id: its value of the operating condition} from the measured features."""
+    features = pd.read_parquet(measured_features_path, columns=["record_id", condition])
+    return dict(zip(features["record_id"].astype(str), features[condition].astype(float)))
+
+
+def with_condition(predictions: pd.DataFrame, conditions: dict, condition: str) -> pd.DataFrame:
+    """The predictions with a column `condition` (each record's operating condition, e.g. a
+    motor load, where each file's stored speed would split one load into many groups);
+    speed_rpm is there already. A tested record without a condition is an error."""
+    if condition in predictions.columns:
+        return predictions
+    values = predictions["record_id"].astype(str).map(conditions)
+    missing = sorted(set(predictions.loc[values.isna(), "record_id"].astype(str)))
+    if missing:
+        raise ReportInputError(f"the measured features give no {condition!r} (hybrid.condition) "
+                               f"for the tested records {missing[:5]}")
+    return predictions.assign(**{condition: values.astype(float)})
 
 
 def per_repeat_accuracy(accuracy: pd.DataFrame) -> pd.DataFrame:
@@ -363,6 +388,68 @@ def gain_against_strongest(overall: pd.DataFrame) -> pd.DataFrame:
         "majority_class_mean": "majority_class"})[
         ["classifier", "protocol", "measured_percent", "hybrid", "strongest", "gain",
          "measured_only_best", "physics_baseline_accuracy", "majority_class"]]
+
+
+def _mean_and_range(row) -> str:
+    """A headline cell: the mean over repeats, with its min-max where repeats differ."""
+    if row is None or not np.isfinite(row["accuracy_mean"]):
+        return "-"
+    text = f"{row['accuracy_mean']:.3f}"
+    if row.get("accuracy_max", np.nan) - row.get("accuracy_min", np.nan) > 0:
+        text += f" ({row['accuracy_min']:.3f}-{row['accuracy_max']:.3f})"
+    return text
+
+
+def headline_table(accuracy: pd.DataFrame, baseline: pd.DataFrame | None,
+                   physics_overall: pd.DataFrame | None, chance: float) -> pd.DataFrame:
+    """The report's front-page table: per protocol, every classifier's accuracy on held-out
+    measured records at the smallest and the largest measured share in training (0 and 100 %
+    in a default run; mean over repeats as accuracy.csv and summary.json give it, with its
+    min-max over repeats), then the baselines on the same test sets where the run has them: the
+    best measured-only classifier, each physics baseline (training-free), chance."""
+    results = over_repeats(accuracy)
+    percents = sorted(int(p) for p in results["measured_percent"].unique())
+    chosen = sorted({percents[0], percents[-1]})
+    columns = {p: ("simulation only (0 % measured)" if p == 0 else f"{p} % measured")
+               for p in chosen}
+
+    def cells(rows: pd.DataFrame) -> dict:
+        by_percent = {int(r["measured_percent"]): r for _, r in rows.iterrows()}
+        return {columns[p]: _mean_and_range(by_percent.get(p)) for p in chosen}
+
+    alone = over_repeats(baseline) if baseline is not None and not baseline.empty else None
+    physics = None
+    if physics_overall is not None and not physics_overall.empty:
+        physics = physics_overall[(physics_overall["condition"] == evaluation.ALL)
+                                  & (physics_overall["records"] == evaluation.ALL)]
+    rows = []
+    for protocol in sorted(results["protocol"].unique()):
+        title = protocol_title(protocol)
+        mine = results[results["protocol"] == protocol]
+        for classifier in sorted(mine["classifier"].unique()):
+            rows.append({"protocol": title, "model": f"{classifier} (simulated + measured)",
+                         **cells(mine[mine["classifier"] == classifier])})
+        if alone is not None and not alone[alone["protocol"] == protocol].empty:
+            # per share, the best measured-only classifier (its name in the cell)
+            own = alone[alone["protocol"] == protocol]
+            best = own.loc[own.groupby("measured_percent")["accuracy_mean"].idxmax().dropna()]
+            row = {"protocol": title, "model": "baseline: measured data only (best classifier)"}
+            for p in chosen:
+                at = best[best["measured_percent"] == p]
+                row[columns[p]] = ("-" if at.empty else
+                                   f"{_mean_and_range(at.iloc[0])} {at.iloc[0]['classifier']}")
+            rows.append(row)
+        if physics is not None:
+            for rule, own in physics[physics["protocol"] == protocol].groupby("classifier"):
+                row = {"protocol": title, "model": f"baseline: physics rule {rule} (no training)"}
+                for p in chosen:
+                    at = own[own["measured_percent"] == p]
+                    row[columns[p]] = ("-" if at.empty or not np.isfinite(at.iloc[0]["accuracy_mean"])
+                                       else f"{at.iloc[0]['accuracy_mean']:.3f}")
+                rows.append(row)
+        rows.append({"protocol": title, "model": "chance",
+                     **{columns[p]: f"{chance:.3f}" for p in chosen}})
+    return pd.DataFrame(rows, columns=["protocol", "model", *columns.values()])
 
 
 def physics_baselines_summary(table: pd.DataFrame, predictions: pd.DataFrame) -> list[dict]:
@@ -521,19 +608,32 @@ def evaluation_plots(overall: pd.DataFrame, chance: float, note: str, plots_dir:
     return names
 
 
+def condition_file_part(condition: str, value) -> str:
+    """A per-condition plot's file name part: all, 450rpm, load2."""
+    if value is None:
+        return "all"
+    if condition == "speed_rpm":
+        return f"{format_speed(value)}rpm"
+    return f"{condition}{float(value):g}"
+
+
 def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: Path,
                run_name: str, data_source: str, confusion_percent,
                healthy_state: str | None = None, bench_effects: int = 0,
-               shares: pd.DataFrame | None = None) -> list[str]:
+               shares: pd.DataFrame | None = None, condition: str = "speed_rpm") -> list[str]:
     """Write every report plot into ``plots_dir``; returns the file names. bench_effects: how many
     effects the bench has that the model lacks (the note says so; summary.json lists them).
-    ``shares``: prediction_shares of the predictions (computed here if not given)."""
+    ``shares``: prediction_shares of the predictions (computed here if not given).
+    ``condition``: the predictions' column of the operating condition the per-condition figures
+    (confusion matrices, prediction shares) group by: speed_rpm, or e.g. a motor load
+    (with_condition); the per-speed accuracy bars only where the condition is the speed
+    (accuracy_per_condition.png covers any condition)."""
     note = plot_note(run_name, data_source, bench_effects)
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
     chance = 1.0 / len(labels)
     percents = confusion_percents(accuracy, confusion_percent)
     if shares is None:
-        shares = prediction_shares(predictions, labels)
+        shares = prediction_shares(predictions, labels, condition)
     names = []
 
     def save(fig, name):
@@ -542,33 +642,33 @@ def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: 
 
     save(plots.accuracy_vs_measured_percent(per_repeat_accuracy(accuracy), chance, note),
          "accuracy_vs_measured_percent.png")
-    save(plots.accuracy_per_speed(accuracy[accuracy["speed_rpm"].notna()], percents, chance, note),
-         "accuracy_per_speed.png")
-    save(plots.recall_per_class(recall_per_class(predictions), note, PROTOCOL_LABELS),
+    if condition == "speed_rpm":
+        save(plots.accuracy_per_speed(accuracy[accuracy["speed_rpm"].notna()], percents, chance,
+                                      note), "accuracy_per_speed.png")
+    save(plots.recall_per_class(recall_per_class(predictions), note),
          "recall_per_class.png")
     for (classifier, protocol), group in predictions.groupby(["classifier", "protocol"]):
         # a classifier may train on fewer percentages (classifiers.cnn.measured_percent): show
         # the chosen ones it has, and its own largest
         own = sorted(int(p) for p in group["measured_percent"].unique())
         own_percents = sorted({p for p in percents if p in own} | {own[-1]})
-        speeds = [None] + sorted(group["speed_rpm"].unique())
-        for speed in speeds:
-            subset = group if speed is None else group[group["speed_rpm"] == speed]
+        for value in [None] + sorted(group[condition].unique()):
+            subset = group if value is None else group[group[condition] == value]
             matrices = {}
             for percent in own_percents:
                 chosen = subset[subset["measured_percent"] == percent]
                 matrices[percent] = (confusion_counts(chosen["true_label"],
                                                       chosen["predicted_label"], labels),
                                      int(chosen["repeat"].nunique()))
-            speed_name = "all" if speed is None else f"{format_speed(speed)}rpm"
             save(plots.confusion_matrices(matrices, labels, classifier, protocol,
-                                          None if speed is None else format_speed(speed), note),
-                 f"confusion_{classifier}_{protocol}_{speed_name}.png")
+                                          plots.condition_label(condition, value), note),
+                 f"confusion_{classifier}_{protocol}_{condition_file_part(condition, value)}.png")
         # the study's Fig. 9 at the same percentages: per speed, where each true class's
         # predictions go
         own_shares = shares[(shares["classifier"] == classifier)
                             & (shares["protocol"] == protocol)]
-        save(plots.prediction_shares(own_shares, labels, classifier, protocol, own_percents, note),
+        save(plots.prediction_shares(own_shares, labels, classifier, protocol, own_percents, note,
+                                     condition),
              f"prediction_shares_{classifier}_{protocol}.png")
     if not isinstance(spectra, dict):  # one calibration
         save(plots.spectra_grid(spectra, note), "spectra_measured_vs_calibrated.png")
@@ -593,8 +693,7 @@ def evaluation_tables(predictions, baseline, labels, healthy_state, measured_fea
                       condition, design_records, physics=None):
     """condmon.evaluation's tables: per evaluation, and over repeats; and the physics
     baselines' own summary over repeats (None without physics predictions)."""
-    features = pd.read_parquet(measured_features_path, columns=["record_id", condition])
-    conditions = dict(zip(features["record_id"].astype(str), features[condition].astype(float)))
+    conditions = record_conditions(measured_features_path, condition)
     table = evaluation.evaluation_table(predictions, healthy_state, labels, conditions, condition,
                                         design_records, baseline, physics)
     overall = evaluation.summarise(table, predictions, healthy_state, conditions, condition,
@@ -730,7 +829,7 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
                  simulated_validation_paths=(), measured_features_path=None,
                  condition: str = "speed_rpm", design_records=(), evaluation_path=None,
                  evaluation_summary_path=None, physics_paths=(),
-                 physics_baselines_path=None) -> dict:
+                 physics_baselines_path=None, headline_path=None) -> dict:
     """Build the whole report; returns the summary dict. Every output is written atomically.
 
     prediction_shares_path: where prediction_shares.csv goes (None: not written).
@@ -749,6 +848,9 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     `physics_baselines`. plots/simulation_gain.png: the gain against the strongest baseline
     (without measured features: against the same classifier's measured-only baseline).
 
+    headline_path: where the front page's headline table goes (headline_table; None: not
+    written).
+
     bench_effects: what the virtual bench has and the model lacks (its difference in form),
     labelled in summary.json and on every plot.
 
@@ -766,7 +868,12 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     simulated_validation = load_simulated_validation(simulated_validation_paths)
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
                          healthy_state)
-    shares = prediction_shares(predictions, labels)
+    # the per-condition figures and prediction_shares.csv group by the operating condition
+    # (hybrid.condition: the speed, or e.g. the load), each record's value from its features
+    grouping = condition if measured_features_path is not None else "speed_rpm"
+    by_condition = (with_condition(predictions, record_conditions(measured_features_path, condition),
+                                   condition) if grouping != "speed_rpm" else predictions)
+    shares = prediction_shares(by_condition, labels, grouping)
     per_model = isinstance(calibration_params, dict)
     params_paths = calibration_params if per_model else {None: calibration_params}
     spectra_paths = calibration_spectra if per_model else {None: calibration_spectra}
@@ -790,9 +897,9 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
              len(list(metrics_paths)), len(predictions))
 
     with staging_directory(plots_dir) as staging:
-        plot_names = make_plots(accuracy, predictions, spectra, history, calibrations, staging,
+        plot_names = make_plots(accuracy, by_condition, spectra, history, calibrations, staging,
                                 run_name, data_source, confusion_percent, healthy_state,
-                                len(bench_effects), shares)
+                                len(bench_effects), shares, grouping)
         summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names,
                             baseline, healthy_state)
         summary["data_source"]["bench_effects_the_model_lacks"] = list(bench_effects)
@@ -818,7 +925,7 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
                 design_records, physics)
             add_evaluation(summary, overall, predictions, measured_records, design_records)
             plots.save_figure(plots.simulation_gain(gain_against_strongest(overall),
-                                                    1.0 / len(labels), note, PROTOCOL_LABELS),
+                                                    1.0 / len(labels), note),
                               staging / "simulation_gain.png")
             summary["plots"].append("simulation_gain.png")
             if physics_overall is not None:
@@ -834,10 +941,15 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
                 write_text(overall.to_csv(index=False), evaluation_summary_path)
         elif baseline is not None:  # no evaluation tables: the same classifier's baseline
             gains = simulation_gain(accuracy, baseline).rename(columns={"measured_only": "strongest"})
-            plots.save_figure(plots.simulation_gain(gains, 1.0 / len(labels), note,
-                                                    PROTOCOL_LABELS), staging / "simulation_gain.png")
+            plots.save_figure(plots.simulation_gain(gains, 1.0 / len(labels), note),
+                              staging / "simulation_gain.png")
             summary["plots"].append("simulation_gain.png")
         write_text(labelled_accuracy(accuracy).to_csv(index=False), accuracy_path)
+        if headline_path is not None:
+            headline = headline_table(accuracy, baseline,
+                                      physics_overall if measured_features_path is not None else None,
+                                      1.0 / len(labels))
+            write_text(headline.to_csv(index=False), headline_path)
         if record_recall_path is not None:
             write_text(recall_per_record(predictions).to_csv(index=False), record_recall_path)
         if prediction_shares_path is not None:

@@ -2,7 +2,9 @@
 
 - experiment = run name; a SQLite store keeps the artifacts beside it (``mlartifacts/<name>``) and
   is switched to write-ahead logging on a local disk;
-- one parent run per invocation: tags ``git_commit``, ``git_dirty``, ``config_hash``,
+- one parent run per invocation, named ``<run name> <UTC date and time>`` and, where the
+  experiment's newest earlier parent had another config, the keys that differ from it
+  (``parent_run_name``); tags ``git_commit``, ``git_dirty``, ``config_hash``,
   ``snakemake_run_name``, ``data_source``, ``data_source_synthetic``, ``models_logged``,
   ``n_nested_runs``; params: the config flattened (``classifiers.svm.C``); inputs: the signal and
   feature tables as datasets (digest: SHA-256 of the files); metrics
@@ -34,6 +36,7 @@ seconds naming its URI; the parent it leaves unfinished never counts.
 from __future__ import annotations
 
 import contextlib
+import datetime
 import functools
 import hashlib
 import json
@@ -146,6 +149,11 @@ def use_write_ahead_log(uri: str) -> None:
         event.listen(Engine, "connect", _sync_at_checkpoints)
 
 
+# The experiment type MLflow 3's UI reads (what its "Choose experiment type" sets): "Machine
+# learning", so an experiment opens on its training runs, not on the GenAI overview.
+EXPERIMENT_KIND = {"mlflow.experimentKind": "custom_model_development"}
+
+
 def get_or_create_experiment(client, uri: str, name: str) -> str:
     from mlflow.exceptions import MlflowException
 
@@ -155,13 +163,16 @@ def get_or_create_experiment(client, uri: str, name: str) -> str:
         if uri.startswith(SQLITE):
             location = (Path(uri[len(SQLITE):]).parent / "mlartifacts" / name).as_uri()
         try:
-            return client.create_experiment(name, artifact_location=location)
+            return client.create_experiment(name, artifact_location=location, tags=EXPERIMENT_KIND)
         except MlflowException as exc:  # created meanwhile by another pipeline logging at once
             if exc.error_code != "RESOURCE_ALREADY_EXISTS":
                 raise
             experiment = client.get_experiment_by_name(name)
     if experiment.lifecycle_stage == "deleted":  # still owns the name: bring it back
         client.restore_experiment(experiment.experiment_id)
+    for key, value in EXPERIMENT_KIND.items():  # an older experiment; a type a user chose stays
+        if key not in experiment.tags:
+            client.set_experiment_tag(experiment.experiment_id, key, value)
     return experiment.experiment_id
 
 
@@ -210,6 +221,33 @@ def flatten_params(params: dict, prefix: str = "") -> dict[str, str]:
         else:
             flat[name] = json.dumps(value) if isinstance(value, (list, tuple)) else str(value)
     return flat
+
+
+def changed_keys(params: dict, earlier: dict, shown: int = 3) -> str:
+    """The config keys whose values differ from an `earlier` run's params, for a run's name:
+    "classifiers.svm.C=3.0" (long values by key alone), at most `shown`, then "+N more"."""
+    keys = sorted(k for k in set(params) | set(earlier) if params.get(k) != earlier.get(k))
+    parts = [f"{k}={params[k]}" if k in params and len(params[k]) <= 20 else k for k in keys[:shown]]
+    if len(keys) > shown:
+        parts.append(f"+{len(keys) - shown} more")
+    return ", ".join(parts)
+
+
+def parent_run_name(client, experiment_id: str, run_name: str, config_hash: str, params: dict,
+                    now: datetime.datetime | None = None) -> str:
+    """A parent run's name as the MLflow UI lists it: the run name and the UTC time it was logged,
+    and where the experiment's newest earlier parent had another config, the keys that differ
+    from it ("smoke 2026-11-25 19:40 (classifiers.svm.C=3.0)"). The config hash stays a tag."""
+    now = now or datetime.datetime.now(datetime.timezone.utc)
+    name = f"{run_name} {now:%Y-%m-%d %H:%M}"
+    # parents only: the nested runs carry no snakemake_run_name
+    earlier = client.search_runs([experiment_id], f"tags.snakemake_run_name = '{run_name}'",
+                                 order_by=["attributes.start_time DESC"], max_results=1)
+    previous = earlier[0] if earlier else None
+    if previous is not None and previous.data.tags.get("config_hash") != config_hash:
+        if changed := changed_keys(params, previous.data.params):
+            name += f" ({changed})"
+    return name
 
 
 def file_dataset(name: str, paths):
@@ -390,10 +428,11 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
     measured, model_ids, parent_id = inputs["measured_features"], [], None
     try:
         experiment_id = get_or_create_experiment(client, uri, run_name)
-        parent_id = mlflow.start_run(experiment_id=experiment_id, tags=tags,
-                                     run_name=f"{run_name}-{config_hash[:8]}").info.run_id
+        params = flatten_params(config or {})
+        name = parent_run_name(client, experiment_id, run_name, config_hash, params)
+        parent_id = mlflow.start_run(experiment_id=experiment_id, tags=tags, run_name=name).info.run_id
         log_inputs(inputs)
-        mlflow.log_params(flatten_params(config or {}))
+        mlflow.log_params(params)
         mlflow.log_metrics(summary_metrics(metrics))
         mlflow.log_text(metrics.to_csv(index=False), "accuracy.csv")
         # counts per run (rows: true label, columns: predicted label)

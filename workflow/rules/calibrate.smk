@@ -7,12 +7,7 @@ rule calibrate:
         measured=rules.measured.output[0],
     output:
         **calibration_background_outputs("{variant}"),
-        params=report(
-            f"{RESULTS}/calibration/{{variant}}/params.json",
-            caption="../report/calibration.rst",
-            category="Calibration",
-            labels={"name": "calibrated parameters ({variant})"},
-        ),
+        params=f"{RESULTS}/calibration/{{variant}}/params.json",  # a table in report_pages
         history=f"{RESULTS}/calibration/{{variant}}/history.parquet",
         spectra=f"{RESULTS}/calibration/{{variant}}/spectra.parquet",
         plot=f"{RESULTS}/calibration/{{variant}}/convergence.png",

@@ -197,6 +197,7 @@ def final_outputs():
         f"{RESULTS}/report/accuracy.csv",
         f"{RESULTS}/report/summary.json",
         f"{RESULTS}/report/mlflow_run.json",
+        f"{RESULTS}/report/pages/tables",  # what `snakemake --report` shows
         # requested, so a config without its packaged models reruns track (Snakemake checks
         # only the requested outputs of a job for being missing)
         f"{RESULTS}/models/{config_hash}",
@@ -278,8 +279,19 @@ def upstream_benchmarks():
     }
 
 
+# The report stage's CSV tables that report_pages also shows as HTML tables.
+REPORT_TABLES = [
+    "accuracy",
+    "evaluation_summary",
+    "physics_baselines",
+    "prediction_shares",
+    "recall_per_record",
+    "job_timings",
+]
+
+
 def plot_category(wildcards):
-    """The report section of a plot in report/plots/, by its file name."""
+    """The report section of a plot or table of report/pages/, by its file name."""
     for prefix, category in (
         ("confusion", "Confusion matrices"),
         ("prediction_shares", "Confusion matrices"),

@@ -83,42 +83,18 @@ rule report:
             else []
         ),
         # the benchmark files of every job before this one, named benchmarks_<rule>
+    # report_pages presents these files (HTML tables, the plots) in `snakemake --report`
     output:
-        accuracy=report(
-            f"{RESULTS}/report/accuracy.csv",
-            caption="../report/accuracy.rst",
-            category="Accuracy",
-            labels={"name": "accuracy table"},
-        ),
-        prediction_shares=report(
-            f"{RESULTS}/report/prediction_shares.csv",
-            caption="../report/prediction_shares.rst",
-            category="Confusion matrices",
-            labels={"name": "prediction shares table"},
-        ),
+        accuracy=f"{RESULTS}/report/accuracy.csv",
+        prediction_shares=f"{RESULTS}/report/prediction_shares.csv",
         summary=f"{RESULTS}/report/summary.json",
-        recall_per_record=report(
-            f"{RESULTS}/report/recall_per_record.csv",
-            caption="../report/recall_per_record.rst",
-            category="Accuracy",
-            labels={"name": "recall per record table"},
-        ),
+        recall_per_record=f"{RESULTS}/report/recall_per_record.csv",
         evaluation=f"{RESULTS}/report/evaluation.csv",
         evaluation_summary=f"{RESULTS}/report/evaluation_summary.csv",
         physics_baselines=f"{RESULTS}/report/physics_baselines.csv",
-        job_timings=report(
-            f"{RESULTS}/report/job_timings.csv",
-            caption="../report/job_timings.rst",
-            category="Job timings",
-            labels={"name": "job timings table"},
-        ),
-        plots=report(
-            directory(f"{RESULTS}/report/plots"),
-            patterns=["{name}.png"],
-            caption="../report/plots.rst",
-            category=plot_category,
-            labels={"name": "{name}"},
-        ),
+        headline=f"{RESULTS}/report/headline.csv",  # the front page's table
+        job_timings=f"{RESULTS}/report/job_timings.csv",
+        plots=directory(f"{RESULTS}/report/plots"),
     params:
         run_name=config["run_name"],
         data_source=data_source(),
@@ -137,3 +113,76 @@ rule report:
         f"{LOGS}/report.log",
     script:
         "../scripts/report.py"
+
+
+rule run_config:
+    output:
+        f"{RESULTS}/report/config.yaml",
+    params:
+        config=RUN_CONFIG,  # the config files with the schema's defaults filled in
+    conda:
+        "../envs/report.yaml"
+    benchmark:
+        f"{BENCHMARKS}/run_config.tsv"
+    log:
+        f"{LOGS}/run_config.log",
+    script:
+        "../scripts/run_config.py"
+
+
+# What `snakemake --report report.html` shows: the report's tables as HTML, its plots, the
+# headline (embedded in the front page, workflow/report/workflow.rst) and the full config. A job
+# of its own, so a result's details pane lists these few params, not the report job's settings.
+rule report_pages:
+    input:
+        **{
+            f"calibration_params_{m}": p
+            for m, p in calibration_outputs("params.json").items()
+        },
+        **{name: rules.report.output[name] for name in REPORT_TABLES},
+        headline=rules.report.output.headline,
+        summary=rules.report.output.summary,  # what each protocol tests
+        plots=rules.report.output.plots,
+        config=rules.run_config.output[0],
+    output:
+        tables=report(
+            directory(f"{RESULTS}/report/pages/tables"),
+            patterns=["{name}.html"],
+            caption="../report/tables.rst",
+            category=plot_category,
+            labels={"name": "{name} table"},
+        ),
+        plots=report(
+            directory(f"{RESULTS}/report/pages/plots"),
+            patterns=["{name}.png"],
+            caption="../report/plots.rst",
+            category=plot_category,
+            labels={"name": "{name}"},
+        ),
+        headline=report(
+            f"{RESULTS}/report/pages/headline.csv",
+            caption="../report/tables.rst",
+            category="Accuracy",
+            labels={"name": "headline table (CSV)"},
+        ),
+        config=report(
+            f"{RESULTS}/report/pages/config.yaml",
+            caption="../report/config.rst",
+            category="Configuration",
+            labels={"name": "full config"},
+        ),
+    params:
+        run_name=config["run_name"],
+        system=config["system"],
+        config_hash=config_hash,
+        protocols=PROTOCOLS,
+        classifiers=CLASSIFIERS,
+        full_config=lambda wildcards, output: output.config,  # its path, in the pane
+    conda:
+        "../envs/report.yaml"
+    benchmark:
+        f"{BENCHMARKS}/report_pages.tsv"
+    log:
+        f"{LOGS}/report_pages.log",
+    script:
+        "../scripts/report_pages.py"

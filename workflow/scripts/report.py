@@ -44,6 +44,7 @@ summary = write_report(
     evaluation_summary_path=snakemake.output.evaluation_summary,
     physics_paths=list(snakemake.input.physics_baselines),
     physics_baselines_path=snakemake.output.physics_baselines,
+    headline_path=snakemake.output.headline,
 )
 log.info("report of run %s: %d result rows, %d plots", summary["run_name"],
          len(summary["results"]), len(summary["plots"]))
