@@ -165,6 +165,9 @@ class GearDrivetrainParameters:
     speed_fluctuation: float = 0.0         # relative amplitude of a slow sinusoidal speed variation
     speed_fluctuation_hz: float = 1.5
     speed_fluctuation_phase: float = 0.0
+    # Mesh periods already run at t = 0: which tooth pair meshes when the run starts (an acquisition
+    # starts at any shaft angle; 0: tooth 0 of both gears entering mesh).
+    start_mesh_phase: float = 0.0
     # Gear mesh: F = K delta^n per pair, viscous damping of ratio zeta, Table-1 law on impacts.
     mesh_stiffness_model: str = "potential_energy"
     helix_slices: int = 80

@@ -156,6 +156,7 @@ class MeshForce:
         self.fluct = p.speed_fluctuation
         self.fluct_w = 2 * math.pi * p.speed_fluctuation_hz
         self.fluct_phase = p.speed_fluctuation_phase
+        self.start_phase = float(p.start_mesh_phase)
         self.fluct_cos0 = math.cos(p.speed_fluctuation_phase)
         # run-out of each shaft that has one: (amplitude, shaft angle per mesh period, phase)
         self.runout_terms = tuple((amplitude, 2 * math.pi / g.teeth_pinion * ratio, offset)
@@ -195,10 +196,11 @@ class MeshForce:
         (m), its rate) at time t. One call per force evaluation: it runs four times per step."""
         if self.fluct:
             angle = self.fluct_w * t + self.fluct_phase
-            phase = self.mesh_frequency * (t + self.fluct * (self.fluct_cos0 - math.cos(angle)) / self.fluct_w)
+            phase = self.start_phase + self.mesh_frequency * (
+                t + self.fluct * (self.fluct_cos0 - math.cos(angle)) / self.fluct_w)
             phase_rate = self.mesh_frequency * (1.0 + self.fluct * math.sin(angle))
         else:
-            phase, phase_rate = self.mesh_frequency * t, self.mesh_frequency
+            phase, phase_rate = self.start_phase + self.mesh_frequency * t, self.mesh_frequency
         e = e_t = 0.0
         for amplitude, per_phase, offset in self.runout_terms:
             angle = per_phase * phase + offset

@@ -148,6 +148,25 @@ def test_per_sample_gear_errors_come_from_the_config():
     tol = iso1328_tolerances(grade_high, params.geometry.normal_module, PINION_DIAMETER, params.geometry.face_width)
     pitch = np.asarray(effects["pitch_errors_pinion"])
     assert np.ptp(pitch) <= tol.cumulative_pitch and math.isfinite(effects["runout_pinion"])
+    cycle = math.lcm(params.geometry.teeth_pinion, params.geometry.teeth_gear)
+    starts = [sample_effects(system.config["model"], params.geometry, np.random.default_rng(k))["start_mesh_phase"]
+              for k in range(20)]
+    assert 0.0 <= min(starts) and max(starts) < cycle and np.ptp(starts) > cycle / 4
+
+
+def test_a_run_starts_at_its_drawn_mesh_phase():
+    """start_mesh_phase: the mesh excitation of a run started that many mesh periods on is the one
+    of a run from phase 0, shifted in time (constant speed) or in phase (with a fluctuation)."""
+    from condmon.models.mesh_force import MeshForce
+
+    base = GearDrivetrainParameters(speed_rpm=600.0)
+    later = base.replace(start_mesh_phase=7.25)
+    period = 1.0 / (600.0 / 60 * GEOMETRY.teeth_pinion)
+    for t in (0.0, 0.013, 0.2):
+        assert MeshForce(later).excitation(t)[0] == pytest.approx(MeshForce(base).excitation(t + 7.25 * period)[0])
+    fluctuating = base.replace(speed_fluctuation=0.01, speed_fluctuation_phase=0.4)
+    shifted = fluctuating.replace(start_mesh_phase=3.0)
+    assert MeshForce(shifted).excitation(0.1)[0] == pytest.approx(MeshForce(fluctuating).excitation(0.1)[0] + 3.0)
 
 
 @pytest.mark.parametrize("variant", sorted(p.name for p in (ROOT / "config" / "benches").glob("*.yaml")))

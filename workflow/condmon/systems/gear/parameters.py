@@ -61,7 +61,9 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
       the configured one, frequency uniform in its range, random phase);
     - the severity of its faults (`model.fault_severity`: the wear depth, the pits' depth and
       pitted area, the spall's depth and the root crack's depth, each uniform in its range) and the
-      damaged surfaces' seed (its parity picks wear or pitting under `wear_or_pitting`)."""
+      damaged surfaces' seed (its parity picks wear or pitting under `wear_or_pitting`);
+    - the mesh phase the run starts at, uniform over the gear pair's full cycle (a measurement
+      starts at any shaft angle: where the damaged tooth passes within a segment varies)."""
     def uniform(low, high):
         return float(rng.uniform(low, high))
 
@@ -90,4 +92,6 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
         spall_depth=uniform(*severity["spall_depth"]),
         crack_depth=uniform(*severity["crack_depth"]),
         wear_seed=int(rng.integers(2 ** 31)),
+        # the record starts at any shaft angle of both gears (drawn last: the draws above stay as they were)
+        start_mesh_phase=uniform(0.0, math.lcm(geometry.teeth_pinion, geometry.teeth_gear)),
     )
