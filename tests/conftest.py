@@ -1,12 +1,25 @@
-"""Shared test constants and helpers (pytest puts this folder on sys.path: `from conftest import ROOT`)."""
+"""Shared test constants, helpers and the pipeline fixtures (pytest puts this folder on sys.path:
+`from conftest import ROOT`).
+
+Markers (pyproject.toml): `pipeline` runs a Snakemake pipeline, `slow` takes over about 5 s
+otherwise. `pytest -q` runs everything; `pytest -q -m "not pipeline and not slow"` the fast ones.
+Each pipeline config that several tests read runs once per session, in a fixture here (`smoke`,
+`cwru_run`); a test that changes a run works on a copy of it.
+"""
 import copy
+import os
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-CWRU = ROOT.parent / "shared" / "data" / "cwru"
+# The shared CWRU files: beside the checkout, or where CONDMON_CWRU_DIR points (a git worktree
+# elsewhere, another machine's data folder).
+CWRU = Path(os.environ.get("CONDMON_CWRU_DIR", ROOT.parent / "shared" / "data" / "cwru")).resolve()
 # Config keys that point at a data folder, and where that data lies on this machine: a project
 # config that sets one (whatever its system) reads this copy, so tests run from any folder.
 DATA_FOLDERS = {"measured_dir": CWRU}
@@ -18,6 +31,16 @@ def pytest_configure(config):
 
     if python_version_error():
         pytest.exit(python_version_error(), returncode=4)
+
+
+PIPELINE_FIXTURES = {"smoke", "cwru_run"}
+
+
+def pytest_collection_modifyitems(items):
+    """A test that reads a pipeline fixture is a pipeline test, marked or not."""
+    for item in items:
+        if PIPELINE_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.pipeline)
 
 
 def deep_update(base: dict, changes: dict) -> dict:
@@ -47,3 +70,63 @@ def system_of(configfile: str = "config/smoke.yaml", changes: dict | None = None
     from condmon.systems import get_system
 
     return get_system(config_of(configfile, changes))
+
+
+# -- the pipeline fixtures --------------------------------------------------------------------
+SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+
+
+def snakemake(workdir, *args, check=True):
+    result = subprocess.run(SNAKEMAKE + list(args), cwd=workdir, capture_output=True, text=True)
+    if check and result.returncode != 0:
+        raise AssertionError(f"snakemake {' '.join(args)} failed:\n{result.stdout[-3000:]}\n{result.stderr[-5000:]}")
+    return result
+
+
+def copy_project(target: Path) -> Path:
+    """The workflow's files (no results) in `target`, to run a pipeline in."""
+    target.mkdir(parents=True, exist_ok=True)
+    for name in ("Snakefile", "workflow", "config", "models", "profiles"):
+        source = ROOT / name
+        if source.is_dir():
+            shutil.copytree(source, target / name, ignore=shutil.ignore_patterns("__pycache__"))
+        else:
+            shutil.copy(source, target / name)
+    return target
+
+
+@pytest.fixture(scope="session")
+def smoke(tmp_path_factory):
+    """The gear bench's smoke run (config/smoke.yaml, every target) in a copy of the project:
+    (project folder, results folder). Read-only: a test that reruns or edits copies it."""
+    workdir = copy_project(tmp_path_factory.mktemp("smoke"))
+    snakemake(workdir, "--cores", "2", "--configfile", "config/smoke.yaml")
+    return workdir, workdir / "results" / "smoke"
+
+
+# normal, inner race, ball, outer race 0.007 in at 0 HP, and the faults again at 1 HP
+CWRU_SLICE = ["97.mat", "105.mat", "118.mat", "130.mat", "106.mat", "119.mat", "131.mat"]
+
+
+def cwru_folder(path: Path, files) -> Path:
+    """A folder of links to some of the shared CWRU files and their index."""
+    path.mkdir()
+    for name in files:  # links, never copies of the data
+        os.symlink(CWRU / name, path / name)
+    os.symlink(CWRU / "index.csv", path / "index.csv")
+    return path
+
+
+@pytest.fixture(scope="session")
+def cwru_run(tmp_path_factory):
+    """The bearing rig's smoke run (config/cwru-smoke.yaml, every target) on CWRU_SLICE:
+    (project folder, results folder). Its files are read only; a test may add a run of another
+    run_name beside it (test_cwru_pipeline.py's second folder)."""
+    if not CWRU.is_dir():
+        pytest.skip(f"no CWRU data at {CWRU} (set CONDMON_CWRU_DIR)")
+    root = tmp_path_factory.mktemp("cwru")
+    workdir = copy_project(root / "project")
+    folder = cwru_folder(root / "slice", CWRU_SLICE)
+    snakemake(workdir, "--cores", "2", "--configfile", "config/cwru-smoke.yaml", "--config",
+              f"measured_dir={folder}")
+    return workdir, workdir / "results" / "cwru-smoke"

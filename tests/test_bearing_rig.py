@@ -57,12 +57,14 @@ def _line(signal, order, search=0.05):
     return peak, ratio
 
 
+@pytest.mark.slow
 def test_outputs_are_finite_and_of_the_requested_length(runs):
     for kind, signal in runs.items():
         assert signal.shape == (12000,), kind
         assert np.isfinite(signal).all(), kind
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind, order", [("outer_race", SKF_6205.orders()["bpfo"]),
                                          ("inner_race", SKF_6205.orders()["bpfi"]),
                                          ("ball", 2 * SKF_6205.orders()["bsf"])])
@@ -74,6 +76,7 @@ def test_defect_line_at_the_kinematic_frequency(runs, kind, order):
     assert healthy_ratio < 3.0, f"healthy rig shows a line at the {kind} frequency ({healthy_ratio:.2f})"
 
 
+@pytest.mark.slow
 def test_inner_race_has_shaft_speed_sidebands(runs):
     """The inner-race defect turns with the shaft through the load zone: BPFI +/- 1 x shaft."""
     bpfi = SKF_6205.orders()["bpfi"]
@@ -83,6 +86,7 @@ def test_inner_race_has_shaft_speed_sidebands(runs):
         assert ratio > 2.0, f"no sideband at {side:.3f} orders ({ratio:.2f})"
 
 
+@pytest.mark.slow
 def test_outer_race_defect_is_impulsive_and_healthy_is_not(runs):
     def kurtosis(x):
         d = x - x.mean()
@@ -165,6 +169,7 @@ def _line_spread(signal, harmonic=3):
     return float(np.sqrt(((freqs[window] - centre) ** 2 * power).sum() / power.sum()) / f0)
 
 
+@pytest.mark.slow
 def test_slip_is_cumulative_and_spreads_the_line_by_about_the_slip():
     profile = _DefectProfile(BearingRigParameters(defect_kind="outer_race", slip_std=0.02), 42.0)
     t = np.linspace(0.0, 10.0, 200_001)
@@ -183,6 +188,7 @@ def _band_power(signal, low, high, fs=FS):
     return float(power[(freqs >= low) & (freqs < high)].sum())
 
 
+@pytest.mark.slow
 def test_structural_modes_are_bodies_the_bearing_force_excites():
     """A housing mode is a modal mass in the model: the impacts ring it at its frequency (and
     nowhere else), and moving the mode moves the ringing; without modes the band stays quiet."""

@@ -124,6 +124,7 @@ def nominal_values(config, names):
     return {name: config["model"][name] for name in names}
 
 
+@pytest.mark.slow
 def test_the_true_parameters_explain_a_bench_of_the_models_form_but_not_the_virtual_bench(bench):
     """On a bench of the model's own form the model at the hidden truth, with the bench's white
     noise added to its spectra (`with_sensor_noise`), reproduces the bench's spectra, and the
@@ -149,6 +150,7 @@ def test_the_true_parameters_explain_a_bench_of_the_models_form_but_not_the_virt
     assert costs["truth_on_virtual_bench"] > 3.0 * costs["truth_noisy"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mesh_model", MESH_MODELS)
 def test_calibration_recovers_the_hidden_mesh_stiffness(bench, mesh_model):
     """A bench of the model's form hides mesh stiffness 5.5e8 N/m at exponent 1.3 (nominal 4.0e8,
@@ -200,6 +202,7 @@ def test_calibration_recovers_the_hidden_mesh_stiffness(bench, mesh_model):
         assert best["cost"] < 0.2 * nominal
 
 
+@pytest.mark.slow
 def test_sensor_noise_estimate_is_close_to_the_bench_noise(bench):
     """On a bench of the model's form the noise floor is the bench's white noise (0.001 m/s^2).
     A low quantile of noise-only bands lies below their mean power, so the estimate reads low:
@@ -211,6 +214,7 @@ def test_sensor_noise_estimate_is_close_to_the_bench_noise(bench):
     assert 0.7 < estimate / config["virtual_bench"]["sensor_noise"] < 1.2
 
 
+@pytest.mark.slow
 def test_sensor_noise_estimate_does_not_take_the_form_gap_for_noise(bench):
     """On the default virtual bench the model lacks housing modes, bearing tones, motor ripple
     and coloured noise. Those raise the measured spectra above the model's in most bands but

@@ -184,6 +184,7 @@ def shaft_lines(signals, speed_rpm, orders=(1, 2, 3)):
     return total
 
 
+@pytest.mark.slow
 def test_the_breathing_crack_raises_the_shaft_orders():
     """Noise-free, same drivetrain (seed), 775 rpm: the breathing crack raises the pinion shaft's
     1x and 3x lines (measured 6.1x and 6.5x over healthy; at 450 rpm 3.8x and 2.3x, at 1100 rpm

@@ -71,6 +71,7 @@ def test_a_measured_speed_that_rig_speeds_lacks_is_refused_naming_it(tmp_path):
     config_of("config/smoke.yaml", {"measured_table": str(gear_table(tmp_path / "ok.parquet", [450.0, 1100.0]))})
 
 
+@pytest.mark.slow
 def test_snakemake_refuses_it_before_any_job(tmp_path):
     shutil.copy(ROOT / "Snakefile", tmp_path)
     for name in ("workflow", "config", "models", "profiles"):

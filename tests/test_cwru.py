@@ -7,12 +7,12 @@ import pandas as pd
 import pytest
 import scipy.io
 
-from conftest import ROOT
+from conftest import CWRU
 from condmon.systems.bearing.cwru import (CWRU_TABLE, G, CwruError, cwru_rows, health_label, read_cwru_file,
                           read_manifest, task_labels, write_cwru_signal_table)
 from condmon.signals import read_signal_table
 
-CWRU_DIR = (ROOT / ".." / "shared" / "data" / "cwru").resolve()
+CWRU_DIR = CWRU
 needs_data = pytest.mark.skipif(not CWRU_DIR.is_dir(),
                                 reason=f"CWRU data folder {CWRU_DIR} not present")
 

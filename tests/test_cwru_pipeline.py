@@ -6,41 +6,15 @@ A second run points `measured_dir` at another set of files (other fault sizes, n
 by `--config` alone: it must run without edits, simulate every class and test the ones present.
 """
 import json
-import os
 
 import pandas as pd
 import pytest
 
-from conftest import ROOT
-from test_pipeline import copy_project, snakemake
+from conftest import CWRU_SLICE as SLICE, cwru_folder, snakemake
 
 pytestmark = pytest.mark.pipeline
-CWRU = ROOT.parent / "shared" / "data" / "cwru"
-# normal, inner race, ball, outer race 0.007 in at 0 HP, and the faults again at 1 HP
-SLICE = ["97.mat", "105.mat", "118.mat", "130.mat", "106.mat", "119.mat", "131.mat"]
 # another set: 0.021 in faults at 0 and 1 HP, and no healthy record
 OTHER_SET = ["209.mat", "210.mat", "222.mat", "223.mat", "234.mat", "235.mat"]
-
-
-def cwru_folder(path, files):
-    path.mkdir()
-    for name in files:  # links, never copies of the data
-        os.symlink(CWRU / name, path / name)
-    os.symlink(CWRU / "index.csv", path / "index.csv")
-    return path
-
-
-@pytest.fixture(scope="module")
-def cwru_run(tmp_path_factory):
-    if not CWRU.is_dir():
-        pytest.skip(f"no CWRU data at {CWRU}")
-    root = tmp_path_factory.mktemp("cwru")
-    (root / "project").mkdir()
-    workdir = copy_project(root / "project")
-    folder = cwru_folder(root / "slice", SLICE)
-    snakemake(workdir, "--cores", "2", "--configfile", "config/cwru-smoke.yaml", "--config",
-              f"measured_dir={folder}")
-    return workdir, workdir / "results" / "cwru-smoke"
 
 
 def test_cwru_run_writes_every_protocol_labelled_with_gain_and_recall(cwru_run):

@@ -121,6 +121,7 @@ def test_every_rule_environment_pins_what_environment_txt_pins():
         assert "-e ../.." in pip, f"{path.name} must install the project"
 
 
+@pytest.mark.slow
 def test_every_rule_environment_holds_what_its_code_imports():
     distributions = metadata.packages_distributions()
     for rule, (env, script) in sorted(rule_scripts().items()):
@@ -160,6 +161,7 @@ def pypi_reachable() -> bool:
         return False
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("python", ["3.12", "3.13"])
 def test_the_pins_resolve_for_the_other_pythons(python, tmp_path):
     """Every pin of environment.txt has a distribution for Python 3.12 and 3.13 on PyPI: wheels

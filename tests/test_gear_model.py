@@ -381,6 +381,7 @@ def rig_runs():
     return runs
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("speed", [450.0, 775.0, 1100.0])
 def test_missing_tooth_raises_the_mesh_sidebands_at_every_speed(rig_runs, speed):
     shaft = speed / 60
@@ -392,6 +393,7 @@ def test_missing_tooth_raises_the_mesh_sidebands_at_every_speed(rig_runs, speed)
     assert sidebands(rig_runs[speed, "missing_tooth"]) > 2.0 * sidebands(rig_runs[speed, "healthy"])
 
 
+@pytest.mark.slow
 def test_housing_x_and_y_are_not_collinear(rig_runs):
     """The 3-D rig's housings move in x and y through different paths (anisotropic mounts, tilt,
     the axial mesh force): the channels are far from collinear and their y/x ratio at the mesh
@@ -405,6 +407,7 @@ def test_housing_x_and_y_are_not_collinear(rig_runs):
     assert max(ratios) / min(ratios) > 1.5
 
 
+@pytest.mark.slow
 def test_the_step_has_converged():
     """The spectral features the classifiers see (2 Hz log bands to 2 kHz, every channel) within
     0.5 dB of a run with a four times smaller step, in every band within 40 dB of the strongest."""

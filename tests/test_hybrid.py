@@ -4,7 +4,7 @@ import math
 import pandas as pd
 import pytest
 
-from conftest import CWRU
+from conftest import CWRU, DATA_FOLDERS
 from condmon.hybrid import (PROTOCOLS, SPLIT_COLUMNS, SplitError, calibration_frame,
                             check_healthy_tested, make_splits, measured_layout, n_train_records,
                             read_split_table, sorted_holdouts, time_blocks, write_split_table)
@@ -460,6 +460,7 @@ def test_the_pdm_bench_config_asks_for_its_split_and_checks_the_guard_gap():
     root = Path(__file__).parents[1]
     schema = load_schema(root / "config/schema.yaml")
     raw = yaml.safe_load((root / "config/cwru-pdm-bench.yaml").read_text())
+    raw.update({key: str(folder) for key, folder in DATA_FOLDERS.items() if key in raw})  # this machine's copy
     config = validate_config(raw, schema)
     assert config["hybrid"]["condition_split"] == {"train": [0, 1, 2], "test": [3]}
     assert (config["bearing"]["segment_length"], config["bearing"]["segment_hop"]) == (2048, 1024)

@@ -49,6 +49,7 @@ def records():
     return simulated_features("none", "healthy"), simulated_features("outer_race", "outer")
 
 
+@pytest.mark.slow
 def test_the_envelope_rule_says_outer_race_on_a_simulated_outer_race_record(records):
     healthy, outer = records
     names = [c for c in outer.columns if c.startswith("DE_")]
@@ -70,6 +71,7 @@ def test_no_envelope_rule_without_one_label_per_location_or_without_the_lines():
     assert bearing_system().physics_baselines(names[:2] + ["DE_kurtosis"]) == {}
 
 
+@pytest.mark.slow
 def test_the_threshold_comes_from_calibration_segments_only(records):
     """On every split the rule is fitted on the calibration segments (role "calibration") and
     predicts exactly the test segments; test data never move the threshold."""

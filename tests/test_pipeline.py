@@ -1,6 +1,7 @@
 """The smoke pipeline end to end: outputs, MLflow, what an edit reruns, spectra, config errors.
 
-One smoke run (about two minutes on 2 cores) in a copy of the project serves every test here.
+One smoke run (about two minutes on 2 cores) in a copy of the project, the session fixture `smoke`
+of conftest.py, serves every test here; a test that reruns or edits works on a copy.
 """
 import json
 import shutil
@@ -15,35 +16,9 @@ import yaml
 from scipy.signal import find_peaks
 
 from condmon.signals import read_signal_table, to_arrays
+from conftest import ROOT, SNAKEMAKE, copy_project, snakemake
 
 pytestmark = pytest.mark.pipeline
-ROOT = Path(__file__).resolve().parents[1]
-SNAKEMAKE = [sys.executable, "-m", "snakemake"]
-
-
-def snakemake(workdir, *args, check=True):
-    result = subprocess.run(SNAKEMAKE + list(args), cwd=workdir, capture_output=True, text=True)
-    if check and result.returncode != 0:
-        raise AssertionError(f"snakemake {' '.join(args)} failed:\n{result.stdout[-3000:]}\n{result.stderr[-5000:]}")
-    return result
-
-
-def copy_project(target: Path) -> Path:
-    target.mkdir(parents=True, exist_ok=True)
-    for name in ("Snakefile", "workflow", "config", "models", "profiles"):
-        source = ROOT / name
-        if source.is_dir():
-            shutil.copytree(source, target / name, ignore=shutil.ignore_patterns("__pycache__"))
-        else:
-            shutil.copy(source, target / name)
-    return target
-
-
-@pytest.fixture(scope="session")
-def smoke(tmp_path_factory):
-    workdir = copy_project(tmp_path_factory.mktemp("smoke"))
-    snakemake(workdir, "--cores", "2", "--configfile", "config/smoke.yaml")
-    return workdir, workdir / "results" / "smoke"
 
 
 def planned_jobs(workdir, config: dict) -> dict:

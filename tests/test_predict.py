@@ -117,6 +117,7 @@ def test_condmon_predict_refuses_an_untrained_speed_and_writes_nothing(model, tm
     assert "900" not in set(pd.read_csv(tmp_path / "out" / "records.csv")["speed_rpm"].astype(int).astype(str))
 
 
+@pytest.mark.slow
 def test_the_mlflow_pyfunc_model_takes_a_signal_table_and_gives_the_same_labels(model, tmp_path):
     joblib.dump(model, tmp_path / "model.joblib")
     mlflow.set_tracking_uri(f"sqlite:///{tmp_path / 'mlflow.db'}")

@@ -38,6 +38,7 @@ def built_report(train_outputs):
 DESIGN = ["virtual_bench_healthy_600_0", "virtual_bench_missing_tooth_600_0"]
 
 
+@pytest.mark.slow
 def test_accuracy_csv_is_the_sorted_concatenation_of_metrics(built_report):
     out, paths, _ = built_report
     table = pd.read_csv(out / "accuracy.csv")
@@ -56,6 +57,7 @@ def test_accuracy_csv_is_the_sorted_concatenation_of_metrics(built_report):
     assert raw[1].startswith("knn,condition_holdout,0,0,,")  # sorted, all-speeds row first
 
 
+@pytest.mark.slow
 def test_summary_aggregates_over_repeats_and_labels_the_source(built_report):
     out, paths, summary = built_report
     assert json.loads((out / "summary.json").read_text()) == summary
@@ -86,6 +88,7 @@ def test_summary_aggregates_over_repeats_and_labels_the_source(built_report):
     assert summary["n_measured_records"] == len(fake.LABELS) * len(fake.SPEEDS) * 3
 
 
+@pytest.mark.slow
 def test_plots_exist_are_listed_and_are_real_images(built_report):
     out, _, summary = built_report
     plots = sorted(p.name for p in (out / "plots").iterdir())
@@ -107,6 +110,7 @@ def test_plots_exist_are_listed_and_are_real_images(built_report):
     assert not list(out.glob(".*tmp*")), "temporary files left behind"
 
 
+@pytest.mark.slow
 def test_unknown_confusion_percent_names_the_available_ones(train_outputs, tmp_path):
     _, paths = train_outputs
     with pytest.raises(report.ReportInputError, match=r"confusion_percent \[30\].*\[0, 50\]"):
@@ -117,6 +121,7 @@ def test_unknown_confusion_percent_names_the_available_ones(train_outputs, tmp_p
     assert not (tmp_path / "a.csv").exists() and not (tmp_path / "plots").exists()
 
 
+@pytest.mark.slow
 def test_one_calibration_per_calibration_variant(train_outputs, tmp_path):
     """Calibrations of two calibration variants (e.g. the gear's mesh stiffness models): the first
     one (the simulation's) is the summary's calibration, each is listed with its costs, and the
@@ -171,6 +176,7 @@ def test_source_labels_never_call_synthetic_data_real():
     assert report.is_synthetic("virtual_bench") and not report.is_synthetic("measured")
 
 
+@pytest.mark.slow
 def test_simulation_gain_recall_and_protocol_labels(train_outputs, tmp_path):
     _, paths = train_outputs
     # a measured-only baseline 0.25 below the hybrid accuracy, for the knn files only
@@ -290,6 +296,7 @@ def test_identical_repeats_count_as_one():
     assert distinct_repeats(rows).tolist() == [2]
 
 
+@pytest.mark.slow
 def test_evaluation_tables_per_condition_design_records_and_baselines(built_report):
     out, paths, summary = built_report
     table = pd.read_csv(out / "evaluation.csv", dtype={"holdout": str})
@@ -367,6 +374,7 @@ def test_summary_intervals_count_a_tested_segment_once():
         assert three[name] == one[name], name
 
 
+@pytest.mark.slow
 def test_a_physics_baseline_that_wins_gives_a_negative_gain(train_outputs, tmp_path):
     """A training-free rule on the same test sets is a candidate of the strongest baseline; where
     it beats the classifier the gain is negative and said so, in the tables, summary.json and

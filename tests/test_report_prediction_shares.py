@@ -81,6 +81,7 @@ def reports(fake_outputs):
     return (root / "without", without), (root / "with", with_validation)
 
 
+@pytest.mark.slow
 def test_prediction_shares_csv_matches_the_predictions(fake_outputs, reports):
     _, paths, _ = fake_outputs
     (out, summary), _ = reports
@@ -110,6 +111,7 @@ def test_prediction_shares_csv_matches_the_predictions(fake_outputs, reports):
     assert "simulated_validation" not in summary  # share 0: no such key
 
 
+@pytest.mark.slow
 def test_simulated_validation_in_summary_apart_from_the_measured_results(reports):
     (plain, without), (out, summary) = reports
     # the measured numbers are the same with and without a simulated validation
@@ -127,6 +129,7 @@ def test_simulated_validation_in_summary_apart_from_the_measured_results(reports
     assert json.loads((out / "summary.json").read_text()) == summary
 
 
+@pytest.mark.slow
 def test_simulated_validation_file_with_another_source_is_refused(fake_outputs, tmp_path):
     _, _, validation_paths = fake_outputs
     bad = tmp_path / "simulated_validation.csv"

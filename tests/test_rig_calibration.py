@@ -42,6 +42,7 @@ def test_feature_cost_is_relative_per_feature():
         spectrum_cost(measured, measured, "features_eq6")
 
 
+@pytest.mark.slow
 def test_feature_cost_calibration_moves_the_noise_towards_the_record():
     frame = rig_table("normal", noise_rms=1.0)
     system = rig({"noise_rms": 0.1})  # nominal far below the record's noise

@@ -164,6 +164,7 @@ def test_the_baseline_keeps_all_features_when_they_score_better():
     assert not isinstance(model.model_, Pipeline) or "select" not in model.model_.named_steps
 
 
+@pytest.mark.slow
 def test_the_baseline_selects_when_its_own_records_say_so():
     from condmon.selection import BACKWARD
     rng = np.random.default_rng(3)

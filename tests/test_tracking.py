@@ -59,6 +59,7 @@ def metrics_of(paths, classifier, protocol):
     return pd.read_csv(next(p for p in paths["metrics"] if f"{classifier}/{protocol}" in str(p)))
 
 
+@pytest.mark.slow
 def test_parent_nested_runs_params_and_datasets(logged):
     uri, paths, first, _, _ = logged
     assert first["n_nested_runs"] == N_RUNS and first["n_models_logged"] == 6
@@ -87,6 +88,7 @@ def test_parent_nested_runs_params_and_datasets(logged):
         assert db.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
 
 
+@pytest.mark.slow
 def test_nested_run_values_model_and_its_linked_metrics(logged):
     uri, paths, first, _, _ = logged
     _, children = nested_runs(uri, first["parent_run_id"])
@@ -131,6 +133,7 @@ def test_nested_run_values_model_and_its_linked_metrics(logged):
     assert mlflow.models.get_model_info(models[0].model_uri).signature is not None
 
 
+@pytest.mark.slow
 def test_the_config_chooses_which_models_are_logged(logged):
     uri, _, first, second, other = logged
     assert other["n_models_logged"] == 0
@@ -145,6 +148,7 @@ def test_the_config_chooses_which_models_are_logged(logged):
         assert all(os.path.exists(r.data.tags["model_file"]) for r in children)  # every run names its file
 
 
+@pytest.mark.slow
 def test_parent_summary_metrics_are_the_means_over_repeats(logged):
     uri, paths, first, _, _ = logged
     parent, _ = nested_runs(uri, first["parent_run_id"])
@@ -156,6 +160,7 @@ def test_parent_summary_metrics_are_the_means_over_repeats(logged):
     assert len([m for m in parent.data.metrics if m.startswith("accuracy.")]) == 2 * 2 * len(fake.PERCENTS)
 
 
+@pytest.mark.slow
 def test_two_configs_differing_in_svm_C_compared_through_search_runs(logged):
     """What the MLflow UI's compare view shows for two pipeline runs: the parameter that differs
     and the parents' summary metrics side by side."""
@@ -173,6 +178,7 @@ def test_two_configs_differing_in_svm_C_compared_through_search_runs(logged):
     assert (runs.loc["hash-a", summary] != runs.loc["hash-b", summary]).any()
 
 
+@pytest.mark.slow
 def test_a_rerun_rewrites_nothing_and_counts_once(logged, capsys):
     uri, paths, first, second, other = logged
     first_parent, first_children = nested_runs(uri, first["parent_run_id"])
@@ -208,6 +214,7 @@ def test_a_rerun_rewrites_nothing_and_counts_once(logged, capsys):
     assert sum(first["parent_run_id"] in row and " no " in row for row in rows) == 8  # not the latest
 
 
+@pytest.mark.slow
 def test_an_unfinished_parent_never_counts(logged):
     """A parent left running (job killed, server gone mid-way) is ignored by the query, however new."""
     uri, _, _, second, _ = logged
@@ -275,6 +282,7 @@ def test_a_dataset_inserted_meanwhile_by_another_pipeline_is_logged_again(monkey
         tracking.log_inputs({"measured_signals": object()})
 
 
+@pytest.mark.slow
 def test_run_info_file(logged, tmp_path):
     _, _, first, _, _ = logged
     tracking.write_run_info(first, tmp_path / "mlflow_run.json")
@@ -354,6 +362,7 @@ def test_a_server_that_accepts_but_never_answers_fails_after_the_probe_timeout()
         assert time.perf_counter() - started < 5
 
 
+@pytest.mark.slow
 def test_track_script_fails_in_seconds_naming_a_dead_server(tmp_path):
     """workflow/scripts/track.py as the `track` rule runs it (a fresh Python, `snakemake`
     injected), against a tracking URI on a closed port."""

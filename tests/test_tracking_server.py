@@ -18,6 +18,7 @@ import pytest
 import fake_train_outputs as fake
 from condmon import compare
 
+pytestmark = pytest.mark.slow  # a live MLflow server and several track jobs: minutes
 N_PIPELINES = 3
 N_RUNS = 2 * len(fake.PERCENTS) * len(fake.REPEATS) * 3  # classifiers x ... x (record split + 2 held-out speeds)
 

@@ -335,6 +335,7 @@ def test_backward_selection_inside_each_fit_keeps_the_informative_features(tmp_p
     assert entries[0]["selected_features"] == chosen
 
 
+@pytest.mark.slow
 def test_the_measured_only_baseline_is_never_forced_through_the_selection(tmp_path):
     """With features.selection configured, the hybrid fit selects 3 features; the baseline
     chooses by its own inner CV, here all features (they score as well), and says so."""
