@@ -270,3 +270,17 @@ def datasets(paths: dict) -> dict:
 
 def train_dirs(paths: dict) -> list[Path]:
     return [Path(p).parent for p in paths["info"]]
+
+
+def write_report(paths: dict, out: Path, **extra) -> dict:
+    """`condmon.report.write_report` on the fake train outputs (`build`), every table and plot into
+    `out`; `extra`: its optional inputs (baselines, measured features and condition, ...)."""
+    from condmon import report
+
+    return report.write_report(
+        paths["metrics"], paths["predictions"], paths["calibration_params"],
+        paths["calibration_spectra"], paths["calibration_history"],
+        accuracy_path=out / "accuracy.csv", summary_path=out / "summary.json",
+        plots_dir=out / "plots", run_name="demo", data_source="virtual_bench",
+        confusion_percent=[0], healthy_state="healthy",
+        evaluation_path=out / "evaluation.csv", evaluation_summary_path=out / "evaluation_summary.csv", **extra)

@@ -16,15 +16,9 @@ def train_outputs(tmp_path_factory):
 
 
 def evaluated_report(paths, out, **extra):
-    """write_report on the fake train outputs with the evaluation tables, into `out`."""
-    return report.write_report(
-        paths["metrics"], paths["predictions"], paths["calibration_params"],
-        paths["calibration_spectra"], paths["calibration_history"],
-        accuracy_path=out / "accuracy.csv", summary_path=out / "summary.json",
-        plots_dir=out / "plots", run_name="demo", data_source="virtual_bench",
-        confusion_percent=[0], healthy_state="healthy",
-        measured_features_path=paths["features_measured"], condition="speed_rpm",
-        evaluation_path=out / "evaluation.csv", evaluation_summary_path=out / "evaluation_summary.csv", **extra)
+    """The report on the fake train outputs with the evaluation tables (per-speed), into `out`."""
+    return fake.write_report(paths, out, measured_features_path=paths["features_measured"], condition="speed_rpm",
+                             **extra)
 
 
 @pytest.fixture(scope="module")

@@ -18,14 +18,7 @@ def train_outputs(tmp_path_factory):
 
 
 def write(paths, out, **extra):
-    return report.write_report(
-        paths["metrics"], paths["predictions"], paths["calibration_params"],
-        paths["calibration_spectra"], paths["calibration_history"],
-        accuracy_path=out / "accuracy.csv", summary_path=out / "summary.json",
-        plots_dir=out / "plots", run_name="demo", data_source="virtual_bench",
-        confusion_percent=[0], healthy_state="healthy",
-        evaluation_path=out / "evaluation.csv", evaluation_summary_path=out / "evaluation_summary.csv",
-        headline_path=out / "headline.csv", **extra)
+    return fake.write_report(paths, out, headline_path=out / "headline.csv", **extra)
 
 
 def expected_means(accuracy_csv) -> dict:
