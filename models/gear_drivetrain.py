@@ -204,6 +204,9 @@ class GearDrivetrainParameters:
     spall_profile: tuple = (0.35, 0.65)
     spall_face: tuple = (0.25, 0.75)
     spall_depth: float = 2.0e-5
+    # missing_tooth: the share of the faulty tooth's active profile broken off, from the tip (1: the
+    # whole tooth is gone; below 1 a fracture across the face, gear_errors.broken_tooth_flank_map)
+    missing_share: float = 1.0
     chip_profile: float = 0.6
     chip_face: tuple = (0.0, 0.5)
     crack_depth: float = 0.5

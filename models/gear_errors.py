@@ -197,6 +197,19 @@ def wear_flank_map(depth: float, roughness: float, rng: np.random.Generator, row
     return FlankMap.of(np.maximum(removed, 0.0))
 
 
+def broken_tooth_flank_map(missing_share: float, slant: float = 0.2, rows: int = 41,
+                            columns: int = 11) -> FlankMap:
+    """A tooth broken off (the gear model's missing tooth short of a whole tooth): the flank above a
+    fracture line is gone (1 mm removed: it never touches). The fracture runs diagonally across the
+    face, as tooth breakage of a helical gear does: at face position f it leaves the profile below
+    roll fraction 1 - `missing_share` + `slant` (f - 0.5), clipped to [0, 1]."""
+    if not 0.0 < missing_share <= 1.0:
+        raise ValueError(f"missing_share {missing_share}: the share of the profile lost lies in (0, 1]")
+    roll, face = np.meshgrid(np.linspace(0, 1, rows), np.linspace(0, 1, columns), indexing="ij")
+    fracture = np.clip(1.0 - missing_share + slant * (face - 0.5), 0.0, 1.0)
+    return FlankMap.of(np.where(roll >= fracture, 1.0e-3, 0.0))
+
+
 def pitted_flank_map(pit_depth: float, pitted_area: float, rng: np.random.Generator, rows: int = 31,
                      columns: int = 16) -> FlankMap:
     """Pitting of a flank (the gear model's other surface fault): craters in the dedendum, where

@@ -32,7 +32,7 @@ import math
 import numpy as np
 
 from condmon.models.contact_laws import hysteresis_factor
-from condmon.models.gear_errors import add_flank_maps, pitted_flank_map, wear_flank_map
+from condmon.models.gear_errors import add_flank_maps, broken_tooth_flank_map, pitted_flank_map, wear_flank_map
 from condmon.models.gear_mesh import GearMesh, ProfileDeviation, ToothDamage
 from condmon.models.numerics import SimulationError
 
@@ -52,12 +52,17 @@ MAX_DEFLECTION = 1.0e-3  # m; a mesh deflection beyond this is divergence
 EDGE_CONTACT = 0.02      # a pair stiffness at its window's edge above this share of the peak: extended contact
 
 
+def whole_tooth_missing(p) -> bool:
+    return p.health_state == "missing_tooth" and p.missing_share >= 1.0
+
+
 def tooth_damage(p) -> ToothDamage | None:
-    """The health state of `p` as tooth geometry (None when healthy or a pure stiffness loss)."""
+    """The health state of `p` as tooth geometry (None when healthy, a pure stiffness loss or a
+    flank map: surface wear and pitting, a tooth broken off short of its root)."""
     if p.health_state not in HEALTH_STATES:
         raise ValueError(f"unknown health state {p.health_state!r}; choose one of {list(HEALTH_STATES)}")
     tooth = p.faulty_tooth
-    if p.health_state == "missing_tooth":
+    if whole_tooth_missing(p):
         return ToothDamage("missing", teeth=(tooth,))
     if p.health_state == "spall":
         # the pit: `spall_depth` below the flank, its pitted surface softer like a surface fault
@@ -98,7 +103,11 @@ def contact_stiffness_factors(p) -> list[float]:
 def flank_maps(p) -> tuple:
     """Every pinion tooth's flank map: the manufacturing deviations `flank_maps_pinion` plus, for a
     surface fault by wear or pitting, the damage of its teeth (each tooth its own surface, from
-    `wear_seed`)."""
+    `wear_seed`), or for a tooth broken off short of its root (`missing_share` < 1) the part gone."""
+    if p.health_state == "missing_tooth" and not whole_tooth_missing(p):
+        damage = [None] * p.geometry.teeth_pinion
+        damage[p.faulty_tooth % p.geometry.teeth_pinion] = broken_tooth_flank_map(p.missing_share)
+        return add_flank_maps(tuple(p.flank_maps_pinion), tuple(damage))
     form = surface_fault_form(p)
     if p.health_state != "surface_fault" or form not in ("wear", "pitting"):
         return tuple(p.flank_maps_pinion)
@@ -182,7 +191,7 @@ class MeshForce:
             z1, z2 = p.geometry.teeth_pinion, p.geometry.teeth_gear
             mean = [0.0 if m is None else float(m.array().mean()) for m in maps]
             self.pair_pitch_error = [e - mean[j % z1] for j, e in enumerate(self.pair_pitch_error)]
-        if p.health_state == "missing_tooth":
+        if whole_tooth_missing(p):
             self.stiffness_factor[p.faulty_tooth % self.teeth] = 0.0
         elif p.health_state in ("chipped_tooth", "root_crack", "spall"):
             tvms = GearMesh(p.geometry, slices=p.helix_slices, damage=tooth_damage(p))

@@ -201,3 +201,22 @@ def test_pitting_craters_the_dedendum_and_either_form_is_drawn():
     assert [i for i, m in enumerate(maps) if m is not None] == [0, 1, 2]
     with pytest.raises(ValueError, match="unknown surface_fault_model"):
         surface_fault_form(p.replace(surface_fault_model="rust"))
+
+
+def test_a_tooth_broken_short_of_its_root_is_a_flank_map_and_a_whole_one_is_missing():
+    """missing_tooth with missing_share < 1: the part above a diagonal fracture is gone (a flank
+    map of the faulty tooth); at 1 the whole tooth is missing (tooth geometry, no map)."""
+    from condmon.models.gear_errors import broken_tooth_flank_map
+    from condmon.models.mesh_force import flank_maps, tooth_damage
+
+    gone = broken_tooth_flank_map(0.6).array() > 0
+    assert gone.mean() == pytest.approx(0.6, abs=0.05)
+    assert gone[-1].all() and not gone[0].any()            # the tip is gone, the root stays
+    assert gone[:, 0].sum() > gone[:, -1].sum()             # the fracture runs across the face
+    with pytest.raises(ValueError, match="missing_share"):
+        broken_tooth_flank_map(0.0)
+    broken = GearDrivetrainParameters(health_state="missing_tooth", missing_share=0.6, faulty_tooth=3)
+    maps = flank_maps(broken)
+    assert tooth_damage(broken) is None and maps[3] is not None and sum(m is not None for m in maps) == 1
+    whole = broken.replace(missing_share=1.0)
+    assert tooth_damage(whole).kind == "missing" and flank_maps(whole) == ()

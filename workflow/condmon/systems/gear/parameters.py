@@ -60,7 +60,8 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
     - slow sinusoidal speed and load fluctuations (`model.variability`: amplitude uniform up to
       the configured one, frequency uniform in its range, random phase);
     - the severity of its faults (`model.fault_severity`: the wear depth, the pits' depth and
-      pitted area, the spall's depth and the root crack's depth, each uniform in its range) and the
+      pitted area, the spall's depth, the root crack's depth and the share of a broken tooth's
+      profile that is gone, each uniform in its range) and the
       damaged surfaces' seed (its parity picks wear or pitting under `wear_or_pitting`);
     - the mesh phase the run starts at, uniform over the gear pair's full cycle (a measurement
       starts at any shaft angle: where the damaged tooth passes within a segment varies)."""
@@ -94,4 +95,5 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
         wear_seed=int(rng.integers(2 ** 31)),
         # the record starts at any shaft angle of both gears (drawn last: the draws above stay as they were)
         start_mesh_phase=uniform(0.0, math.lcm(geometry.teeth_pinion, geometry.teeth_gear)),
+        missing_share=uniform(*severity["missing_share"]),
     )
