@@ -103,6 +103,7 @@ class SignalModel:
         domain, rows = self.domain, []
         speeds = np.asarray(domain["speeds_rpm"], float)
         tolerance = float(domain.get("speed_tolerance", SPEED_TOLERANCE))
+        reference = self.reference()  # built once, not per record
         for record_id, records in frame.groupby("record_id", sort=True):
             fs = float(records["fs_hz"].iloc[0])
             if not np.isclose(fs, domain["fs_hz"], rtol=1e-9):
@@ -116,7 +117,6 @@ class SignalModel:
             if lengths != [domain["n_samples"]]:
                 rows.append((record_id, f"segments of {lengths} samples; the model was trained on "
                                         f"{domain['n_samples']} ({domain['n_samples'] / domain['fs_hz']:g} s)"))
-            reference = self.reference()
             if reference is not None:
                 condition, table = reference
                 value = float(records[condition].iloc[0])
