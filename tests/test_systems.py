@@ -272,6 +272,24 @@ def test_a_systems_own_simulation_knob_reruns_its_simulations_only_and_never_ano
     assert "unknown key model" in planned_rules(workdir, run, knob)  # a CWRU run has no gear knob
 
 
+def test_the_benchs_records_never_move_with_the_models_step():
+    """The virtual bench stands for a real machine: it samples at virtual_bench.oversampling, so
+    the model's numerics.oversampling reaches neither its job's params nor its records."""
+    short = {"virtual_bench": {"records_per_state": 1, "record_seconds": 0.3}}
+    records = []
+    for oversampling in (6, 10):
+        system = get_system(config_of("config/smoke.yaml", {**short, "numerics": {"oversampling": oversampling}}))
+        assert "oversampling" not in system.job_spec("bench")["config"]["numerics"]
+        records.append(pd.DataFrame(system.measured_part_rows("healthy_450rpm")))
+    coarse, fine = records
+    pd.testing.assert_frame_equal(coarse.drop(columns="signal"), fine.drop(columns="signal"))
+    assert np.array_equal(np.stack(coarse["signal"]), np.stack(fine["signal"]))
+    finer = get_system(config_of("config/smoke.yaml", {**short, "virtual_bench": {**short["virtual_bench"],
+                                                                                  "oversampling": 12}}))
+    assert not np.allclose(np.stack(pd.DataFrame(finer.measured_part_rows("healthy_450rpm"))["signal"]),
+                           np.stack(records[0]["signal"]))
+
+
 def test_each_system_checks_its_own_costs_variants_and_bounds():
     """The costs, model variants and parameter checks are the system's: the shared layer names none."""
     with pytest.raises(ConfigError, match=r"calibration.cost: 'features_eq6' is not a cost of the gear system"):

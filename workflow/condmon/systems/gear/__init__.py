@@ -117,8 +117,10 @@ class GearSystem(System):
         if stage != "bench":
             config.pop("virtual_bench", None)  # the hidden truth reaches the bench jobs only
         if stage == "bench":
-            # the bench's mesh is virtual_bench.true_parameters.mesh_stiffness_model, not the model's
+            # the bench's mesh is virtual_bench.true_parameters.mesh_stiffness_model, not the model's,
+            # and its sensor rate virtual_bench.oversampling
             config["model"] = {k: v for k, v in config["model"].items() if k != "mesh_stiffness_model"}
+            config["numerics"] = {k: v for k, v in config["numerics"].items() if k != "oversampling"}
         elif stage == "calibrate":
             config["model"] = dict(config["model"], mesh_stiffness_model=variant)
         elif stage == "measured":
@@ -179,8 +181,9 @@ class GearSystem(System):
         from condmon.systems.gear.bench import virtual_bench_rows
 
         health, speed = part.rsplit("_", 1)
-        return virtual_bench_rows(self.parameters, self.config["virtual_bench"], [health],
-                                  [float(speed.removesuffix("rpm"))], self.numerics,
+        bench = self.config["virtual_bench"]
+        return virtual_bench_rows(self.parameters, bench, [health], [float(speed.removesuffix("rpm"))],
+                                  dict(self.numerics, oversampling=bench["oversampling"]),
                                   self.config["rig"]["segment_seconds"])
 
     def bench_effects(self) -> list[str]:
