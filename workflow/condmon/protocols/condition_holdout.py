@@ -1,8 +1,8 @@
 """condition_holdout: each condition in turn is held out whole as the test set; the training
 share is drawn per stratum from the other conditions' records, and the records not drawn are
 "unused" (neither trained on nor tested; every record still has a row). With `condition_split`
-({train: [...], test: [...]}, a benchmark's split such as pdm-bench's cwru_cross_load) there is
-one holdout: the test conditions test, the share trains from the train conditions, other
+({train: [...], test: [...]}, a benchmark's fixed split of the conditions) there is one
+holdout: the test conditions test, the share trains from the train conditions, other
 conditions are unused; a listed condition the measured records lack is an error naming it.
 
 The held-out conditions supply the test set, so no record of the other conditions stays back

@@ -1,5 +1,5 @@
-"""segment_share: the bearing study's protocol: per health state, a share of all its measured
-segments trains and the rest tests (at least max(1, min_test_records)). Segments of one record
+"""segment_share: a published study's protocol, kept for comparison: per health state, a share
+of all its measured segments trains and the rest tests (at least max(1, min_test_records)). Segments of one record
 land on both sides (leaky: the report labels its numbers so)."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""specimen_holdout: each specimen group (CWRU: fault size) in turn tests whole, at every
+"""specimen_holdout: each specimen group (e.g. a fault size) in turn tests whole, at every
 condition; the share trains from the other groups' records (the rest unused); healthy records
 always test, so no specimen is on both sides."""
 from __future__ import annotations
@@ -22,7 +22,8 @@ class SpecimenHoldout(Protocol):
                          healthy_state)
         if specimens is None or not {"record_id", "specimen", "specimen_group"} <= set(specimens):
             raise SplitError("specimen_holdout needs the specimen and specimen_group of every "
-                             "measured record (measured/records.csv: the CWRU reader writes them)")
+                             "measured record (measured/records.csv: the system's measured "
+                             "stage writes them where it knows them)")
         self.specimens = specimens
         self.group_of: dict[str, str] = {}
 
