@@ -17,7 +17,7 @@ from condmon.classifiers import make_classifier
 from condmon.cnn import (CNNConfigError, CNNEnsembleClassifier, channels_from_feature_names,
                          validation_split)
 from condmon.features import write_feature_table
-from condmon.hybrid import make_splits
+from condmon.protocols import make_splits
 from condmon.train import (HISTORY_FILE, PREDICTION_COLUMNS, run_protocol, train_info,
                            write_metrics, write_models, write_predictions)
 
@@ -192,7 +192,7 @@ def test_bad_parameters_are_named(params, message):
 # -- train stage ------------------------------------------------------------------------------
 def test_run_protocol_with_a_subset_uncertainty_and_history(tmp_path):
     splits = make_splits(MEASURED[["record_id", "health_state", "speed_rpm"]],
-                         "condition_holdout", [0, 50, 100], 2, seed=3)
+                         "condition_holdout", measured_percent=[0, 50, 100], repeats=2, seed=3)
     predictions, metrics, models = run_protocol("cnn", SMALL, SIMULATED, MEASURED, splits,
                                                 FEATURES, seed=1, measured_percent=[0, 100],
                                                 repeats=1)
@@ -216,7 +216,7 @@ def test_run_protocol_with_a_subset_uncertainty_and_history(tmp_path):
 
 def test_subset_errors_name_the_config_key():
     splits = make_splits(MEASURED[["record_id", "health_state", "speed_rpm"]], "record_split",
-                         [0, 50], 1, seed=3)
+                         measured_percent=[0, 50], repeats=1, seed=3)
     with pytest.raises(ValueError, match=r"classifiers.cnn.measured_percent: \[30\].*\[0, 50\]"):
         run_protocol("cnn", SMALL, SIMULATED, MEASURED, splits, FEATURES, 1,
                      measured_percent=[0, 30])
@@ -229,7 +229,7 @@ def test_tracking_logs_curves_and_the_ensemble_as_a_pytorch_model(tmp_path):
     write_feature_table(MEASURED, FEATURES, root / "features/measured.parquet")
     write_feature_table(SIMULATED, FEATURES, root / "features/simulated.parquet")
     splits = make_splits(MEASURED[["record_id", "health_state", "speed_rpm"]], "record_split",
-                         [0], 1, seed=3)
+                         measured_percent=[0], repeats=1, seed=3)
     predictions, metrics, models = run_protocol("cnn", SMALL, SIMULATED, MEASURED, splits,
                                                 FEATURES, seed=1)
     out = root / "train/cnn/record_split"

@@ -5,9 +5,10 @@ import pandas as pd
 import pytest
 
 from conftest import CWRU, DATA_FOLDERS
-from condmon.hybrid import (PROTOCOLS, SPLIT_COLUMNS, SplitError, calibration_frame,
-                            check_healthy_tested, make_splits, measured_layout, n_train_records,
-                            read_split_table, sorted_holdouts, time_blocks, write_split_table)
+from condmon.hybrid import (SPLIT_COLUMNS, SplitError, calibration_frame, measured_layout,
+                            n_train_records, read_split_table, sorted_holdouts, time_blocks,
+                            write_split_table)
+from condmon.protocols import PROTOCOLS, check_healthy_tested, make_splits, protocol_from
 from condmon.systems.bearing.cwru import cwru_rows
 
 HEALTH = ("healthy", "surface_fault", "missing_tooth")
@@ -35,7 +36,7 @@ def train_sets(splits):
 
 
 def test_columns_and_types():
-    splits = make_splits(RECORDS, "record_split", [0, 50], repeats=2, seed=1)
+    splits = make_splits(RECORDS, "record_split", measured_percent=[0, 50], repeats=2, seed=1)
     assert list(splits.columns) == SPLIT_COLUMNS
     assert str(splits.measured_percent.dtype) == "int32"
     assert str(splits.repeat.dtype) == "int32"
@@ -45,7 +46,7 @@ def test_columns_and_types():
 
 
 def test_every_record_once_per_split_and_never_on_both_sides():
-    splits = make_splits(RECORDS, "record_split", PERCENTS, repeats=3, seed=7)
+    splits = make_splits(RECORDS, "record_split", measured_percent=PERCENTS, repeats=3, seed=7)
     for _, group in splits.groupby(["measured_percent", "repeat", "holdout"]):
         assert sorted(group.record_id) == sorted(RECORDS.record_id)
         train = set(group.record_id[group.role == "train"])
@@ -55,7 +56,7 @@ def test_every_record_once_per_split_and_never_on_both_sides():
 
 @pytest.mark.parametrize("min_test", [1, 2])
 def test_record_split_shares_per_stratum(min_test):
-    splits = make_splits(RECORDS, "record_split", PERCENTS, repeats=2, seed=3,
+    splits = make_splits(RECORDS, "record_split", measured_percent=PERCENTS, repeats=2, seed=3,
                          min_test_records=min_test)
     splits = splits.assign(stratum=splits.record_id.map(STRATUM))
     for (percent, _, stratum), group in splits.groupby(["measured_percent", "repeat", "stratum"]):
@@ -79,7 +80,7 @@ def test_n_train_records_rounds_half_up_and_caps():
 
 @pytest.mark.parametrize("protocol", ["record_split", "condition_holdout"])
 def test_training_sets_are_nested_across_percentages(protocol):
-    splits = make_splits(RECORDS, protocol, PERCENTS, repeats=3, seed=11)
+    splits = make_splits(RECORDS, protocol, measured_percent=PERCENTS, repeats=3, seed=11)
     sets = train_sets(splits)
     for (percent, repeat, holdout), train in sets.items():
         for higher in PERCENTS:
@@ -89,7 +90,7 @@ def test_training_sets_are_nested_across_percentages(protocol):
 
 
 def test_condition_holdout_tests_a_whole_speed_and_never_trains_on_it():
-    splits = make_splits(RECORDS, "condition_holdout", PERCENTS, repeats=2, seed=5)
+    splits = make_splits(RECORDS, "condition_holdout", measured_percent=PERCENTS, repeats=2, seed=5)
     speed = splits.record_id.map(RECORDS.set_index("record_id").speed_rpm)
     assert sorted_holdouts(splits.holdout) == ["speed_rpm=450", "speed_rpm=775", "speed_rpm=1100"]
     for (percent, repeat, holdout), group in splits.assign(speed=speed).groupby(
@@ -105,11 +106,12 @@ def test_condition_holdout_tests_a_whole_speed_and_never_trains_on_it():
 
 
 def test_same_seed_same_splits_other_seed_other_splits():
-    one = make_splits(RECORDS, "record_split", [50], repeats=2, seed=42)
-    again = make_splits(RECORDS.sample(frac=1, random_state=0), "record_split", [50],
+    one = make_splits(RECORDS, "record_split", measured_percent=[50], repeats=2, seed=42)
+    again = make_splits(RECORDS.sample(frac=1, random_state=0), "record_split",
+                        measured_percent=[50],
                         repeats=2, seed=42)  # input row order must not matter
     pd.testing.assert_frame_equal(one, again)
-    other = make_splits(RECORDS, "record_split", [50], repeats=2, seed=43)
+    other = make_splits(RECORDS, "record_split", measured_percent=[50], repeats=2, seed=43)
     assert train_sets(one) != train_sets(other)
     sets = train_sets(one)
     assert sets[(50, 0, "")] != sets[(50, 1, "")]  # repeats differ
@@ -118,15 +120,18 @@ def test_same_seed_same_splits_other_seed_other_splits():
 def test_a_new_stratum_does_not_reshuffle_the_others():
     extra = pd.DataFrame({"record_id": [f"aaa_{i}" for i in range(5)], "health_state": "aaa",
                           "speed_rpm": 450.0})
-    before = train_sets(make_splits(RECORDS, "record_split", [50], repeats=1, seed=2))
-    after = train_sets(make_splits(pd.concat([RECORDS, extra]), "record_split", [50],
+    before = train_sets(make_splits(RECORDS, "record_split", measured_percent=[50], repeats=1,
+                                    seed=2))
+    after = train_sets(make_splits(pd.concat([RECORDS, extra]), "record_split",
+                                   measured_percent=[50],
                                    repeats=1, seed=2))
     assert after[(50, 0, "")] - {f"aaa_{i}" for i in range(5)} == before[(50, 0, "")]
 
 
 def test_same_records_train_in_both_protocols():
-    split = train_sets(make_splits(RECORDS, "record_split", [50], repeats=1, seed=9))
-    holdout = train_sets(make_splits(RECORDS, "condition_holdout", [50], repeats=1, seed=9))
+    same = dict(measured_percent=[50], repeats=1, seed=9)
+    split = train_sets(make_splits(RECORDS, "record_split", **same))
+    holdout = train_sets(make_splits(RECORDS, "condition_holdout", **same))
     # The single-record stratum differs by design: record_split keeps it for testing,
     # condition_holdout (tested on another speed) may train on it.
     not_450 = {rid for rid in split[(50, 0, "")] if STRATUM[rid][1] != 450.0}
@@ -137,8 +142,9 @@ def test_same_records_train_in_both_protocols():
 
 def test_per_segment_rows_are_accepted():
     per_segment = pd.concat([RECORDS, RECORDS, RECORDS])
-    pd.testing.assert_frame_equal(make_splits(per_segment, "record_split", [25], 1, 0),
-                                  make_splits(RECORDS, "record_split", [25], 1, 0))
+    same = dict(measured_percent=[25], repeats=1, seed=0)
+    pd.testing.assert_frame_equal(make_splits(per_segment, "record_split", **same),
+                                  make_splits(RECORDS, "record_split", **same))
 
 
 @pytest.mark.parametrize("percents, culprit", [
@@ -146,18 +152,18 @@ def test_per_segment_rows_are_accepted():
     ([10, 10], r"\[10\]"), ([], "empty")])
 def test_bad_percentages_are_named(percents, culprit):
     with pytest.raises(SplitError, match=culprit):
-        make_splits(RECORDS, "record_split", percents, repeats=1, seed=0)
+        make_splits(RECORDS, "record_split", measured_percent=percents, repeats=1, seed=0)
 
 
 def test_unknown_protocol_lists_the_allowed_ones():
     with pytest.raises(SplitError, match=r"'segment_shuffle'.*record_split.*condition_holdout"):
-        make_splits(RECORDS, "segment_shuffle", [10], repeats=1, seed=0)
+        make_splits(RECORDS, "segment_shuffle", measured_percent=[10], repeats=1, seed=0)
 
 
 def test_condition_holdout_needs_two_speeds():
     one_speed = RECORDS[RECORDS.speed_rpm == 775.0]
     with pytest.raises(SplitError, match=r"only speed_rpm \['775'\]"):
-        make_splits(one_speed, "condition_holdout", [10], repeats=1, seed=0)
+        make_splits(one_speed, "condition_holdout", measured_percent=[10], repeats=1, seed=0)
 
 
 @pytest.mark.parametrize("kwargs, culprit", [
@@ -166,18 +172,18 @@ def test_bad_integers_are_named(kwargs, culprit):
     settings = dict(repeats=1, seed=0, min_test_records=1)
     settings.update(kwargs)
     with pytest.raises(SplitError, match=culprit):
-        make_splits(RECORDS, "record_split", [10], **settings)
+        make_splits(RECORDS, "record_split", measured_percent=[10], **settings)
 
 
 def test_record_with_two_labels_is_named():
     bad = pd.concat([RECORDS, pd.DataFrame([{"record_id": "healthy_450_00",
                                              "health_state": "crack", "speed_rpm": 450.0}])])
     with pytest.raises(SplitError, match="healthy_450_00"):
-        make_splits(bad, "record_split", [10], repeats=1, seed=0)
+        make_splits(bad, "record_split", measured_percent=[10], repeats=1, seed=0)
 
 
 def test_split_table_roundtrip(tmp_path):
-    splits = make_splits(RECORDS, "condition_holdout", [0, 50], repeats=2, seed=1)
+    splits = make_splits(RECORDS, "condition_holdout", measured_percent=[0, 50], repeats=2, seed=1)
     path = tmp_path / "hybrid" / "condition_holdout.parquet"
     write_split_table(splits, path)
     pd.testing.assert_frame_equal(read_split_table(path), splits)
@@ -193,7 +199,8 @@ def bearing_segments():
 
 def test_segment_share_splits_segments_per_class():
     segments = bearing_segments()
-    splits = make_splits(segments, "segment_share", [0, 30, 100], repeats=2, seed=4)
+    splits = make_splits(segments, "segment_share", measured_percent=[0, 30, 100], repeats=2,
+                         seed=4)
     assert list(splits.columns) == SPLIT_COLUMNS and (splits.segment >= 0).all()
     per_class = splits.merge(segments[["record_id", "segment", "health_state"]])
     for (percent, _, health), group in per_class.groupby(["measured_percent", "repeat",
@@ -209,7 +216,7 @@ def test_segment_share_splits_segments_per_class():
 def test_unseen_fault_trains_only_measured_classes():
     records = pd.DataFrame([(f"{h}-{i}", h, 1797.0) for h in ("normal", "ball", "inner_race")
                             for i in range(4)], columns=["record_id", "health_state", "speed_rpm"])
-    splits = make_splits(records, "unseen_fault", [0, 50, 100], repeats=1, seed=0,
+    splits = make_splits(records, "unseen_fault", measured_percent=[0, 50, 100], repeats=1, seed=0,
                          measured_classes=["normal"])
     health = splits.record_id.str.split("-").str[0]
     assert set(splits.role) <= {"train", "test"}
@@ -217,18 +224,20 @@ def test_unseen_fault_trains_only_measured_classes():
     trained = splits[splits.role == "train"].groupby("measured_percent").size()
     assert trained.get(0, 0) == 0 and trained[50] == 2 and trained[100] == 4
     with pytest.raises(SplitError, match="measured_classes"):
-        make_splits(records, "unseen_fault", [0], repeats=1, seed=0)
+        make_splits(records, "unseen_fault", measured_percent=[0], repeats=1, seed=0)
 
 
 def test_condition_holdout_by_load():
     segments = bearing_segments()
-    splits = make_splits(segments, "condition_holdout", [100], repeats=1, seed=0, condition="load")
+    splits = make_splits(segments, "condition_holdout", measured_percent=[100], repeats=1, seed=0,
+                         condition="load")
     assert sorted(set(splits.holdout)) == ["load=0", "load=1"]
     held = splits[splits.holdout == "load=1"]
     assert set(held.record_id[held.role == "test"]) == {"normal-1", "inner_race-1", "outer_race-1"}
     assert set(held.record_id[held.role == "train"]) == {"normal-0", "inner_race-0", "outer_race-0"}
     # per-record speeds differ within a load: strata by load keep one stratum per class and load
-    split = make_splits(segments, "record_split", [0], repeats=1, seed=0, condition="load")
+    split = make_splits(segments, "record_split", measured_percent=[0], repeats=1, seed=0,
+                        condition="load")
     assert (split.role == "test").all() and split.record_id.nunique() == 6
 
 
@@ -236,10 +245,13 @@ def test_condition_holdout_by_load():
 RESERVE = {"records": [], "calibration_segments": 4, "guard_segments": 1, "blocks": 2}
 
 
-def with_healthy(protocol, segments, **kwargs):
-    return make_splits(segments, protocol, [0, 30, 60, 100], repeats=2, seed=5, condition="load",
-                       measured_classes=["normal"] if protocol == "unseen_fault" else None,
-                       healthy_state="normal", **kwargs)
+def with_healthy(protocol, segments, reserve=None, segment_samples=None, **offered):
+    """The splits of the bearing study's settings; each protocol takes the parameters of
+    `offered` it knows (specimens, condition_split), as the hybrid rule's script does."""
+    chosen = protocol_from(protocol, dict(measured_percent=[0, 30, 60, 100], repeats=2, seed=5,
+                                          condition="load", measured_classes=["normal"],
+                                          healthy_state="normal", **offered))
+    return make_splits(segments, chosen, reserve=reserve, segment_samples=segment_samples)
 
 
 def test_a_lone_healthy_record_is_split_in_time_with_guard_gaps():

@@ -18,8 +18,9 @@ from sklearn.base import BaseEstimator
 from conftest import config_of
 from condmon import train
 from condmon.config import ConfigError
-from condmon.hybrid import (SIMULATED_VALIDATION, SplitError, make_splits, n_validation_records,
+from condmon.hybrid import (SIMULATED_VALIDATION, SplitError, n_validation_records,
                             read_split_table, simulated_validation_records, write_split_table)
+from condmon.protocols import make_splits
 from condmon.train import (METRIC_COLUMNS, SIMULATED_VALIDATION_COLUMNS, fit_and_evaluate,
                            run_protocol)
 
@@ -54,8 +55,8 @@ ID = ["record_id", "segment", "health_state", "speed_rpm"]
 
 
 def splits(protocol="record_split", share=0.3, seed=11, simulated=SIMULATED, **kwargs):
-    return make_splits(MEASURED[ID], protocol, kwargs.pop("percents", [0, 50]),
-                       kwargs.pop("repeats", 2), seed,
+    return make_splits(MEASURED[ID], protocol, measured_percent=kwargs.pop("percents", [0, 50]),
+                       repeats=kwargs.pop("repeats", 2), seed=seed,
                        simulated_records=None if simulated is None else simulated[ID],
                        simulated_validation_share=share, **kwargs)
 
@@ -69,7 +70,8 @@ def held_out(table):
 
 # -- the held-out records ----------------------------------------------------------------------
 def test_share_zero_gives_the_measured_split_table_unchanged():
-    plain = make_splits(MEASURED[ID], "condition_holdout", [0, 50], 2, 11)
+    plain = make_splits(MEASURED[ID], "condition_holdout", measured_percent=[0, 50], repeats=2,
+                        seed=11)
     pd.testing.assert_frame_equal(splits("condition_holdout", share=0.0), plain)
     pd.testing.assert_frame_equal(splits("condition_holdout", share=0.0, simulated=None), plain)
     assert simulated_validation_records(SIMULATED[ID], 0.0, seed=11) == []
@@ -138,7 +140,8 @@ def test_split_table_roundtrip_and_errors(tmp_path):
     with pytest.raises(SplitError, match="both measured and simulated"):
         splits(simulated=MEASURED)
     with pytest.raises(SplitError, match="needs the simulated records"):
-        make_splits(MEASURED[ID], "record_split", [0], 1, 0, simulated_validation_share=0.3)
+        make_splits(MEASURED[ID], "record_split", measured_percent=[0], repeats=1, seed=0,
+                    simulated_validation_share=0.3)
 
 
 # -- training without them, evaluating on them -------------------------------------------------

@@ -8,8 +8,8 @@ import pytest
 from condmon.baselines import physics_predictions
 from condmon.features import statistical_feature_table
 from conftest import system_of
-from condmon.hybrid import make_splits
 from condmon.models.bearing_rig import BearingRigParameters, RigSettings, simulate_rig
+from condmon.protocols import make_splits
 from condmon.signals import make_rows
 from condmon.systems.bearing import BearingSystem
 
@@ -81,7 +81,8 @@ def test_the_threshold_comes_from_calibration_segments_only(records):
     # a second faulty record, so the split has something to test besides the healthy block
     measured = pd.concat([measured, outer.assign(record_id="outer2", load=0.0)], ignore_index=True)
     splits = make_splits(measured[["record_id", "segment", "health_state", "load"]],
-                         "unseen_fault", [0], 1, 0, condition="load", measured_classes=["normal"],
+                         "unseen_fault", measured_percent=[0], repeats=1, seed=0, condition="load",
+                         measured_classes=["normal"],
                          healthy_state="normal", reserve=reserve)
     names = [c for c in measured.columns if c.startswith("DE_")]
     rules = bearing_system().physics_baselines(names)

@@ -16,7 +16,8 @@ from sklearn.svm import SVC
 
 from condmon.classifiers import make_classifier
 from condmon.features import read_feature_table
-from condmon.hybrid import make_splits, read_split_table
+from condmon.hybrid import read_split_table
+from condmon.protocols import make_splits
 from condmon.signals import ID_COLUMNS, make_rows, write_signal_table
 from condmon.selection import selected_features
 from condmon.train import (METRIC_COLUMNS, PREDICTION_COLUMNS, model_filename, run_protocol,
@@ -55,7 +56,7 @@ MEASURED = synthetic_features("measured", n_records=6, n_segments=4, seed=2)
 
 def splits_for(measured, protocol="record_split", percents=(0, 50), repeats=2, seed=0, **kwargs):
     return make_splits(measured[["record_id", "segment", "health_state", "speed_rpm"]], protocol,
-                       list(percents), repeats, seed, **kwargs)
+                       measured_percent=list(percents), repeats=repeats, seed=seed, **kwargs)
 
 
 # -- classifiers -----------------------------------------------------------------------------

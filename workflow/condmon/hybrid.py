@@ -10,34 +10,15 @@ An operating condition is the value of the `condition` column (speed_rpm on the 
 load on the CWRU rig, whose records at one load differ by a few rpm). Strata are
 (health_state x condition).
 
-Protocols
-- record_split: per stratum a share of whole records trains, the rest tests; at least
-  `min_test_records` per stratum stay in the test set.
-- condition_holdout: each condition in turn is held out whole as the test set; the training
-  share is drawn per stratum from the other conditions' records. Records of the other conditions
-  that are not drawn get the role "unused" (neither trained on nor tested), so every record
-  still has a row. With `condition_split` ({train: [...], test: [...]}, a benchmark's split such
-  as pdm-bench's cwru_cross_load) there is one holdout: the test conditions test, the share
-  trains from the train conditions, other conditions are unused; a listed condition the
-  measured records lack is an error naming it.
-- segment_share: the bearing study's protocol: per health state, a share of all its measured
-  segments trains and the rest tests. Segments of one record land on both sides (leaky: the
-  report labels its numbers so).
-- unseen_fault: only the `measured_classes` (e.g. healthy) have measured records in training:
-  per stratum of those classes a share of whole records trains (the healthy state keeps
-  `min_test_records` back); every other record tests, so every other class is learnt from
-  simulation alone.
-- specimen_holdout: each specimen group (CWRU: fault size) in turn tests whole, at every
-  condition; the share trains from the other groups; healthy records always test, so no
-  specimen is on both sides.
+The split table's format (SPLIT_SCHEMA, roles, validate/read/write), the measured layout (the
+calibration set, time blocks of a lone healthy record: measured_layout, calibration_frame) and
+the simulated validation set live here; the protocols that fill the table, one file each, and
+`make_splits` are in condmon.protocols (a Protocol's `split` says why each record is where it is).
 
-With `healthy_state` every test set holds healthy data (false alarms are measured). With
-`reserve` (calibration.reserve) the calibration set is cut out first (measured_layout): role
-"calibration" in every split; a lone healthy record's time blocks are split like records.
-
-The record order within a stratum is a random permutation seeded by (seed, repeat, stratum) only,
-and the first n_train records of it train. So a higher percentage's training set contains the
-lower one's (nested shares), and both protocols draw the same records from a stratum.
+The record order within a stratum is a random permutation seeded by (seed, repeat, stratum) only
+(condmon.protocols.base.stratum_orders), and the first n_train records of it train. So a higher
+percentage's training set contains the lower one's (nested shares), and the protocols draw the
+same records from a stratum.
 
 Simulated validation (the CFRP study's 70/30 split of the simulated data): per simulated stratum
 (health_state x condition) round(share x n) whole records, drawn by a permutation seeded by
@@ -143,155 +124,6 @@ def unique_records(records: pd.DataFrame, condition: str = "speed_rpm",
     records = records.rename(columns={condition: "condition"}).astype(
         {"record_id": str, "health_state": str, "condition": float})
     return records.sort_values("record_id").reset_index(drop=True)
-
-
-def _check_arguments(protocol, measured_percent, repeats, seed, min_test_records) -> list[int]:
-    if protocol not in PROTOCOLS:
-        raise SplitError(f"unknown protocol {protocol!r}; choose one of {list(PROTOCOLS)}")
-    percents = []
-    for value in measured_percent:
-        try:
-            valid = not isinstance(value, bool) and float(value).is_integer() and 0 <= value <= 100
-        except (TypeError, ValueError):
-            valid = False
-        if not valid:
-            raise SplitError(f"measured_percent {value!r} is not a whole number in 0..100")
-        percents.append(int(value))
-    if not percents:
-        raise SplitError("measured_percent is empty")
-    duplicates = sorted({p for p in percents if percents.count(p) > 1})
-    if duplicates:
-        raise SplitError(f"measured_percent lists {duplicates} more than once")
-    for name, value, low in (("repeats", repeats, 1), ("seed", seed, 0),
-                             ("min_test_records", min_test_records, 0)):
-        if isinstance(value, bool) or int(value) != value or value < low:
-            raise SplitError(f"{name} must be an integer >= {low}, got {value!r}")
-    return sorted(percents)
-
-
-def stratum_orders(records: pd.DataFrame, seed: int, repeat: int) -> dict[tuple, list[str]]:
-    """Per stratum (health_state, condition): its record ids in this repeat's random order.
-
-    Seeded by (seed, repeat, stratum) only, so the order is the same at every percentage and
-    holdout, and adding a stratum does not reshuffle the others.
-    """
-    orders = {}
-    for (health, value), group in records.groupby(["health_state", "condition"], sort=True):
-        ids = sorted(group["record_id"])  # start from a fixed order: input row order is irrelevant
-        rng = np.random.default_rng(
-            derive_seed(seed, repeat, stable_int(f"{health}|{format_speed(value)}")))
-        orders[(health, value)] = [ids[i] for i in rng.permutation(len(ids))]
-    return orders
-
-
-def class_segment_orders(segments: pd.DataFrame, seed: int, repeat: int) -> dict[str, list]:
-    """Per health state: its (record_id, segment) pairs in this repeat's random order."""
-    orders = {}
-    for health, group in segments.groupby("health_state", sort=True):
-        pairs = sorted(zip(group["record_id"].astype(str), group["segment"].astype(int)))
-        rng = np.random.default_rng(derive_seed(seed, repeat, stable_int(f"segments|{health}")))
-        orders[health] = [pairs[i] for i in rng.permutation(len(pairs))]
-    return orders
-
-
-def make_splits(records: pd.DataFrame, protocol: str, measured_percent, repeats: int, seed: int,
-                min_test_records: int = 1, condition: str = "speed_rpm",
-                measured_classes=None, simulated_records: pd.DataFrame | None = None,
-                simulated_validation_share: float = 0.0, healthy_state: str | None = None,
-                reserve: dict | None = None,
-                specimens: pd.DataFrame | None = None,
-                condition_split: dict | None = None,
-                segment_samples: tuple[int, int] | None = None) -> pd.DataFrame:
-    """The split table for one protocol (columns SPLIT_COLUMNS, one row per record, or per
-    segment for segment_share, and split).
-
-    `records`: record_id, health_state and the `condition` column, one or more rows per record
-    (segment_share needs the `segment` column, one row per segment). `min_test_records`: records
-    per stratum (record_split) or segments per class (segment_share) kept for testing.
-    `measured_classes`: the health states with measured training data under unseen_fault.
-    `simulated_records` (same columns) and `simulated_validation_share` > 0: the held-out
-    simulated records (simulated_validation_records) join every split with role
-    "simulated_validation"; with share 0 the table is exactly the measured one.
-    `healthy_state`: every test set must hold healthy data (false alarms are always measured):
-    each protocol keeps healthy records back for testing, and a split without any is an error.
-    `reserve` (calibration.reserve; needs the `segment` column): the calibration set and the time
-    blocks of lone healthy records (measured_layout); calibration segments get the role
-    "calibration" and guard gaps "unused" in every split, blocks are split like records.
-    `specimens`: record_id, specimen, specimen_group of the measured records (specimen_holdout).
-    `condition_split`: condition_holdout's fixed sides, {train: [values], test: [values]}.
-    `segment_samples`: (segment length, hop) of the measured segments in samples: a record split
-    in time is refused where its guard gap is shorter than one segment (`time_blocks`).
-    """
-    percents = _check_arguments(protocol, measured_percent, repeats, seed, min_test_records)
-    layout = None
-    if reserve is not None:
-        if "segment" not in records.columns:
-            raise SplitError("calibration.reserve needs the segment column of the measured records")
-        layout = measured_layout(records, healthy_state, condition, reserve, segment_samples)
-        free = layout[layout["fixed_role"] == ""]
-        records = (free.assign(record_id=free["unit"]) if protocol != "segment_share" else free)
-        records = records.rename(columns={"condition": condition})
-    unique = unique_records(records, condition)
-    held_out = []
-    if simulated_validation_share:
-        if simulated_records is None:
-            raise SplitError(f"{SHARE_KEY} = {simulated_validation_share} needs the simulated "
-                             "records")
-        held_out = simulated_validation_records(simulated_records, simulated_validation_share,
-                                                seed, condition)
-        both = sorted(set(held_out) & set(unique["record_id"]))
-        if both:
-            raise SplitError(f"record id(s) {both[:5]} are both measured and simulated")
-    if protocol == "segment_share":
-        splits = _segment_share_splits(records, unique, percents, repeats, seed, min_test_records)
-        return with_simulated_validation(_finish(splits, layout, unique, healthy_state), held_out)
-    conditions = sorted(unique["condition"].unique())
-    train_conditions = None
-    if protocol == "condition_holdout" and condition_split:
-        train_conditions, test_conditions = _check_condition_split(condition_split, conditions,
-                                                                   condition)
-    if protocol == "condition_holdout" and len(conditions) < 2:
-        raise SplitError(f"condition_holdout needs at least two values of {condition}; the "
-                         f"measured records have only {condition} "
-                         f"{[format_speed(c) for c in conditions]}")
-    if protocol == "unseen_fault":
-        if not measured_classes:
-            raise SplitError("unseen_fault needs measured_classes: the health states whose "
-                             "measured records may train (e.g. [normal])")
-        absent = sorted(set(measured_classes) - set(unique["health_state"]))
-        if absent:
-            log.warning("unseen_fault: measured class(es) %s have no measured record", absent)
-    sizes = unique.groupby(["health_state", "condition"]).size()
-    small = sizes[sizes <= min_test_records]
-    if protocol == "record_split" and len(small):
-        log.warning("strata with <= min_test_records=%d records never train: %s",
-                    min_test_records, [(h, format_speed(s)) for h, s in small.index])
-
-    group_of = _specimen_groups(unique, specimens, healthy_state) \
-        if protocol == "specimen_holdout" else {}
-    rows = []
-    for repeat in range(int(repeats)):
-        orders = stratum_orders(unique, seed, repeat)
-        for percent in percents:
-            if protocol == "record_split":
-                rows += _record_split_rows(orders, percent, repeat, min_test_records)
-            elif protocol == "unseen_fault":
-                rows += _unseen_fault_rows(orders, percent, repeat, set(measured_classes),
-                                           healthy_state, min_test_records)
-            elif protocol == "specimen_holdout":
-                for group in sorted({g for g in group_of.values() if g}):
-                    rows += _specimen_rows(orders, percent, repeat, group, group_of)
-            else:
-                healthy_there = {value for health, value in orders if health == healthy_state}
-                tested_conditions = ([test_conditions] if train_conditions is not None else
-                                     [[value] for value in conditions])
-                for values in tested_conditions:
-                    keep = (max(1, min_test_records) if healthy_state is not None
-                            and not healthy_there & set(values) else 0)
-                    rows += _holdout_rows(orders, percent, repeat, values, condition,
-                                          healthy_state, keep, train_conditions)
-    splits = _finish(_typed(_frame(rows, protocol)), layout, unique, healthy_state)
-    return with_simulated_validation(splits, held_out)
 
 
 # -- the calibration set, time blocks, specimens -------------------------------------------
@@ -417,71 +249,6 @@ def calibration_frame(frame: pd.DataFrame, healthy_state: str, condition: str,
     return frame[keys.isin(chosen)]
 
 
-def _finish(splits: pd.DataFrame, layout, unique, healthy_state) -> pd.DataFrame:
-    """Time blocks back to their record's segments, the calibration and guard segments added
-    to every split, then the check that every test set holds healthy data."""
-    if layout is not None:
-        blocks = layout[layout["unit"] != layout["record_id"]]
-        segments_of = {u: g for u, g in blocks.groupby("unit")}
-        expanded = []
-        for row in splits.itertuples(index=False):
-            if row.record_id in segments_of:
-                part = segments_of[row.record_id]
-                expanded += [(row.measured_percent, row.repeat, row.holdout, rid, seg, row.role)
-                             for rid, seg in zip(part["record_id"], part["segment"])]
-            else:
-                expanded.append(tuple(row)[1:])
-        fixed = layout[layout["fixed_role"] != ""]
-        keys = splits[["measured_percent", "repeat", "holdout"]].drop_duplicates()
-        expanded += [(p, r, h, rid, seg, role) for p, r, h in keys.itertuples(index=False)
-                     for rid, seg, role in zip(fixed["record_id"], fixed["segment"],
-                                               fixed["fixed_role"])]
-        splits = _typed(_frame(expanded, str(splits["protocol"].iloc[0])))
-    if healthy_state is not None:
-        check_healthy_tested(splits, unique, healthy_state)
-    return splits
-
-
-def check_healthy_tested(splits: pd.DataFrame, unique: pd.DataFrame, healthy_state: str) -> None:
-    """Every split tests healthy data, or an error naming the first that does not (a warning
-    when no measured record is healthy: false alarms cannot be measured at all)."""
-    healthy = {r.partition(BLOCK_MARK)[0]
-               for r in unique.loc[unique["health_state"] == healthy_state, "record_id"]}
-    if not healthy:
-        log.warning("no measured %r record: no test set measures false alarms", healthy_state)
-        return
-    tested = splits[(splits["role"] == "test") & splits["record_id"].isin(healthy)]
-    keys = splits[["measured_percent", "repeat", "holdout"]].drop_duplicates()
-    covered = set(tested[["measured_percent", "repeat", "holdout"]].itertuples(index=False,
-                                                                              name=None))
-    for key in keys.itertuples(index=False, name=None):
-        if key not in covered:
-            raise SplitError(f"split (measured_percent, repeat, holdout) = {key} of protocol "
-                             f"{splits['protocol'].iloc[0]!r} tests no {healthy_state!r} data")
-
-
-def _specimen_groups(unique: pd.DataFrame, specimens, healthy_state) -> dict[str, str]:
-    """{unit: specimen group} for specimen_holdout; healthy units get "" (never held out by
-    group: they test in every split)."""
-    if specimens is None or not {"record_id", "specimen", "specimen_group"} <= set(specimens):
-        raise SplitError("specimen_holdout needs the specimen and specimen_group of every "
-                         "measured record (measured/records.csv: the CWRU reader writes them)")
-    group = dict(zip(specimens["record_id"].astype(str),
-                     specimens["specimen_group"].fillna("").astype(str)))
-    groups = {}
-    for unit, health in zip(unique["record_id"], unique["health_state"]):
-        record = unit.partition(BLOCK_MARK)[0]
-        if health == healthy_state:
-            groups[unit] = ""
-        elif not group.get(record):
-            raise SplitError(f"specimen_holdout: record {record!r} has no specimen_group")
-        else:
-            groups[unit] = group[record]
-    if len({g for g in groups.values() if g}) < 2:
-        raise SplitError("specimen_holdout needs fault specimens of at least two groups (sizes)")
-    return groups
-
-
 def n_validation_records(n_records: int, share: float) -> int:
     """Simulated records of a stratum held out for validation: floor(share x n + 0.5)."""
     return math.floor(share * n_records + 0.5)
@@ -520,19 +287,6 @@ def simulated_validation_records(records: pd.DataFrame, share: float, seed: int,
     return sorted(held_out)
 
 
-def with_simulated_validation(splits: pd.DataFrame, held_out) -> pd.DataFrame:
-    """`splits` plus one row per held-out simulated record (whole record, role
-    "simulated_validation") in every (measured_percent, repeat, holdout); unchanged without any."""
-    held_out = sorted(held_out)
-    if not held_out:
-        return splits
-    keys = splits[["measured_percent", "repeat", "holdout"]].drop_duplicates()
-    rows = [(percent, repeat, holdout, rid, WHOLE_RECORD, SIMULATED_VALIDATION)
-            for percent, repeat, holdout in keys.itertuples(index=False) for rid in held_out]
-    added = _frame(rows, str(splits["protocol"].iloc[0]))
-    return _typed(pd.concat([splits, added], ignore_index=True))
-
-
 def simulated_validation_ids(splits: pd.DataFrame) -> set[str]:
     """The simulated records a split table (or one split) holds out of training."""
     return set(splits["record_id"][splits["role"] == SIMULATED_VALIDATION])
@@ -543,123 +297,18 @@ def measured_rows(splits: pd.DataFrame) -> pd.DataFrame:
     return splits[splits["role"] != SIMULATED_VALIDATION]
 
 
-def _frame(rows, protocol) -> pd.DataFrame:
-    """Rows (percent, repeat, holdout, record_id, segment, role) as a split table."""
-    splits = pd.DataFrame(rows, columns=SPLIT_COLUMNS[1:])
-    splits.insert(0, "protocol", protocol)
-    return splits
-
-
-def _record_split_rows(orders, percent, repeat, min_test_records) -> list[tuple]:
-    rows = []
-    for ids in orders.values():
-        n_train = n_train_records(len(ids), percent, min_test_records)
-        rows += [(percent, repeat, "", rid, WHOLE_RECORD, "train" if i < n_train else "test")
-                 for i, rid in enumerate(ids)]
-    return rows
-
-
-def _unseen_fault_rows(orders, percent, repeat, measured_classes, healthy_state=None,
-                       min_test_records=1) -> list[tuple]:
-    # At 100 % every record of a measured class trains, but the healthy state keeps
-    # min_test_records per stratum back: false alarms are measured at every share.
-    rows = []
-    for (health, _), ids in orders.items():
-        keep = min_test_records if health == healthy_state else 0
-        n_train = n_train_records(len(ids), percent, keep) if health in measured_classes else 0
-        rows += [(percent, repeat, "", rid, WHOLE_RECORD, "train" if i < n_train else "test")
-                 for i, rid in enumerate(ids)]
-    return rows
-
-
-def _holdout_rows(orders, percent, repeat, held_out, condition, healthy_state=None,
-                  keep_healthy=0, train_conditions=None) -> list[tuple]:
-    # The held-out conditions supply the test set, so no record of the other conditions needs
-    # to stay back for testing (at 100 % all of them train), except where they have no healthy
-    # record: then `keep_healthy` healthy records per other stratum test, so false alarms are
-    # measured (at another condition: the report's protocol label says so). With
-    # `train_conditions` only those train; the records of any other condition are unused.
-    label = "+".join(holdout_label(value, condition) if i == 0 else format_speed(value)
-                     for i, value in enumerate(sorted(held_out)))
-    rows = []
-    for (health, value), ids in orders.items():
-        if value in held_out:
-            rows += [(percent, repeat, label, rid, WHOLE_RECORD, "test") for rid in ids]
-            continue
-        if train_conditions is not None and value not in train_conditions:
-            rows += [(percent, repeat, label, rid, WHOLE_RECORD, "unused") for rid in ids]
-            continue
-        keep = keep_healthy if health == healthy_state else 0
-        n_train = n_train_records(len(ids), percent, keep)
-        rows += [(percent, repeat, label, rid, WHOLE_RECORD,
-                  "train" if i < n_train else "test" if i >= len(ids) - keep else "unused")
-                 for i, rid in enumerate(ids)]
-    return rows
-
-
-def _check_condition_split(split: dict, conditions, condition: str) -> tuple[list, list]:
-    """(train, test) condition values of hybrid.condition_split, each one measured, or an error
-    naming the missing ones (a benchmark's split needs its loads in the folder)."""
-    train, test = ([float(v) for v in split.get(side) or []] for side in ("train", "test"))
-    if not train or not test:
-        raise SplitError(f"hybrid.condition_split needs train and test {condition} values, got "
-                         f"{split}")
-    both = sorted(set(train) & set(test))
-    if both:
-        raise SplitError(f"hybrid.condition_split: {condition} {[format_speed(v) for v in both]} "
-                         "is on both sides")
-    missing = sorted(set(train + test) - set(conditions))
-    if missing:
-        raise SplitError(
-            f"hybrid.condition_split needs measured records at {condition} "
-            f"{[format_speed(v) for v in missing]}, which the measured data lack (they have "
-            f"{condition} {[format_speed(v) for v in conditions]}): point measured_dir at a "
-            "folder with those records, or change the split")
-    return train, test
-
-
-def _specimen_rows(orders, percent, repeat, group, group_of) -> list[tuple]:
-    # Every fault specimen of the held-out group (a fault size) tests, at every condition; the
-    # share trains from the other groups' records; healthy units (group "") always test, so
-    # no specimen is ever on both sides.
-    label = f"specimen_group={group}"
-    rows = []
-    for ids in orders.values():
-        rows += [(percent, repeat, label, rid, WHOLE_RECORD, "test")
-                 for rid in ids if group_of[rid] in ("", group)]
-        others = [rid for rid in ids if group_of[rid] not in ("", group)]
-        n_train = n_train_records(len(others), percent, 0)
-        rows += [(percent, repeat, label, rid, WHOLE_RECORD, "train" if i < n_train else "unused")
-                 for i, rid in enumerate(others)]
-    return rows
-
-
-def _segment_share_splits(records, unique, percents, repeats, seed, min_test) -> pd.DataFrame:
-    if "segment" not in records.columns:
-        raise SplitError("segment_share needs the segment column of the measured features")
-    segments = records[["record_id", "segment"]].drop_duplicates().merge(
-        unique[["record_id", "health_state"]], on="record_id")
-    rows = []
-    for repeat in range(int(repeats)):
-        orders = class_segment_orders(segments, seed, repeat)
-        for percent in percents:
-            for pairs in orders.values():
-                n_train = n_train_records(len(pairs), percent, max(1, min_test))
-                rows += [(percent, repeat, "", rid, seg, "train" if i < n_train else "test")
-                         for i, (rid, seg) in enumerate(pairs)]
-    return _typed(_frame(rows, "segment_share"))
-
-
-def _typed(splits: pd.DataFrame) -> pd.DataFrame:
+def typed_splits(splits: pd.DataFrame) -> pd.DataFrame:
     order = {label: i for i, label in enumerate(sorted_holdouts(splits["holdout"]))}
     if "segment" not in splits.columns:  # split tables written before segment_share
         splits = splits.assign(segment=WHOLE_RECORD)
     splits = (splits.assign(_h=splits["holdout"].map(order))
               .sort_values(["measured_percent", "repeat", "_h", "record_id", "segment"])
               .drop(columns="_h").reset_index(drop=True))
+    # `reason` (condmon.protocols.make_splits(reasons=True)) is kept, never written
+    columns = SPLIT_COLUMNS + [c for c in ("reason",) if c in splits.columns]
     return splits.astype({"protocol": str, "measured_percent": "int32", "repeat": "int32",
                           "holdout": str, "record_id": str, "segment": "int32",
-                          "role": str})[SPLIT_COLUMNS]
+                          "role": str})[columns]
 
 
 def validate_splits(splits: pd.DataFrame, where: str = "split table") -> None:
@@ -689,7 +338,7 @@ def validate_splits(splits: pd.DataFrame, where: str = "split table") -> None:
 
 def write_split_table(splits: pd.DataFrame, path) -> None:
     validate_splits(splits, str(path))
-    table = pa.Table.from_pandas(_typed(splits), schema=SPLIT_SCHEMA,
+    table = pa.Table.from_pandas(typed_splits(splits), schema=SPLIT_SCHEMA,
                                  preserve_index=False)
     write_table(table, path)
 
@@ -700,4 +349,4 @@ def read_split_table(path) -> pd.DataFrame:
     except FileNotFoundError:
         raise SplitError(f"{path}: no such split table") from None
     validate_splits(splits, str(path))
-    return _typed(splits)
+    return typed_splits(splits)

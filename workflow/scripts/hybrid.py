@@ -5,7 +5,8 @@
 import pandas as pd
 
 from condmon.features import read_feature_table
-from condmon.hybrid import make_splits, write_split_table
+from condmon.hybrid import write_split_table
+from condmon.protocols import make_splits, protocol_from
 from condmon.runlog import setup_logging
 
 log = setup_logging(snakemake)  # to snakemake.log[0]
@@ -20,18 +21,16 @@ simulated = (pd.read_parquet(snakemake.input.simulated,
 # the physical specimen of every record, where the system's measured stage knows it
 records = pd.read_csv(snakemake.input.records, dtype=str, keep_default_na=False)
 specimens = records if {"specimen", "specimen_group"} <= set(records.columns) else None
-splits = make_splits(measured[["record_id", "segment", "health_state", condition]],
-                     protocol=params.protocol,
-                     measured_percent=list(params.measured_percent),
-                     repeats=int(params.repeats),
-                     seed=int(params.seed),
-                     min_test_records=int(params.min_test_records),
-                     condition=condition,
-                     measured_classes=getattr(params, "measured_classes", None),
+# each protocol takes the shared parameters and its own (measured_classes, condition_split, ...)
+offered = dict(measured_percent=list(params.measured_percent), repeats=int(params.repeats),
+               seed=int(params.seed), min_test_records=int(params.min_test_records),
+               condition=condition, healthy_state=params.healthy_state,
+               measured_classes=getattr(params, "measured_classes", None),
+               condition_split=getattr(params, "condition_split", None), specimens=specimens)
+protocol = protocol_from(params.protocol, offered)
+splits = make_splits(measured[["record_id", "segment", "health_state", condition]], protocol,
                      simulated_records=simulated, simulated_validation_share=share,
-                     healthy_state=params.healthy_state, reserve=dict(params.reserve),
-                     specimens=specimens,
-                     condition_split=getattr(params, "condition_split", None),
+                     reserve=dict(params.reserve),
                      segment_samples=getattr(params, "segment_samples", None))
 write_split_table(splits, snakemake.output.splits)
 log.info("%s: %d rows, %d records, roles %s", params.protocol, len(splits),
