@@ -105,6 +105,8 @@ rule report:
         calibrations=CALIBRATIONS,  # the first one's calibration made the simulated data
         condition=CONDITION,
         design_records=config["report"]["design_records"],
+        # the specimens whose records the design looked at (records.csv's specimen)
+        design_specimens=SYSTEM.design_specimens(),
     conda:
         "../envs/report.yaml"
     benchmark:

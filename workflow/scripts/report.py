@@ -40,6 +40,7 @@ summary = write_report(
     measured_features_path=snakemake.input.measured_features,
     condition=snakemake.params.condition,
     design_records=list(snakemake.params.design_records),
+    design_specimens=list(snakemake.params.design_specimens),
     evaluation_path=snakemake.output.evaluation,
     evaluation_summary_path=snakemake.output.evaluation_summary,
     physics_paths=list(snakemake.input.physics_baselines),
