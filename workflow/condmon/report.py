@@ -630,11 +630,16 @@ def confusion_percents(accuracy: pd.DataFrame, requested) -> list[int]:
     return sorted(set(requested) | {available[-1]})
 
 
-def plot_note(run_name: str, data_source: str, bench_effects: int = 0) -> str:
-    """Every plot's footnote: the data source and run (and a bench's difference in form)."""
+def plot_note(run_name: str, data_source: str, bench_effects: int = 0,
+              design: bool = False) -> str:
+    """Every plot's footnote: the data source and run (and a bench's difference in form; with
+    design records, that the plot pools them with the evaluation records)."""
     note = f"Data: {data_source_label(data_source)} | run {run_name}"
     if bench_effects:
         note += f" | bench differs from the model in form: {bench_effects} effects (summary.json)"
+    if design:
+        note += (" | all test records: design specimens' included (apart: "
+                 "accuracy_design_vs_evaluation.png, headline.csv)")
     return note
 
 
@@ -668,15 +673,17 @@ def condition_file_part(condition: str, value) -> str:
 def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: Path,
                run_name: str, data_source: str, confusion_percent,
                healthy_state: str | None = None, bench_effects: int = 0,
-               shares: pd.DataFrame | None = None, condition: str = "speed_rpm") -> list[str]:
+               shares: pd.DataFrame | None = None, condition: str = "speed_rpm",
+               design: bool = False) -> list[str]:
     """Write every report plot into ``plots_dir``; returns the file names. bench_effects: how many
     effects the bench has that the model lacks (the note says so; summary.json lists them).
     ``shares``: prediction_shares of the predictions (computed here if not given).
     ``condition``: the predictions' column of the operating condition the per-condition figures
     (confusion matrices, prediction shares) group by: speed_rpm, or e.g. a motor load
     (with_condition); the per-speed accuracy bars only where the condition is the speed
-    (accuracy_per_condition.png covers any condition)."""
-    note = plot_note(run_name, data_source, bench_effects)
+    (accuracy_per_condition.png covers any condition). ``design``: the test records include
+    design records (every plot's note says these plots pool them)."""
+    note = plot_note(run_name, data_source, bench_effects, design)
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
     chance = 1.0 / len(labels)
     percents = confusion_percents(accuracy, confusion_percent)
@@ -798,8 +805,8 @@ def design_summary(predictions: pd.DataFrame, design_records, design_specimens,
         "tuned on; and report.design_records) are given apart ('design') from the others "
         "('evaluation': specimens the design never looked at); the headline is on the "
         "evaluation records" + ("" if evaluation_records else
-                                "; " + NO_EVALUATION_SPECIMEN.replace(
-                                    "The design-specimen figures below are", "design figures are")))
+                                "; " + NO_EVALUATION_SPECIMEN.split(". The design")[0]
+                                + ": no figure here is a headline"))
     return entry
 
 
@@ -1001,10 +1008,15 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     log.info("%d metrics rows from %d files, %d predictions", len(accuracy),
              len(list(metrics_paths)), len(predictions))
 
+    specimens = {}
+    if measured_features_path is not None:
+        design_records, specimens = design_record_ids(design_records, design_specimens,
+                                                      measured_records)
+    design_tested = bool(set(map(str, design_records)) & set(predictions["record_id"].astype(str)))
     with staging_directory(plots_dir) as staging:
         plot_names = make_plots(accuracy, by_condition, spectra, history, calibrations, staging,
                                 run_name, data_source, confusion_percent, healthy_state,
-                                len(bench_effects), shares, grouping)
+                                len(bench_effects), shares, grouping, design_tested)
         summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names,
                             baseline, healthy_state)
         summary["data_source"]["bench_effects_the_model_lacks"] = list(bench_effects)
@@ -1026,16 +1038,15 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
         note = plot_note(run_name, data_source, len(bench_effects))
         table = physics_table = None
         if measured_features_path is not None:
-            design_records, specimens = design_record_ids(design_records, design_specimens,
-                                                          measured_records)
             table, overall, physics_table, physics_overall = evaluation_tables(
                 predictions, baseline, labels, healthy_state, measured_features_path, condition,
                 design_records, physics)
             add_evaluation(summary, overall, predictions, measured_records, design_records,
                            design_specimens, specimens)
-            plots.save_figure(plots.simulation_gain(gain_against_strongest(overall),
-                                                    1.0 / len(labels), note),
-                              staging / "simulation_gain.png")
+            plots.save_figure(plots.simulation_gain(
+                gain_against_strongest(overall), 1.0 / len(labels),
+                plot_note(run_name, data_source, len(bench_effects), design_tested)),
+                staging / "simulation_gain.png")
             summary["plots"].append("simulation_gain.png")
             if physics_overall is not None:
                 summary["physics_baselines"] = physics_baselines_summary(physics_overall, physics)
