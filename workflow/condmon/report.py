@@ -69,7 +69,8 @@ PROTOCOL_LABELS = {
                       "both sides of the split"),
     "unseen_fault": ("faults never measured: measured training data holds only the configured "
                      "measured classes (healthy records always keep a test share); the other "
-                     "classes come from simulation alone"),
+                     "classes come from simulation alone (never seen by the classifier; the "
+                     "design may have looked at their specimens: design_records says which)"),
     "specimen_holdout": ("whole fault specimens held out: every specimen of one group (fault "
                          "size) tests at every condition, the share trains from the other "
                          "groups; healthy records only test: no specimen on both sides"),
