@@ -436,11 +436,15 @@ def test_a_design_specimen_record_never_counts_in_the_evaluation_figures(tmp_pat
     conditions = dict.fromkeys(truth, 0.0)
     wrong, right = (lambda r: "normal" if truth[r] != "normal" else "outer_race"), truth.get
     physics = frame(wrong, right, classifier="envelope_rule")  # right on evaluation only
+    # measured-only classifiers: one right on the design records only, one on ir14 only
+    alone = pd.concat([frame(right, wrong, classifier="knn"),
+                       frame(wrong, lambda r: truth[r] if r == "ir14" else "normal",
+                             classifier="svm")])
     tables = {}
     for name, design_guess in (("design right", right), ("design wrong", wrong)):
         predictions = frame(design_guess, wrong)  # the classifier: wrong on evaluation
         table = evaluation_table(predictions, "normal", labels, conditions, "load", design,
-                                 physics=physics)
+                                 physics=physics, measured_only_predictions=alone)
         tables[name] = table[table.condition == "all"].set_index("records")
     for table in tables.values():
         row = table.loc["evaluation"]
@@ -448,11 +452,13 @@ def test_a_design_specimen_record_never_counts_in_the_evaluation_figures(tmp_pat
         assert row.accuracy == 0 and row.n_healthy == 0  # the healthy bearing is a design record
         assert row.majority_class == 0.5 and row.physics_baseline_accuracy == 1.0
         assert row.strongest_baseline == "envelope_rule" and row.gain_vs_strongest == -1.0
-        assert np.isnan(row.measured_only_best)  # scored on whole test sets only
+        assert row.measured_only_best == 0.5  # the best on these records: svm, right on ir14
     evaluation_columns = [c for c in tables["design right"].columns if c != "records"]
     pd.testing.assert_series_equal(tables["design right"].loc["evaluation", evaluation_columns],
                                    tables["design wrong"].loc["evaluation", evaluation_columns])
     assert tables["design right"].loc["design", "accuracy"] == 1.0
+    assert tables["design right"].loc["design", "measured_only_best"] == 1.0  # knn there
+    assert np.isnan(tables["design right"].loc["all", "measured_only_best"])  # from metrics only
     assert tables["design right"].loc["all", "accuracy"] == 0.5
 
     # the headline: evaluation specimens first, design specimens labelled apart
@@ -463,9 +469,14 @@ def test_a_design_specimen_record_never_counts_in_the_evaluation_figures(tmp_pat
     accuracy = pd.DataFrame({"classifier": ["svm"], "protocol": ["unseen_fault"],
                              "measured_percent": [0], "repeat": [0], "speed_rpm": [np.nan],
                              "accuracy": [0.5], "macro_f1": [0.5], "n_test": [16]})
-    headline = report.headline_table(accuracy, None, None, 1 / 3, table, physics_table)
+    alone_table = evaluation_table(alone, "normal", labels, conditions, "load", design)
+    headline = report.headline_table(accuracy, None, None, 1 / 3, table, physics_table,
+                                     alone_table)
     column = "simulation only (0 % measured)"
     cells = headline.set_index(["records", "model"])[column]
+    best_alone = "baseline: measured data only (best classifier)"
+    assert cells[("evaluation specimens", best_alone)] == "0.500 svm"
+    assert cells[("design specimens", best_alone)] == "1.000 knn"
     assert list(headline.records.unique()) == ["evaluation specimens", "design specimens"]
     assert cells[("evaluation specimens", "svm (simulated + measured)")] == "0.000"
     assert cells[("evaluation specimens", "baseline: physics rule envelope_rule (no training)")] == "1.000"

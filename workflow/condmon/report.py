@@ -419,25 +419,28 @@ def records_over_repeats(table: pd.DataFrame, records: str) -> pd.DataFrame:
 def headline_table(accuracy: pd.DataFrame, baseline: pd.DataFrame | None,
                    physics_overall: pd.DataFrame | None, chance: float,
                    table: pd.DataFrame | None = None,
-                   physics_table: pd.DataFrame | None = None) -> pd.DataFrame:
+                   physics_table: pd.DataFrame | None = None,
+                   measured_only_table: pd.DataFrame | None = None) -> pd.DataFrame:
     """The report's front-page table: per protocol, every classifier's accuracy on held-out
     measured records at the smallest and the largest measured share in training (0 and 100 %
     in a default run; mean over repeats as accuracy.csv and summary.json give it, with its
     min-max over repeats), then the baselines on the same test sets where the run has them: the
     best measured-only classifier, each physics baseline (training-free), chance.
 
-    `table`, `physics_table`: the evaluation tables (condmon.evaluation) of the classifiers and
-    the physics baselines; where they hold design and evaluation rows (design records declared),
-    the headline is on the evaluation specimens' records, then the design specimens' follow,
-    each labelled in the `records` column (the measured-only baseline, scored on whole test sets
-    only, is left out of both); without any evaluation record one row says so
-    (NO_EVALUATION_SPECIMEN). Otherwise every row is on all test records (`records` all)."""
+    `table`, `physics_table`, `measured_only_table`: the evaluation tables (condmon.evaluation)
+    of the classifiers, the physics baselines and the measured-only baselines (from their
+    predictions; None: that baseline is left out of the design and evaluation rows); where they
+    hold design and evaluation rows (design records declared), the headline is on the
+    evaluation specimens' records, then the design specimens' follow, each labelled in the
+    `records` column; without any evaluation record one row says so (NO_EVALUATION_SPECIMEN).
+    Otherwise every row is on all test records (`records` all)."""
     percents = sorted(int(p) for p in accuracy["measured_percent"].unique())
     chosen = sorted({percents[0], percents[-1]})
     columns = {p: ("simulation only (0 % measured)" if p == 0 else f"{p} % measured")
                for p in chosen}
     if table is None or not table["records"].isin(["design", "evaluation"]).any():
-        return _headline_rows(evaluation.ALL, over_repeats(accuracy), baseline, physics_overall,
+        alone = over_repeats(baseline) if baseline is not None and not baseline.empty else None
+        return _headline_rows(evaluation.ALL, over_repeats(accuracy), alone, physics_overall,
                               chance, chosen, columns)
     parts = []
     for records in ("evaluation", "design"):
@@ -452,20 +455,23 @@ def headline_table(accuracy: pd.DataFrame, baseline: pd.DataFrame | None,
         physics = (None if physics_table is None else
                    records_over_repeats(physics_table, records).assign(
                        condition=evaluation.ALL, records=evaluation.ALL))
-        parts.append(_headline_rows(records, results, None, physics, chance, chosen, columns))
+        alone = (None if measured_only_table is None else
+                 records_over_repeats(measured_only_table, records))
+        parts.append(_headline_rows(records, results, alone, physics, chance, chosen, columns))
     return pd.concat(parts, ignore_index=True)
 
 
-def _headline_rows(records: str, results: pd.DataFrame, baseline: pd.DataFrame | None,
+def _headline_rows(records: str, results: pd.DataFrame, alone: pd.DataFrame | None,
                    physics_overall: pd.DataFrame | None, chance: float, chosen: list,
                    columns: dict) -> pd.DataFrame:
-    """headline_table's rows of one set of test records (`results`: over_repeats of them)."""
+    """headline_table's rows of one set of test records (`results`, `alone`: over_repeats of
+    the classifiers' and the measured-only baselines' accuracy on them)."""
 
     def cells(rows: pd.DataFrame) -> dict:
         by_percent = {int(r["measured_percent"]): r for _, r in rows.iterrows()}
         return {columns[p]: _mean_and_range(by_percent.get(p)) for p in chosen}
 
-    alone = over_repeats(baseline) if baseline is not None and not baseline.empty else None
+    alone = alone if alone is not None and not alone.empty else None
     physics = None
     if physics_overall is not None and not physics_overall.empty:
         physics = physics_overall[(physics_overall["condition"] == evaluation.ALL)
@@ -746,12 +752,16 @@ def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: 
 
 
 def evaluation_tables(predictions, baseline, labels, healthy_state, measured_features_path,
-                      condition, design_records, physics=None):
-    """condmon.evaluation's tables: per evaluation, and over repeats; and the physics
-    baselines' own, per evaluation and over repeats (None without physics predictions)."""
+                      condition, design_records, physics=None, baseline_predictions=None):
+    """condmon.evaluation's tables: per evaluation, and over repeats; the physics baselines'
+    own, per evaluation and over repeats (None without physics predictions); and the
+    measured-only baselines' per evaluation (None without their predictions)."""
     conditions = record_conditions(measured_features_path, condition)
     table = evaluation.evaluation_table(predictions, healthy_state, labels, conditions, condition,
-                                        design_records, baseline, physics)
+                                        design_records, baseline, physics, baseline_predictions)
+    baseline_table = (None if baseline_predictions is None else
+                      evaluation.evaluation_table(baseline_predictions, healthy_state, labels,
+                                                  conditions, condition, design_records))
     overall = evaluation.summarise(table, predictions, healthy_state, conditions, condition,
                                    design_records)
     physics_table = physics_overall = None
@@ -760,7 +770,7 @@ def evaluation_tables(predictions, baseline, labels, healthy_state, measured_fea
                                                     condition, design_records)
         physics_overall = evaluation.summarise(physics_table, physics, healthy_state, conditions,
                                                condition, design_records)
-    return table, overall, physics_table, physics_overall
+    return table, overall, physics_table, physics_overall, baseline_table
 
 
 def design_record_ids(design_records, design_specimens, measured_records) -> tuple[list, dict]:
@@ -855,7 +865,7 @@ def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFra
         result["accuracy_mean_by_records"] = {r.records: _json_number(r.accuracy_mean)
                                               for r in by_records.itertuples()}
         if design_records:
-            # every figure on each side; the measured-only baseline has whole test sets only
+            # every figure on each side, the baselines and the gain on those records alone
             result["by_records"] = {
                 records: (_figures(by_records[by_records["records"] == records].iloc[0],
                                    ["accuracy_mean", *figures])
@@ -932,6 +942,7 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
                  calibration_history, accuracy_path, summary_path, plots_dir, run_name: str,
                  data_source: str, confusion_percent=(0,), simulation_reports=(),
                  baseline_paths=(), measured_records=None, record_recall_path=None,
+                 baseline_prediction_paths=(),
                  healthy_state: str | None = None, benchmarks: dict | None = None,
                  job_timings_path=None,
                  bench_effects=(), prediction_shares_path=None,
@@ -955,6 +966,8 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     records, and summary.json's results the per-record, balanced, false-alarm and baseline
     figures (all test records, and design and evaluation records apart); the headline is then
     on the evaluation records (headline_table).
+    baseline_prediction_paths: the measured-only baselines' predictions (files without rows are
+    skipped): that baseline on design and evaluation records apart.
     physics_paths: the physics baselines' predictions (condmon.baselines; files without rows
     are skipped): a candidate of the strongest baseline, their own figures in
     physics_baselines_path (evaluation_summary's columns) and summary.json's
@@ -978,6 +991,9 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     # the system's physics baselines (empty files where it has none)
     physics_with_rows = [p for p in physics_paths if len(pd.read_parquet(p, columns=["record_id"]))]
     physics = load_predictions(physics_with_rows) if physics_with_rows else None
+    alone_with_rows = [p for p in baseline_prediction_paths
+                       if len(pd.read_parquet(p, columns=["record_id"]))]
+    baseline_predictions = load_predictions(alone_with_rows) if alone_with_rows else None
     simulated_validation = load_simulated_validation(simulated_validation_paths)
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
                          healthy_state)
@@ -1037,11 +1053,11 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
             summary["job_timings"] = write_job_timings(benchmarks, job_timings_path, staging, summary["plots"],
                                                        note=f"run {run_name}")
         note = plot_note(run_name, data_source, len(bench_effects))
-        table = physics_table = None
+        table = physics_table = baseline_table = None
         if measured_features_path is not None:
-            table, overall, physics_table, physics_overall = evaluation_tables(
+            table, overall, physics_table, physics_overall, baseline_table = evaluation_tables(
                 predictions, baseline, labels, healthy_state, measured_features_path, condition,
-                design_records, physics)
+                design_records, physics, baseline_predictions)
             add_evaluation(summary, overall, predictions, measured_records, design_records,
                            design_specimens, specimens)
             plots.save_figure(plots.simulation_gain(
@@ -1069,7 +1085,7 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
         if headline_path is not None:
             headline = headline_table(accuracy, baseline,
                                       physics_overall if measured_features_path is not None else None,
-                                      1.0 / len(labels), table, physics_table)
+                                      1.0 / len(labels), table, physics_table, baseline_table)
             write_text(headline.to_csv(index=False), headline_path)
         if record_recall_path is not None:
             write_text(recall_per_record(predictions).to_csv(index=False), record_recall_path)

@@ -72,6 +72,7 @@ rule report:
         # one calibration per variant (dict keys of the same order in each)
         simulation_reports=simulated_batches("json"),
         measured_only=train_outputs("measured_only.csv"),
+        measured_only_predictions=train_outputs("measured_only_predictions.parquet"),
         # the system's training-free physics baselines on the same test sets (may be empty)
         physics_baselines=physics_baseline_outputs("predictions.parquet"),
         measured_records=rules.measured.output.records,

@@ -29,6 +29,7 @@ summary = write_report(
     confusion_percent=list(snakemake.params.get("confusion_percent", [0])),
     simulation_reports=list(snakemake.input.simulation_reports),
     baseline_paths=list(snakemake.input.measured_only),
+    baseline_prediction_paths=list(snakemake.input.measured_only_predictions),
     measured_records=snakemake.input.measured_records,
     record_recall_path=snakemake.output.recall_per_record,
     healthy_state=snakemake.params.get("healthy_state"),
