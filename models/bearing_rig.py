@@ -116,16 +116,20 @@ SKF_6203 = BearingGeometry(8, 0.2656 * INCH, 1.122 * INCH, 0.0)     # fan end (C
 
 
 def _resonances_default():
+    # no source: the bands the shared CWRU fault records ring in (105, 130: 2.9, 3.4, 3.6-3.7 kHz)
     return ((2900.0, 0.04, 0.6), (3400.0, 0.03, 1.0), (3700.0, 0.04, 0.5))
 
 
 def _background_default():
+    # no source: the strongest line (4146 Hz) and a 650-690 Hz band of the healthy CWRU record 97
     return ((4150.0, 0.01, 0.45), (650.0, 0.15, 0.25))
 
 
 @dataclass
 class BearingRigParameters:
-    """Physical parameters of the rig, SI units. Defaults: the nominal (uncalibrated) CWRU rig."""
+    """Physical parameters of the rig, SI units. Defaults: the nominal (uncalibrated) CWRU rig;
+    where each comes from (the CWRU site, an assumption, the records it was read off):
+    ARCHITECTURE.md, "Nominal rig values and where they come from"."""
     speed_rpm: float = 1797.0               # shaft speed
     de_geometry: BearingGeometry = SKF_6205
     fe_geometry: BearingGeometry = SKF_6203

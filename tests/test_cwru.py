@@ -371,3 +371,29 @@ def test_a_file_without_a_number_is_listed_when_skipped(tmp_path):
     row = ingest.excluded.iloc[0]
     assert row["file"] == "notes.mat" and pd.isna(row["cwru_number"]) and row["bad_record"]
     assert row["reason"].startswith("not a CWRU record: no X<n>_DE_time")
+
+
+def test_design_specimens_are_named_as_records_csv_names_them_and_checked():
+    """cwru.design_specimens entries become records.csv's specimen names (the report matches
+    them); an outer race without its position, a position or size where none belongs, is a config
+    problem naming the entry; the design specimens reach the report alone, no job's config."""
+    from conftest import system_of
+    from condmon.systems.bearing.cwru import specimen_of
+
+    system = system_of("config/cwru-smoke.yaml", {"cwru": {"design_specimens": [
+        {"fault": "normal"}, {"fault": "outer_race", "diameter_in": 0.021, "position": "3:00"},
+        {"fault": "ball", "diameter_in": 0.014}]}})
+    assert system.design_specimens() == ["normal", "outer_race 0.021 in at 3:00", "ball 0.014 in"]
+    row = CWRU_TABLE[CWRU_TABLE.cwru_number == 246].iloc[0]  # outer race 0.021 in at 3:00, 0 HP
+    assert specimen_of(row)["specimen"] == system.design_specimens()[1]
+    assert not system.problems()
+    for stage in ("measured", "calibrate", "simulate", "features", "baselines"):
+        assert "design_specimens" not in system.job_config(stage).get("cwru", {}), stage
+    from condmon.config import ConfigError
+
+    with pytest.raises(ConfigError) as error:
+        system_of("config/cwru-smoke.yaml", {"cwru": {"design_specimens": [
+            {"fault": "outer_race", "diameter_in": 0.007}, {"fault": "normal", "diameter_in": 0.007},
+            {"fault": "ball", "diameter_in": 0.007, "position": "6:00"}]}})
+    assert re.findall(r"cwru\.design_specimens\[\d\]", str(error.value)) == [
+        "cwru.design_specimens[0]", "cwru.design_specimens[1]", "cwru.design_specimens[2]"]

@@ -44,6 +44,18 @@ def test_cwru_run_writes_every_protocol_labelled_with_gain_and_recall(cwru_run):
     for name in ("simulation_gain.png", "recall_per_class.png", "accuracy_vs_measured_percent.png",
                  "spectra_measured_vs_calibrated.png"):
         assert name in summary["plots"]
+    # the shared files hold design specimens only (cwru.design_specimens): every figure is a
+    # design figure, and the headline says there is no evaluation specimen instead of showing one
+    design = summary["design_records"]
+    assert design["headline_records"] == "none" and not design["tested_evaluation_records"]
+    assert sorted(design["tested_design_records"]) == sorted(f"cwru-{n.split('.')[0]}" for n in SLICE)
+    assert "no evaluation specimen in this data" in design["note"]
+    assert unseen["by_records"]["evaluation"] == {"note": "no evaluation record tested"}
+    assert unseen["by_records"]["design"]["accuracy_mean"] == pytest.approx(unseen["accuracy_mean"])
+    headline = pd.read_csv(results / "report" / "headline.csv")
+    assert headline.iloc[0]["records"] == "evaluation specimens"
+    assert headline.iloc[0]["model"].startswith("no evaluation specimen in this data")
+    assert set(headline.iloc[1:]["records"]) == {"design specimens"}
 
 
 def test_cwru_hybrid_splits_follow_their_protocols(cwru_run):

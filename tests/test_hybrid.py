@@ -387,16 +387,23 @@ def test_shared_cwru_splits_are_honest(shared_cwru, protocol):
 
 
 def test_design_records_are_reported_apart_on_the_shared_files(shared_cwru):
-    """config/cwru.yaml names every shared record as a design record; a folder with other
-    records gets them reported apart. Simulated here by declaring the load-0 records only: the
-    `design` rows hold exactly the tested load-0 records, the `evaluation` rows the load-1 ones."""
-    import yaml
-    from pathlib import Path
+    """config/cwru.yaml's design specimens (cwru.design_specimens) cover every shared record's
+    specimen, and nothing else of a full download but the same bearings at other loads; a folder
+    with other specimens gets their records reported apart. Simulated here by declaring the
+    load-0 records only: the `design` rows hold exactly the tested load-0 records, the
+    `evaluation` rows the load-1 ones."""
+    from conftest import system_of
     from condmon.evaluation import evaluation_table, summarise
+    from condmon.systems.bearing.cwru import CWRU_TABLE, specimen_of
 
     segments, records = shared_cwru
-    config = yaml.safe_load((Path(__file__).parents[1] / "config/cwru.yaml").read_text())
-    assert sorted(config["report"]["design_records"]) == sorted(records.record_id)
+    design = set(system_of("config/cwru.yaml").design_specimens())
+    assert set(records.specimen) == design
+    # in the whole catalogue: the same ten bearings at the four loads, no other specimen
+    designed = CWRU_TABLE[[specimen_of(row)["specimen"] in design
+                           for _, row in CWRU_TABLE.iterrows()]]
+    assert len(designed) == 40 and set(designed.load_hp) == {0.0, 1.0, 2.0, 3.0}
+    assert set(records.cwru_number) < set(designed.cwru_number)
     splits = with_healthy("unseen_fault", segments, reserve=RESERVE, specimens=records)
     labels = segments.drop_duplicates("record_id").set_index("record_id")
     tested = splits[splits.role == "test"]

@@ -295,10 +295,12 @@ def test_scripts_hold_out_write_and_keep_share_zero_as_before(tmp_path, isolated
                                       metrics=out / "metrics.csv", models=out / "models",
                                       info=out / "info.json",
                                       measured_only=out / "measured_only.csv",
+                                      measured_only_predictions=out / "measured_only_predictions.parquet",
                                       simulated_validation=out / "simulated_validation.csv"),
                params=SimpleNamespace(classifier="knn", classifier_params={}, seed=1,
                                       feature_selection={"n_features": None},
                                       measured_only_baseline=False), log=log)
+    assert pd.read_parquet(out / "measured_only_predictions.parquet").empty  # no baseline asked
     validation = pd.read_csv(out / "simulated_validation.csv")
     assert list(validation.columns) == SIMULATED_VALIDATION_COLUMNS
     assert set(validation.test_source) == {SIMULATED_VALIDATION}

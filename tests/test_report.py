@@ -404,3 +404,101 @@ def test_a_physics_baseline_that_wins_gives_a_negative_gain(train_outputs, tmp_p
     entry = summary["physics_baselines"][0]
     assert entry["baseline"] == "oracle_rule" and set(entry["recall_per_class"].values()) == {1.0}
     assert "simulation_gain.png" in summary["plots"]
+
+
+def test_a_design_specimen_record_never_counts_in_the_evaluation_figures(tmp_path):
+    """Records of a design specimen (matched through records.csv's `specimen`) are reported as
+    design records only: the evaluation rows, their baselines and the headline are the other
+    records' alone, whatever the design records' predictions; with no other record the
+    headline says there is no evaluation specimen instead of showing design figures."""
+    from condmon.evaluation import evaluation_table, summarise
+
+    records = pd.DataFrame({
+        "record_id": ["n0", "ir7", "ir14", "or7", "gone"],
+        "specimen": ["normal", "inner_race 0.007 in", "inner_race 0.014 in",
+                     "outer_race 0.007 in at 3:00", "inner_race 0.014 in"],
+        "status": ["kept", "kept", "kept", "kept", "left out"]})
+    records.to_csv(tmp_path / "records.csv", index=False)
+    design, specimens = report.design_record_ids(
+        ["n0"], ["inner_race 0.007 in", "ball 0.021 in"], tmp_path / "records.csv")
+    assert design == ["ir7", "n0"] and specimens["ir14"] == "inner_race 0.014 in"
+    assert "gone" not in specimens  # a left-out file is no tested record
+    truth = {"n0": "normal", "ir7": "inner_race", "ir14": "inner_race", "or7": "outer_race"}
+
+    def frame(design_guess, evaluation_guess, classifier="svm"):
+        rows = [(r, s, truth[r], design_guess(r) if r in design else evaluation_guess(r))
+                for r in truth for s in range(4)]
+        out = pd.DataFrame(rows, columns=["record_id", "segment", "true_label", "predicted_label"])
+        return out.assign(classifier=classifier, protocol="unseen_fault", measured_percent=0,
+                          repeat=0, holdout="")
+
+    labels = ["normal", "inner_race", "outer_race"]
+    conditions = dict.fromkeys(truth, 0.0)
+    wrong, right = (lambda r: "normal" if truth[r] != "normal" else "outer_race"), truth.get
+    physics = frame(wrong, right, classifier="envelope_rule")  # right on evaluation only
+    # measured-only classifiers: one right on the design records only, one on ir14 only
+    alone = pd.concat([frame(right, wrong, classifier="knn"),
+                       frame(wrong, lambda r: truth[r] if r == "ir14" else "normal",
+                             classifier="svm")])
+    tables = {}
+    for name, design_guess in (("design right", right), ("design wrong", wrong)):
+        predictions = frame(design_guess, wrong)  # the classifier: wrong on evaluation
+        table = evaluation_table(predictions, "normal", labels, conditions, "load", design,
+                                 physics=physics, measured_only_predictions=alone)
+        tables[name] = table[table.condition == "all"].set_index("records")
+    for table in tables.values():
+        row = table.loc["evaluation"]
+        assert row.n_test == 8 and row.n_records == 2
+        assert row.accuracy == 0 and row.n_healthy == 0  # the healthy bearing is a design record
+        assert row.majority_class == 0.5 and row.physics_baseline_accuracy == 1.0
+        assert row.strongest_baseline == "envelope_rule" and row.gain_vs_strongest == -1.0
+        assert row.measured_only_best == 0.5  # the best on these records: svm, right on ir14
+    evaluation_columns = [c for c in tables["design right"].columns if c != "records"]
+    pd.testing.assert_series_equal(tables["design right"].loc["evaluation", evaluation_columns],
+                                   tables["design wrong"].loc["evaluation", evaluation_columns])
+    assert tables["design right"].loc["design", "accuracy"] == 1.0
+    assert tables["design right"].loc["design", "measured_only_best"] == 1.0  # knn there
+    assert np.isnan(tables["design right"].loc["all", "measured_only_best"])  # from metrics only
+    assert tables["design right"].loc["all", "accuracy"] == 0.5
+
+    # the headline: evaluation specimens first, design specimens labelled apart
+    predictions = frame(right, wrong)
+    table = evaluation_table(predictions, "normal", labels, conditions, "load", design,
+                             physics=physics)
+    physics_table = evaluation_table(physics, "normal", labels, conditions, "load", design)
+    accuracy = pd.DataFrame({"classifier": ["svm"], "protocol": ["unseen_fault"],
+                             "measured_percent": [0], "repeat": [0], "speed_rpm": [np.nan],
+                             "accuracy": [0.5], "macro_f1": [0.5], "n_test": [16]})
+    alone_table = evaluation_table(alone, "normal", labels, conditions, "load", design)
+    headline = report.headline_table(accuracy, None, None, 1 / 3, table, physics_table,
+                                     alone_table)
+    column = "simulation only (0 % measured)"
+    cells = headline.set_index(["records", "model"])[column]
+    best_alone = "baseline: measured data only (best classifier)"
+    assert cells[("evaluation specimens", best_alone)] == "0.500 svm"
+    assert cells[("design specimens", best_alone)] == "1.000 knn"
+    assert list(headline.records.unique()) == ["evaluation specimens", "design specimens"]
+    assert cells[("evaluation specimens", "svm (simulated + measured)")] == "0.000"
+    assert cells[("evaluation specimens", "baseline: physics rule envelope_rule (no training)")] == "1.000"
+    assert cells[("design specimens", "svm (simulated + measured)")] == "1.000"
+    summary = report.design_summary(predictions, design, ["inner_race 0.007 in"], specimens)
+    assert summary["headline_records"] == "evaluation"
+    assert summary["tested_evaluation_records"] == ["ir14", "or7"]
+    assert summary["evaluation_specimens"] == ["inner_race 0.014 in", "outer_race 0.007 in at 3:00"]
+
+    # every tested record a design record: no evaluation figure, and the headline says so
+    everything = sorted(truth)
+    table = evaluation_table(predictions, "normal", labels, conditions, "load", everything)
+    assert "evaluation" not in set(table.records)
+    headline = report.headline_table(accuracy, None, None, 1 / 3, table)
+    assert headline.iloc[0]["records"] == "evaluation specimens"
+    assert headline.iloc[0]["model"] == report.NO_EVALUATION_SPECIMEN
+    assert "no evaluation specimen in this data" in headline.iloc[0]["model"]
+    assert set(headline.iloc[1:]["records"]) == {"design specimens"}
+    summary = report.design_summary(predictions, everything, [], specimens)
+    assert summary["headline_records"] == "none"
+    assert "no evaluation specimen in this data" in summary["note"]
+    summarise(table, predictions, "normal", conditions, "load", everything)  # no evaluation rows: fine
+    with pytest.raises(report.ReportInputError, match="name no specimen"):
+        records.drop(columns="specimen").to_csv(tmp_path / "bare.csv", index=False)
+        report.design_record_ids([], ["normal"], tmp_path / "bare.csv")

@@ -58,7 +58,8 @@ def test_the_headline_gives_the_accuracy_at_both_ends_beside_the_baselines(train
     headline = pd.read_csv(out / "headline.csv", dtype=str)
     low, high = fake.PERCENTS[0], fake.PERCENTS[-1]
     columns = ["simulation only (0 % measured)", f"{high} % measured"]
-    assert list(headline.columns) == ["protocol", "model", *columns]
+    assert list(headline.columns) == ["records", "protocol", "model", *columns]
+    assert set(headline.records) == {"all"}  # no design records declared
     means = expected_means(out / "accuracy.csv")
     for (classifier, protocol, percent), mean in means.items():
         if percent not in (low, high):

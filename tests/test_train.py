@@ -273,7 +273,8 @@ def test_scripts_run_end_to_end(tmp_path, isolated_logging):
                output=SimpleNamespace(predictions=out / "predictions.parquet",
                                       metrics=out / "metrics.csv", models=out / "models",
                                       info=out / "info.json",
-                                      measured_only=out / "measured_only.csv"),
+                                      measured_only=out / "measured_only.csv",
+                                      measured_only_predictions=out / "measured_only_predictions.parquet"),
                params=SimpleNamespace(classifier="svm", classifier_params={"C": 1.2}, seed=1,
                                       feature_selection={"n_features": None},
                                       measured_only_baseline=True),
@@ -283,6 +284,12 @@ def test_scripts_run_end_to_end(tmp_path, isolated_logging):
     # the baseline: nothing measured trains at 0 %, so only the 50 % splits have one
     baseline = pd.read_csv(out / "measured_only.csv")
     assert set(baseline.measured_percent) == {50} and (baseline.n_train_simulated == 0).all()
+    # and its predictions, on the same test segments as the hybrid's at 50 %
+    alone = pd.read_parquet(out / "measured_only_predictions.parquet")
+    hybrid = pd.read_parquet(out / "predictions.parquet")
+    key = ["repeat", "holdout", "record_id", "segment"]
+    assert (alone.sort_values(key)[key].reset_index(drop=True)
+            .equals(hybrid[hybrid.measured_percent == 50].sort_values(key)[key].reset_index(drop=True)))
     assert sorted(p.name for p in (out / "models").iterdir()) == [
         "p000_r0.joblib", "p000_r1.joblib", "p050_r0.joblib", "p050_r1.joblib"]
     info = json.loads((out / "info.json").read_text())

@@ -12,7 +12,9 @@ per operating condition (`hybrid.condition`, e.g. load: never a file's stored rp
   measured-only classifier the split allows (any classifier's `measured_only.csv`: the same
   candidate features, its selection chosen by its own inner CV), and the system's training-free
   physics baselines on the same test set (`System.physics_baselines`, `condmon.baselines`); the
-  gain is taken against the strongest of them, and is negative where a baseline wins.
+  gain is taken against the strongest of them, and is negative where a baseline wins. On the
+  design and evaluation rows the same on those records alone (the measured-only baseline from
+  its predictions).
 Aggregated over repeats and holdouts (`summarise`): means, Wilson intervals on one repeat's
 distinct test segments (a segment tested again by another repeat or holdout is no new data, so
 identical repeats do not narrow them), and how many repeats differ (identical repeats are one
@@ -115,28 +117,42 @@ def subsets(test: pd.DataFrame, design: set):
 def evaluation_table(predictions: pd.DataFrame, healthy_state: str | None, labels,
                      conditions: dict, condition: str, design_records=(),
                      measured_only: pd.DataFrame | None = None,
-                     physics: pd.DataFrame | None = None) -> pd.DataFrame:
+                     physics: pd.DataFrame | None = None,
+                     measured_only_predictions: pd.DataFrame | None = None) -> pd.DataFrame:
     """One row per evaluation and subset (columns EVALUATION_COLUMNS).
 
     `conditions`: {record_id: value of `condition`}; `labels`: the task's classes (chance);
     `design_records`: records design choices were tuned on (subsets `design` and `evaluation`
     besides `all`); `measured_only`: the measured-only metrics rows of every classifier (all
     speeds rows used); `physics`: the physics baselines' predictions (`classifier` = the rule's
-    name) on the same splits. Baselines and the gain are given on the `all` x `all` rows.
+    name) on the same splits; `measured_only_predictions`: the measured-only baselines'
+    predictions (`classifier` = the classifier), which score them on the design and evaluation
+    records apart. Baselines and the gain are given on the rows of condition `all` (records
+    `all`, `design`, `evaluation`; without measured-only predictions that baseline on `all`
+    only, from its metrics, as on `all` always).
     """
     design = set(map(str, design_records))
     predictions = with_conditions(predictions, conditions, condition)
     best_alone = _best_measured_only(measured_only)
-    by_rule = _physics_accuracy(physics)
+    by_rule = _physics_accuracy(physics, design)
+    # the best measured-only classifier per split and side: the same bookkeeping as the rules'
+    alone_by_records = {key: {records: max(by_classifier.values())
+                              for records, by_classifier in sides.items()}
+                        for key, sides in _physics_accuracy(measured_only_predictions,
+                                                            design).items()}
     rows = []
     for key, test in predictions.groupby(KEYS, sort=True):
         for condition_label, records, part in subsets(test, design):
             row = dict(zip(KEYS, key), condition=condition_label, records=records,
                        **test_set_figures(part, healthy_state),
                        leaky=key[1] in LEAKY_PROTOCOLS)
-            if condition_label == ALL and records == ALL:
-                row.update(_baselines(part, row["accuracy"], len(labels),
-                                      best_alone.get(key[1:]), by_rule.get(key[1:], {})))
+            if condition_label == ALL:
+                # the measured-only baseline on all records from its metrics (as always), on the
+                # design and evaluation records from its predictions where given
+                alone = (best_alone.get(key[1:]) if records == ALL else
+                         alone_by_records.get(key[1:], {}).get(records))
+                row.update(_baselines(part, row["accuracy"], len(labels), alone,
+                                      by_rule.get(key[1:], {}).get(records, {})))
             rows.append(row)
     return pd.DataFrame(rows, columns=EVALUATION_COLUMNS)
 
@@ -150,15 +166,23 @@ def _best_measured_only(measured_only: pd.DataFrame | None) -> dict:
     return {(p, int(m), int(r), h): float(a) for (p, m, r, h), a in best.items()}
 
 
-def _physics_accuracy(physics: pd.DataFrame | None) -> dict:
-    """{(protocol, percent, repeat, holdout): {rule: accuracy on that split's test set}}."""
+def _physics_accuracy(physics: pd.DataFrame | None, design: set = frozenset()) -> dict:
+    """{(protocol, percent, repeat, holdout): {records: {rule: accuracy}}}: on that split's whole
+    test set (records `all`) and, with design records, on its design and evaluation records.
+    Any predictions with a `classifier` column (the rule, or a measured-only classifier)."""
     if physics is None or physics.empty:
         return {}
-    hits = physics.assign(_hit=physics["true_label"] == physics["predicted_label"])
-    accuracy = hits.groupby(["classifier"] + KEYS[1:])["_hit"].mean()
+    hits = physics.assign(_hit=physics["true_label"] == physics["predicted_label"],
+                          _records=np.where(physics["record_id"].isin(design), "design",
+                                            "evaluation"))
     found = {}
-    for (rule, protocol, percent, repeat, holdout), value in accuracy.items():
-        found.setdefault((protocol, int(percent), int(repeat), holdout), {})[rule] = float(value)
+    for by_records in ([False, True] if design else [False]):
+        group = ["classifier"] + KEYS[1:] + (["_records"] if by_records else [])
+        for key, value in hits.groupby(group)["_hit"].mean().items():
+            rule, protocol, percent, repeat, holdout = key[:5]
+            records = key[5] if by_records else ALL
+            found.setdefault((protocol, int(percent), int(repeat), holdout), {}).setdefault(
+                records, {})[rule] = float(value)
     return found
 
 

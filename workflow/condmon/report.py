@@ -69,7 +69,8 @@ PROTOCOL_LABELS = {
                       "both sides of the split"),
     "unseen_fault": ("faults never measured: measured training data holds only the configured "
                      "measured classes (healthy records always keep a test share); the other "
-                     "classes come from simulation alone"),
+                     "classes come from simulation alone (never seen by the classifier; the "
+                     "design may have looked at their specimens: design_records says which)"),
     "specimen_holdout": ("whole fault specimens held out: every specimen of one group (fault "
                          "size) tests at every condition, the share trains from the other "
                          "groups; healthy records only test: no specimen on both sides"),
@@ -400,24 +401,77 @@ def _mean_and_range(row) -> str:
     return text
 
 
+HEADLINE_RECORDS = {evaluation.ALL: "all", "evaluation": "evaluation specimens",
+                    "design": "design specimens"}
+NO_EVALUATION_SPECIMEN = ("no evaluation specimen in this data: every tested record is of a "
+                          "design specimen; add records of other specimens (point measured_dir "
+                          "at a full download of the data set). The design-specimen figures "
+                          "below are no headline")
+
+
+def records_over_repeats(table: pd.DataFrame, records: str) -> pd.DataFrame:
+    """over_repeats of the evaluation table's rows of condition `all` and these `records`
+    (design, evaluation): held-out conditions averaged within a repeat first, as accuracy.csv's."""
+    rows = table[(table["condition"] == evaluation.ALL) & (table["records"] == records)]
+    return over_repeats(rows.assign(speed_rpm=np.nan, macro_f1=np.nan))
+
+
 def headline_table(accuracy: pd.DataFrame, baseline: pd.DataFrame | None,
-                   physics_overall: pd.DataFrame | None, chance: float) -> pd.DataFrame:
+                   physics_overall: pd.DataFrame | None, chance: float,
+                   table: pd.DataFrame | None = None,
+                   physics_table: pd.DataFrame | None = None,
+                   measured_only_table: pd.DataFrame | None = None) -> pd.DataFrame:
     """The report's front-page table: per protocol, every classifier's accuracy on held-out
     measured records at the smallest and the largest measured share in training (0 and 100 %
     in a default run; mean over repeats as accuracy.csv and summary.json give it, with its
     min-max over repeats), then the baselines on the same test sets where the run has them: the
-    best measured-only classifier, each physics baseline (training-free), chance."""
-    results = over_repeats(accuracy)
-    percents = sorted(int(p) for p in results["measured_percent"].unique())
+    best measured-only classifier, each physics baseline (training-free), chance.
+
+    `table`, `physics_table`, `measured_only_table`: the evaluation tables (condmon.evaluation)
+    of the classifiers, the physics baselines and the measured-only baselines (from their
+    predictions; None: that baseline is left out of the design and evaluation rows); where they
+    hold design and evaluation rows (design records declared), the headline is on the
+    evaluation specimens' records, then the design specimens' follow, each labelled in the
+    `records` column; without any evaluation record one row says so (NO_EVALUATION_SPECIMEN).
+    Otherwise every row is on all test records (`records` all)."""
+    percents = sorted(int(p) for p in accuracy["measured_percent"].unique())
     chosen = sorted({percents[0], percents[-1]})
     columns = {p: ("simulation only (0 % measured)" if p == 0 else f"{p} % measured")
                for p in chosen}
+    if table is None or not table["records"].isin(["design", "evaluation"]).any():
+        alone = over_repeats(baseline) if baseline is not None and not baseline.empty else None
+        return _headline_rows(evaluation.ALL, over_repeats(accuracy), alone, physics_overall,
+                              chance, chosen, columns)
+    parts = []
+    for records in ("evaluation", "design"):
+        results = records_over_repeats(table, records)
+        if results.empty and records == "design":
+            continue
+        if results.empty:
+            parts.append(pd.DataFrame([{"records": HEADLINE_RECORDS[records], "protocol": "-",
+                                        "model": NO_EVALUATION_SPECIMEN,
+                                        **{c: "-" for c in columns.values()}}]))
+            continue
+        physics = (None if physics_table is None else
+                   records_over_repeats(physics_table, records).assign(
+                       condition=evaluation.ALL, records=evaluation.ALL))
+        alone = (None if measured_only_table is None else
+                 records_over_repeats(measured_only_table, records))
+        parts.append(_headline_rows(records, results, alone, physics, chance, chosen, columns))
+    return pd.concat(parts, ignore_index=True)
+
+
+def _headline_rows(records: str, results: pd.DataFrame, alone: pd.DataFrame | None,
+                   physics_overall: pd.DataFrame | None, chance: float, chosen: list,
+                   columns: dict) -> pd.DataFrame:
+    """headline_table's rows of one set of test records (`results`, `alone`: over_repeats of
+    the classifiers' and the measured-only baselines' accuracy on them)."""
 
     def cells(rows: pd.DataFrame) -> dict:
         by_percent = {int(r["measured_percent"]): r for _, r in rows.iterrows()}
         return {columns[p]: _mean_and_range(by_percent.get(p)) for p in chosen}
 
-    alone = over_repeats(baseline) if baseline is not None and not baseline.empty else None
+    alone = alone if alone is not None and not alone.empty else None
     physics = None
     if physics_overall is not None and not physics_overall.empty:
         physics = physics_overall[(physics_overall["condition"] == evaluation.ALL)
@@ -449,7 +503,8 @@ def headline_table(accuracy: pd.DataFrame, baseline: pd.DataFrame | None,
                 rows.append(row)
         rows.append({"protocol": title, "model": "chance",
                      **{columns[p]: f"{chance:.3f}" for p in chosen}})
-    return pd.DataFrame(rows, columns=["protocol", "model", *columns.values()])
+    return pd.DataFrame(rows, columns=["protocol", "model", *columns.values()]).assign(
+        records=HEADLINE_RECORDS[records])[["records", "protocol", "model", *columns.values()]]
 
 
 def physics_baselines_summary(table: pd.DataFrame, predictions: pd.DataFrame) -> list[dict]:
@@ -582,11 +637,16 @@ def confusion_percents(accuracy: pd.DataFrame, requested) -> list[int]:
     return sorted(set(requested) | {available[-1]})
 
 
-def plot_note(run_name: str, data_source: str, bench_effects: int = 0) -> str:
-    """Every plot's footnote: the data source and run (and a bench's difference in form)."""
+def plot_note(run_name: str, data_source: str, bench_effects: int = 0,
+              design: bool = False) -> str:
+    """Every plot's footnote: the data source and run (and a bench's difference in form; with
+    design records, that the plot pools them with the evaluation records)."""
     note = f"Data: {data_source_label(data_source)} | run {run_name}"
     if bench_effects:
         note += f" | bench differs from the model in form: {bench_effects} effects (summary.json)"
+    if design:
+        note += (" | all test records: design specimens' included (apart: "
+                 "accuracy_design_vs_evaluation.png, headline.csv)")
     return note
 
 
@@ -620,15 +680,17 @@ def condition_file_part(condition: str, value) -> str:
 def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: Path,
                run_name: str, data_source: str, confusion_percent,
                healthy_state: str | None = None, bench_effects: int = 0,
-               shares: pd.DataFrame | None = None, condition: str = "speed_rpm") -> list[str]:
+               shares: pd.DataFrame | None = None, condition: str = "speed_rpm",
+               design: bool = False) -> list[str]:
     """Write every report plot into ``plots_dir``; returns the file names. bench_effects: how many
     effects the bench has that the model lacks (the note says so; summary.json lists them).
     ``shares``: prediction_shares of the predictions (computed here if not given).
     ``condition``: the predictions' column of the operating condition the per-condition figures
     (confusion matrices, prediction shares) group by: speed_rpm, or e.g. a motor load
     (with_condition); the per-speed accuracy bars only where the condition is the speed
-    (accuracy_per_condition.png covers any condition)."""
-    note = plot_note(run_name, data_source, bench_effects)
+    (accuracy_per_condition.png covers any condition). ``design``: the test records include
+    design records (every plot's note says these plots pool them)."""
+    note = plot_note(run_name, data_source, bench_effects, design)
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
     chance = 1.0 / len(labels)
     percents = confusion_percents(accuracy, confusion_percent)
@@ -690,38 +752,89 @@ def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: 
 
 
 def evaluation_tables(predictions, baseline, labels, healthy_state, measured_features_path,
-                      condition, design_records, physics=None):
-    """condmon.evaluation's tables: per evaluation, and over repeats; and the physics
-    baselines' own summary over repeats (None without physics predictions)."""
+                      condition, design_records, physics=None, baseline_predictions=None):
+    """condmon.evaluation's tables: per evaluation, and over repeats; the physics baselines'
+    own, per evaluation and over repeats (None without physics predictions); and the
+    measured-only baselines' per evaluation (None without their predictions)."""
     conditions = record_conditions(measured_features_path, condition)
     table = evaluation.evaluation_table(predictions, healthy_state, labels, conditions, condition,
-                                        design_records, baseline, physics)
+                                        design_records, baseline, physics, baseline_predictions)
+    baseline_table = (None if baseline_predictions is None else
+                      evaluation.evaluation_table(baseline_predictions, healthy_state, labels,
+                                                  conditions, condition, design_records))
     overall = evaluation.summarise(table, predictions, healthy_state, conditions, condition,
                                    design_records)
-    physics_overall = None
+    physics_table = physics_overall = None
     if physics is not None:
         physics_table = evaluation.evaluation_table(physics, healthy_state, labels, conditions,
                                                     condition, design_records)
         physics_overall = evaluation.summarise(physics_table, physics, healthy_state, conditions,
                                                condition, design_records)
-    return table, overall, physics_overall
+    return table, overall, physics_table, physics_overall, baseline_table
+
+
+def design_record_ids(design_records, design_specimens, measured_records) -> tuple[list, dict]:
+    """The records reported as design records: `design_records` (report.design_records) and every
+    record of a design specimen (System.design_specimens, matched to records.csv's `specimen`);
+    and {record_id: specimen} of the measured records (empty where records.csv names none).
+    Design specimens without a specimen column to match are an error, never ignored."""
+    specimens = {}
+    if measured_records is not None:
+        records = pd.read_csv(measured_records, dtype=str, keep_default_na=False)
+        if "specimen" in records.columns:
+            kept = records[records["status"] == "kept"] if "status" in records.columns else records
+            specimens = dict(zip(kept["record_id"], kept["specimen"]))
+    design_specimens = set(map(str, design_specimens))
+    if design_specimens and not specimens:
+        raise ReportInputError(
+            f"design specimens {sorted(design_specimens)} are declared, but the measured records "
+            f"({measured_records}) name no specimen to match them to")
+    of_specimens = {r for r, specimen in specimens.items() if specimen in design_specimens}
+    return sorted(set(map(str, design_records)) | of_specimens), specimens
+
+
+def design_summary(predictions: pd.DataFrame, design_records, design_specimens,
+                   specimens: dict) -> dict:
+    """summary.json's `design_records`: which tested records and specimens count as design and
+    which as evaluation, what the headline is on, and a note that says so plainly."""
+    design = set(map(str, design_records))
+    tested = sorted(set(predictions["record_id"].astype(str)))
+    evaluation_records = [r for r in tested if r not in design]
+    entry = {"records": sorted(design), "design_specimens": sorted(map(str, design_specimens)),
+             "tested_design_records": [r for r in tested if r in design],
+             "tested_evaluation_records": evaluation_records,
+             "evaluation_specimens": sorted({specimens[r] for r in evaluation_records
+                                             if r in specimens})}
+    if not design:
+        entry["headline_records"] = "all"
+        entry["note"] = ("report.design_records is empty and the system declares no design "
+                         "specimen: no record is declared as used in design")
+        return entry
+    entry["headline_records"] = "evaluation" if evaluation_records else "none"
+    entry["note"] = (
+        "results on the records of the design specimens (whose records design choices were "
+        "tuned on; and report.design_records) are given apart ('design') from the others "
+        "('evaluation': specimens the design never looked at); the headline is on the "
+        "evaluation records" + ("" if evaluation_records else
+                                "; " + NO_EVALUATION_SPECIMEN.split(". The design")[0]
+                                + ": no figure here is a headline"))
+    return entry
 
 
 def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFrame,
-                   measured_records, design_records) -> None:
+                   measured_records, design_records, design_specimens=(),
+                   specimens: dict | None = None) -> None:
     """summary.json: each result's honest figures (all test data), its accuracy per condition,
-    design and evaluation records apart, and recall per specimen where records.csv names them."""
+    its figures on design and evaluation records apart (`by_records`), and recall per specimen
+    where records.csv names them (`specimens`: {record_id: specimen}, read here if None)."""
     figures = ["n_repeats", "distinct_repeats", "accuracy_ci_low", "accuracy_ci_high",
                "record_accuracy_mean", "record_accuracy_ci_low", "record_accuracy_ci_high",
                "balanced_accuracy_mean", "false_alarm_rate_mean", "false_alarm_ci_low",
                "false_alarm_ci_high", "small_test_set", "majority_class_mean",
                "measured_only_best_mean", "physics_baseline", "physics_baseline_accuracy_mean",
                "strongest_baseline", "strongest_baseline_accuracy_mean", "gain_vs_strongest_mean"]
-    specimens = {}
-    if measured_records is not None:
-        records = pd.read_csv(measured_records, dtype=str, keep_default_na=False)
-        if "specimen" in records.columns:
-            specimens = dict(zip(records["record_id"], records["specimen"]))
+    if specimens is None:
+        specimens = design_record_ids((), (), measured_records)[1]
     recalls = {}
     if specimens:
         hits = predictions.assign(hit=predictions["true_label"] == predictions["predicted_label"],
@@ -737,10 +850,8 @@ def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFra
         if everything.empty:
             continue
         row = everything.iloc[0]
-        for name in figures:
-            value = row[name]
-            result[name] = value if isinstance(value, str) else (
-                bool(value) if isinstance(value, (bool, np.bool_)) else _json_number(value))
+        result.update(_figures(row, figures))
+        result["records"] = "all" if not design_records else "all (design and evaluation together)"
         if result["distinct_repeats"] == 1 and result["n_repeats"] > 1:
             # a spread of 0 would claim a stability nobody measured
             result["accuracy_std"] = result["macro_f1_std"] = None
@@ -750,21 +861,22 @@ def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFra
             r.condition: _json_number(r.accuracy_mean)
             for r in mine[(mine["condition"] != evaluation.ALL)
                           & (mine["records"] == evaluation.ALL)].itertuples()}
-        result["accuracy_mean_by_records"] = {
-            r.records: _json_number(r.accuracy_mean)
-            for r in mine[(mine["condition"] == evaluation.ALL)
-                          & (mine["records"] != evaluation.ALL)].itertuples()}
+        by_records = mine[(mine["condition"] == evaluation.ALL) & (mine["records"] != evaluation.ALL)]
+        result["accuracy_mean_by_records"] = {r.records: _json_number(r.accuracy_mean)
+                                              for r in by_records.itertuples()}
+        if design_records:
+            # every figure on each side, the baselines and the gain on those records alone
+            result["by_records"] = {
+                records: (_figures(by_records[by_records["records"] == records].iloc[0],
+                                   ["accuracy_mean", *figures])
+                          if (by_records["records"] == records).any() else
+                          {"note": f"no {records} record tested"})
+                for records in ("evaluation", "design")}
         if len(recalls):
             result["recall_per_specimen"] = {s: _json_number(v)
                                              for s, v in recalls.loc[key].items()}
-    summary["design_records"] = {
-        "records": sorted(map(str, design_records)),
-        "note": ("results on the records design choices were tuned on (report.design_records) "
-                 "are given apart ('design') from the others ('evaluation')"
-                 + ("" if set(predictions["record_id"]) - set(map(str, design_records)) else
-                    "; every tested record is a design record: no result here is on records "
-                    "never used in design") if design_records else
-                 "report.design_records is empty: no record is declared as used in design")}
+    summary["design_records"] = design_summary(predictions, design_records, design_specimens,
+                                               specimens)
     summary["repeats"] = (
         "a repeat redraws which measured records (time blocks, or segments under segment_share) "
         "join each share and seeds the fit (the CNN's initialisation and batches, a "
@@ -782,6 +894,13 @@ def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFra
         "classifier and the physics baseline (negative: a baseline wins); evaluation.csv per "
         "evaluation, evaluation_summary.csv over repeats, physics_baselines.csv the physics "
         "baselines' own figures on the same test sets")
+
+
+def _figures(row, names) -> dict:
+    """{name: JSON value} of one evaluation_summary row."""
+    return {name: row[name] if isinstance(row[name], str) else (
+        bool(row[name]) if isinstance(row[name], (bool, np.bool_)) else _json_number(row[name]))
+        for name in names}
 
 
 def simulation_summary(report_paths) -> dict:
@@ -823,11 +942,13 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
                  calibration_history, accuracy_path, summary_path, plots_dir, run_name: str,
                  data_source: str, confusion_percent=(0,), simulation_reports=(),
                  baseline_paths=(), measured_records=None, record_recall_path=None,
+                 baseline_prediction_paths=(),
                  healthy_state: str | None = None, benchmarks: dict | None = None,
                  job_timings_path=None,
                  bench_effects=(), prediction_shares_path=None,
                  simulated_validation_paths=(), measured_features_path=None,
-                 condition: str = "speed_rpm", design_records=(), evaluation_path=None,
+                 condition: str = "speed_rpm", design_records=(), design_specimens=(),
+                 evaluation_path=None,
                  evaluation_summary_path=None, physics_paths=(),
                  physics_baselines_path=None, headline_path=None) -> dict:
     """Build the whole report; returns the summary dict. Every output is written atomically.
@@ -840,8 +961,13 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
 
     measured_features_path, condition: the measured features (each record's value of the
     operating condition); with them, evaluation_path and evaluation_summary_path get
-    condmon.evaluation's tables (per evaluation; over repeats), `design_records` apart, and
-    summary.json's results the per-record, balanced, false-alarm and baseline figures.
+    condmon.evaluation's tables (per evaluation; over repeats), `design_records` and the
+    records of `design_specimens` (matched to measured_records' `specimen`) apart as design
+    records, and summary.json's results the per-record, balanced, false-alarm and baseline
+    figures (all test records, and design and evaluation records apart); the headline is then
+    on the evaluation records (headline_table).
+    baseline_prediction_paths: the measured-only baselines' predictions (files without rows are
+    skipped): that baseline on design and evaluation records apart.
     physics_paths: the physics baselines' predictions (condmon.baselines; files without rows
     are skipped): a candidate of the strongest baseline, their own figures in
     physics_baselines_path (evaluation_summary's columns) and summary.json's
@@ -865,6 +991,9 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     # the system's physics baselines (empty files where it has none)
     physics_with_rows = [p for p in physics_paths if len(pd.read_parquet(p, columns=["record_id"]))]
     physics = load_predictions(physics_with_rows) if physics_with_rows else None
+    alone_with_rows = [p for p in baseline_prediction_paths
+                       if len(pd.read_parquet(p, columns=["record_id"]))]
+    baseline_predictions = load_predictions(alone_with_rows) if alone_with_rows else None
     simulated_validation = load_simulated_validation(simulated_validation_paths)
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
                          healthy_state)
@@ -896,10 +1025,15 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
     log.info("%d metrics rows from %d files, %d predictions", len(accuracy),
              len(list(metrics_paths)), len(predictions))
 
+    specimens = {}
+    if measured_features_path is not None:
+        design_records, specimens = design_record_ids(design_records, design_specimens,
+                                                      measured_records)
+    design_tested = bool(set(map(str, design_records)) & set(predictions["record_id"].astype(str)))
     with staging_directory(plots_dir) as staging:
         plot_names = make_plots(accuracy, by_condition, spectra, history, calibrations, staging,
                                 run_name, data_source, confusion_percent, healthy_state,
-                                len(bench_effects), shares, grouping)
+                                len(bench_effects), shares, grouping, design_tested)
         summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names,
                             baseline, healthy_state)
         summary["data_source"]["bench_effects_the_model_lacks"] = list(bench_effects)
@@ -919,14 +1053,17 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
             summary["job_timings"] = write_job_timings(benchmarks, job_timings_path, staging, summary["plots"],
                                                        note=f"run {run_name}")
         note = plot_note(run_name, data_source, len(bench_effects))
+        table = physics_table = baseline_table = None
         if measured_features_path is not None:
-            table, overall, physics_overall = evaluation_tables(
+            table, overall, physics_table, physics_overall, baseline_table = evaluation_tables(
                 predictions, baseline, labels, healthy_state, measured_features_path, condition,
-                design_records, physics)
-            add_evaluation(summary, overall, predictions, measured_records, design_records)
-            plots.save_figure(plots.simulation_gain(gain_against_strongest(overall),
-                                                    1.0 / len(labels), note),
-                              staging / "simulation_gain.png")
+                design_records, physics, baseline_predictions)
+            add_evaluation(summary, overall, predictions, measured_records, design_records,
+                           design_specimens, specimens)
+            plots.save_figure(plots.simulation_gain(
+                gain_against_strongest(overall), 1.0 / len(labels),
+                plot_note(run_name, data_source, len(bench_effects), design_tested)),
+                staging / "simulation_gain.png")
             summary["plots"].append("simulation_gain.png")
             if physics_overall is not None:
                 summary["physics_baselines"] = physics_baselines_summary(physics_overall, physics)
@@ -948,7 +1085,7 @@ def write_report(metrics_paths, predictions_paths, calibration_params, calibrati
         if headline_path is not None:
             headline = headline_table(accuracy, baseline,
                                       physics_overall if measured_features_path is not None else None,
-                                      1.0 / len(labels))
+                                      1.0 / len(labels), table, physics_table, baseline_table)
             write_text(headline.to_csv(index=False), headline_path)
         if record_recall_path is not None:
             write_text(recall_per_record(predictions).to_csv(index=False), record_recall_path)

@@ -46,7 +46,8 @@ NOTES = {
     "headline": ("Mean over repeats (min-max over repeats where they differ) of the accuracy on "
                  "measured records never seen in training, at the smallest and the largest "
                  "share of measured data in training, per test protocol; the baselines on the "
-                 "same test sets below each protocol's classifiers."),
+                 "same test sets below each protocol's classifiers. `records`: all test records, "
+                 "or the evaluation specimens' (the headline) and the design specimens' apart."),
     "calibration": "The calibrated parameters, then the rest of the calibration's params.json.",
     "protocols": "What each test protocol holds out; every number of the report carries its protocol.",
 }

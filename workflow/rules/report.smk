@@ -72,6 +72,7 @@ rule report:
         # one calibration per variant (dict keys of the same order in each)
         simulation_reports=simulated_batches("json"),
         measured_only=train_outputs("measured_only.csv"),
+        measured_only_predictions=train_outputs("measured_only_predictions.parquet"),
         # the system's training-free physics baselines on the same test sets (may be empty)
         physics_baselines=physics_baseline_outputs("predictions.parquet"),
         measured_records=rules.measured.output.records,
@@ -105,6 +106,8 @@ rule report:
         calibrations=CALIBRATIONS,  # the first one's calibration made the simulated data
         condition=CONDITION,
         design_records=config["report"]["design_records"],
+        # the specimens whose records the design looked at (records.csv's specimen)
+        design_specimens=SYSTEM.design_specimens(),
     conda:
         "../envs/report.yaml"
     benchmark:

@@ -19,6 +19,8 @@ rule train:
         models=directory(f"{RESULTS}/train/{{classifier}}/{{protocol}}/models"),
         info=f"{RESULTS}/train/{{classifier}}/{{protocol}}/info.json",
         measured_only=f"{RESULTS}/train/{{classifier}}/{{protocol}}/measured_only.csv",
+        # its predictions (the report scores it on design and evaluation records apart)
+        measured_only_predictions=f"{RESULTS}/train/{{classifier}}/{{protocol}}/measured_only_predictions.parquet",
         # metrics on the held-out simulated records: only with hybrid.simulated_validation_share > 0
     params:
         classifier=lambda wc: wc.classifier,

@@ -36,15 +36,17 @@ predictions, metrics, models, validation = fit_and_evaluate(name, params, simula
 if snakemake.params.measured_only_baseline:
     # the same classifier on the same measured training data alone: the simulation's gain (its
     # selection chosen by its own inner CV, never forced)
-    _, baseline, _ = run_protocol(name, params, None, measured, splits, feature_names, seed, **subset)
+    baseline_predictions, baseline, _ = run_protocol(name, params, None, measured, splits,
+                                                     feature_names, seed, **subset)
     log.info("measured-only baseline: %d metric rows", len(baseline))
 else:
-    baseline = metrics.iloc[:0]
+    baseline, baseline_predictions = metrics.iloc[:0], predictions.iloc[:0]
 
 out = snakemake.output
 write_predictions(predictions, out.predictions)
 write_metrics(metrics, out.metrics)
 write_metrics(baseline, out.measured_only, BASELINE_COLUMNS)
+write_predictions(baseline_predictions, out.measured_only_predictions)
 # declared by the rule only when hybrid.simulated_validation_share > 0
 validation_path = getattr(out, "simulated_validation", None)
 if validation_path is not None:

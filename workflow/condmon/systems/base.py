@@ -156,6 +156,13 @@ class System(ABC):
         measurements); the report labels them."""
         return []
 
+    def design_specimens(self) -> list[str]:
+        """The specimens (measured/records.csv's `specimen`) whose records the design looked at
+        (features, ranges, bands tuned on them): the report gives their records' figures apart
+        ("design") from every other specimen's ("evaluation") and its headline on the latter
+        (none by default; `report.design_records` names single records)."""
+        return []
+
     def job_config(self, stage: str, variant: str | None = None) -> dict:
         """The config a job of `stage` ("bench", "measured", "calibrate", "simulate",
         "features") depends on: by default every section the system owns and the measured

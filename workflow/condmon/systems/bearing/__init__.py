@@ -5,8 +5,8 @@ user's signal table (`measured_table`) from any bearing rig.
 
 Config sections (schema.yaml beside this file): `bearing` (acquisition, geometry of the tested
 and the other bearing, labels and their defects, load-speed table, nominal model, numerics,
-randomisation), `cwru` (the task and manifest of the CWRU reader), `measured_dir`, `rig`
-(simulated speeds).
+randomisation), `cwru` (the task and manifest of the CWRU reader, the design specimens),
+`measured_dir`, `rig` (simulated speeds).
 """
 from __future__ import annotations
 
@@ -108,8 +108,21 @@ class BearingSystem(System):
             manifest = folder / "index.csv" if (folder / "index.csv").exists() else None
         return [str(f) for f in files] + ([str(manifest)] if manifest else [])
 
+    def design_specimens(self) -> list[str]:
+        """`cwru.design_specimens` as records.csv names them (a measured_table's records carry
+        no CWRU specimen: none)."""
+        if self.measured_table:
+            return []
+        from condmon.systems.bearing.cwru import specimen_name
+
+        return [specimen_name(s["fault"], s.get("diameter_in", 0.0), s.get("position"))
+                for s in self.config["cwru"]["design_specimens"]]
+
     def job_config(self, stage: str, variant: str | None = None) -> dict:
         config = super().job_config(stage, variant)
+        # the design specimens concern the report alone (its own param): an edit reruns nothing else
+        if "cwru" in config:
+            config["cwru"] = {k: v for k, v in config["cwru"].items() if k != "design_specimens"}
         if stage == "features":
             return {"bearing": {"geometry": self.bearing["geometry"]}}
         if stage == "baselines":  # the labels and the envelope rule's setting, nothing else
@@ -152,6 +165,13 @@ class BearingSystem(System):
             if not config["measured_table"]:
                 problems.append("bearing.health_states: CWRU files are labelled by cwru.task; own labels "
                                 "need a measured_table")
+        for i, specimen in enumerate(config["cwru"]["design_specimens"]):
+            where = f"cwru.design_specimens[{i}] ({specimen})"
+            if (specimen["fault"] == "outer_race") != ("position" in specimen):
+                problems.append(f"{where}: an outer-race specimen, and only one, names its position "
+                                "(3:00, 6:00 or 12:00)")
+            if (specimen["fault"] == "normal") != (not specimen.get("diameter_in")):
+                problems.append(f"{where}: a fault specimen, and only one, names its diameter_in")
         hop, length = self.bearing.get("segment_hop"), self.segment_length
         guard = config["calibration"]["reserve"]["guard_segments"]
         if hop is not None and hop > length:

@@ -481,9 +481,17 @@ def specimen_of(info) -> dict:
     records of one specimen are not independent; the healthy bearing is one specimen, group ""."""
     if info["fault"] == "normal":
         return {"specimen": "normal", "specimen_group": ""}
-    size = f"{float(info['diameter_in']):.3f}"
-    position = f" at {info['or_position']}" if str(info["or_position"] or "") else ""
-    return {"specimen": f"{info['fault']} {size} in{position}", "specimen_group": size}
+    return {"specimen": specimen_name(info["fault"], info["diameter_in"], info["or_position"]),
+            "specimen_group": f"{float(info['diameter_in']):.3f}"}
+
+
+def specimen_name(fault: str, diameter_in=0.0, position=None) -> str:
+    """A specimen's name in records.csv: "normal", "inner_race 0.007 in", "outer_race 0.021 in
+    at 6:00" (also how `cwru.design_specimens` entries are matched to records)."""
+    if fault == "normal":
+        return "normal"
+    where = f" at {position}" if str(position or "") else ""
+    return f"{fault} {float(diameter_in):.3f} in{where}"
 
 
 def _ingest_file(path: Path, number: int, table: pd.DataFrame, task: str, channels, fs_hz: float,
