@@ -7,7 +7,8 @@ import pytest
 from conftest import CWRU, DATA_FOLDERS
 from condmon.hybrid import (PROTOCOLS, SPLIT_COLUMNS, SplitError, calibration_frame,
                             check_healthy_tested, make_splits, measured_layout, n_train_records,
-                            read_split_table, sorted_holdouts, time_blocks, write_split_table)
+                            read_split_table, time_blocks, write_split_table)
+from condmon.labels import sorted_holdouts
 from condmon.systems.bearing.cwru import cwru_rows
 
 HEALTH = ("healthy", "surface_fault", "missing_tooth")

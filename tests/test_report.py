@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 import fake_train_outputs as fake
-from condmon import report
+from condmon import labels, report, train_tables
 
 
 @pytest.fixture(scope="module")
@@ -161,13 +161,13 @@ def test_metrics_file_missing_a_column_is_named(tmp_path):
     bad = tmp_path / "train/knn/record_split/metrics.csv"
     bad.parent.mkdir(parents=True)
     pd.DataFrame({"classifier": ["knn"], "accuracy": [0.5]}).to_csv(bad, index=False)
-    with pytest.raises(report.ReportInputError, match=f"{bad}.*lacks columns"):
-        report.load_metrics([bad])
+    with pytest.raises(train_tables.ReportInputError, match=f"{bad}.*lacks columns"):
+        train_tables.load_metrics([bad])
 
 
 def test_source_labels_never_call_synthetic_data_real():
-    assert report.data_source_label("virtual_bench") == "virtual bench (synthetic)"
-    assert report.is_synthetic("virtual_bench") and not report.is_synthetic("measured")
+    assert labels.data_source_label("virtual_bench") == "virtual bench (synthetic)"
+    assert labels.is_synthetic("virtual_bench") and not labels.is_synthetic("measured")
 
 
 @pytest.mark.slow
@@ -213,7 +213,7 @@ def test_simulation_gain_recall_and_protocol_labels(train_outputs, tmp_path):
     expected = (chosen[chosen.true_label == label].predicted_label == label).mean()
     row = next(r for r in knn if r["protocol"] == "record_split" and r["measured_percent"] == 0)
     assert row["recall_per_class"][label] == pytest.approx(expected)
-    assert "LEAKY" in report.PROTOCOL_LABELS["segment_share"]
+    assert "LEAKY" in labels.PROTOCOL_LABELS["segment_share"]
     assert set(summary["protocols"]) == {"record_split", "condition_holdout"}
 
 
@@ -297,7 +297,7 @@ def test_evaluation_tables_per_condition_design_records_and_baselines(built_repo
     table["holdout"] = table["holdout"].fillna("")
     assert set(table["condition"]) == {"all", "speed_rpm=600", "speed_rpm=900"}
     assert set(table["records"]) == {"all", "design", "evaluation"}
-    predictions = report.load_predictions(paths["predictions"])
+    predictions = train_tables.load_predictions(paths["predictions"])
     whole = table[(table.condition == "all") & (table.records == "all")]
     for row in whole.itertuples():
         test = predictions[(predictions.classifier == row.classifier)

@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 import fake_train_outputs as fake
-from condmon import plots, report
+from condmon import labels, plots, report
 from condmon.report_pages import write_pages
 
 
@@ -82,7 +82,7 @@ def test_the_headline_gives_the_accuracy_at_both_ends_beside_the_baselines(train
     pages = tmp_path / "pages"
     names = write_pages({"accuracy": out / "accuracy.csv", "evaluation_summary": out / "evaluation_summary.csv"},
                         out / "headline.csv", {"rig": paths["calibration_params"]}, out / "plots", config, pages,
-                        protocols=report.PROTOCOL_LABELS)
+                        protocols=labels.PROTOCOL_LABELS)
     assert names == ["headline", "accuracy", "evaluation_summary", "protocols", "calibration_rig"]
     for name in names:
         page = (pages / "tables" / f"{name}.html").read_text()

@@ -7,7 +7,8 @@ import pandas as pd
 import pytest
 
 import fake_train_outputs as fake
-from condmon import plots, report
+from condmon import plots, report, train_tables
+from condmon.labels import label_order
 from condmon.hybrid import SIMULATED_VALIDATION
 
 
@@ -24,7 +25,7 @@ def hand_built_predictions():
 
 
 def test_hand_built_predictions_give_known_shares():
-    labels = report.label_order(["fault", "healthy"], healthy_state="healthy")
+    labels = label_order(["fault", "healthy"], healthy_state="healthy")
     shares = report.prediction_shares(hand_built_predictions(), labels)
     assert list(shares.columns) == ["classifier", "protocol", "measured_percent", "speed_rpm",
                                     "true_label", "predicted_label", "share", "n"]
@@ -91,7 +92,7 @@ def test_prediction_shares_csv_matches_the_predictions(fake_outputs, reports):
     assert np.allclose(shares.groupby(keys)["share"].sum(), 1.0)
     assert (shares.groupby(keys).size() == len(fake.LABELS)).all()
     # against the predictions themselves, pooled over repeats
-    predictions = report.load_predictions(paths["predictions"])
+    predictions = train_tables.load_predictions(paths["predictions"])
     chosen = predictions[(predictions.classifier == "logreg")
                          & (predictions.protocol == "condition_holdout")
                          & (predictions.measured_percent == 50) & (predictions.speed_rpm == 900.0)

@@ -23,7 +23,8 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from condmon.atomic import staging_directory
-from condmon.hybrid import LEAKY_PROTOCOLS, measured_rows, read_split_table
+from condmon.hybrid import measured_rows, read_split_table
+from condmon.labels import LEAKY_PROTOCOLS
 from condmon.signal_model import SPEED_TOLERANCE, SignalModel
 
 INDEX_FILE = "index.json"

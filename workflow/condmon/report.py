@@ -4,7 +4,7 @@ Reads only the files of the stage contracts (train/<classifier>/<protocol>/metri
 predictions.parquet, calibration/<calibration variant>/params.json, spectra.parquet,
 history.parquet) and writes
 
-- ``accuracy.csv``: the concatenated metrics files, sorted; columns ``ACCURACY_COLUMNS``;
+- ``accuracy.csv``: the concatenated metrics files, sorted; columns ``condmon.train_tables.ACCURACY_COLUMNS``;
 - ``summary.json``: data source, calibration (the one the simulated data come from; with one
   calibration per calibration variant each one's model variant, final and nominal cost,
   evaluations and seconds under ``calibration_by_variant``), per classifier x
@@ -37,19 +37,13 @@ from sklearn.metrics import confusion_matrix
 from condmon import evaluation, job_timings, plots
 from condmon.evaluation import SMALL_TEST_SET, wilson_interval
 from condmon.atomic import staging_directory, write_text
-from condmon.hybrid import LEAKY_PROTOCOLS, SIMULATED_VALIDATION, format_speed, protocol_title
+from condmon.hybrid import SIMULATED_VALIDATION
+from condmon.labels import (LEAKY_PROTOCOLS, data_source_label, format_speed, is_synthetic,
+                            label_order, protocol_label, protocol_title)
+from condmon.train_tables import ReportInputError, load_metrics, load_predictions
 
 log = logging.getLogger(__name__)
 
-# accuracy.csv: the contract columns first, then the context of each evaluation.
-ACCURACY_COLUMNS = ["classifier", "protocol", "measured_percent", "repeat", "speed_rpm",
-                    "accuracy", "macro_f1", "holdout", "n_train_simulated",
-                    "n_train_measured", "n_test"]
-PREDICTION_COLUMNS = ["protocol", "measured_percent", "repeat", "holdout", "record_id",
-                      "segment", "speed_rpm", "true_label", "predicted_label"]
-# optional: the CNN ensemble's member spread per prediction (NaN for the other classifiers)
-OPTIONAL_PREDICTION_COLUMNS = ["uncertainty"]
-SORT_KEYS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "speed_rpm"]
 # prediction_shares.csv: per (classifier, protocol, percent, speed), true class x predicted class
 SHARE_KEYS = ["classifier", "protocol", "measured_percent", "speed_rpm"]
 SHARE_COLUMNS = SHARE_KEYS + ["true_label", "predicted_label", "share", "n"]
@@ -57,118 +51,8 @@ SIMULATED_VALIDATION_LABEL = (
     "accuracy on SIMULATED records held out of training (hybrid.simulated_validation_share), "
     "not on measured data: never part of the measured results")
 
-# What each protocol's test set is: every number the report gives is labelled with it.
-PROTOCOL_LABELS = {
-    "record_split": ("whole measured records held out; the same fault specimen may be trained "
-                     "on at another condition (a lone healthy record: its time blocks)"),
-    "condition_holdout": ("a whole operating condition held out (speed or load never seen); the "
-                          "same fault specimen may be trained on at another condition; where the "
-                          "held-out condition has no healthy record, healthy records of another "
-                          "condition test"),
-    "segment_share": ("LEAKY (the bearing study's protocol): segments of the same records on "
-                      "both sides of the split"),
-    "unseen_fault": ("faults never measured: measured training data holds only the configured "
-                     "measured classes (healthy records always keep a test share); the other "
-                     "classes come from simulation alone"),
-    "specimen_holdout": ("whole fault specimens held out: every specimen of one group (fault "
-                         "size) tests at every condition, the share trains from the other "
-                         "groups; healthy records only test: no specimen on both sides"),
-}
-
-# Data-source kinds that are not real measurements; anything labelled with them must say so.
-SYNTHETIC_SOURCES = {"virtual_bench": "virtual bench (synthetic)"}
-
-
-class ReportInputError(ValueError):
-    """A file the report reads breaks the stage contract."""
-
-
-# --------------------------------------------------------------------------- data source
-
-def is_synthetic(data_source: str) -> bool:
-    return data_source in SYNTHETIC_SOURCES
-
-
-def data_source_label(data_source: str) -> str:
-    """Short label for titles and footnotes, e.g. "virtual bench (synthetic)"."""
-    if is_synthetic(data_source):
-        return SYNTHETIC_SOURCES[data_source]
-    if data_source == "measured":
-        return "measured (test-bench recordings)"
-    return data_source
-
 
 # --------------------------------------------------------------------------- inputs
-
-def load_metrics(paths, extra_columns=()) -> pd.DataFrame:
-    """Concatenate train metrics.csv files into the accuracy table (columns ACCURACY_COLUMNS).
-
-    ``speed_rpm`` is NaN on the all-speeds rows; ``holdout`` is "" where nothing is held out.
-    ``extra_columns`` (e.g. "fit_seconds") are kept at the end where a file has them.
-    """
-    paths = [Path(p) for p in paths]
-    if not paths:
-        raise ReportInputError("no metrics.csv files given")
-    frames = []
-    for path in paths:
-        if not path.exists():
-            raise ReportInputError(f"{path}: no such metrics file")
-        frame = pd.read_csv(path, dtype={"classifier": str, "protocol": str, "holdout": str})
-        missing = [c for c in ACCURACY_COLUMNS if c not in frame.columns]
-        if missing:
-            raise ReportInputError(f"{path}: metrics file lacks columns {missing}")
-        if frame.empty:
-            raise ReportInputError(f"{path}: metrics file has no rows")
-        frames.append(frame[ACCURACY_COLUMNS + [c for c in extra_columns if c in frame.columns]])
-    table = pd.concat(frames, ignore_index=True)
-    table["holdout"] = table["holdout"].fillna("")
-    table["speed_rpm"] = pd.to_numeric(table["speed_rpm"], errors="coerce")
-    for column in ("measured_percent", "repeat", "n_train_simulated", "n_train_measured", "n_test"):
-        table[column] = table[column].astype(int)
-    duplicated = table.duplicated(SORT_KEYS)
-    if duplicated.any():
-        first = table.loc[duplicated].iloc[0]
-        raise ReportInputError(
-            f"metrics rows repeat for classifier {first.classifier!r} protocol {first.protocol!r} "
-            f"percent {first.measured_percent} repeat {first.repeat}; is a metrics file listed twice?")
-    # na_position="first": the all-speeds row leads its group.
-    return (table.sort_values(SORT_KEYS, na_position="first", kind="stable")
-            .reset_index(drop=True))
-
-
-def classifier_of(predictions_path: Path) -> str:
-    """The classifier of train/<classifier>/<protocol>/predictions.parquet (the file has no column)."""
-    return Path(predictions_path).parent.parent.name
-
-
-def load_predictions(paths) -> pd.DataFrame:
-    """Concatenate predictions.parquet files, adding a ``classifier`` column from the path;
-    optional columns (``uncertainty``) are NaN where a file lacks them."""
-    paths = [Path(p) for p in paths]
-    if not paths:
-        raise ReportInputError("no predictions.parquet files given")
-    frames = []
-    for path in paths:
-        if not path.exists():
-            raise ReportInputError(f"{path}: no such predictions file")
-        frame = pd.read_parquet(path)
-        missing = [c for c in PREDICTION_COLUMNS if c not in frame.columns]
-        if missing:
-            raise ReportInputError(f"{path}: predictions file lacks columns {missing}")
-        if "classifier" not in frame.columns:
-            frame.insert(0, "classifier", classifier_of(path))
-        protocols = set(frame["protocol"])
-        if protocols != {path.parent.name}:
-            raise ReportInputError(f"{path}: protocol column {sorted(protocols)} does not match "
-                                   f"the directory train/<classifier>/{path.parent.name}/")
-        for column in OPTIONAL_PREDICTION_COLUMNS:
-            if column not in frame.columns:
-                frame[column] = np.nan
-        frames.append(frame[["classifier"] + PREDICTION_COLUMNS + OPTIONAL_PREDICTION_COLUMNS])
-    table = pd.concat(frames, ignore_index=True)
-    table["holdout"] = table["holdout"].fillna("")
-    return table
-
 
 def load_simulated_validation(paths) -> pd.DataFrame | None:
     """The train stage's simulated_validation.csv files as one table (columns ACCURACY_COLUMNS
@@ -230,14 +114,6 @@ def labelled_accuracy(accuracy: pd.DataFrame) -> pd.DataFrame:
     out["accuracy_ci_high"] = [high for _, high in bounds]
     out["small_test_set"] = out["n_test"] < SMALL_TEST_SET
     return out
-
-
-def label_order(labels, healthy_state: str | None = None) -> list[str]:
-    """Class labels sorted, the system's healthy state first so confusion matrices read from it.
-    Pass true and predicted labels: a class may be predicted but never tested (a folder without
-    healthy records)."""
-    labels = sorted(set(labels))
-    return sorted(labels, key=lambda label: label != healthy_state)
 
 
 def confusion_counts(true_labels, predicted_labels, labels) -> np.ndarray:
@@ -529,7 +405,7 @@ def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: di
             **accuracy_entry(row, speeds),
             "n_test_records_per_repeat": _json_number(test_records.get(key)),
             "n_test_segments_per_repeat": _json_number(row.n_test_segments),
-            "protocol_label": PROTOCOL_LABELS.get(row.protocol, row.protocol),
+            "protocol_label": protocol_label(row.protocol),
             "recall_per_class": {r.true_label: _json_number(r.recall) for r in recalls[
                 (recalls["classifier"] == row.classifier) & (recalls["protocol"] == row.protocol)
                 & (recalls["measured_percent"] == row.measured_percent)].itertuples()},
@@ -555,7 +431,7 @@ def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: di
         "n_evaluations": int(accuracy["speed_rpm"].isna().sum()),
         "aggregation": ("accuracy_std is the sample std over repeats (null with one repeat); "
                         "condition_holdout: held-out conditions are averaged within a repeat first"),
-        "protocols": {p: PROTOCOL_LABELS.get(p, p) for p in sorted(accuracy["protocol"].unique())},
+        "protocols": {p: protocol_label(p) for p in sorted(accuracy["protocol"].unique())},
         "simulation_gain": ("accuracy with the simulated data minus accuracy of the same "
                             "classifier on the same measured training data alone (null: no "
                             "measured-only baseline, or no measured training data); the "

@@ -49,7 +49,8 @@ from sklearn.utils.metadata_routing import get_routing_for_object
 from condmon import classifiers
 from condmon.atomic import staging_directory, write_frame, write_table, write_text
 from condmon.hybrid import (SIMULATED_VALIDATION, measured_rows, simulated_validation_ids,
-                            sorted_holdouts, validate_splits)
+                            validate_splits)
+from condmon.labels import sorted_holdouts
 from condmon.seeds import derive_seed, stable_int
 from condmon.selection import (ALL_FEATURES, BACKWARD, SelectionByInnerCV,
                                 SequentialBackwardSelector, select_then_classify,
