@@ -63,13 +63,11 @@ def fake_outputs(tmp_path_factory):
     return root, paths, validation_paths
 
 
-def build_report(paths, out, **kwargs):
-    return report.write_report(
-        paths["metrics"], paths["predictions"], paths["calibration_params"],
-        paths["calibration_spectra"], paths["calibration_history"],
-        accuracy_path=out / "accuracy.csv", summary_path=out / "summary.json",
-        plots_dir=out / "plots", run_name="demo", data_source="virtual_bench",
-        confusion_percent=[0], prediction_shares_path=out / "prediction_shares.csv", **kwargs)
+def build_report(paths, out, simulated_validation=()):
+    """The report with prediction_shares.csv, no healthy state (labels sorted alone)."""
+    return fake.write_report(paths, out, run={"healthy_state": None},
+                             train={"simulated_validation": simulated_validation},
+                             outputs={"prediction_shares": out / "prediction_shares.csv"})
 
 
 @pytest.fixture(scope="module")
@@ -77,8 +75,7 @@ def reports(fake_outputs):
     """The report without (share 0) and with simulated validation files: (folder, summary) each."""
     root, paths, validation_paths = fake_outputs
     without = build_report(paths, root / "without")
-    with_validation = build_report(paths, root / "with",
-                                   simulated_validation_paths=validation_paths)
+    with_validation = build_report(paths, root / "with", simulated_validation=validation_paths)
     return (root / "without", without), (root / "with", with_validation)
 
 

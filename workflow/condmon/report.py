@@ -40,6 +40,7 @@ from condmon.atomic import staging_directory, write_text
 from condmon.hybrid import SIMULATED_VALIDATION
 from condmon.labels import (LEAKY_PROTOCOLS, data_source_label, format_speed, is_synthetic,
                             label_order, protocol_label, protocol_title)
+from condmon.report_inputs import CalibrationOutputs, ReportInputs, RunIdentity
 from condmon.train_tables import ReportInputError, load_metrics, load_predictions
 
 log = logging.getLogger(__name__)
@@ -494,18 +495,19 @@ def condition_file_part(condition: str, value) -> str:
 
 
 def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: Path,
-               run_name: str, data_source: str, confusion_percent,
-               healthy_state: str | None = None, bench_effects: int = 0,
-               shares: pd.DataFrame | None = None, condition: str = "speed_rpm") -> list[str]:
-    """Write every report plot into ``plots_dir``; returns the file names. bench_effects: how many
-    effects the bench has that the model lacks (the note says so; summary.json lists them).
+               run: RunIdentity, confusion_percent, shares: pd.DataFrame | None = None,
+               condition: str = "speed_rpm") -> list[str]:
+    """Write every report plot into ``plots_dir``; returns the file names. ``run``: the footnote's
+    run and data source (and how many effects the bench has that the model lacks: the note says
+    so; summary.json lists them), the healthy state the class order starts from.
     ``shares``: prediction_shares of the predictions (computed here if not given).
     ``condition``: the predictions' column of the operating condition the per-condition figures
     (confusion matrices, prediction shares) group by: speed_rpm, or e.g. a motor load
     (with_condition); the per-speed accuracy bars only where the condition is the speed
     (accuracy_per_condition.png covers any condition)."""
-    note = plot_note(run_name, data_source, bench_effects)
-    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
+    note = plot_note(run.run_name, run.data_source, len(run.bench_effects))
+    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
+                         run.healthy_state)
     chance = 1.0 / len(labels)
     percents = confusion_percents(accuracy, confusion_percent)
     if shares is None:
@@ -695,142 +697,123 @@ def write_job_timings(files_by_rule: dict, csv_path, plots_dir, plot_names: list
     return {row.pop("rule"): row for row in timings.to_dict("records")}
 
 
-def write_report(metrics_paths, predictions_paths, calibration_params, calibration_spectra,
-                 calibration_history, accuracy_path, summary_path, plots_dir, run_name: str,
-                 data_source: str, confusion_percent=(0,), simulation_reports=(),
-                 baseline_paths=(), measured_records=None, record_recall_path=None,
-                 healthy_state: str | None = None, benchmarks: dict | None = None,
-                 job_timings_path=None,
-                 bench_effects=(), prediction_shares_path=None,
-                 simulated_validation_paths=(), measured_features_path=None,
-                 condition: str = "speed_rpm", design_records=(), evaluation_path=None,
-                 evaluation_summary_path=None, physics_paths=(),
-                 physics_baselines_path=None, headline_path=None) -> dict:
-    """Build the whole report; returns the summary dict. Every output is written atomically.
-
-    prediction_shares_path: where prediction_shares.csv goes (None: not written).
-    benchmarks: {rule: the benchmark files of its jobs} of the jobs before this one (None: no
-    timings): job_timings.csv, summary.json's ``job_timings`` and plots/job_timings.png.
-    simulated_validation_paths: the train stage's simulated_validation.csv files (given only
-    with hybrid.simulated_validation_share > 0): summary.json's ``simulated_validation``.
-
-    measured_features_path, condition: the measured features (each record's value of the
-    operating condition); with them, evaluation_path and evaluation_summary_path get
-    condmon.evaluation's tables (per evaluation; over repeats), `design_records` apart, and
-    summary.json's results the per-record, balanced, false-alarm and baseline figures.
-    physics_paths: the physics baselines' predictions (condmon.baselines; files without rows
-    are skipped): a candidate of the strongest baseline, their own figures in
-    physics_baselines_path (evaluation_summary's columns) and summary.json's
-    `physics_baselines`. plots/simulation_gain.png: the gain against the strongest baseline
-    (without measured features: against the same classifier's measured-only baseline).
-
-    headline_path: where the front page's headline table goes (headline_table; None: not
-    written).
-
-    bench_effects: what the virtual bench has and the model lacks (its difference in form),
-    labelled in summary.json and on every plot.
-
-    calibration_params, calibration_spectra, calibration_history: the files of one calibration,
-    or {calibration variant: file} of one calibration per variant, the simulation's first (its
-    calibration is the summary's `calibration`; `calibration_by_variant` lists all)."""
-    accuracy = load_metrics(metrics_paths)
-    # measured-only baselines (empty files where hybrid.measured_only_baseline is off)
-    with_rows = [p for p in baseline_paths if len(pd.read_csv(p))]
-    baseline = load_metrics(with_rows) if with_rows else None
-    predictions = load_predictions(predictions_paths)
-    # the system's physics baselines (empty files where it has none)
-    physics_with_rows = [p for p in physics_paths if len(pd.read_parquet(p, columns=["record_id"]))]
-    physics = load_predictions(physics_with_rows) if physics_with_rows else None
-    simulated_validation = load_simulated_validation(simulated_validation_paths)
-    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
-                         healthy_state)
-    # the per-condition figures and prediction_shares.csv group by the operating condition
-    # (hybrid.condition: the speed, or e.g. the load), each record's value from its features
-    grouping = condition if measured_features_path is not None else "speed_rpm"
-    by_condition = (with_condition(predictions, record_conditions(measured_features_path, condition),
-                                   condition) if grouping != "speed_rpm" else predictions)
-    shares = prediction_shares(by_condition, labels, grouping)
-    per_model = isinstance(calibration_params, dict)
-    params_paths = calibration_params if per_model else {None: calibration_params}
-    spectra_paths = calibration_spectra if per_model else {None: calibration_spectra}
-    history_paths = calibration_history if per_model else {None: calibration_history}
+def load_calibrations(calibration: CalibrationOutputs) -> tuple:
+    """(summaries, spectra, histories) of the calibration files: each {variant: ...} with one
+    calibration per variant (each summary with its `calibration_variant`), else the one's own."""
+    params_paths, spectra_paths, history_paths = calibration.by_variant()
     if not (list(params_paths) == list(spectra_paths) == list(history_paths)) or not params_paths:
         raise ReportInputError("calibration params, spectra and history must name the same "
                                f"calibration variants: {list(params_paths)}, "
                                f"{list(spectra_paths)}, {list(history_paths)}")
     calibrations = {m: load_calibration(p) for m, p in params_paths.items()}
-    for variant, calibration in calibrations.items():
+    for variant, summary in calibrations.items():
         if variant is not None:
-            calibration["calibration_variant"] = variant
+            summary["calibration_variant"] = variant
     spectra = {m: read_table(p, ["speed_rpm", "channel", "freq_hz", "measured", "calibrated"],
                              "calibration spectra") for m, p in spectra_paths.items()}
     history = {m: read_table(p, ["evaluation", "model_variant", "cost"], "calibration history")
                for m, p in history_paths.items()}
-    calibration = next(iter(calibrations.values()))  # the one the simulated data come from
-    if not per_model:
-        spectra, history, calibrations = spectra[None], history[None], calibrations[None]
-    log.info("%d metrics rows from %d files, %d predictions", len(accuracy),
-             len(list(metrics_paths)), len(predictions))
+    if not calibration.per_variant:
+        return calibrations[None], spectra[None], history[None]
+    return calibrations, spectra, history
 
-    with staging_directory(plots_dir) as staging:
+
+def write_report(inputs: ReportInputs) -> dict:
+    """Build the whole report from `inputs` (condmon.report_inputs: what each input adds, and
+    which outputs are optional); returns the summary dict. Every output is written atomically.
+
+    With the measured features (inputs.evaluation.measured_features) the evaluation tables
+    (condmon.evaluation: per evaluation; over repeats) get `design_records` apart, summary.json's
+    results the per-record, balanced, false-alarm and baseline figures, and
+    plots/simulation_gain.png the gain against the strongest baseline (without them: against
+    the same classifier's measured-only baseline)."""
+    run, train, chosen = inputs.run, inputs.train, inputs.evaluation
+    upstream, out = inputs.upstream, inputs.outputs
+    accuracy = load_metrics(train.metrics)
+    # measured-only baselines (empty files where hybrid.measured_only_baseline is off)
+    with_rows = [p for p in train.measured_only if len(pd.read_csv(p))]
+    baseline = load_metrics(with_rows) if with_rows else None
+    predictions = load_predictions(train.predictions)
+    # the system's physics baselines (empty files where it has none)
+    physics_with_rows = [p for p in train.physics
+                         if len(pd.read_parquet(p, columns=["record_id"]))]
+    physics = load_predictions(physics_with_rows) if physics_with_rows else None
+    simulated_validation = load_simulated_validation(train.simulated_validation)
+    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
+                         run.healthy_state)
+    # the per-condition figures and prediction_shares.csv group by the operating condition
+    # (hybrid.condition: the speed, or e.g. the load), each record's value from its features
+    features, condition = chosen.measured_features, chosen.condition
+    grouping = condition if features is not None else "speed_rpm"
+    by_condition = (with_condition(predictions, record_conditions(features, condition), condition)
+                    if grouping != "speed_rpm" else predictions)
+    shares = prediction_shares(by_condition, labels, grouping)
+    calibrations, spectra, history = load_calibrations(inputs.calibration)
+    per_model = inputs.calibration.per_variant
+    # the one the simulated data come from
+    calibration = next(iter(calibrations.values())) if per_model else calibrations
+    log.info("%d metrics rows from %d files, %d predictions", len(accuracy),
+             len(train.metrics), len(predictions))
+
+    with staging_directory(out.plots) as staging:
         plot_names = make_plots(accuracy, by_condition, spectra, history, calibrations, staging,
-                                run_name, data_source, confusion_percent, healthy_state,
-                                len(bench_effects), shares, grouping)
-        summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names,
-                            baseline, healthy_state)
-        summary["data_source"]["bench_effects_the_model_lacks"] = list(bench_effects)
+                                run, chosen.confusion_percent, shares, grouping)
+        summary = summarize(accuracy, predictions, calibration, run.run_name, run.data_source,
+                            plot_names, baseline, run.healthy_state)
+        summary["data_source"]["bench_effects_the_model_lacks"] = list(run.bench_effects)
         if per_model:
             summary["calibration_by_variant"] = calibrations
-        summary["simulation"] = simulation_summary(simulation_reports)
-        if measured_records is not None:
-            summary["measured_records"] = measured_records_summary(measured_records)
-        if list(simulated_validation_paths):  # hybrid.simulated_validation_share > 0
+        summary["simulation"] = simulation_summary(upstream.simulation_reports)
+        if upstream.measured_records is not None:
+            summary["measured_records"] = measured_records_summary(upstream.measured_records)
+        if train.simulated_validation:  # hybrid.simulated_validation_share > 0
             summary["simulated_validation"] = (
                 simulated_validation_summary(simulated_validation)
                 if simulated_validation is not None else
                 {"test_source": SIMULATED_VALIDATION, "label": SIMULATED_VALIDATION_LABEL,
                  "results": [], "note": "no simulated record was held out (every stratum's "
                                         "share rounds to zero records)"})
-        if benchmarks is not None:
-            summary["job_timings"] = write_job_timings(benchmarks, job_timings_path, staging, summary["plots"],
-                                                       note=f"run {run_name}")
-        note = plot_note(run_name, data_source, len(bench_effects))
-        if measured_features_path is not None:
+        if upstream.benchmarks is not None:
+            summary["job_timings"] = write_job_timings(upstream.benchmarks, out.job_timings,
+                                                       staging, summary["plots"],
+                                                       note=f"run {run.run_name}")
+        note = plot_note(run.run_name, run.data_source, len(run.bench_effects))
+        physics_overall = None
+        if features is not None:
             table, overall, physics_overall = evaluation_tables(
-                predictions, baseline, labels, healthy_state, measured_features_path, condition,
-                design_records, physics)
-            add_evaluation(summary, overall, predictions, measured_records, design_records)
+                predictions, baseline, labels, run.healthy_state, features, condition,
+                chosen.design_records, physics)
+            add_evaluation(summary, overall, predictions, upstream.measured_records,
+                           chosen.design_records)
             plots.save_figure(plots.simulation_gain(gain_against_strongest(overall),
                                                     1.0 / len(labels), note),
                               staging / "simulation_gain.png")
             summary["plots"].append("simulation_gain.png")
             if physics_overall is not None:
                 summary["physics_baselines"] = physics_baselines_summary(physics_overall, physics)
-            if physics_baselines_path is not None:
+            if out.physics_baselines is not None:
                 # without any rule, a header alone: the evaluation summary's columns, no rows
                 write_text((physics_overall if physics_overall is not None else overall.iloc[:0])
-                           .to_csv(index=False), physics_baselines_path)
+                           .to_csv(index=False), out.physics_baselines)
             summary["plots"] += evaluation_plots(overall, 1.0 / len(labels), note, staging)
-            if evaluation_path is not None:
-                write_text(table.to_csv(index=False), evaluation_path)
-            if evaluation_summary_path is not None:
-                write_text(overall.to_csv(index=False), evaluation_summary_path)
+            if out.evaluation is not None:
+                write_text(table.to_csv(index=False), out.evaluation)
+            if out.evaluation_summary is not None:
+                write_text(overall.to_csv(index=False), out.evaluation_summary)
         elif baseline is not None:  # no evaluation tables: the same classifier's baseline
             gains = simulation_gain(accuracy, baseline).rename(columns={"measured_only": "strongest"})
             plots.save_figure(plots.simulation_gain(gains, 1.0 / len(labels), note),
                               staging / "simulation_gain.png")
             summary["plots"].append("simulation_gain.png")
-        write_text(labelled_accuracy(accuracy).to_csv(index=False), accuracy_path)
-        if headline_path is not None:
-            headline = headline_table(accuracy, baseline,
-                                      physics_overall if measured_features_path is not None else None,
-                                      1.0 / len(labels))
-            write_text(headline.to_csv(index=False), headline_path)
-        if record_recall_path is not None:
-            write_text(recall_per_record(predictions).to_csv(index=False), record_recall_path)
-        if prediction_shares_path is not None:
-            write_text(shares.to_csv(index=False), prediction_shares_path)
-        write_text(json.dumps(summary, indent=2) + "\n", summary_path)
-    log.info("wrote %s, %s and %d plots in %s", accuracy_path, summary_path, len(plot_names),
-             plots_dir)
+        write_text(labelled_accuracy(accuracy).to_csv(index=False), out.accuracy)
+        if out.headline is not None:
+            headline = headline_table(accuracy, baseline, physics_overall, 1.0 / len(labels))
+            write_text(headline.to_csv(index=False), out.headline)
+        if out.recall_per_record is not None:
+            write_text(recall_per_record(predictions).to_csv(index=False), out.recall_per_record)
+        if out.prediction_shares is not None:
+            write_text(shares.to_csv(index=False), out.prediction_shares)
+        write_text(json.dumps(summary, indent=2) + "\n", out.summary)
+    log.info("wrote %s, %s and %d plots in %s", out.accuracy, out.summary, len(plot_names),
+             out.plots)
     return summary
