@@ -48,6 +48,7 @@ import subprocess
 import time
 import urllib.error
 import urllib.request
+from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 from urllib.parse import urlparse
@@ -375,9 +376,20 @@ def curves(history) -> list[tuple[str, float, int]]:
     return [point for point in points if np.isfinite(point[1])]
 
 
-def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_source: str,
-                     train_dirs, datasets: dict, config: dict | None = None, log_models="all",
-                     healthy_state: str | None = None, workdir=".", model_store=None,
+@dataclass(frozen=True)
+class TrackedRun:
+    """What names a pipeline invocation in MLflow: the run name (the experiment), the config's
+    hash and its values (the parent's params), the data source (tags), and the healthy state
+    (the confusion matrices' class order)."""
+    run_name: str
+    config_hash: str
+    data_source: str
+    config: dict | None = None
+    healthy_state: str | None = None
+
+
+def log_pipeline_run(tracking_uri: str, run: TrackedRun, train_dirs, datasets: dict,
+                     log_models="all", workdir=".", model_store=None,
                      artifacts: dict | None = None) -> dict:
     """Log one pipeline invocation (see module docstring); returns the run_info dict.
 
@@ -389,6 +401,8 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
     (``register_best``); ``artifacts``: {artifact folder: local file or folder} of the parent
     (the report's plots). Every input is read and checked before the first MLflow call.
     """
+    run_name, config_hash, data_source = run.run_name, run.config_hash, run.data_source
+    config, healthy_state = run.config, run.healthy_state
     if not isinstance(log_models, dict) and log_models not in MODEL_POLICIES:
         raise ValueError(f"log_models={log_models!r}; expected one of {MODEL_POLICIES} or a filter")
     started = time.perf_counter()
