@@ -272,15 +272,32 @@ def train_dirs(paths: dict) -> list[Path]:
     return [Path(p).parent for p in paths["info"]]
 
 
-def write_report(paths: dict, out: Path, **extra) -> dict:
-    """`condmon.report.write_report` on the fake train outputs (`build`), every table and plot into
-    `out`; `extra`: its optional inputs (baselines, measured features and condition, ...)."""
+def report_inputs(paths: dict, out: Path, **parts):
+    """`condmon.report_inputs.ReportInputs` of the fake train outputs (`build`): run "demo" on the
+    virtual bench, healthy first, confusion matrices at 0 %, accuracy.csv, summary.json, plots/
+    and the evaluation tables into `out`. `parts`: {group: {field: value}} replacing fields of a
+    group, e.g. evaluation={"measured_features": ...}, train={"measured_only": [...]}."""
+    from dataclasses import replace
+
+    from condmon.report_inputs import (CalibrationOutputs, EvaluationInputs, ReportInputs,
+                                       ReportOutputs, RunIdentity, TrainOutputs)
+
+    inputs = ReportInputs(
+        run=RunIdentity(run_name="demo", data_source="virtual_bench", healthy_state="healthy"),
+        train=TrainOutputs(metrics=paths["metrics"], predictions=paths["predictions"]),
+        calibration=CalibrationOutputs(params=paths["calibration_params"],
+                                       spectra=paths["calibration_spectra"],
+                                       history=paths["calibration_history"]),
+        evaluation=EvaluationInputs(confusion_percent=[0]),
+        outputs=ReportOutputs(accuracy=out / "accuracy.csv", summary=out / "summary.json",
+                              plots=out / "plots", evaluation=out / "evaluation.csv",
+                              evaluation_summary=out / "evaluation_summary.csv"))
+    return replace(inputs, **{group: replace(getattr(inputs, group), **fields)
+                              for group, fields in parts.items()})
+
+
+def write_report(paths: dict, out: Path, **parts) -> dict:
+    """`condmon.report.write_report` on `report_inputs(paths, out, **parts)`."""
     from condmon import report
 
-    return report.write_report(
-        paths["metrics"], paths["predictions"], paths["calibration_params"],
-        paths["calibration_spectra"], paths["calibration_history"],
-        accuracy_path=out / "accuracy.csv", summary_path=out / "summary.json",
-        plots_dir=out / "plots", run_name="demo", data_source="virtual_bench",
-        confusion_percent=[0], healthy_state="healthy",
-        evaluation_path=out / "evaluation.csv", evaluation_summary_path=out / "evaluation_summary.csv", **extra)
+    return report.write_report(report_inputs(paths, out, **parts))

@@ -18,7 +18,7 @@ from condmon.cnn import (CNNConfigError, CNNEnsembleClassifier, channels_from_fe
                          validation_split)
 from condmon.features import write_feature_table
 from condmon.protocols import make_splits
-from condmon.train import (HISTORY_FILE, PREDICTION_COLUMNS, run_protocol, train_info,
+from condmon.train import (HISTORY_FILE, PREDICTION_COLUMNS, JobCost, run_protocol, train_info,
                            write_metrics, write_models, write_predictions)
 
 CLASSES = ("healthy", "surface_fault", "missing_tooth")
@@ -237,10 +237,10 @@ def test_tracking_logs_curves_and_the_ensemble_as_a_pytorch_model(tmp_path):
     write_metrics(metrics, out / "metrics.csv")
     entries = write_models(models, out / "models", FEATURES)
     (out / "info.json").write_text(json.dumps(train_info("cnn", SMALL, 1, "record_split", CLASSES, FEATURES,
-                                                         metrics, entries, 1.0)))
+                                                         metrics, entries, JobCost(1.0))))
     uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
     tables = [root / "features/measured.parquet", root / "features/simulated.parquet"]
-    info = tracking.log_pipeline_run(uri, "cnn_demo", "hash-c", "virtual_bench", [out],
+    info = tracking.log_pipeline_run(uri, tracking.TrackedRun("cnn_demo", "hash-c", "virtual_bench"), [out],
                                      {"measured_features": tables[:1], "simulated_features": tables[1:]},
                                      log_models="all", workdir=tmp_path)
     assert info["n_nested_runs"] == info["n_models_logged"] == 1

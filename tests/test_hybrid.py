@@ -6,9 +6,10 @@ import pytest
 
 from conftest import CWRU, DATA_FOLDERS
 from condmon.hybrid import (SPLIT_COLUMNS, SplitError, calibration_frame, measured_layout,
-                            n_train_records, read_split_table, sorted_holdouts, time_blocks,
+                            n_train_records, read_split_table, time_blocks,
                             write_split_table)
 from condmon.protocols import PROTOCOLS, check_healthy_tested, make_splits, protocol_from
+from condmon.labels import sorted_holdouts
 from condmon.systems.bearing.cwru import cwru_rows
 
 HEALTH = ("healthy", "surface_fault", "missing_tooth")

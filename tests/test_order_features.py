@@ -242,9 +242,10 @@ def test_spectrum_and_order_families_side_by_side(tmp_path, record):
     signals, _ = record
     path = signal_table(tmp_path, signals)
     spectrum = {"f_min_hz": 0.0, "f_max_hz": 2000.0, "resolution_hz": 2.0, "scale": "log", "band_statistic": "rms"}
-    order = {"order": (order_feature_table, {"shafts": SHAFTS})}  # the gear system's own family
-    both = compute_feature_table_from_files([path], CHANNELS, spectrum, "spectrum+order", system_families=order)
-    alone = compute_feature_table_from_files([path], CHANNELS, spectrum, "order", system_families=order)
+    params = {"spectrum": spectrum, "order": {"shafts": SHAFTS}}
+    order = {"order": order_feature_table}  # the gear system's own family
+    both = compute_feature_table_from_files([path], CHANNELS, "spectrum+order", params, system_families=order)
+    alone = compute_feature_table_from_files([path], CHANNELS, "order", params, system_families=order)
     columns = [c for c in both.columns if c.startswith(("fft_", "ord_", "ci_"))]
     assert columns[0].startswith("fft_A1_x") and columns[4000].startswith("ord_A1_x")
     assert len(columns) == 4 * 1000 + 4 * 120 + 4 * 2 * len(INDICATORS)
@@ -262,7 +263,7 @@ def test_unknown_family_and_missing_shafts_are_refused(tmp_path, record):
     assert feature_families("spectrum+order", ("order",)) == ["spectrum", "order"]
     path = signal_table(tmp_path, record[0])
     with pytest.raises(FeatureTableError, match=r"unknown feature family \['orders'\]"):
-        compute_feature_table_from_files([path], CHANNELS, {}, "orders")
+        compute_feature_table_from_files([path], CHANNELS, "orders", {})
     frame = pd.read_parquet(path)
     with pytest.raises(FeatureTableError, match=r"System.shafts\(\) is None"):
         order_feature_table(frame, CHANNELS, {})

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 import fake_train_outputs as fake
-from condmon import report
+from condmon import labels, report, train_tables
 
 
 @pytest.fixture(scope="module")
@@ -15,17 +15,19 @@ def train_outputs(tmp_path_factory):
     return root, fake.build(root)
 
 
-def evaluated_report(paths, out, **extra):
-    """The report on the fake train outputs with the evaluation tables (per-speed), into `out`."""
-    return fake.write_report(paths, out, measured_features_path=paths["features_measured"], condition="speed_rpm",
-                             **extra)
+def evaluated_report(paths, out, evaluation=(), **parts):
+    """The report on the fake train outputs with the evaluation tables (per-speed), into `out`;
+    `evaluation`, `parts`: fields of ReportInputs' groups (fake.report_inputs)."""
+    return fake.write_report(paths, out, evaluation={"measured_features": paths["features_measured"],
+                                                     "condition": "speed_rpm", **dict(evaluation)},
+                             **parts)
 
 
 @pytest.fixture(scope="module")
 def built_report(train_outputs):
     root, paths = train_outputs
     out = root / "report"
-    summary = evaluated_report(paths, out, design_records=DESIGN)
+    summary = evaluated_report(paths, out, evaluation={"design_records": DESIGN})
     return out, paths, summary
 
 
@@ -108,11 +110,8 @@ def test_plots_exist_are_listed_and_are_real_images(built_report):
 def test_unknown_confusion_percent_names_the_available_ones(train_outputs, tmp_path):
     _, paths = train_outputs
     with pytest.raises(report.ReportInputError, match=r"confusion_percent \[30\].*\[0, 50\]"):
-        report.write_report(paths["metrics"], paths["predictions"], paths["calibration_params"],
-                            paths["calibration_spectra"], paths["calibration_history"],
-                            tmp_path / "a.csv", tmp_path / "s.json", tmp_path / "plots",
-                            "demo", "virtual_bench", confusion_percent=[30])
-    assert not (tmp_path / "a.csv").exists() and not (tmp_path / "plots").exists()
+        fake.write_report(paths, tmp_path, evaluation={"confusion_percent": [30]})
+    assert not (tmp_path / "accuracy.csv").exists() and not (tmp_path / "plots").exists()
 
 
 @pytest.mark.slow
@@ -133,12 +132,10 @@ def test_one_calibration_per_calibration_variant(train_outputs, tmp_path):
         spectra.to_parquet(folder / "spectra.parquet")
         files[model] = folder
     out = tmp_path / "report"
-    summary = report.write_report(
-        paths["metrics"], paths["predictions"],
-        {m: f / "params.json" for m, f in files.items()},
-        {m: f / "spectra.parquet" for m, f in files.items()},
-        {m: paths["calibration_history"] for m in files},
-        out / "accuracy.csv", out / "summary.json", out / "plots", "demo", "virtual_bench")
+    summary = fake.write_report(paths, out, calibration={
+        "params": {m: f / "params.json" for m, f in files.items()},
+        "spectra": {m: f / "spectra.parquet" for m, f in files.items()},
+        "history": {m: paths["calibration_history"] for m in files}})
     assert summary["calibration"]["calibration_variant"] == "potential_energy"
     assert summary["calibration"]["cost"] == 0.21
     by_model = summary["calibration_by_variant"]
@@ -150,24 +147,23 @@ def test_one_calibration_per_calibration_variant(train_outputs, tmp_path):
             "calibration_convergence_potential_energy.png"} <= set(summary["plots"])
     assert "calibration_convergence.png" not in summary["plots"]
     with pytest.raises(report.ReportInputError, match="same calibration variants"):
-        report.write_report(paths["metrics"], paths["predictions"],
-                            {m: f / "params.json" for m, f in files.items()},
-                            {"simple": files["simple"] / "spectra.parquet"},
-                            {m: paths["calibration_history"] for m in files},
-                            tmp_path / "a.csv", tmp_path / "s.json", tmp_path / "p", "demo", "virtual_bench")
+        fake.write_report(paths, tmp_path, calibration={
+            "params": {m: f / "params.json" for m, f in files.items()},
+            "spectra": {"simple": files["simple"] / "spectra.parquet"},
+            "history": {m: paths["calibration_history"] for m in files}})
 
 
 def test_metrics_file_missing_a_column_is_named(tmp_path):
     bad = tmp_path / "train/knn/record_split/metrics.csv"
     bad.parent.mkdir(parents=True)
     pd.DataFrame({"classifier": ["knn"], "accuracy": [0.5]}).to_csv(bad, index=False)
-    with pytest.raises(report.ReportInputError, match=f"{bad}.*lacks columns"):
-        report.load_metrics([bad])
+    with pytest.raises(train_tables.ReportInputError, match=f"{bad}.*lacks columns"):
+        train_tables.load_metrics([bad])
 
 
 def test_source_labels_never_call_synthetic_data_real():
-    assert report.data_source_label("virtual_bench") == "virtual bench (synthetic)"
-    assert report.is_synthetic("virtual_bench") and not report.is_synthetic("measured")
+    assert labels.data_source_label("virtual_bench") == "virtual bench (synthetic)"
+    assert labels.is_synthetic("virtual_bench") and not labels.is_synthetic("measured")
 
 
 @pytest.mark.slow
@@ -188,12 +184,9 @@ def test_simulation_gain_recall_and_protocol_labels(train_outputs, tmp_path):
     records = tmp_path / "records.csv"
     pd.DataFrame({"record_id": ["a", ""], "file": ["1.mat", "2.mat"], "status": ["kept", "left out"],
                   "reason": ["", "class not in task 'severity'"]}).to_csv(records, index=False)
-    summary = report.write_report(
-        paths["metrics"], paths["predictions"], paths["calibration_params"],
-        paths["calibration_spectra"], paths["calibration_history"], tmp_path / "a.csv",
-        tmp_path / "s.json", tmp_path / "plots", "demo", "virtual_bench", confusion_percent=[0],
-        baseline_paths=baselines, measured_records=records,
-        record_recall_path=tmp_path / "recall_per_record.csv")
+    summary = fake.write_report(paths, tmp_path, train={"measured_only": baselines},
+                                upstream={"measured_records": records},
+                                outputs={"recall_per_record": tmp_path / "recall_per_record.csv"})
     per_record = pd.read_csv(tmp_path / "recall_per_record.csv")
     assert {"record_id", "true_label", "recall", "n_test", "most_predicted"} <= set(per_record.columns)
     assert per_record.recall.between(0, 1).all()
@@ -213,7 +206,7 @@ def test_simulation_gain_recall_and_protocol_labels(train_outputs, tmp_path):
     expected = (chosen[chosen.true_label == label].predicted_label == label).mean()
     row = next(r for r in knn if r["protocol"] == "record_split" and r["measured_percent"] == 0)
     assert row["recall_per_class"][label] == pytest.approx(expected)
-    assert "LEAKY" in report.PROTOCOL_LABELS["segment_share"]
+    assert "LEAKY" in labels.PROTOCOL_LABELS["segment_share"]
     assert set(summary["protocols"]) == {"record_split", "condition_holdout"}
 
 
@@ -297,7 +290,7 @@ def test_evaluation_tables_per_condition_design_records_and_baselines(built_repo
     table["holdout"] = table["holdout"].fillna("")
     assert set(table["condition"]) == {"all", "speed_rpm=600", "speed_rpm=900"}
     assert set(table["records"]) == {"all", "design", "evaluation"}
-    predictions = report.load_predictions(paths["predictions"])
+    predictions = train_tables.load_predictions(paths["predictions"])
     whole = table[(table.condition == "all") & (table.records == "all")]
     for row in whole.itertuples():
         test = predictions[(predictions.classifier == row.classifier)
@@ -386,8 +379,8 @@ def test_a_physics_baseline_that_wins_gives_a_negative_gain(train_outputs, tmp_p
         frame.to_parquet(target)
         physics.append(target)
     out = tmp_path / "report"
-    summary = evaluated_report(paths, out, physics_paths=physics,
-                               physics_baselines_path=out / "physics_baselines.csv")
+    summary = evaluated_report(paths, out, train={"physics": physics},
+                               outputs={"physics_baselines": out / "physics_baselines.csv"})
     table = pd.read_csv(out / "evaluation.csv")
     whole = table[(table.condition == "all") & (table.records == "all")]
     assert (whole.physics_baseline == "oracle_rule").all()

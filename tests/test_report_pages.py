@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 import fake_train_outputs as fake
-from condmon import plots, report
+from condmon import labels, plots, report
 from condmon.report_pages import write_pages
 
 
@@ -17,8 +17,10 @@ def train_outputs(tmp_path_factory):
     return root, fake.build(root)
 
 
-def write(paths, out, **extra):
-    return fake.write_report(paths, out, headline_path=out / "headline.csv", **extra)
+def write(paths, out, outputs=(), **parts):
+    """The report with the headline table (fake.report_inputs: `outputs`, `parts`)."""
+    return fake.write_report(paths, out, outputs={"headline": out / "headline.csv", **dict(outputs)},
+                             **parts)
 
 
 def expected_means(accuracy_csv) -> dict:
@@ -53,8 +55,8 @@ def test_the_headline_gives_the_accuracy_at_both_ends_beside_the_baselines(train
             frame.to_parquet(target)
             physics.append(target)
     out = tmp_path / "report"
-    write(paths, out, baseline_paths=baselines, physics_paths=physics,
-          measured_features_path=paths["features_measured"], condition="speed_rpm")
+    write(paths, out, train={"measured_only": baselines, "physics": physics},
+          evaluation={"measured_features": paths["features_measured"], "condition": "speed_rpm"})
     headline = pd.read_csv(out / "headline.csv", dtype=str)
     low, high = fake.PERCENTS[0], fake.PERCENTS[-1]
     columns = ["simulation only (0 % measured)", f"{high} % measured"]
@@ -83,7 +85,7 @@ def test_the_headline_gives_the_accuracy_at_both_ends_beside_the_baselines(train
     pages = tmp_path / "pages"
     names = write_pages({"accuracy": out / "accuracy.csv", "evaluation_summary": out / "evaluation_summary.csv"},
                         out / "headline.csv", {"rig": paths["calibration_params"]}, out / "plots", config, pages,
-                        protocols=report.PROTOCOL_LABELS)
+                        protocols=labels.PROTOCOL_LABELS)
     assert names == ["headline", "accuracy", "evaluation_summary", "protocols", "calibration_rig"]
     for name in names:
         page = (pages / "tables" / f"{name}.html").read_text()
@@ -121,8 +123,9 @@ def test_a_cwru_like_condition_groups_the_figures_by_load_not_by_each_files_rpm(
         frame.to_parquet(target)
         predictions.append(target)
     out = tmp_path / "report"
-    summary = write(dict(paths, predictions=predictions), out, measured_features_path=features_path,
-                    condition="load", prediction_shares_path=out / "prediction_shares.csv")
+    summary = write(dict(paths, predictions=predictions), out,
+                    evaluation={"measured_features": features_path, "condition": "load"},
+                    outputs={"prediction_shares": out / "prediction_shares.csv"})
     confusion = sorted(name for name in summary["plots"] if name.startswith("confusion_"))
     pairs = {f"{c}_{p}" for c in fake.CLASSIFIERS for p in ("record_split", "condition_holdout")}
     assert confusion == sorted(f"confusion_{pair}_{part}.png" for pair in pairs
@@ -147,7 +150,7 @@ def test_a_tested_record_without_a_condition_is_named(train_outputs, tmp_path):
     features_path = tmp_path / "measured.parquet"
     features.to_parquet(features_path)
     with pytest.raises(report.ReportInputError, match=f"no 'load'.*{dropped}"):
-        write(paths, tmp_path / "report", measured_features_path=features_path, condition="load")
+        write(paths, tmp_path / "report", evaluation={"measured_features": features_path, "condition": "load"})
 
 
 def texts_outside(fig) -> list[str]:

@@ -7,7 +7,8 @@ import pandas as pd
 import pytest
 
 import fake_train_outputs as fake
-from condmon import plots, report
+from condmon import plots, report, train_tables
+from condmon.labels import label_order
 from condmon.hybrid import SIMULATED_VALIDATION
 
 
@@ -24,7 +25,7 @@ def hand_built_predictions():
 
 
 def test_hand_built_predictions_give_known_shares():
-    labels = report.label_order(["fault", "healthy"], healthy_state="healthy")
+    labels = label_order(["fault", "healthy"], healthy_state="healthy")
     shares = report.prediction_shares(hand_built_predictions(), labels)
     assert list(shares.columns) == ["classifier", "protocol", "measured_percent", "speed_rpm",
                                     "true_label", "predicted_label", "share", "n"]
@@ -62,13 +63,11 @@ def fake_outputs(tmp_path_factory):
     return root, paths, validation_paths
 
 
-def build_report(paths, out, **kwargs):
-    return report.write_report(
-        paths["metrics"], paths["predictions"], paths["calibration_params"],
-        paths["calibration_spectra"], paths["calibration_history"],
-        accuracy_path=out / "accuracy.csv", summary_path=out / "summary.json",
-        plots_dir=out / "plots", run_name="demo", data_source="virtual_bench",
-        confusion_percent=[0], prediction_shares_path=out / "prediction_shares.csv", **kwargs)
+def build_report(paths, out, simulated_validation=()):
+    """The report with prediction_shares.csv, no healthy state (labels sorted alone)."""
+    return fake.write_report(paths, out, run={"healthy_state": None},
+                             train={"simulated_validation": simulated_validation},
+                             outputs={"prediction_shares": out / "prediction_shares.csv"})
 
 
 @pytest.fixture(scope="module")
@@ -76,8 +75,7 @@ def reports(fake_outputs):
     """The report without (share 0) and with simulated validation files: (folder, summary) each."""
     root, paths, validation_paths = fake_outputs
     without = build_report(paths, root / "without")
-    with_validation = build_report(paths, root / "with",
-                                   simulated_validation_paths=validation_paths)
+    with_validation = build_report(paths, root / "with", simulated_validation=validation_paths)
     return (root / "without", without), (root / "with", with_validation)
 
 
@@ -91,7 +89,7 @@ def test_prediction_shares_csv_matches_the_predictions(fake_outputs, reports):
     assert np.allclose(shares.groupby(keys)["share"].sum(), 1.0)
     assert (shares.groupby(keys).size() == len(fake.LABELS)).all()
     # against the predictions themselves, pooled over repeats
-    predictions = report.load_predictions(paths["predictions"])
+    predictions = train_tables.load_predictions(paths["predictions"])
     chosen = predictions[(predictions.classifier == "logreg")
                          & (predictions.protocol == "condition_holdout")
                          & (predictions.measured_percent == 50) & (predictions.speed_rpm == 900.0)

@@ -22,8 +22,9 @@ N_RUNS = 2 * len(fake.PERCENTS) * len(fake.REPEATS) * 3  # record_split + two he
 
 
 def log(paths, uri, config_hash, config, **options):
-    return tracking.log_pipeline_run(uri, "demo", config_hash, "virtual_bench", fake.train_dirs(paths),
-                                     fake.datasets(paths), config=config, healthy_state="healthy",
+    run = tracking.TrackedRun("demo", config_hash, "virtual_bench", config=config,
+                              healthy_state="healthy")
+    return tracking.log_pipeline_run(uri, run, fake.train_dirs(paths), fake.datasets(paths),
                                      **options)
 
 
@@ -294,7 +295,7 @@ def test_unreachable_server_fails_fast_naming_the_uri(tmp_path):
     uri = "http://127.0.0.1:9"
     started = time.perf_counter()
     with pytest.raises(tracking.TrackingError, match="http://127.0.0.1:9.*unreachable"):
-        tracking.log_pipeline_run(uri, "demo", "h", "virtual_bench", [], {})
+        tracking.log_pipeline_run(uri, tracking.TrackedRun("demo", "h", "virtual_bench"), [], {})
     assert time.perf_counter() - started < 10
     assert compare.main(["--tracking-uri", uri]) == 2
 

@@ -16,7 +16,7 @@ import sys
 
 import pandas as pd
 
-from condmon.hybrid import protocol_title
+from condmon.labels import protocol_title
 from condmon.tracking import DEFAULT_TRACKING_URI, TrackingError, check_tracking_server, \
     resolve_tracking_uri
 

@@ -61,7 +61,11 @@ def _with_defaults(validator_class):
 
 
 def system_schema(config: dict, schema: dict) -> tuple[dict, type]:
-    """The whole schema of the config's system (base + its fragment) and the system's class."""
+    """The whole schema of the config's system (base + the registries' fragments: every
+    classifier's section, every feature family's own; + the system's fragment) and the
+    system's class."""
+    from condmon.classifiers import config_schema as classifier_schema
+    from condmon.features import config_schema as family_schema
     from condmon.systems import system_class
 
     name = config.get("system", schema["properties"]["system"]["default"])
@@ -72,7 +76,8 @@ def system_schema(config: dict, schema: dict) -> tuple[dict, type]:
         cls = system_class(name, modules)
     except ValueError as exc:
         raise ConfigError(f"invalid config:\n  {exc}") from None
-    return merge_schema(schema, cls.schema()), cls
+    registries = merge_schema(merge_schema(schema, classifier_schema()), family_schema())
+    return merge_schema(registries, cls.schema()), cls
 
 
 def validate_config(config: dict, schema: dict) -> dict:

@@ -29,7 +29,7 @@ import pandas as pd
 from scipy.stats import binomtest
 from sklearn.metrics import balanced_accuracy_score
 
-from condmon.hybrid import LEAKY_PROTOCOLS, format_speed
+from condmon.labels import LEAKY_PROTOCOLS, format_speed
 
 KEYS = ["classifier", "protocol", "measured_percent", "repeat", "holdout"]
 SMALL_TEST_SET = 30  # segments: fewer, and an accuracy says little

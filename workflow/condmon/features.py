@@ -1,6 +1,12 @@
 """Features tables: band-averaged amplitude spectra of every channel, concatenated (the
 `spectrum` family), the `statistical` family and a system's own families beside them.
 
+The families are a registry, FEATURE_FAMILIES: {name: FeatureFamily(table function, schema of
+its config section features.<name>)}. A new family is one file (its table function) plus one
+registry line, ``register_feature_family(name, table, schema)``: the config then accepts
+`features.kind: <name>` and `features.<name>` (condmon.config merges the schema in), and the
+features stage computes it. A system adds its own beside them (`System.feature_families`).
+
 The spectra are the input of the CFRP study's classifiers (eq. 5: FFT = [FFT_X, FFT_Y] per
 sensor). `features.kind` names one family or several joined by "+" (e.g. `spectrum+order`): their
 columns side by side, in that order. The features table is wide Parquet: the signal table's id
@@ -11,6 +17,8 @@ from __future__ import annotations
 
 import json
 import logging
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 import pandas as pd
@@ -26,7 +34,8 @@ from condmon.stat_features import statistical_features_from_params
 
 __all__ = ["amplitude_spectrum", "SpectrumFeatures", "compute_feature_table", "compute_feature_table_from_files",
            "statistical_feature_table", "feature_families", "read_feature_table",
-           "write_feature_table", "FeatureTableError"]
+           "write_feature_table", "FeatureTableError", "FEATURE_FAMILIES", "FeatureFamily",
+           "register_feature_family"]
 
 log = logging.getLogger(__name__)
 
@@ -35,7 +44,6 @@ LOG_FLOOR = 1e-6  # added before log10 so silent bands stay finite
 FEATURE_NAMES_KEY = b"condmon.feature_names"
 FEATURE_KIND_KEY = b"condmon.feature_kind"
 BAND_STATISTICS = ("mean", "rms")
-FEATURE_KINDS = ("spectrum", "statistical")  # built-in families; a system may add its own (System.feature_families)
 SPECTRUM_PARAMS = ("f_min_hz", "f_max_hz", "resolution_hz", "scale", "band_statistic")
 
 
@@ -183,10 +191,10 @@ def compute_feature_table(signal_frame: pd.DataFrame, channels,
 
 
 def feature_families(kind: str, system_families=()) -> list[str]:
-    """The families of a `features.kind` value: one of FEATURE_KINDS or of the system's own
+    """The families of a `features.kind` value: one of FEATURE_FAMILIES or of the system's own
     (`system_families`), or several joined by "+" (`spectrum+order`), each at most once."""
     families = str(kind).split("+")
-    known = list(FEATURE_KINDS) + list(system_families)
+    known = list(FEATURE_FAMILIES) + list(system_families)
     unknown = [f for f in families if f not in known]
     if unknown:
         raise FeatureTableError(f"features.kind {kind!r}: unknown feature famil{'ies' if len(unknown) > 1 else 'y'} "
@@ -196,33 +204,36 @@ def feature_families(kind: str, system_families=()) -> list[str]:
     return families
 
 
-def compute_feature_table_from_files(paths, channels, spectrum_params: dict, kind: str = "spectrum",
-                                     statistical_params: dict | None = None,
-                                     defect_orders: dict | None = None, system_families: dict | None = None
-                                     ) -> pd.DataFrame:
-    """Features of several signal tables in one table (read one at a time to bound memory).
-
-    Families (`kind`, "+" joins several, columns in that order): "spectrum": band spectra
-    (`spectrum_params`); "statistical": time/frequency statistics and envelope features at the
-    system's `defect_orders` (`condmon.stat_features`, `statistical_params`); any other: a family
-    the system provides (`System.feature_families()`), `system_families` = {family: (its table
-    function(signals, channels, params), its params)}."""
+def family_table(signal_frame: pd.DataFrame, channels, kind: str, family_params: dict,
+                 defect_orders: dict | None = None, system_families: dict | None = None) -> pd.DataFrame:
+    """The features table of one signal table: the families of `kind` ("+" joins several,
+    columns in that order) side by side, each from FEATURE_FAMILIES or the system's own
+    (`system_families` = System.feature_families(): {family: table function(signals, channels,
+    params)}), each with its settings `family_params[family]` (features.<family>; the system's
+    own with what it adds); `defect_orders`: the system's envelope lines (the statistical
+    family's)."""
     system_families = system_families or {}
-    families = feature_families(kind, tuple(system_families))
+    parts = []
+    for family in feature_families(kind, tuple(system_families)):
+        params = family_params.get(family) or {}
+        if family in FEATURE_FAMILIES:
+            parts.append(FEATURE_FAMILIES[family].table(signal_frame, channels, params, defect_orders))
+        else:
+            parts.append(system_families[family](signal_frame, channels, params))
+    return side_by_side(parts)
+
+
+def compute_feature_table_from_files(paths, channels, kind: str, family_params: dict,
+                                     defect_orders: dict | None = None,
+                                     system_families: dict | None = None) -> pd.DataFrame:
+    """Features of several signal tables in one table (read one at a time to bound memory):
+    `family_table` of each (its arguments), rows sorted by record and segment."""
+    feature_families(kind, tuple(system_families or {}))  # an unknown family: before any read
     frames = []
     for path in paths:
         log.info("%s features of %s", kind, path)
-        signals = read_signal_table(path)
-        parts = []
-        for family in families:
-            if family == "statistical":
-                parts.append(statistical_feature_table(signals, channels, statistical_params or {}, defect_orders))
-            elif family in system_families:
-                table, params = system_families[family]
-                parts.append(table(signals, channels, params))
-            else:
-                parts.append(compute_feature_table(signals, channels, spectrum_params))
-        frames.append(side_by_side(parts))
+        frames.append(family_table(read_signal_table(path), channels, kind, family_params,
+                                   defect_orders, system_families))
     if not frames:
         raise FeatureTableError("no signal tables given")
     frame = pd.concat(frames, ignore_index=True)
@@ -322,3 +333,43 @@ def statistical_feature_table(signal_frame, channels, params: dict, defect_order
     return pd.concat([ids.reset_index(drop=True), pd.DataFrame(columns)], axis=1)
 
 
+# --------------------------------------------------------------------------- the registry
+
+@dataclass(frozen=True)
+class FeatureFamily:
+    """One registry entry: the family's table function and its config section's schema."""
+    # (signal frame, channels, features.<name>, the system's defect orders or None) -> wide
+    # features table: the signal table's id columns, then the family's float32 feature columns
+    table: Callable[..., pd.DataFrame]
+    # JSON schema of features.<name>, with its defaults (None: config/schema.yaml holds the
+    # section, as for the built-in spectrum and statistical families)
+    schema: dict | None = None
+
+
+def _spectrum_table(signal_frame, channels, params: dict, defect_orders=None) -> pd.DataFrame:
+    return compute_feature_table(signal_frame, channels, params)
+
+
+FEATURE_FAMILIES: dict[str, FeatureFamily] = {
+    "spectrum": FeatureFamily(_spectrum_table),
+    "statistical": FeatureFamily(statistical_feature_table),
+}
+
+
+def register_feature_family(name: str, table: Callable[..., pd.DataFrame],
+                            schema: dict | None = None) -> FeatureFamily:
+    """Add a feature family (an existing name is an error, not a silent override); `schema`:
+    its section features.<name> (an object schema with defaults)."""
+    if name in FEATURE_FAMILIES:
+        raise ValueError(f"feature family {name!r} is already registered")
+    if "+" in name or not name:
+        raise ValueError(f"feature family {name!r}: a name without '+'")
+    FEATURE_FAMILIES[name] = FeatureFamily(table, schema)
+    return FEATURE_FAMILIES[name]
+
+
+def config_schema() -> dict:
+    """The schema fragment of the registered families' own sections (features.<name>), to merge
+    into the shared schema (condmon.schema.merge_schema)."""
+    return {"properties": {"features": {"properties": {
+        name: family.schema for name, family in FEATURE_FAMILIES.items() if family.schema}}}}

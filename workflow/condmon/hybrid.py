@@ -37,19 +37,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from condmon.atomic import write_table
+from condmon.labels import format_speed, sorted_holdouts
 from condmon.seeds import derive_seed, stable_int
 
 log = logging.getLogger(__name__)
 
-PROTOCOLS = ("record_split", "condition_holdout", "segment_share", "unseen_fault",
-             "specimen_holdout")
-# segments of one record on both sides of the split: never a headline, labelled wherever it appears
-LEAKY_PROTOCOLS = ("segment_share",)
-
-
-def protocol_title(protocol: str) -> str:
-    """A protocol's name as every output shows it: leaky ones say so."""
-    return f"{protocol} (LEAKY)" if protocol in LEAKY_PROTOCOLS else protocol
 CONDITIONS = ("speed_rpm", "load")
 WHOLE_RECORD = -1
 # a simulated record held out of training as the simulated validation set (the only role, and the
@@ -73,30 +65,6 @@ SPLIT_COLUMNS = SPLIT_SCHEMA.names
 
 class SplitError(ValueError):
     """A split request or split table breaks the contract."""
-
-
-def format_speed(speed_rpm: float) -> str:
-    """775.0 -> "775", 1797.5 -> "1797.5" (for holdout labels)."""
-    speed_rpm = float(speed_rpm)
-    return str(int(speed_rpm)) if speed_rpm.is_integer() else repr(speed_rpm)
-
-
-def holdout_label(value: float, condition: str = "speed_rpm") -> str:
-    return f"{condition}={format_speed(value)}"
-
-
-def sorted_holdouts(holdouts) -> list[str]:
-    """Distinct holdout labels in a stable order: by held-out speed, "" (none) first.
-
-    The position in this list is the holdout index used in model file names.
-    """
-    def key(label: str):
-        _, _, value = label.partition("=")
-        try:
-            return (1, float(value), label)
-        except ValueError:
-            return (0 if label == "" else 2, 0.0, label)
-    return sorted(set(holdouts), key=key)
 
 
 def n_train_records(n_records: int, percent: float, min_test_records: int) -> int:

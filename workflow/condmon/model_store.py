@@ -23,7 +23,8 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from condmon.atomic import staging_directory
-from condmon.hybrid import LEAKY_PROTOCOLS, measured_rows, read_split_table
+from condmon.hybrid import measured_rows, read_split_table
+from condmon.labels import LEAKY_PROTOCOLS
 from condmon.signal_model import SPEED_TOLERANCE, SignalModel
 
 INDEX_FILE = "index.json"
@@ -51,13 +52,13 @@ def training_speeds(simulated_speeds, measured: pd.DataFrame, split: pd.DataFram
 
 def build_store(directory, train_dirs, split_tables, measured_signals, simulated_features,
                 measured_features, features: dict, healthy_state: str, system: dict | None,
-                config_hash: str, accuracy: pd.DataFrame | None = None) -> dict:
+                config_hash: str) -> dict:
     """Package every model the train jobs wrote into ``directory`` (built aside, renamed into
     place); returns the index (also written as ``index.json``).
 
     ``features``: kind, channels, spectrum, statistical, defect_orders (the features rules' params);
-    ``split_tables``: {protocol: split table}; ``accuracy``: the train jobs' metrics (all-speeds rows)
-    for the best model's choice (read from the train folders when None).
+    ``split_tables``: {protocol: split table}. Each model's accuracy (the best model's choice)
+    comes from its train folder's metrics.csv.
     """
     fs_hz, n_samples = signal_shape(measured_signals)
     simulated_speeds = pq.read_table(simulated_features, columns=["speed_rpm"]).column(0).unique().to_pylist()

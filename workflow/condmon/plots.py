@@ -12,7 +12,7 @@ matplotlib.use("Agg")  # batch jobs have no display
 import matplotlib.pyplot as plt  # noqa: E402
 
 from condmon.atomic import temporary_path  # noqa: E402
-from condmon.hybrid import protocol_title  # noqa: E402
+from condmon.labels import protocol_title  # noqa: E402
 import numpy as np  # noqa: E402
 
 ACCURACY_LABEL = "accuracy on held-out measured records"

@@ -4,7 +4,7 @@ Reads only the files of the stage contracts (train/<classifier>/<protocol>/metri
 predictions.parquet, calibration/<calibration variant>/params.json, spectra.parquet,
 history.parquet) and writes
 
-- ``accuracy.csv``: the concatenated metrics files, sorted; columns ``ACCURACY_COLUMNS``;
+- ``accuracy.csv``: the concatenated metrics files, sorted; columns ``condmon.train_tables.ACCURACY_COLUMNS``;
 - ``summary.json``: data source, calibration (the one the simulated data come from; with one
   calibration per calibration variant each one's model variant, final and nominal cost,
   evaluations and seconds under ``calibration_by_variant``), per classifier x
@@ -37,19 +37,14 @@ from sklearn.metrics import confusion_matrix
 from condmon import evaluation, job_timings, plots
 from condmon.evaluation import SMALL_TEST_SET, wilson_interval
 from condmon.atomic import staging_directory, write_text
-from condmon.hybrid import LEAKY_PROTOCOLS, SIMULATED_VALIDATION, format_speed, protocol_title
+from condmon.hybrid import SIMULATED_VALIDATION
+from condmon.labels import (LEAKY_PROTOCOLS, data_source_label, format_speed, is_synthetic,
+                            label_order, protocol_label, protocol_title)
+from condmon.report_inputs import CalibrationOutputs, ReportInputs, RunIdentity
+from condmon.train_tables import ReportInputError, load_metrics, load_predictions
 
 log = logging.getLogger(__name__)
 
-# accuracy.csv: the contract columns first, then the context of each evaluation.
-ACCURACY_COLUMNS = ["classifier", "protocol", "measured_percent", "repeat", "speed_rpm",
-                    "accuracy", "macro_f1", "holdout", "n_train_simulated",
-                    "n_train_measured", "n_test"]
-PREDICTION_COLUMNS = ["protocol", "measured_percent", "repeat", "holdout", "record_id",
-                      "segment", "speed_rpm", "true_label", "predicted_label"]
-# optional: the CNN ensemble's member spread per prediction (NaN for the other classifiers)
-OPTIONAL_PREDICTION_COLUMNS = ["uncertainty"]
-SORT_KEYS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "speed_rpm"]
 # prediction_shares.csv: per (classifier, protocol, percent, speed), true class x predicted class
 SHARE_KEYS = ["classifier", "protocol", "measured_percent", "speed_rpm"]
 SHARE_COLUMNS = SHARE_KEYS + ["true_label", "predicted_label", "share", "n"]
@@ -57,119 +52,8 @@ SIMULATED_VALIDATION_LABEL = (
     "accuracy on SIMULATED records held out of training (hybrid.simulated_validation_share), "
     "not on measured data: never part of the measured results")
 
-# What each protocol's test set is: every number the report gives is labelled with it.
-PROTOCOL_LABELS = {
-    "record_split": ("whole measured records held out; the same fault specimen may be trained "
-                     "on at another condition (a lone healthy record: its time blocks)"),
-    "condition_holdout": ("a whole operating condition held out (speed or load never seen); the "
-                          "same fault specimen may be trained on at another condition; where the "
-                          "held-out condition has no healthy record, healthy records of another "
-                          "condition test"),
-    "segment_share": ("LEAKY (the bearing study's protocol): segments of the same records on "
-                      "both sides of the split"),
-    "unseen_fault": ("faults never measured: measured training data holds only the configured "
-                     "measured classes (healthy records always keep a test share); the other "
-                     "classes come from simulation alone (never seen by the classifier; the "
-                     "design may have looked at their specimens: design_records says which)"),
-    "specimen_holdout": ("whole fault specimens held out: every specimen of one group (fault "
-                         "size) tests at every condition, the share trains from the other "
-                         "groups; healthy records only test: no specimen on both sides"),
-}
-
-# Data-source kinds that are not real measurements; anything labelled with them must say so.
-SYNTHETIC_SOURCES = {"virtual_bench": "virtual bench (synthetic)"}
-
-
-class ReportInputError(ValueError):
-    """A file the report reads breaks the stage contract."""
-
-
-# --------------------------------------------------------------------------- data source
-
-def is_synthetic(data_source: str) -> bool:
-    return data_source in SYNTHETIC_SOURCES
-
-
-def data_source_label(data_source: str) -> str:
-    """Short label for titles and footnotes, e.g. "virtual bench (synthetic)"."""
-    if is_synthetic(data_source):
-        return SYNTHETIC_SOURCES[data_source]
-    if data_source == "measured":
-        return "measured (test-bench recordings)"
-    return data_source
-
 
 # --------------------------------------------------------------------------- inputs
-
-def load_metrics(paths, extra_columns=()) -> pd.DataFrame:
-    """Concatenate train metrics.csv files into the accuracy table (columns ACCURACY_COLUMNS).
-
-    ``speed_rpm`` is NaN on the all-speeds rows; ``holdout`` is "" where nothing is held out.
-    ``extra_columns`` (e.g. "fit_seconds") are kept at the end where a file has them.
-    """
-    paths = [Path(p) for p in paths]
-    if not paths:
-        raise ReportInputError("no metrics.csv files given")
-    frames = []
-    for path in paths:
-        if not path.exists():
-            raise ReportInputError(f"{path}: no such metrics file")
-        frame = pd.read_csv(path, dtype={"classifier": str, "protocol": str, "holdout": str})
-        missing = [c for c in ACCURACY_COLUMNS if c not in frame.columns]
-        if missing:
-            raise ReportInputError(f"{path}: metrics file lacks columns {missing}")
-        if frame.empty:
-            raise ReportInputError(f"{path}: metrics file has no rows")
-        frames.append(frame[ACCURACY_COLUMNS + [c for c in extra_columns if c in frame.columns]])
-    table = pd.concat(frames, ignore_index=True)
-    table["holdout"] = table["holdout"].fillna("")
-    table["speed_rpm"] = pd.to_numeric(table["speed_rpm"], errors="coerce")
-    for column in ("measured_percent", "repeat", "n_train_simulated", "n_train_measured", "n_test"):
-        table[column] = table[column].astype(int)
-    duplicated = table.duplicated(SORT_KEYS)
-    if duplicated.any():
-        first = table.loc[duplicated].iloc[0]
-        raise ReportInputError(
-            f"metrics rows repeat for classifier {first.classifier!r} protocol {first.protocol!r} "
-            f"percent {first.measured_percent} repeat {first.repeat}; is a metrics file listed twice?")
-    # na_position="first": the all-speeds row leads its group.
-    return (table.sort_values(SORT_KEYS, na_position="first", kind="stable")
-            .reset_index(drop=True))
-
-
-def classifier_of(predictions_path: Path) -> str:
-    """The classifier of train/<classifier>/<protocol>/predictions.parquet (the file has no column)."""
-    return Path(predictions_path).parent.parent.name
-
-
-def load_predictions(paths) -> pd.DataFrame:
-    """Concatenate predictions.parquet files, adding a ``classifier`` column from the path;
-    optional columns (``uncertainty``) are NaN where a file lacks them."""
-    paths = [Path(p) for p in paths]
-    if not paths:
-        raise ReportInputError("no predictions.parquet files given")
-    frames = []
-    for path in paths:
-        if not path.exists():
-            raise ReportInputError(f"{path}: no such predictions file")
-        frame = pd.read_parquet(path)
-        missing = [c for c in PREDICTION_COLUMNS if c not in frame.columns]
-        if missing:
-            raise ReportInputError(f"{path}: predictions file lacks columns {missing}")
-        if "classifier" not in frame.columns:
-            frame.insert(0, "classifier", classifier_of(path))
-        protocols = set(frame["protocol"])
-        if protocols != {path.parent.name}:
-            raise ReportInputError(f"{path}: protocol column {sorted(protocols)} does not match "
-                                   f"the directory train/<classifier>/{path.parent.name}/")
-        for column in OPTIONAL_PREDICTION_COLUMNS:
-            if column not in frame.columns:
-                frame[column] = np.nan
-        frames.append(frame[["classifier"] + PREDICTION_COLUMNS + OPTIONAL_PREDICTION_COLUMNS])
-    table = pd.concat(frames, ignore_index=True)
-    table["holdout"] = table["holdout"].fillna("")
-    return table
-
 
 def load_simulated_validation(paths) -> pd.DataFrame | None:
     """The train stage's simulated_validation.csv files as one table (columns ACCURACY_COLUMNS
@@ -231,14 +115,6 @@ def labelled_accuracy(accuracy: pd.DataFrame) -> pd.DataFrame:
     out["accuracy_ci_high"] = [high for _, high in bounds]
     out["small_test_set"] = out["n_test"] < SMALL_TEST_SET
     return out
-
-
-def label_order(labels, healthy_state: str | None = None) -> list[str]:
-    """Class labels sorted, the system's healthy state first so confusion matrices read from it.
-    Pass true and predicted labels: a class may be predicted but never tested (a folder without
-    healthy records)."""
-    labels = sorted(set(labels))
-    return sorted(labels, key=lambda label: label != healthy_state)
 
 
 def confusion_counts(true_labels, predicted_labels, labels) -> np.ndarray:
@@ -584,7 +460,7 @@ def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: di
             **accuracy_entry(row, speeds),
             "n_test_records_per_repeat": _json_number(test_records.get(key)),
             "n_test_segments_per_repeat": _json_number(row.n_test_segments),
-            "protocol_label": PROTOCOL_LABELS.get(row.protocol, row.protocol),
+            "protocol_label": protocol_label(row.protocol),
             "recall_per_class": {r.true_label: _json_number(r.recall) for r in recalls[
                 (recalls["classifier"] == row.classifier) & (recalls["protocol"] == row.protocol)
                 & (recalls["measured_percent"] == row.measured_percent)].itertuples()},
@@ -610,7 +486,7 @@ def summarize(accuracy: pd.DataFrame, predictions: pd.DataFrame, calibration: di
         "n_evaluations": int(accuracy["speed_rpm"].isna().sum()),
         "aggregation": ("accuracy_std is the sample std over repeats (null with one repeat); "
                         "condition_holdout: held-out conditions are averaged within a repeat first"),
-        "protocols": {p: PROTOCOL_LABELS.get(p, p) for p in sorted(accuracy["protocol"].unique())},
+        "protocols": {p: protocol_label(p) for p in sorted(accuracy["protocol"].unique())},
         "simulation_gain": ("accuracy with the simulated data minus accuracy of the same "
                             "classifier on the same measured training data alone (null: no "
                             "measured-only baseline, or no measured training data); the "
@@ -677,21 +553,23 @@ def condition_file_part(condition: str, value) -> str:
     return f"{condition}{float(value):g}"
 
 
-def make_plots(accuracy, predictions, spectra, history, calibration, plots_dir: Path,
-               run_name: str, data_source: str, confusion_percent,
-               healthy_state: str | None = None, bench_effects: int = 0,
-               shares: pd.DataFrame | None = None, condition: str = "speed_rpm",
+def make_plots(accuracy, predictions, calibrated: tuple, plots_dir: Path, run: RunIdentity,
+               confusion_percent, shares: pd.DataFrame | None = None, condition: str = "speed_rpm",
                design: bool = False) -> list[str]:
-    """Write every report plot into ``plots_dir``; returns the file names. bench_effects: how many
-    effects the bench has that the model lacks (the note says so; summary.json lists them).
+    """Write every report plot into ``plots_dir``; returns the file names. ``run``: the footnote's
+    run and data source (and how many effects the bench has that the model lacks: the note says
+    so; summary.json lists them), the healthy state the class order starts from. ``calibrated``:
+    load_calibrations' (summaries, spectra, histories).
     ``shares``: prediction_shares of the predictions (computed here if not given).
     ``condition``: the predictions' column of the operating condition the per-condition figures
     (confusion matrices, prediction shares) group by: speed_rpm, or e.g. a motor load
     (with_condition); the per-speed accuracy bars only where the condition is the speed
     (accuracy_per_condition.png covers any condition). ``design``: the test records include
     design records (every plot's note says these plots pool them)."""
-    note = plot_note(run_name, data_source, bench_effects, design)
-    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
+    note = plot_note(run.run_name, run.data_source, len(run.bench_effects), design)
+    calibration, spectra, history = calibrated
+    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
+                         run.healthy_state)
     chance = 1.0 / len(labels)
     percents = confusion_percents(accuracy, confusion_percent)
     if shares is None:
@@ -938,160 +816,135 @@ def write_job_timings(files_by_rule: dict, csv_path, plots_dir, plot_names: list
     return {row.pop("rule"): row for row in timings.to_dict("records")}
 
 
-def write_report(metrics_paths, predictions_paths, calibration_params, calibration_spectra,
-                 calibration_history, accuracy_path, summary_path, plots_dir, run_name: str,
-                 data_source: str, confusion_percent=(0,), simulation_reports=(),
-                 baseline_paths=(), measured_records=None, record_recall_path=None,
-                 baseline_prediction_paths=(),
-                 healthy_state: str | None = None, benchmarks: dict | None = None,
-                 job_timings_path=None,
-                 bench_effects=(), prediction_shares_path=None,
-                 simulated_validation_paths=(), measured_features_path=None,
-                 condition: str = "speed_rpm", design_records=(), design_specimens=(),
-                 evaluation_path=None,
-                 evaluation_summary_path=None, physics_paths=(),
-                 physics_baselines_path=None, headline_path=None) -> dict:
-    """Build the whole report; returns the summary dict. Every output is written atomically.
-
-    prediction_shares_path: where prediction_shares.csv goes (None: not written).
-    benchmarks: {rule: the benchmark files of its jobs} of the jobs before this one (None: no
-    timings): job_timings.csv, summary.json's ``job_timings`` and plots/job_timings.png.
-    simulated_validation_paths: the train stage's simulated_validation.csv files (given only
-    with hybrid.simulated_validation_share > 0): summary.json's ``simulated_validation``.
-
-    measured_features_path, condition: the measured features (each record's value of the
-    operating condition); with them, evaluation_path and evaluation_summary_path get
-    condmon.evaluation's tables (per evaluation; over repeats), `design_records` and the
-    records of `design_specimens` (matched to measured_records' `specimen`) apart as design
-    records, and summary.json's results the per-record, balanced, false-alarm and baseline
-    figures (all test records, and design and evaluation records apart); the headline is then
-    on the evaluation records (headline_table).
-    baseline_prediction_paths: the measured-only baselines' predictions (files without rows are
-    skipped): that baseline on design and evaluation records apart.
-    physics_paths: the physics baselines' predictions (condmon.baselines; files without rows
-    are skipped): a candidate of the strongest baseline, their own figures in
-    physics_baselines_path (evaluation_summary's columns) and summary.json's
-    `physics_baselines`. plots/simulation_gain.png: the gain against the strongest baseline
-    (without measured features: against the same classifier's measured-only baseline).
-
-    headline_path: where the front page's headline table goes (headline_table; None: not
-    written).
-
-    bench_effects: what the virtual bench has and the model lacks (its difference in form),
-    labelled in summary.json and on every plot.
-
-    calibration_params, calibration_spectra, calibration_history: the files of one calibration,
-    or {calibration variant: file} of one calibration per variant, the simulation's first (its
-    calibration is the summary's `calibration`; `calibration_by_variant` lists all)."""
-    accuracy = load_metrics(metrics_paths)
-    # measured-only baselines (empty files where hybrid.measured_only_baseline is off)
-    with_rows = [p for p in baseline_paths if len(pd.read_csv(p))]
-    baseline = load_metrics(with_rows) if with_rows else None
-    predictions = load_predictions(predictions_paths)
-    # the system's physics baselines (empty files where it has none)
-    physics_with_rows = [p for p in physics_paths if len(pd.read_parquet(p, columns=["record_id"]))]
-    physics = load_predictions(physics_with_rows) if physics_with_rows else None
-    alone_with_rows = [p for p in baseline_prediction_paths
-                       if len(pd.read_parquet(p, columns=["record_id"]))]
-    baseline_predictions = load_predictions(alone_with_rows) if alone_with_rows else None
-    simulated_validation = load_simulated_validation(simulated_validation_paths)
-    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
-                         healthy_state)
-    # the per-condition figures and prediction_shares.csv group by the operating condition
-    # (hybrid.condition: the speed, or e.g. the load), each record's value from its features
-    grouping = condition if measured_features_path is not None else "speed_rpm"
-    by_condition = (with_condition(predictions, record_conditions(measured_features_path, condition),
-                                   condition) if grouping != "speed_rpm" else predictions)
-    shares = prediction_shares(by_condition, labels, grouping)
-    per_model = isinstance(calibration_params, dict)
-    params_paths = calibration_params if per_model else {None: calibration_params}
-    spectra_paths = calibration_spectra if per_model else {None: calibration_spectra}
-    history_paths = calibration_history if per_model else {None: calibration_history}
+def load_calibrations(calibration: CalibrationOutputs) -> tuple:
+    """(summaries, spectra, histories) of the calibration files: each {variant: ...} with one
+    calibration per variant (each summary with its `calibration_variant`), else the one's own."""
+    params_paths, spectra_paths, history_paths = calibration.by_variant()
     if not (list(params_paths) == list(spectra_paths) == list(history_paths)) or not params_paths:
         raise ReportInputError("calibration params, spectra and history must name the same "
                                f"calibration variants: {list(params_paths)}, "
                                f"{list(spectra_paths)}, {list(history_paths)}")
     calibrations = {m: load_calibration(p) for m, p in params_paths.items()}
-    for variant, calibration in calibrations.items():
+    for variant, summary in calibrations.items():
         if variant is not None:
-            calibration["calibration_variant"] = variant
+            summary["calibration_variant"] = variant
     spectra = {m: read_table(p, ["speed_rpm", "channel", "freq_hz", "measured", "calibrated"],
                              "calibration spectra") for m, p in spectra_paths.items()}
     history = {m: read_table(p, ["evaluation", "model_variant", "cost"], "calibration history")
                for m, p in history_paths.items()}
-    calibration = next(iter(calibrations.values()))  # the one the simulated data come from
-    if not per_model:
-        spectra, history, calibrations = spectra[None], history[None], calibrations[None]
-    log.info("%d metrics rows from %d files, %d predictions", len(accuracy),
-             len(list(metrics_paths)), len(predictions))
+    if not calibration.per_variant:
+        return calibrations[None], spectra[None], history[None]
+    return calibrations, spectra, history
 
-    specimens = {}
-    if measured_features_path is not None:
-        design_records, specimens = design_record_ids(design_records, design_specimens,
-                                                      measured_records)
+
+def write_report(inputs: ReportInputs) -> dict:
+    """Build the whole report from `inputs` (condmon.report_inputs: what each input adds, and
+    which outputs are optional); returns the summary dict. Every output is written atomically.
+
+    With the measured features (inputs.evaluation.measured_features) the evaluation tables
+    (condmon.evaluation: per evaluation; over repeats) get `design_records` and the records of
+    `design_specimens` apart as design records, summary.json's results the per-record, balanced,
+    false-alarm and baseline figures (all test records, and design and evaluation records
+    apart; the headline is then on the evaluation records), and plots/simulation_gain.png the
+    gain against the strongest baseline (without them: against the same classifier's
+    measured-only baseline)."""
+    run, train, chosen = inputs.run, inputs.train, inputs.evaluation
+    upstream, out = inputs.upstream, inputs.outputs
+    accuracy = load_metrics(train.metrics)
+    # measured-only baselines (empty files where hybrid.measured_only_baseline is off)
+    with_rows = [p for p in train.measured_only if len(pd.read_csv(p))]
+    baseline = load_metrics(with_rows) if with_rows else None
+    predictions = load_predictions(train.predictions)
+    # the system's physics baselines (empty files where it has none)
+    physics_with_rows = [p for p in train.physics
+                         if len(pd.read_parquet(p, columns=["record_id"]))]
+    physics = load_predictions(physics_with_rows) if physics_with_rows else None
+    alone_with_rows = [p for p in train.measured_only_predictions
+                       if len(pd.read_parquet(p, columns=["record_id"]))]
+    baseline_predictions = load_predictions(alone_with_rows) if alone_with_rows else None
+    simulated_validation = load_simulated_validation(train.simulated_validation)
+    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
+                         run.healthy_state)
+    # the per-condition figures and prediction_shares.csv group by the operating condition
+    # (hybrid.condition: the speed, or e.g. the load), each record's value from its features
+    features, condition = chosen.measured_features, chosen.condition
+    grouping = condition if features is not None else "speed_rpm"
+    by_condition = (with_condition(predictions, record_conditions(features, condition), condition)
+                    if grouping != "speed_rpm" else predictions)
+    shares = prediction_shares(by_condition, labels, grouping)
+    calibrations, spectra, history = load_calibrations(inputs.calibration)
+    per_model = inputs.calibration.per_variant
+    # the one the simulated data come from
+    calibration = next(iter(calibrations.values())) if per_model else calibrations
+    log.info("%d metrics rows from %d files, %d predictions", len(accuracy),
+             len(train.metrics), len(predictions))
+
+    design_records, specimens = chosen.design_records, {}
+    if features is not None:
+        design_records, specimens = design_record_ids(design_records, chosen.design_specimens,
+                                                      upstream.measured_records)
     design_tested = bool(set(map(str, design_records)) & set(predictions["record_id"].astype(str)))
-    with staging_directory(plots_dir) as staging:
-        plot_names = make_plots(accuracy, by_condition, spectra, history, calibrations, staging,
-                                run_name, data_source, confusion_percent, healthy_state,
-                                len(bench_effects), shares, grouping, design_tested)
-        summary = summarize(accuracy, predictions, calibration, run_name, data_source, plot_names,
-                            baseline, healthy_state)
-        summary["data_source"]["bench_effects_the_model_lacks"] = list(bench_effects)
+    with staging_directory(out.plots) as staging:
+        plot_names = make_plots(accuracy, by_condition, (calibrations, spectra, history), staging,
+                                run, chosen.confusion_percent, shares, grouping, design_tested)
+        summary = summarize(accuracy, predictions, calibration, run.run_name, run.data_source,
+                            plot_names, baseline, run.healthy_state)
+        summary["data_source"]["bench_effects_the_model_lacks"] = list(run.bench_effects)
         if per_model:
             summary["calibration_by_variant"] = calibrations
-        summary["simulation"] = simulation_summary(simulation_reports)
-        if measured_records is not None:
-            summary["measured_records"] = measured_records_summary(measured_records)
-        if list(simulated_validation_paths):  # hybrid.simulated_validation_share > 0
+        summary["simulation"] = simulation_summary(upstream.simulation_reports)
+        if upstream.measured_records is not None:
+            summary["measured_records"] = measured_records_summary(upstream.measured_records)
+        if train.simulated_validation:  # hybrid.simulated_validation_share > 0
             summary["simulated_validation"] = (
                 simulated_validation_summary(simulated_validation)
                 if simulated_validation is not None else
                 {"test_source": SIMULATED_VALIDATION, "label": SIMULATED_VALIDATION_LABEL,
                  "results": [], "note": "no simulated record was held out (every stratum's "
                                         "share rounds to zero records)"})
-        if benchmarks is not None:
-            summary["job_timings"] = write_job_timings(benchmarks, job_timings_path, staging, summary["plots"],
-                                                       note=f"run {run_name}")
-        note = plot_note(run_name, data_source, len(bench_effects))
-        table = physics_table = baseline_table = None
-        if measured_features_path is not None:
+        if upstream.benchmarks is not None:
+            summary["job_timings"] = write_job_timings(upstream.benchmarks, out.job_timings,
+                                                       staging, summary["plots"],
+                                                       note=f"run {run.run_name}")
+        note = plot_note(run.run_name, run.data_source, len(run.bench_effects))
+        table = physics_table = baseline_table = physics_overall = None
+        if features is not None:
             table, overall, physics_table, physics_overall, baseline_table = evaluation_tables(
-                predictions, baseline, labels, healthy_state, measured_features_path, condition,
+                predictions, baseline, labels, run.healthy_state, features, condition,
                 design_records, physics, baseline_predictions)
-            add_evaluation(summary, overall, predictions, measured_records, design_records,
-                           design_specimens, specimens)
+            add_evaluation(summary, overall, predictions, upstream.measured_records,
+                           design_records, chosen.design_specimens, specimens)
             plots.save_figure(plots.simulation_gain(
                 gain_against_strongest(overall), 1.0 / len(labels),
-                plot_note(run_name, data_source, len(bench_effects), design_tested)),
+                plot_note(run.run_name, run.data_source, len(run.bench_effects), design_tested)),
                 staging / "simulation_gain.png")
             summary["plots"].append("simulation_gain.png")
             if physics_overall is not None:
                 summary["physics_baselines"] = physics_baselines_summary(physics_overall, physics)
-            if physics_baselines_path is not None:
+            if out.physics_baselines is not None:
                 # without any rule, a header alone: the evaluation summary's columns, no rows
                 write_text((physics_overall if physics_overall is not None else overall.iloc[:0])
-                           .to_csv(index=False), physics_baselines_path)
+                           .to_csv(index=False), out.physics_baselines)
             summary["plots"] += evaluation_plots(overall, 1.0 / len(labels), note, staging)
-            if evaluation_path is not None:
-                write_text(table.to_csv(index=False), evaluation_path)
-            if evaluation_summary_path is not None:
-                write_text(overall.to_csv(index=False), evaluation_summary_path)
+            if out.evaluation is not None:
+                write_text(table.to_csv(index=False), out.evaluation)
+            if out.evaluation_summary is not None:
+                write_text(overall.to_csv(index=False), out.evaluation_summary)
         elif baseline is not None:  # no evaluation tables: the same classifier's baseline
             gains = simulation_gain(accuracy, baseline).rename(columns={"measured_only": "strongest"})
             plots.save_figure(plots.simulation_gain(gains, 1.0 / len(labels), note),
                               staging / "simulation_gain.png")
             summary["plots"].append("simulation_gain.png")
-        write_text(labelled_accuracy(accuracy).to_csv(index=False), accuracy_path)
-        if headline_path is not None:
-            headline = headline_table(accuracy, baseline,
-                                      physics_overall if measured_features_path is not None else None,
-                                      1.0 / len(labels), table, physics_table, baseline_table)
-            write_text(headline.to_csv(index=False), headline_path)
-        if record_recall_path is not None:
-            write_text(recall_per_record(predictions).to_csv(index=False), record_recall_path)
-        if prediction_shares_path is not None:
-            write_text(shares.to_csv(index=False), prediction_shares_path)
-        write_text(json.dumps(summary, indent=2) + "\n", summary_path)
-    log.info("wrote %s, %s and %d plots in %s", accuracy_path, summary_path, len(plot_names),
-             plots_dir)
+        write_text(labelled_accuracy(accuracy).to_csv(index=False), out.accuracy)
+        if out.headline is not None:
+            headline = headline_table(accuracy, baseline, physics_overall, 1.0 / len(labels),
+                                      table, physics_table, baseline_table)
+            write_text(headline.to_csv(index=False), out.headline)
+        if out.recall_per_record is not None:
+            write_text(recall_per_record(predictions).to_csv(index=False), out.recall_per_record)
+        if out.prediction_shares is not None:
+            write_text(shares.to_csv(index=False), out.prediction_shares)
+        write_text(json.dumps(summary, indent=2) + "\n", out.summary)
+    log.info("wrote %s, %s and %d plots in %s", out.accuracy, out.summary, len(plot_names),
+             out.plots)
     return summary

@@ -20,7 +20,7 @@ import json
 import numpy as np
 import pandas as pd
 
-from condmon.features import compute_feature_table, side_by_side, statistical_feature_table
+from condmon.features import FEATURE_FAMILIES, family_table
 from condmon.reference import nearest_reference, reference_from_table
 from condmon.signals import COLUMNS, validate
 
@@ -148,19 +148,14 @@ class SignalModel:
     def feature_matrix(self, frame: pd.DataFrame) -> tuple[pd.DataFrame, np.ndarray]:
         """(ids, features) of a checked signal table, one row per (record, segment)."""
         f = self.features
-        parts = []
-        for family in str(f["kind"]).split("+"):
-            if family == "statistical":
-                parts.append(statistical_feature_table(frame, f["channels"], f["statistical"] or {},
-                                                       f.get("defect_orders")))
-            elif family == "spectrum":
-                parts.append(compute_feature_table(frame, f["channels"], f["spectrum"]))
-            else:  # a family of the system's own (System.feature_families), with its params
-                from condmon.systems import load_system
+        own = {}  # the system's own families (System.feature_families), loaded only when used
+        if any(family not in FEATURE_FAMILIES for family in str(f["kind"]).split("+")):
+            from condmon.systems import load_system
 
-                own = load_system(self.system).feature_families()
-                parts.append(own[family](frame, f["channels"], dict((f.get("families") or {})[family])))
-        table = side_by_side(parts)
+            own = load_system(self.system).feature_families()
+        params = {"spectrum": f["spectrum"], "statistical": f["statistical"] or {},
+                  **{family: dict(p) for family, p in (f.get("families") or {}).items()}}
+        table = family_table(frame, f["channels"], f["kind"], params, f.get("defect_orders"), own)
         missing = [name for name in f["feature_names"] if name not in table.columns]
         if missing:  # a feature-code change since training: never classify other features
             raise ValueError(f"the features of this signal table lack {missing[:5]} that the model "

@@ -48,6 +48,7 @@ import subprocess
 import time
 import urllib.error
 import urllib.request
+from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 from urllib.parse import urlparse
@@ -56,9 +57,9 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
-from condmon import report
 from condmon.atomic import write_json
-from condmon.hybrid import LEAKY_PROTOCOLS, format_speed
+from condmon.labels import LEAKY_PROTOCOLS, format_speed, is_synthetic, label_order
+from condmon.train_tables import load_metrics, load_predictions
 
 log = logging.getLogger(__name__)
 
@@ -282,8 +283,8 @@ def read_train_outputs(train_dirs) -> tuple[pd.DataFrame, pd.DataFrame, dict, di
     dirs = [Path(d) for d in train_dirs]
     if missing := [str(d / "info.json") for d in dirs if not (d / "info.json").is_file()]:
         raise TrackingError(f"no such train output: {missing}")
-    metrics = report.load_metrics([d / "metrics.csv" for d in dirs], extra_columns=("fit_seconds",))
-    predictions = report.load_predictions([d / "predictions.parquet" for d in dirs])
+    metrics = load_metrics([d / "metrics.csv" for d in dirs], extra_columns=("fit_seconds",))
+    predictions = load_predictions([d / "predictions.parquet" for d in dirs])
     params, files, histories = {}, {}, {}
     for d in dirs:
         info = json.loads((d / "info.json").read_text())
@@ -375,9 +376,20 @@ def curves(history) -> list[tuple[str, float, int]]:
     return [point for point in points if np.isfinite(point[1])]
 
 
-def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_source: str,
-                     train_dirs, datasets: dict, config: dict | None = None, log_models="all",
-                     healthy_state: str | None = None, workdir=".", model_store=None,
+@dataclass(frozen=True)
+class TrackedRun:
+    """What names a pipeline invocation in MLflow: the run name (the experiment), the config's
+    hash and its values (the parent's params), the data source (tags), and the healthy state
+    (the confusion matrices' class order)."""
+    run_name: str
+    config_hash: str
+    data_source: str
+    config: dict | None = None
+    healthy_state: str | None = None
+
+
+def log_pipeline_run(tracking_uri: str, run: TrackedRun, train_dirs, datasets: dict,
+                     log_models="all", workdir=".", model_store=None,
                      artifacts: dict | None = None) -> dict:
     """Log one pipeline invocation (see module docstring); returns the run_info dict.
 
@@ -389,6 +401,8 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
     (``register_best``); ``artifacts``: {artifact folder: local file or folder} of the parent
     (the report's plots). Every input is read and checked before the first MLflow call.
     """
+    run_name, config_hash, data_source = run.run_name, run.config_hash, run.data_source
+    config, healthy_state = run.config, run.healthy_state
     if not isinstance(log_models, dict) and log_models not in MODEL_POLICIES:
         raise ValueError(f"log_models={log_models!r}; expected one of {MODEL_POLICIES} or a filter")
     started = time.perf_counter()
@@ -410,7 +424,7 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
         if missing := [key for key, _, _ in runs if tuple(key.values()) not in by_key]:
             raise TrackingError(f"{model_store}: no packaged model for {missing[:3]}")
         files = {key: Path(model_store) / entry["file"] for key, entry in by_key.items()}
-    labels = report.label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
+    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
     confusion = (predictions.groupby([*KEYS, "true_label", "predicted_label"]).size()
                  .unstack(fill_value=0).reindex(columns=labels, fill_value=0))
 
@@ -423,7 +437,7 @@ def log_pipeline_run(tracking_uri: str, run_name: str, config_hash: str, data_so
     commit, dirty = git_state(workdir)
     tags = {"git_commit": commit, "git_dirty": dirty, "config_hash": config_hash,
             "snakemake_run_name": run_name, "data_source": data_source,
-            "data_source_synthetic": str(report.is_synthetic(data_source)).lower(),
+            "data_source_synthetic": str(is_synthetic(data_source)).lower(),
             "models_logged": json.dumps(log_models), "n_nested_runs": str(len(runs))}
     measured, model_ids, parent_id = inputs["measured_features"], [], None
     try:

@@ -49,7 +49,8 @@ from sklearn.utils.metadata_routing import get_routing_for_object
 from condmon import classifiers
 from condmon.atomic import staging_directory, write_frame, write_table, write_text
 from condmon.hybrid import (SIMULATED_VALIDATION, measured_rows, simulated_validation_ids,
-                            sorted_holdouts, validate_splits)
+                            validate_splits)
+from condmon.labels import sorted_holdouts
 from condmon.seeds import derive_seed, stable_int
 from condmon.selection import (ALL_FEATURES, BACKWARD, SelectionByInnerCV,
                                 SequentialBackwardSelector, select_then_classify,
@@ -453,11 +454,17 @@ def write_simulated_validation(validation: pd.DataFrame, path) -> None:
     write_text(validation[SIMULATED_VALIDATION_COLUMNS].to_csv(index=False), path)
 
 
+class JobCost(NamedTuple):
+    """What a train job cost: its wall seconds and peak memory (MB; None: not measured)."""
+    total_seconds: float
+    peak_memory_mb: float | None = None
+
+
 def train_info(classifier_name: str, params: dict | None, seed: int, protocol: str,
                labels, feature_names, metrics: pd.DataFrame, model_files: list[dict],
-               total_seconds: float, selection: dict | None = None,
-               peak_memory_mb: float | None = None) -> dict:
+               cost: JobCost, selection: dict | None = None) -> dict:
     """Contents of info.json: what was trained, on which features, and how long it took."""
+    total_seconds, peak_memory_mb = cost
     names_json = json.dumps(list(feature_names))
     versions = package_versions()
     if classifier_name == "cnn":

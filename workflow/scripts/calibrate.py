@@ -7,7 +7,7 @@ from condmon.atomic import write_frame, write_json
 from condmon.background import background_rms, estimate_background
 from condmon.hybrid import calibration_frame
 from condmon.plots import background_grid, calibration_convergence, save_figure
-from condmon.report import data_source_label
+from condmon.labels import data_source_label
 from condmon.runlog import setup_logging
 from condmon.signals import read_signal_table
 from condmon.systems import load_system

@@ -21,9 +21,10 @@ families = dict(getattr(snakemake.params, "families", None) or {})  # the system
 
 # the system says where its envelope lines are (its defect orders), if it has any, and computes its own families
 system = load_system(snakemake.params.system)
-own = system.feature_families()
-frame = compute_feature_table_from_files(signal_paths, channels, spectrum, kind, statistical, system.defect_orders(),
-                                         {family: (own[family], dict(params)) for family, params in families.items()})
+frame = compute_feature_table_from_files(signal_paths, channels, kind,
+                                         {"spectrum": spectrum, "statistical": statistical,
+                                          **{family: dict(params) for family, params in families.items()}},
+                                         system.defect_orders(), system.feature_families())
 names = feature_columns(frame)
 config = {"channels": channels, "spectrum": spectrum, "kind": kind, "statistical": statistical}
 config.update(families)  # only with a system family, so the other families' config hash stays as it was

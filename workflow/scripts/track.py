@@ -12,7 +12,7 @@ import pandas as pd
 from condmon.model_store import build_store
 from condmon.runlog import setup_logging
 from condmon.systems import load_system
-from condmon.tracking import (TrackingError, check_tracking_server, log_pipeline_run,
+from condmon.tracking import (TrackedRun, TrackingError, check_tracking_server, log_pipeline_run,
                               resolve_tracking_uri, write_run_info)
 
 log = setup_logging(snakemake)  # to snakemake.log[0]
@@ -35,17 +35,15 @@ try:
         log.info("packaged %d models in %s; best %s", len(index["models"]), store, index["best"])
     info = log_pipeline_run(
         tracking_uri=params.tracking_uri,
-        run_name=params.run_name,
-        config_hash=params.config_hash,
-        data_source=params.data_source,
+        run=TrackedRun(run_name=params.run_name, config_hash=params.config_hash,
+                       data_source=params.data_source, config=dict(params.config),
+                       healthy_state=params.healthy_state),
         train_dirs=train_dirs,
         datasets={"measured_signals": [inputs.measured_signals],
                   "simulated_signals": list(inputs.simulated_signals),
                   "measured_features": [inputs.features_measured],
                   "simulated_features": [inputs.features_simulated]},
-        config=dict(params.config),
         log_models=params.log_models,
-        healthy_state=params.healthy_state,
         model_store=store,
         artifacts={"plots": inputs.plots} if "plots" in inputs.keys() else None,
     )

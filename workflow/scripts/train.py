@@ -9,7 +9,7 @@ from condmon.atomic import write_json
 from condmon.features import read_feature_table
 from condmon.hybrid import read_split_table
 from condmon.runlog import setup_logging
-from condmon.train import (BASELINE_COLUMNS, fit_and_evaluate, matching_feature_names,
+from condmon.train import (BASELINE_COLUMNS, JobCost, fit_and_evaluate, matching_feature_names,
                            run_protocol, train_info, write_metrics, write_models, write_predictions,
                            write_simulated_validation)
 
@@ -58,7 +58,7 @@ model_files = write_models(models, out.models, feature_names)
 labels = set(simulated["health_state"]) | set(measured["health_state"])
 peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # Linux: KiB
 write_json(train_info(name, params, seed, str(splits["protocol"].iloc[0]), labels, feature_names,
-                      metrics, model_files, time.perf_counter() - start, selection=selection,
-                      peak_memory_mb=peak_mb), out.info)
+                      metrics, model_files, JobCost(time.perf_counter() - start, peak_mb),
+                      selection=selection), out.info)
 log.info("%d models, %d metric rows written; %.1f s, peak memory %.0f MB", len(model_files),
          len(metrics), time.perf_counter() - start, peak_mb)

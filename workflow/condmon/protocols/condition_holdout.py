@@ -11,7 +11,8 @@ max(1, min_test_records) healthy records per other stratum test, so false alarms
 (at another condition: the report's protocol label says so)."""
 from __future__ import annotations
 
-from condmon.hybrid import SplitError, format_speed, holdout_label, n_train_records
+from condmon.hybrid import SplitError, n_train_records
+from condmon.labels import format_speed, holdout_label
 from condmon.protocols.base import Protocol
 
 

@@ -2,7 +2,7 @@
 rest tests; at least `min_test_records` per stratum stay in the test set."""
 from __future__ import annotations
 
-from condmon.hybrid import format_speed
+from condmon.labels import format_speed
 from condmon.protocols.base import Protocol, draw, log
 
 

@@ -7,8 +7,9 @@ import logging
 import pandas as pd
 
 from condmon.hybrid import (BLOCK_MARK, CALIBRATION, RESERVE_KEY, SHARE_KEY, SIMULATED_VALIDATION,
-                            SPLIT_COLUMNS, WHOLE_RECORD, SplitError, typed_splits, holdout_label,
-                            measured_layout, simulated_validation_records, unique_records)
+                            SPLIT_COLUMNS, WHOLE_RECORD, SplitError, measured_layout,
+                            simulated_validation_records, typed_splits, unique_records)
+from condmon.labels import holdout_label
 from condmon.protocols.base import Protocol
 from condmon.protocols.registry import make_protocol
 

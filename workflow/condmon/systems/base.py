@@ -221,14 +221,16 @@ class System(ABC):
                                 f"{self.name} system ({self.health_states})")
         nyquist = self.output_rate_hz / 2
         spectrum = config["features"]["spectrum"]
+        from condmon.features import FEATURE_FAMILIES  # the registry's (built-in and registered)
+
         families = str(config["features"]["kind"]).split("+")
         own = self.feature_families()
         for family in families:
             if family in own:
                 problems += self.feature_family_problems(family, config["features"].get(family) or {})
-            elif family not in ("spectrum", "statistical"):
+            elif family not in FEATURE_FAMILIES:
                 problems.append(f"features.kind: {family!r} is not a feature family of the {self.name} system "
-                                f"(built in: spectrum, statistical; its own: {sorted(own) or 'none'})")
+                                f"(built in: {', '.join(FEATURE_FAMILIES)}; its own: {sorted(own) or 'none'})")
         if "spectrum" in families or self.calibrates_on_spectra:
             if spectrum["f_max_hz"] > nyquist:
                 problems.append(f"features.spectrum.f_max_hz: {spectrum['f_max_hz']} Hz is above the "

@@ -545,14 +545,10 @@ def _ingest_file(path: Path, number: int, table: pd.DataFrame, task: str, channe
                   "sha256_ok": sha_ok}
 
 
-def write_cwru_signal_table(folder, path, task: str = "location", channels=("DE",),
-                            fs_hz: float = 12000.0, segment_length: int = 4096, manifest="auto",
-                            files=None, config: dict | None = None,
-                            on_bad_record: str = "stop", segment_hop: int | None = None) -> CwruIngest:
-    """`cwru_rows` of a folder written as a signal table at `path`; returns the ingest summary
-    (bad files left out with `on_bad_record="skip"` are in its `excluded`)."""
-    ingest = cwru_rows(folder, task=task, channels=channels, fs_hz=fs_hz,
-                       segment_length=segment_length, manifest=manifest, files=files,
-                       on_bad_record=on_bad_record, segment_hop=segment_hop)
+def write_cwru_signal_table(folder, path, config: dict | None = None, **reading) -> CwruIngest:
+    """`cwru_rows(folder, **reading)` written as a signal table at `path` (`config`: stored with
+    it); returns the ingest summary (bad files left out with `on_bad_record="skip"` are in its
+    `excluded`)."""
+    ingest = cwru_rows(folder, **reading)
     write_signal_table(ingest.rows, path, config=config)
     return ingest
