@@ -221,7 +221,7 @@ def test_the_default_geometry_gives_the_cwru_defect_orders():
 
 
 def test_defect_orders_relations_and_contact_angle():
-    from condmon.models.bearing_rig import BearingGeometry
+    from condmon.models.bearing.rig import BearingGeometry
 
     o = BearingGeometry(8, 10.0, 50.0).orders()
     assert o["bpfo"] + o["bpfi"] == pytest.approx(8)  # n/2 (1 - r) + n/2 (1 + r)

@@ -1,7 +1,7 @@
 """Order-domain gear diagnostics: condition indicators against their published values, tacholess
 angular resampling and the TSA on a gear-model record, the feature family in the pipeline.
 
-The record: `condmon.models.gear_drivetrain.simulate` at its default (healthy) parameters, 1100 rpm,
+The record: `condmon.models.gear.drivetrain.simulate` at its default (healthy) parameters, 1100 rpm,
 with a 0.2 % speed fluctuation at 1.5 Hz, 1.5 s (three 0.5 s segments as the default rig's), about 5 s
 of CPU once per module. Patterns are added to it at the shaft angle the model itself turns by (the
 mesh phase of `speed_fluctuation`, `speed_fluctuation_hz`, `speed_fluctuation_phase`), so the test
@@ -35,7 +35,7 @@ P = 1024
 @pytest.fixture(scope="module")
 def record():
     """(signals (channels, samples), pinion angle in revolutions at every sample)."""
-    from condmon.models.gear_drivetrain import GearDrivetrainParameters, SimulationSettings, simulate
+    from condmon.models.gear.drivetrain import GearDrivetrainParameters, SimulationSettings, simulate
 
     params = GearDrivetrainParameters(speed_rpm=SPEED_RPM, speed_fluctuation=FLUCTUATION,
                                       speed_fluctuation_hz=FLUCTUATION_HZ,

@@ -9,7 +9,7 @@ from condmon.baselines import physics_predictions
 from condmon.features import statistical_feature_table
 from conftest import system_of
 from condmon.hybrid import make_splits
-from condmon.models.bearing_rig import BearingRigParameters, RigSettings, simulate_rig
+from condmon.models.bearing.rig import BearingRigParameters, RigSettings, simulate_rig
 from condmon.signals import make_rows
 from condmon.systems.bearing import BearingSystem
 

@@ -22,7 +22,7 @@ local rotational flexibility of the classical cracked-rotor models (Dimarogonas;
   shear stiffness loss (the area ratio) is the same in every direction, so the structure carries
   it directly (`Drivetrain`); only the bending loss turns.
 The relative rotations are coordinates of the drivetrain's reduced model
-(`gear_drivetrain.model_matrices`), so this force sees two numbers per element.
+(`drivetrain.model_matrices`), so this force sees two numbers per element.
 """
 from __future__ import annotations
 
@@ -31,8 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from condmon.models.laminate import cracked_tube_geometry, delaminated_tube_geometry
-from condmon.models.mesh_force import SHAFT_HEALTH_STATES
+from condmon.models.cfrp.laminate import cracked_tube_geometry, delaminated_tube_geometry
+from condmon.models.gear.mesh_force import SHAFT_HEALTH_STATES
 
 __all__ = ["SHAFT_HEALTH_STATES", "DamagedElement", "ShaftDamageForce", "crack_section_ratios",
            "delamination_section_ratios", "RELATIVE_ROTATION", "removed_rotational_stiffness"]

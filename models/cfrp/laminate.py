@@ -1,6 +1,6 @@
 """Carbon-fibre (CFRP) tube shafts by classical laminate theory, and damaged tube sections.
 
-Pure numpy / math: ply properties in, `Section`s (see structure.py) and section geometry out.
+Pure numpy / math: ply properties in, `Section`s (see models/structure.py) and section geometry out.
 
 Laminate (classical laminate theory, CLT; Jones 1999, Reddy 2004):
 - each ply is a homogeneous orthotropic layer in plane stress (1 = fibre, 2 = transverse);
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .structure import Section
+from condmon.models.structure import Section
 
 
 @dataclass(frozen=True)
