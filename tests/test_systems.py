@@ -563,3 +563,52 @@ def test_the_library_has_no_import_cycle():
         if name not in state:
             visit(name, [])
 
+
+def test_the_models_mirror_the_systems_that_use_them():
+    """models/ holds one subpackage per system (models/gear used by systems/gear, ...) beside the
+    modules several share (numerics, structure). A model imports no workflow module and no other
+    system's subpackage; a system imports its own subpackage and those of the systems it builds on
+    (cfrp on gear), the shared layer only the shared modules; pyproject.toml installs them all."""
+    import tomllib
+
+    from condmon.systems import BUILT_IN
+
+    graph = import_graph()
+    packages = {path.parent for path in (ROOT / "models").rglob("__init__.py")} - {ROOT / "models"}
+    subpackages = {folder.name for folder in packages}
+    assert subpackages and subpackages <= set(BUILT_IN), f"models/ subpackages that are no system: {subpackages}"
+
+    def models_subpackage(module):  # "gear" for condmon.models.gear.mesh, None for a shared one
+        parts = module.split(".")
+        return parts[2] if parts[:2] == ["condmon", "models"] and len(parts) > 2 and parts[2] in subpackages else None
+
+    def system_of_module(module):
+        parts = module.split(".")
+        return parts[2] if parts[:2] == ["condmon", "systems"] and len(parts) > 2 and parts[2] in BUILT_IN else None
+
+    for name, imported in graph.items():
+        if name.startswith("condmon.models"):
+            allowed = {models_subpackage(name), None}
+            assert all(m.startswith("condmon.models.") for m in imported), f"{name} imports the workflow: {imported}"
+            assert {models_subpackage(m) for m in imported} <= allowed, \
+                f"{name} imports another system's models: {imported}"
+    bases = {system: set() for system in BUILT_IN}  # the systems each system builds on
+    for name, imported in graph.items():
+        if system_of_module(name):
+            bases[system_of_module(name)] |= {system_of_module(m) for m in imported} - {None, system_of_module(name)}
+    assert bases["cfrp"] == {"gear"}  # the cfrp system is the gear system built from other parameters
+    for name, imported in graph.items():
+        if name.startswith("condmon.models"):
+            continue
+        system = system_of_module(name)
+        allowed = ({system} | bases[system]) if system else set()
+        used = {models_subpackage(m) for m in imported} - {None}
+        assert used <= allowed, f"{name} imports the models of {sorted(used - allowed)}"
+    assert "condmon.models.gear.drivetrain" in graph["condmon.systems.gear"]
+    assert "condmon.models.cfrp.laminate" in graph["condmon.systems.cfrp.parameters"]
+
+    on_disk = {"condmon.models." + ".".join(folder.relative_to(ROOT / "models").parts) for folder in packages}
+    on_disk |= {"condmon.models"} | {".".join(path.parent.relative_to(ROOT / "workflow").parts)
+                                    for path in (ROOT / "workflow" / "condmon").rglob("__init__.py")}
+    listed = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+    assert set(listed) == on_disk, f"pyproject.toml's packages differ from the folders: {set(listed) ^ on_disk}"
