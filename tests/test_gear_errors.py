@@ -134,7 +134,7 @@ def test_bench_fault_forms_are_its_own_geometry():
 def test_per_sample_gear_errors_come_from_the_config():
     from conftest import system_of
 
-    system = system_of("config/smoke.yaml")
+    system = system_of(".test/config/smoke.yaml")
     params = system.parameters()
     from condmon.systems.gear.parameters import sample_effects
 

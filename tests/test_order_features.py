@@ -278,7 +278,7 @@ def test_gear_systems_name_their_shafts_and_only_they_have_the_order_family():
     assert cfrp.shafts() == [("pinion", 1.0, geometry["teeth_pinion"]),
                              ("gear", geometry["teeth_pinion"] / geometry["teeth_gear"], geometry["teeth_gear"])]
     assert "order" in cfrp.feature_families()
-    assert system_of("config/cwru-smoke.yaml").feature_families() == {}
+    assert system_of(".test/config/cwru-smoke.yaml").feature_families() == {}
 
 
 def test_config_takes_the_order_family_and_names_what_cannot_work():
@@ -294,7 +294,7 @@ def test_config_takes_the_order_family_and_names_what_cannot_work():
     with pytest.raises(ConfigError, match="order_max: 200.5 is above the Nyquist order 139.6"):
         config_of("config/config.yaml", {"features": {"kind": "spectrum+order", "order": {"order_max": 200.5}}})
     with pytest.raises(ConfigError, match="'order' is not a feature family of the bearing system"):
-        config_of("config/cwru-smoke.yaml", {"features": {"kind": "statistical+order"}})
+        config_of(".test/config/cwru-smoke.yaml", {"features": {"kind": "statistical+order"}})
 
 
 def test_cnn_reads_the_spectra_and_leaves_the_order_features_out():

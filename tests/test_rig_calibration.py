@@ -21,7 +21,7 @@ SEGMENT = 2048
 
 def rig(model=None):
     """The bearing system with these numerics, segments and nominal `bearing.model` values."""
-    return system_of("config/cwru-smoke.yaml", {"bearing": {
+    return system_of(".test/config/cwru-smoke.yaml", {"bearing": {
         "segment_length": SEGMENT, "numerics": {"oversampling": 4, "settle_time": 0.05}, "model": model or {}}})
 
 

@@ -44,9 +44,9 @@ def toy_config(run_name="toy-smoke") -> dict:
 
 
 CONFIGS = {
-    "gear": lambda: config_of("config/smoke.yaml"),
-    "bearing": lambda: config_of("config/cwru-smoke.yaml"),
-    "cfrp": lambda: config_of("config/cfrp-smoke.yaml"),
+    "gear": lambda: config_of(".test/config/smoke.yaml"),
+    "bearing": lambda: config_of(".test/config/cwru-smoke.yaml"),
+    "cfrp": lambda: config_of(".test/config/cfrp-smoke.yaml"),
     "toy": lambda: config_of(toy_config()),
 }
 
@@ -247,26 +247,26 @@ def test_a_systems_own_simulation_knob_reruns_its_simulations_only_and_never_ano
     params are the system's job_spec("simulate") plus the shared simulation section, so an edit
     of it reruns the gear's simulations and what follows (not the bench or calibration), and a
     bearing (CWRU) run has no such knob at all: nothing of it reaches a bearing job."""
-    gear = config_of("config/smoke.yaml")
+    gear = config_of(".test/config/smoke.yaml")
     assert "perturbation_sigma" not in gear["simulation"]
     system = get_system(gear)
     assert system.job_spec("simulate")["config"]["model"]["variability"]["perturbation_sigma"] == 0.03
     for stage in ("bench", "calibrate"):
         assert "perturbation_sigma" not in system.job_spec(stage)["config"]["model"]["variability"], stage
-    bearing = config_of("config/cwru-smoke.yaml")
+    bearing = config_of(".test/config/cwru-smoke.yaml")
     assert "perturbation_sigma" not in json.dumps(get_system(bearing).job_spec("simulate")) + json.dumps(bearing)
     with pytest.raises(ConfigError, match="unknown key model"):
-        config_of("config/cwru-smoke.yaml", {"model": {"variability": {"perturbation_sigma": 0.05}}})
+        config_of(".test/config/cwru-smoke.yaml", {"model": {"variability": {"perturbation_sigma": 0.05}}})
     with pytest.raises(ConfigError, match="unknown key simulation.perturbation_sigma"):
-        config_of("config/cwru-smoke.yaml", {"simulation": {"perturbation_sigma": 0.05}})
+        config_of(".test/config/cwru-smoke.yaml", {"simulation": {"perturbation_sigma": 0.05}})
 
     # real Snakemake plans (params trigger) on a project whose jobs look done
-    workdir, run = touched_project(tmp_path / "gear", "config/smoke.yaml")
+    workdir, run = touched_project(tmp_path / "gear", ".test/config/smoke.yaml")
     knob = {"model": {"variability": {"perturbation_sigma": 0.05}}}
     # and the report's pages (they show the full config)
     after = {"train", "track", "report", "run_config", "report_pages", "all"}
     assert planned_rules(workdir, run, knob) == {"simulate", "features_simulated", *after}
-    workdir, run = touched_project(tmp_path / "bearing", "config/cwru-smoke.yaml", f"measured_dir={CWRU}")
+    workdir, run = touched_project(tmp_path / "bearing", ".test/config/cwru-smoke.yaml", f"measured_dir={CWRU}")
     assert planned_rules(workdir, run, {"simulation": {"max_failed_share": 0.2}}) == {
         "simulate", "features_simulated", *after}
     assert "unknown key model" in planned_rules(workdir, run, knob)  # a CWRU run has no gear knob
@@ -275,12 +275,13 @@ def test_a_systems_own_simulation_knob_reruns_its_simulations_only_and_never_ano
 def test_each_system_checks_its_own_costs_variants_and_bounds():
     """The costs, model variants and parameter checks are the system's: the shared layer names none."""
     with pytest.raises(ConfigError, match=r"calibration.cost: 'features_eq6' is not a cost of the gear system"):
-        config_of("config/smoke.yaml", {"calibration": {"cost": "features_eq6"}})
-    assert config_of("config/cwru-smoke.yaml", {"calibration": {"cost": "features_eq6"}})
+        config_of(".test/config/smoke.yaml", {"calibration": {"cost": "features_eq6"}})
+    assert config_of(".test/config/cwru-smoke.yaml", {"calibration": {"cost": "features_eq6"}})
     with pytest.raises(ConfigError, match=r"calibration.parameters.restitution: bounds must lie in \(0, 1\]"):
-        config_of("config/smoke.yaml", {"calibration": {"parameters": {"restitution": {"low": 0.5, "high": 1.2}}}})
+        config_of(".test/config/smoke.yaml",
+                  {"calibration": {"parameters": {"restitution": {"low": 0.5, "high": 1.2}}}})
     with pytest.raises(ConfigError, match="unknown key calibration.contact_laws"):
-        config_of("config/cwru-smoke.yaml", {"calibration": {"contact_laws": ["flores"]}})
+        config_of(".test/config/cwru-smoke.yaml", {"calibration": {"contact_laws": ["flores"]}})
     gear, bearing, toy = (get_system(CONFIGS[name]()) for name in ("gear", "bearing", "toy"))
     assert gear.model_variants({"contact_laws": ["flores", "gonthier"]}) == ["flores", "gonthier"]
     assert bearing.model_variants({}) == ["hertz"] and toy.model_variants({}) == [toy.nominal_variant]
@@ -292,9 +293,9 @@ def test_registry_errors_name_the_culprit():
     with pytest.raises(ValueError, match=r"unknown system 'turbine'; registered: \[.*'bearing'.*'gear'"):
         system_class("turbine")
     with pytest.raises(ConfigError, match="unknown system 'turbine'"):
-        config_of("config/smoke.yaml", {"system": "turbine"})
+        config_of(".test/config/smoke.yaml", {"system": "turbine"})
     with pytest.raises(ConfigError, match="unknown key cwru"):  # another system's section
-        config_of("config/smoke.yaml", {"cwru": {"task": "location"}})
+        config_of(".test/config/smoke.yaml", {"cwru": {"task": "location"}})
     with pytest.raises(ConfigError, match="no such file"):
         config_of(toy_config() | {"system_modules": [str(ROOT / "tests" / "no_such_system.py")]})
 
@@ -472,7 +473,7 @@ def test_a_bearing_run_from_another_rigs_signal_table(tmp_path):
 
     labels = {"ok": {"defect": "none"}, "outer": {"defect": "outer_race", "diameter_mm": [0.3, 0.6]},
               "inner": {"defect": "inner_race", "diameter_mm": [0.3, 0.6]}}
-    config = yaml.safe_load((ROOT / "config" / "cwru-smoke.yaml").read_text())
+    config = yaml.safe_load((ROOT / ".test" / "config" / "cwru-smoke.yaml").read_text())
     config.update(run_name="rig2-smoke", measured_table=str(tmp_path / "rig2.parquet"))
     config["bearing"].update(segment_length=2048, health_states=labels, healthy_state="ok",
                              geometry={"n_balls": 12, "ball_diameter": 7.0e-3, "pitch_diameter": 46.0e-3,
@@ -505,7 +506,7 @@ def test_the_default_profile_is_loaded():
     import subprocess
     import sys
 
-    result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--configfile", "config/smoke.yaml"],
+    result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--configfile", ".test/config/smoke.yaml"],
                             cwd=ROOT, capture_output=True, text=True, check=True)
     assert "Using workflow specific profile profiles/default" in result.stdout + result.stderr
     profile = yaml.safe_load((ROOT / "profiles" / "default" / "config.yaml").read_text())
