@@ -17,6 +17,7 @@ import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
+SCRIPTS = ROOT / "workflow" / "scripts"  # the rules' scripts, which some tests run as Snakemake would
 # The shared CWRU files: beside the checkout, or where CONDMON_CWRU_DIR points (a git worktree
 # elsewhere, another machine's data folder).
 CWRU = Path(os.environ.get("CONDMON_CWRU_DIR", ROOT.parent / "shared" / "data" / "cwru")).resolve()

@@ -4,7 +4,7 @@ import math
 import pandas as pd
 import pytest
 
-from conftest import CWRU, DATA_FOLDERS
+from conftest import CWRU, DATA_FOLDERS, ROOT
 from condmon.hybrid import (PROTOCOLS, SPLIT_COLUMNS, SplitError, calibration_frame,
                             check_healthy_tested, make_splits, measured_layout, n_train_records,
                             read_split_table, sorted_holdouts, time_blocks, write_split_table)
@@ -379,11 +379,10 @@ def test_design_records_are_reported_apart_on_the_shared_files(shared_cwru):
     records gets them reported apart. Simulated here by declaring the load-0 records only: the
     `design` rows hold exactly the tested load-0 records, the `evaluation` rows the load-1 ones."""
     import yaml
-    from pathlib import Path
     from condmon.evaluation import evaluation_table, summarise
 
     segments, records = shared_cwru
-    config = yaml.safe_load((Path(__file__).parents[1] / "config/cwru.yaml").read_text())
+    config = yaml.safe_load((ROOT / "config/cwru.yaml").read_text())
     assert sorted(config["report"]["design_records"]) == sorted(records.record_id)
     splits = with_healthy("unseen_fault", segments, reserve=RESERVE, specimens=records)
     labels = segments.drop_duplicates("record_id").set_index("record_id")
@@ -454,12 +453,10 @@ def test_overlapping_windows_of_a_cwru_file():
 
 def test_the_pdm_bench_config_asks_for_its_split_and_checks_the_guard_gap():
     import yaml
-    from pathlib import Path
     from condmon.config import ConfigError, load_schema, validate_config
 
-    root = Path(__file__).parents[1]
-    schema = load_schema(root / "config/schema.yaml")
-    raw = yaml.safe_load((root / "config/cwru-pdm-bench.yaml").read_text())
+    schema = load_schema(ROOT / "config/schema.yaml")
+    raw = yaml.safe_load((ROOT / "config/cwru-pdm-bench.yaml").read_text())
     raw.update({key: str(folder) for key, folder in DATA_FOLDERS.items() if key in raw})  # this machine's copy
     config = validate_config(raw, schema)
     assert config["hybrid"]["condition_split"] == {"train": [0, 1, 2], "test": [3]}
