@@ -3,7 +3,7 @@
 
 Method: one process pinned to one core (`os.sched_setaffinity`, BLAS threads 1), the default
 model of config/config.yaml and the default numerics (RK44, h = 19.5 us, sensors at 51.2 kHz,
-output 5120 Hz). For each stiffness model, speed and health state, `models.gear_drivetrain.simulate`
+output 5120 Hz). For each stiffness model, speed and health state, `condmon.models.gear.drivetrain.simulate`
 runs `--seconds` recorded seconds after the default 0.15 s settling; the timer (perf_counter and
 process CPU time) spans the whole call: building the mesh (the potential-energy tables included),
 the exudyn run, filtering and decimation. Each case runs `--repeats` times, interleaved between the
@@ -31,8 +31,8 @@ ROOT = Path(__file__).resolve().parents[1]
 import yaml  # noqa: E402
 
 from condmon.systems.gear.parameters import build_parameters, simulation_settings  # noqa: E402
-from condmon.models.gear_drivetrain import simulate  # noqa: E402
-from condmon.models.mesh_force import MeshForce  # noqa: E402
+from condmon.models.gear.drivetrain import simulate  # noqa: E402
+from condmon.models.gear.mesh_force import MeshForce  # noqa: E402
 
 MODELS = ("simple", "potential_energy")
 

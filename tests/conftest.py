@@ -17,6 +17,7 @@ import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
+SCRIPTS = ROOT / "workflow" / "scripts"  # the rules' scripts, which some tests run as Snakemake would
 # The shared CWRU files: beside the checkout, or where CONDMON_CWRU_DIR points (a git worktree
 # elsewhere, another machine's data folder).
 CWRU = Path(os.environ.get("CONDMON_CWRU_DIR", ROOT.parent / "shared" / "data" / "cwru")).resolve()
@@ -52,7 +53,7 @@ def deep_update(base: dict, changes: dict) -> dict:
     return base
 
 
-def config_of(configfile="config/smoke.yaml", changes: dict | None = None) -> dict:
+def config_of(configfile=".test/config/smoke.yaml", changes: dict | None = None) -> dict:
     """A validated config: a project config file (or a config dict) with `changes` merged in."""
     from condmon.config import load_schema, validate_config
 
@@ -65,7 +66,7 @@ def config_of(configfile="config/smoke.yaml", changes: dict | None = None) -> di
     return validate_config(config, load_schema(ROOT / "config" / "schema.yaml"))
 
 
-def system_of(configfile: str = "config/smoke.yaml", changes: dict | None = None):
+def system_of(configfile: str = ".test/config/smoke.yaml", changes: dict | None = None):
     """The system object a project config file (with `changes`) builds."""
     from condmon.systems import get_system
 
@@ -86,7 +87,7 @@ def snakemake(workdir, *args, check=True):
 def copy_project(target: Path) -> Path:
     """The workflow's files (no results) in `target`, to run a pipeline in."""
     target.mkdir(parents=True, exist_ok=True)
-    for name in ("Snakefile", "workflow", "config", "models", "profiles"):
+    for name in ("Snakefile", "workflow", "config", ".test", "models", "profiles"):
         source = ROOT / name
         if source.is_dir():
             shutil.copytree(source, target / name, ignore=shutil.ignore_patterns("__pycache__"))
@@ -97,10 +98,10 @@ def copy_project(target: Path) -> Path:
 
 @pytest.fixture(scope="session")
 def smoke(tmp_path_factory):
-    """The gear bench's smoke run (config/smoke.yaml, every target) in a copy of the project:
+    """The gear bench's smoke run (.test/config/smoke.yaml, every target) in a copy of the project:
     (project folder, results folder). Read-only: a test that reruns or edits copies it."""
     workdir = copy_project(tmp_path_factory.mktemp("smoke"))
-    snakemake(workdir, "--cores", "2", "--configfile", "config/smoke.yaml")
+    snakemake(workdir, "--cores", "2", "--configfile", ".test/config/smoke.yaml")
     return workdir, workdir / "results" / "smoke"
 
 
@@ -119,7 +120,7 @@ def cwru_folder(path: Path, files) -> Path:
 
 @pytest.fixture(scope="session")
 def cwru_run(tmp_path_factory):
-    """The bearing rig's smoke run (config/cwru-smoke.yaml, every target) on CWRU_SLICE:
+    """The bearing rig's smoke run (.test/config/cwru-smoke.yaml, every target) on CWRU_SLICE:
     (project folder, results folder). Its files are read only; a test may add a run of another
     run_name beside it (test_cwru_pipeline.py's second folder)."""
     if not CWRU.is_dir():
@@ -127,6 +128,6 @@ def cwru_run(tmp_path_factory):
     root = tmp_path_factory.mktemp("cwru")
     workdir = copy_project(root / "project")
     folder = cwru_folder(root / "slice", CWRU_SLICE)
-    snakemake(workdir, "--cores", "2", "--configfile", "config/cwru-smoke.yaml", "--config",
+    snakemake(workdir, "--cores", "2", "--configfile", ".test/config/cwru-smoke.yaml", "--config",
               f"measured_dir={folder}")
     return workdir, workdir / "results" / "cwru-smoke"

@@ -246,7 +246,9 @@ def track_job(paths: dict, tracking_uri: str, workdir: Path, config_hash: str = 
     Python, `snakemake` injected) on the outputs of ``build``; log and mlflow_run.json go to
     ``workdir``."""
     import sys
-    script = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "track.py"
+
+    from conftest import SCRIPTS
+    script = SCRIPTS / "track.py"
     args = dict(script=str(script), log=str(workdir / "track.log"),
                 params=dict(tracking_uri=tracking_uri, run_name=run_name, config_hash=config_hash,
                             data_source="virtual_bench", config=config or {"run_name": run_name},

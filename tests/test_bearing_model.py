@@ -103,7 +103,7 @@ def test_load_of_speed():
 
 
 def bearing_system(segment_length=1024, model=None):
-    return system_of("config/cwru-smoke.yaml", {"bearing": {"segment_length": segment_length,
+    return system_of(".test/config/cwru-smoke.yaml", {"bearing": {"segment_length": segment_length,
                                                           "numerics": {"settle_time": 0.02},
                                                           "model": model or {}}})
 
@@ -173,7 +173,7 @@ def test_another_rig_geometry_labels_and_loads():
     labels = {"ok": {"defect": "none"}, "or_small": {"defect": "outer_race", "diameter_mm": [0.2, 0.4]},
               "ir": {"defect": "inner_race", "diameter_mm": [0.5, 0.5]}}
     geometry = {"n_balls": 12, "ball_diameter": 6.0e-3, "pitch_diameter": 40.0e-3, "contact_angle_deg": 15.0}
-    system = system_of("config/cwru-smoke.yaml", {
+    system = system_of(".test/config/cwru-smoke.yaml", {
         "measured_table": "signals.parquet", "hybrid": {"protocols": ["record_split"]},
         "bearing": {"health_states": labels, "healthy_state": "ok", "geometry": geometry,
                     "load_speeds": [[10.0, 1500.0], [20.0, 1450.0]]}, "rig": {"speeds_rpm": [1500, 1450]}})
@@ -192,7 +192,7 @@ def test_another_rig_geometry_labels_and_loads():
 def test_noise_free_drops_the_rigs_own_noise_and_background():
     """The benchmark's step check compares noise-free runs: the rig model adds its own sensor noise
     and machine background, so `noise_free` removes them, and what is left converges with the step."""
-    system = system_of("config/cwru-smoke.yaml")
+    system = system_of(".test/config/cwru-smoke.yaml")
     parameters = system.sample_parameters(system.nominal_calibration(), "normal", np.random.default_rng(0),
                                           {})
     quiet = system.noise_free(parameters)
@@ -221,7 +221,7 @@ def test_the_default_geometry_gives_the_cwru_defect_orders():
 
 
 def test_defect_orders_relations_and_contact_angle():
-    from condmon.models.bearing_rig import BearingGeometry
+    from condmon.models.bearing.rig import BearingGeometry
 
     o = BearingGeometry(8, 10.0, 50.0).orders()
     assert o["bpfo"] + o["bpfi"] == pytest.approx(8)  # n/2 (1 - r) + n/2 (1 + r)

@@ -1,12 +1,12 @@
-"""The bearing-rig model (models/bearing_rig.py): kinematics, envelope-spectrum lines of the
+"""The bearing-rig model (models/bearing/rig.py): kinematics, envelope-spectrum lines of the
 defects at the kinematic frequencies, reproducibility, divergence."""
 import numpy as np
 import pytest
 from scipy.signal import welch
 
 from condmon.stat_features import envelope_line_ratio, envelope_spectrum
-from condmon.models.bearing_rig import (SKF_6203, SKF_6205, BearingRigParameters, RigSettings, SimulationError,
-                                _DefectProfile, effective_defect_depth, simulate_rig)
+from condmon.models.bearing.rig import (SKF_6203, SKF_6205, BearingRigParameters, RigSettings, SimulationError,
+                                        _DefectProfile, effective_defect_depth, simulate_rig)
 
 SPEED = 1797.0
 SHAFT_HZ = SPEED / 60.0

@@ -5,7 +5,7 @@ import pytest
 
 from condmon.calibrate import (Bound, Calibrator, SpectrumModel, estimate_sensor_noise, measured_spectra,
                                spectrum_cost, with_sensor_noise)
-from condmon.models.gear_drivetrain import operating_mesh_stiffness
+from condmon.models.gear.drivetrain import operating_mesh_stiffness
 from condmon.systems import get_system
 from condmon.systems.gear.bench import virtual_bench_rows
 from condmon.systems.gear.parameters import build_parameters

@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 
 from conftest import config_of
-from condmon.models.laminate import (CFRP_STUDY_PLY, Laminate, cracked_tube_geometry, delaminated_tube_geometry,
-                                     laminate_tube_section, quasi_isotropic_modulus, quasi_isotropic_poisson_ratio)
-from condmon.models.shaft_damage import (RELATIVE_ROTATION, DamagedElement, ShaftDamageForce,
-                                         removed_rotational_stiffness)
+from condmon.models.cfrp.laminate import (CFRP_STUDY_PLY, Laminate, laminate_tube_section, quasi_isotropic_modulus,
+                                          quasi_isotropic_poisson_ratio)
+from condmon.models.gear.shaft_damage import (RELATIVE_ROTATION, DamagedElement, ShaftDamageForce,
+                                              cracked_tube_geometry, delaminated_tube_geometry,
+                                              removed_rotational_stiffness)
 from condmon.models.structure import BENDING_PLANES, LinearStructure
 from condmon.systems import get_system
 

@@ -1,7 +1,6 @@
 """Nested `--config` overrides read as the schema's types (Snakemake hands their values over as
 text), and a measured speed that rig.speeds_rpm lacks refused before any job runs."""
 import re
-import shutil
 import subprocess
 import sys
 
@@ -12,14 +11,14 @@ import yaml
 
 from condmon.config import ConfigError, apply_typed_overrides, load_schema, validate_config
 from condmon.signals import make_rows, write_signal_table
-from conftest import ROOT, config_of, deep_update
+from conftest import ROOT, config_of, copy_project, deep_update
 
 SCHEMA = load_schema(ROOT / "config" / "schema.yaml")
 
 
 def smoke_with(overrides: dict) -> dict:
     """The smoke config with ``overrides`` merged in as Snakemake merges --config, then typed."""
-    config = deep_update(yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text()), overrides)
+    config = deep_update(yaml.safe_load((ROOT / ".test" / "config" / "smoke.yaml").read_text()), overrides)
     return apply_typed_overrides(config, overrides, SCHEMA)
 
 
@@ -42,7 +41,7 @@ def test_text_that_is_no_value_of_the_key_still_fails_naming_it():
 
 
 def test_a_config_files_text_is_not_retyped_and_the_hint_fits_the_text():
-    config = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    config = yaml.safe_load((ROOT / ".test" / "config" / "smoke.yaml").read_text())
     config["model"]["mesh_stiffness"] = "4e8"  # YAML 1.1: text
     config["classifiers"]["svm"]["C"] = "3"
     apply_typed_overrides(config, {}, SCHEMA)
@@ -67,22 +66,20 @@ def test_a_measured_speed_that_rig_speeds_lacks_is_refused_naming_it(tmp_path):
     path = gear_table(tmp_path / "measured.parquet", [450.0, 900.0])
     with pytest.raises(ConfigError, match=r"measured_table: records at \[900.0\] rpm \(\['healthy-900', "
                                           r"'missing_tooth-900'\]\) but rig.speeds_rpm is \[450, 1100\]"):
-        config_of("config/smoke.yaml", {"measured_table": str(path)})
-    config_of("config/smoke.yaml", {"measured_table": str(gear_table(tmp_path / "ok.parquet", [450.0, 1100.0]))})
+        config_of(".test/config/smoke.yaml", {"measured_table": str(path)})
+    config_of(".test/config/smoke.yaml", {"measured_table": str(gear_table(tmp_path / "ok.parquet", [450.0, 1100.0]))})
 
 
 @pytest.mark.slow
 def test_snakemake_refuses_it_before_any_job(tmp_path):
-    shutil.copy(ROOT / "Snakefile", tmp_path)
-    for name in ("workflow", "config", "models", "profiles"):
-        shutil.copytree(ROOT / name, tmp_path / name, ignore=shutil.ignore_patterns("__pycache__"))
+    copy_project(tmp_path)
     path = gear_table(tmp_path / "measured.parquet", [450.0, 900.0])
-    result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--configfile", "config/smoke.yaml",
+    result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--configfile", ".test/config/smoke.yaml",
                              "--config", f"measured_table={path}"], cwd=tmp_path, capture_output=True, text=True)
     assert result.returncode != 0
     assert "records at [900.0] rpm" in result.stderr + result.stdout
     # a nested override is typed: the dry run plans the whole (fresh) run
-    result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--configfile", "config/smoke.yaml",
+    result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--configfile", ".test/config/smoke.yaml",
                              "--config", "classifiers={svm: {C: 3}, knn: {n_neighbors: 3}}"], cwd=tmp_path,
                             capture_output=True, text=True)
     assert result.returncode == 0, result.stderr[-2000:]

@@ -22,9 +22,9 @@ states for its domain. References (the papers' own claims; not re-read here, see
 import pytest
 from scipy.integrate import solve_ivp
 
-from condmon.models.contact_laws import CONTACT_LAWS, contact_force, hysteresis_factor, rebound_restitution
-from condmon.models.gear_drivetrain import GearDrivetrainParameters
-from condmon.models.mesh_force import MeshForce
+from condmon.models.gear.contact_laws import CONTACT_LAWS, contact_force, hysteresis_factor, rebound_restitution
+from condmon.models.gear.drivetrain import GearDrivetrainParameters
+from condmon.models.gear.mesh_force import MeshForce
 
 
 def impact(law: str, restitution: float, exponent=1.5, stiffness=2.0e9, masses=(0.7, 1.9), speed=0.4):

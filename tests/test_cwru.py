@@ -380,7 +380,7 @@ def test_design_specimens_are_named_as_records_csv_names_them_and_checked():
     from conftest import system_of
     from condmon.systems.bearing.cwru import specimen_of
 
-    system = system_of("config/cwru-smoke.yaml", {"cwru": {"design_specimens": [
+    system = system_of(".test/config/cwru-smoke.yaml", {"cwru": {"design_specimens": [
         {"fault": "normal"}, {"fault": "outer_race", "diameter_in": 0.021, "position": "3:00"},
         {"fault": "ball", "diameter_in": 0.014}]}})
     assert system.design_specimens() == ["normal", "outer_race 0.021 in at 3:00", "ball 0.014 in"]
@@ -392,7 +392,7 @@ def test_design_specimens_are_named_as_records_csv_names_them_and_checked():
     from condmon.config import ConfigError
 
     with pytest.raises(ConfigError) as error:
-        system_of("config/cwru-smoke.yaml", {"cwru": {"design_specimens": [
+        system_of(".test/config/cwru-smoke.yaml", {"cwru": {"design_specimens": [
             {"fault": "outer_race", "diameter_in": 0.007}, {"fault": "normal", "diameter_in": 0.007},
             {"fault": "ball", "diameter_in": 0.007, "position": "6:00"}]}})
     assert re.findall(r"cwru\.design_specimens\[\d\]", str(error.value)) == [

@@ -1,5 +1,5 @@
 """The bearing-rig pipeline end to end on a small slice of the shared CWRU files
-(config/cwru-smoke.yaml): ingestion, rig calibration, randomised simulation, statistical
+(.test/config/cwru-smoke.yaml): ingestion, rig calibration, randomised simulation, statistical
 features with backward selection, the four protocols, the measured-only baseline, the report.
 
 A second run points `measured_dir` at another set of files (other fault sizes, no healthy record)
@@ -85,7 +85,7 @@ def test_cwru_training_selects_three_features_on_training_data(cwru_run):
 def test_another_folder_without_a_healthy_record_runs_by_config_alone(cwru_run, tmp_path):
     workdir, _ = cwru_run
     folder = cwru_folder(tmp_path / "other", OTHER_SET)
-    snakemake(workdir, "--cores", "2", "--configfile", "config/cwru-smoke.yaml", "--config",
+    snakemake(workdir, "--cores", "2", "--configfile", ".test/config/cwru-smoke.yaml", "--config",
               f"measured_dir={folder}", "run_name=cwru-other")
     results = workdir / "results" / "cwru-other"
     summary = json.loads((results / "report" / "summary.json").read_text())

@@ -144,7 +144,7 @@ def test_a_wrong_python_is_named(monkeypatch):
     assert "needs Python 3.98, 3.99" in condmon.python_version_error()
 
 
-@pytest.mark.parametrize("configfile", ["config/config.yaml", "config/smoke.yaml"])
+@pytest.mark.parametrize("configfile", ["config/config.yaml", ".test/config/smoke.yaml"])
 def test_every_rule_has_an_environment_and_the_linter_is_content(configfile):
     assert {env for env, _ in rule_scripts().values()} == {p.stem for p in ENVS.glob("*.yaml")}
     result = subprocess.run([sys.executable, "-m", "snakemake", "--lint", "--configfile", configfile],

@@ -6,10 +6,10 @@ import pytest
 import yaml
 from conftest import ROOT
 
-from condmon.models.gear_drivetrain import GearDrivetrainParameters, SimulationSettings, simulate
-from condmon.models.gear_errors import FlankMap, draw_gear_errors, iso1328_tolerances, wear_flank_map
-from condmon.models.gear_mesh import GearGeometry, GearMesh
-from condmon.models.virtual_bench import bench_fault, broken_tooth_map, pitting_map
+from condmon.models.gear.drivetrain import GearDrivetrainParameters, SimulationSettings, simulate
+from condmon.models.gear.errors import FlankMap, draw_gear_errors, iso1328_tolerances, wear_flank_map
+from condmon.models.gear.mesh import GearGeometry, GearMesh
+from condmon.models.gear.virtual_bench import bench_fault, broken_tooth_map, pitting_map
 
 GEOMETRY = GearGeometry()
 PINION_DIAMETER = 2 * GEOMETRY.pitch_radius(GEOMETRY.teeth_pinion)
@@ -134,7 +134,7 @@ def test_bench_fault_forms_are_its_own_geometry():
 def test_per_sample_gear_errors_come_from_the_config():
     from conftest import system_of
 
-    system = system_of("config/smoke.yaml")
+    system = system_of(".test/config/smoke.yaml")
     params = system.parameters()
     from condmon.systems.gear.parameters import sample_effects
 
@@ -157,7 +157,7 @@ def test_per_sample_gear_errors_come_from_the_config():
 def test_a_run_starts_at_its_drawn_mesh_phase():
     """start_mesh_phase: the mesh excitation of a run started that many mesh periods on is the one
     of a run from phase 0, shifted in time (constant speed) or in phase (with a fluctuation)."""
-    from condmon.models.mesh_force import MeshForce
+    from condmon.models.gear.mesh_force import MeshForce
 
     base = GearDrivetrainParameters(speed_rpm=600.0)
     later = base.replace(start_mesh_phase=7.25)
@@ -187,8 +187,8 @@ def test_bench_variants_layer_over_the_default_config(variant):
 
 
 def test_pitting_craters_the_dedendum_and_either_form_is_drawn():
-    from condmon.models.gear_errors import pitted_flank_map
-    from condmon.models.mesh_force import flank_maps, surface_fault_form
+    from condmon.models.gear.errors import pitted_flank_map
+    from condmon.models.gear.mesh_force import flank_maps, surface_fault_form
 
     pits = pitted_flank_map(3e-5, 0.3, np.random.default_rng(4)).array()
     roll = np.linspace(0, 1, pits.shape[0])
@@ -206,8 +206,8 @@ def test_pitting_craters_the_dedendum_and_either_form_is_drawn():
 def test_a_tooth_broken_short_of_its_root_is_a_flank_map_and_a_whole_one_is_missing():
     """missing_tooth with missing_share < 1: the part above a diagonal fracture is gone (a flank
     map of the faulty tooth); at 1 the whole tooth is missing (tooth geometry, no map)."""
-    from condmon.models.gear_errors import broken_tooth_flank_map
-    from condmon.models.mesh_force import flank_maps, tooth_damage
+    from condmon.models.gear.errors import broken_tooth_flank_map
+    from condmon.models.gear.mesh_force import flank_maps, tooth_damage
 
     gone = broken_tooth_flank_map(0.6).array() > 0
     assert gone.mean() == pytest.approx(0.6, abs=0.05)

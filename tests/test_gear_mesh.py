@@ -1,11 +1,11 @@
-"""The potential-energy mesh stiffness (models/gear_mesh.py) on its own: no exudyn."""
+"""The potential-energy mesh stiffness (models/gear/mesh.py) on its own: no exudyn."""
 import math
 
 import numpy as np
 import pytest
 
-from condmon.models.gear_mesh import (GearGeometry, GearMesh, ProfileDeviation, ToothDamage, iso6336_mesh_stiffness,
-                              pair_stiffness_per_width, tooth_compliances)
+from condmon.models.gear.mesh import (GearGeometry, GearMesh, ProfileDeviation, ToothDamage, iso6336_mesh_stiffness,
+                                      pair_stiffness_per_width, tooth_compliances)
 
 RIG = GearGeometry()  # the helical-gear study's pair: 29/44, m_n 2.25 mm, 20 deg, 26 deg helix, b 20 mm
 SPUR = GearGeometry(helix_angle_deg=0.0)

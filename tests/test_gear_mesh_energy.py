@@ -1,4 +1,4 @@
-"""The potential-energy mesh stiffness of models/gear_mesh.py against an independent calculation.
+"""The potential-energy mesh stiffness of models/gear/mesh.py against an independent calculation.
 
 tests/test_gear_mesh.py checks shapes, signs and orders of magnitude; those checks would still pass
 with the shear term halved, the bending term doubled or the axial term dropped. Here every term is
@@ -26,8 +26,8 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from condmon.models import gear_mesh
-from condmon.models.gear_mesh import GearGeometry
+from condmon.models.gear import mesh as gear_mesh
+from condmon.models.gear.mesh import GearGeometry
 
 # The two quadratures agree to ~1e-13 in practice (the spur table's interpolation in s adds
 # ~1e-5); 0.1 % leaves room for a coarser but still converged quadrature in the module, and is far

@@ -6,10 +6,10 @@ import pytest
 from scipy.signal import resample_poly
 
 from condmon.features import SpectrumFeatures
-from condmon.models.contact_laws import CONTACT_LAWS, contact_force, hysteresis_factor
-from condmon.models.gear_drivetrain import (Drivetrain, GearDrivetrainParameters, GearGeometry, SimulationSettings,
+from condmon.models.gear.contact_laws import CONTACT_LAWS, contact_force, hysteresis_factor
+from condmon.models.gear.drivetrain import (Drivetrain, GearDrivetrainParameters, GearGeometry, SimulationSettings,
                                             simulate, steps_per_sensor_sample)
-from condmon.models.mesh_force import DEFLECTION_REF, MESH_HEALTH_STATES, MeshForce, TVMSMeshForce
+from condmon.models.gear.mesh_force import DEFLECTION_REF, MESH_HEALTH_STATES, MeshForce, TVMSMeshForce
 from condmon.models.numerics import SimulationError, decimation_filter
 from condmon.models.structure import LinearStructure, Section
 

@@ -4,7 +4,7 @@ import math
 import pandas as pd
 import pytest
 
-from conftest import CWRU, DATA_FOLDERS
+from conftest import CWRU, DATA_FOLDERS, ROOT
 from condmon.hybrid import (SPLIT_COLUMNS, SplitError, calibration_frame, measured_layout,
                             n_train_records, read_split_table, time_blocks,
                             write_split_table)
@@ -474,12 +474,10 @@ def test_overlapping_windows_of_a_cwru_file():
 
 def test_the_pdm_bench_config_asks_for_its_split_and_checks_the_guard_gap():
     import yaml
-    from pathlib import Path
     from condmon.config import ConfigError, load_schema, validate_config
 
-    root = Path(__file__).parents[1]
-    schema = load_schema(root / "config/schema.yaml")
-    raw = yaml.safe_load((root / "config/cwru-pdm-bench.yaml").read_text())
+    schema = load_schema(ROOT / "config/schema.yaml")
+    raw = yaml.safe_load((ROOT / "config/cwru-pdm-bench.yaml").read_text())
     raw.update({key: str(folder) for key, folder in DATA_FOLDERS.items() if key in raw})  # this machine's copy
     config = validate_config(raw, schema)
     assert config["hybrid"]["condition_split"] == {"train": [0, 1, 2], "test": [3]}

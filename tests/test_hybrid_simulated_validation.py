@@ -5,7 +5,6 @@ import logging
 import math
 import runpy
 import sys
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -15,7 +14,7 @@ import pyarrow.parquet as pq
 import pytest
 from sklearn.base import BaseEstimator
 
-from conftest import config_of
+from conftest import SCRIPTS, config_of
 from condmon import train
 from condmon.config import ConfigError
 from condmon.hybrid import (SIMULATED_VALIDATION, SplitError, n_validation_records,
@@ -28,7 +27,6 @@ CLASSES = ("healthy", "surface_fault", "missing_tooth")
 SPEEDS = (450.0, 775.0)
 FEATURES = [f"f{i:02d}" for i in range(6)]
 ID_COLUMNS = ["record_id", "segment", "source", "health_state", "speed_rpm", "load", "fs_hz"]
-SCRIPTS = Path(__file__).resolve().parents[1] / "workflow" / "scripts"
 
 
 def features(source, n_records, n_segments=2, seed=0):

@@ -1,15 +1,16 @@
-"""Classical laminate theory and damaged tube sections (models/laminate.py) against hand
-formulas, closed forms and independent numerical integration."""
+"""Classical laminate theory (models/cfrp/laminate.py) and damaged tube sections
+(models/gear/shaft_damage.py) against hand formulas, closed forms and independent numerical
+integration."""
 import math
 
 import numpy as np
 import pytest
 from scipy.integrate import dblquad
 
-from condmon.models.laminate import (CFRP_STUDY_PLY, Laminate, Ply, cracked_tube_geometry,
-                                     delaminated_tube_geometry, laminate_tube_section,
-                                     quasi_isotropic_modulus, quasi_isotropic_poisson_ratio,
-                                     reduced_stiffness, transformed_reduced_stiffness)
+from condmon.models.cfrp.laminate import (CFRP_STUDY_PLY, Laminate, Ply, laminate_tube_section, quasi_isotropic_modulus,
+                                          quasi_isotropic_poisson_ratio, reduced_stiffness,
+                                          transformed_reduced_stiffness)
+from condmon.models.gear.shaft_damage import cracked_tube_geometry, delaminated_tube_geometry
 from condmon.models.structure import Section
 
 PLY = CFRP_STUDY_PLY

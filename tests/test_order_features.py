@@ -1,7 +1,7 @@
 """Order-domain gear diagnostics: condition indicators against their published values, tacholess
 angular resampling and the TSA on a gear-model record, the feature family in the pipeline.
 
-The record: `condmon.models.gear_drivetrain.simulate` at its default (healthy) parameters, 1100 rpm,
+The record: `condmon.models.gear.drivetrain.simulate` at its default (healthy) parameters, 1100 rpm,
 with a 0.2 % speed fluctuation at 1.5 Hz, 1.5 s (three 0.5 s segments as the default rig's), about 5 s
 of CPU once per module. Patterns are added to it at the shaft angle the model itself turns by (the
 mesh phase of `speed_fluctuation`, `speed_fluctuation_hz`, `speed_fluctuation_phase`), so the test
@@ -35,7 +35,7 @@ P = 1024
 @pytest.fixture(scope="module")
 def record():
     """(signals (channels, samples), pinion angle in revolutions at every sample)."""
-    from condmon.models.gear_drivetrain import GearDrivetrainParameters, SimulationSettings, simulate
+    from condmon.models.gear.drivetrain import GearDrivetrainParameters, SimulationSettings, simulate
 
     params = GearDrivetrainParameters(speed_rpm=SPEED_RPM, speed_fluctuation=FLUCTUATION,
                                       speed_fluctuation_hz=FLUCTUATION_HZ,
@@ -279,7 +279,7 @@ def test_gear_systems_name_their_shafts_and_only_they_have_the_order_family():
     assert cfrp.shafts() == [("pinion", 1.0, geometry["teeth_pinion"]),
                              ("gear", geometry["teeth_pinion"] / geometry["teeth_gear"], geometry["teeth_gear"])]
     assert "order" in cfrp.feature_families()
-    assert system_of("config/cwru-smoke.yaml").feature_families() == {}
+    assert system_of(".test/config/cwru-smoke.yaml").feature_families() == {}
 
 
 def test_config_takes_the_order_family_and_names_what_cannot_work():
@@ -295,7 +295,7 @@ def test_config_takes_the_order_family_and_names_what_cannot_work():
     with pytest.raises(ConfigError, match="order_max: 200.5 is above the Nyquist order 139.6"):
         config_of("config/config.yaml", {"features": {"kind": "spectrum+order", "order": {"order_max": 200.5}}})
     with pytest.raises(ConfigError, match="'order' is not a feature family of the bearing system"):
-        config_of("config/cwru-smoke.yaml", {"features": {"kind": "statistical+order"}})
+        config_of(".test/config/cwru-smoke.yaml", {"features": {"kind": "statistical+order"}})
 
 
 def test_cnn_reads_the_spectra_and_leaves_the_order_features_out():

@@ -4,9 +4,9 @@ condmon.report_inputs). The physics models (models/) lie outside the rule; the s
 inside it. Counted: every parameter a caller can pass (positional, keyword-only, *args and
 **kwargs one each), a method's self or cls not."""
 import ast
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from conftest import ROOT
+
 SCANNED = ("workflow", "benchmarks")
 MAX_PARAMETERS = 10
 # (file, qualified name) -> why it may take more. An entry no longer needed fails the test too.

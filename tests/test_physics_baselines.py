@@ -8,7 +8,7 @@ import pytest
 from condmon.baselines import physics_predictions
 from condmon.features import statistical_feature_table
 from conftest import system_of
-from condmon.models.bearing_rig import BearingRigParameters, RigSettings, simulate_rig
+from condmon.models.bearing.rig import BearingRigParameters, RigSettings, simulate_rig
 from condmon.protocols import make_splits
 from condmon.signals import make_rows
 from condmon.systems.bearing import BearingSystem
@@ -41,7 +41,7 @@ def simulated_features(kind, record_id, seconds=2.0, seed=3):
                      segment_length=4096)
     # the envelope lines where the bearing system puts them (its geometry, SKF 6205)
     return statistical_feature_table(pd.DataFrame(rows), ["DE"], STATISTICAL,
-                                     system_of("config/cwru-smoke.yaml").defect_orders())
+                                     system_of(".test/config/cwru-smoke.yaml").defect_orders())
 
 
 @pytest.fixture(scope="module")

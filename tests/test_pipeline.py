@@ -39,7 +39,7 @@ def job_counts(out: str) -> dict:
 
 
 def smoke_config():
-    return yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    return yaml.safe_load((ROOT / ".test" / "config" / "smoke.yaml").read_text())
 
 
 def test_every_design_output_is_written(smoke):
@@ -207,7 +207,8 @@ def test_the_predict_rule_runs_only_the_prediction(smoke, tmp_path):
     from condmon.signals import write_signal_table
     workdir, results = smoke
     write_signal_table(new_records(results), tmp_path / "new.parquet")
-    args = ["predict", "--configfile", "config/smoke.yaml", "--config", f"predict_input={tmp_path / 'new.parquet'}"]
+    args = ["predict", "--configfile", ".test/config/smoke.yaml",
+            "--config", f"predict_input={tmp_path / 'new.parquet'}"]
     assert job_counts(snakemake(workdir, "-n", *args).stdout) == {"predict": 1}  # nothing else reruns
     snakemake(workdir, "--cores", "1", *args)
     out = results / "predict" / "new"
@@ -219,7 +220,7 @@ def test_a_nested_config_override_is_typed_and_reruns_only_the_svm(smoke):
     """Snakemake hands `--config classifiers='{svm: {C: 3.0}}'` over as text; read as the schema's
     number it plans the SVM's train jobs and what follows them, nothing else."""
     workdir, _ = smoke
-    out = snakemake(workdir, "-n", "--configfile", "config/smoke.yaml", "--config",
+    out = snakemake(workdir, "-n", "--configfile", ".test/config/smoke.yaml", "--config",
                     "classifiers={svm: {C: 3.0}}").stdout
     jobs = job_counts(out)
     assert jobs == {"train": len(smoke_config()["hybrid"]["protocols"]), "report": 1, "track": 1,
@@ -347,7 +348,7 @@ def test_simulated_files_do_not_depend_on_the_core_count(smoke, tmp_path):
     batches = sorted(p.relative_to(results.parent.parent) for p in (results / "simulated").rglob("*.parquet"))
     assert len(batches) >= 3, batches
     targets = [batches[-1], batches[0]]
-    snakemake(workdir, "--cores", "1", *map(str, targets), "--configfile", "config/smoke.yaml")
+    snakemake(workdir, "--cores", "1", *map(str, targets), "--configfile", ".test/config/smoke.yaml")
     for target in targets:
         assert sha256(workdir / target) == sha256(results.parent.parent / target), target
 
@@ -361,7 +362,7 @@ def test_a_users_measured_table_replaces_the_virtual_bench(smoke, tmp_path):
     from condmon.signals import write_signal_table
     write_signal_table(bench, tmp_path / "rig.parquet")
     target = "results/rig/measured/signals.parquet"
-    snakemake(workdir, "--cores", "1", target, "--configfile", "config/smoke.yaml", "--config",
+    snakemake(workdir, "--cores", "1", target, "--configfile", ".test/config/smoke.yaml", "--config",
               f"measured_table={tmp_path / 'rig.parquet'}", "run_name=rig")
     measured = read_signal_table(workdir / target)
     assert set(measured["source"]) == {"measured"} and measured["record_id"].str.startswith("rig-").all()
@@ -373,7 +374,7 @@ def run_until(workdir, marker: Path, sig, timeout=600):
     cluster scheduler's cancel or time limit does) once `marker` exists."""
     import os
     import time
-    process = subprocess.Popen(SNAKEMAKE + ["--cores", "2", "--configfile", "config/smoke.yaml"], cwd=workdir,
+    process = subprocess.Popen(SNAKEMAKE + ["--cores", "2", "--configfile", ".test/config/smoke.yaml"], cwd=workdir,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     deadline = time.monotonic() + timeout
     while not marker.exists():
@@ -383,7 +384,7 @@ def run_until(workdir, marker: Path, sig, timeout=600):
     os.killpg(process.pid, sig)
     process.wait(timeout=120)  # after SIGTERM Snakemake cleans up its failed jobs, then exits
     assert process.returncode != 0
-    snakemake(workdir, "--unlock", "--cores", "1", "--configfile", "config/smoke.yaml")
+    snakemake(workdir, "--unlock", "--cores", "1", "--configfile", ".test/config/smoke.yaml")
 
 
 OUTPUT_SUFFIXES = (".parquet", ".joblib", ".json", ".csv", ".png", ".mat")
@@ -418,7 +419,7 @@ def test_a_run_killed_mid_simulation_and_mid_training_resumes_to_the_same_result
     assert_no_partial_outputs(killed)
     run_until(workdir, killed / "logs" / "train", signal.SIGTERM)
     assert_no_partial_outputs(killed)
-    snakemake(workdir, "--cores", "2", "--rerun-incomplete", "--configfile", "config/smoke.yaml")
+    snakemake(workdir, "--cores", "2", "--rerun-incomplete", "--configfile", ".test/config/smoke.yaml")
     assert_no_partial_outputs(killed)
     for path in sorted((results / "simulated").rglob("*.parquet")):
         assert sha256(killed / path.relative_to(results)) == sha256(path)
@@ -449,7 +450,7 @@ def test_snakemake_report_embeds_the_plots_and_chromium_renders_them(smoke, tmp_
         pytest.skip("headless Chromium is not installed (Debian package `chromium`)")
     workdir, results = smoke
     report = tmp_path / "report.html"
-    snakemake(workdir, "--configfile", "config/smoke.yaml", "--report", str(report))
+    snakemake(workdir, "--configfile", ".test/config/smoke.yaml", "--report", str(report))
     html = report.read_text()
     entries = json.loads(re.search(r"var results = (\{.*?\});\n", html, re.S).group(1))
     categories = json.loads(re.search(r"var categories = (\{.*?\});\n", html, re.S).group(1))
@@ -490,7 +491,7 @@ def test_the_report_front_page_opens_on_the_headline_table_and_shows_tables_as_t
 
     workdir, results = smoke
     report = tmp_path / "report.html"
-    snakemake(workdir, "--configfile", "config/smoke.yaml", "--report", str(report))
+    snakemake(workdir, "--configfile", ".test/config/smoke.yaml", "--report", str(report))
     html = report.read_text()
     front = json.loads(re.search(r"var workflow_desc = (.*?);\n", html, re.S).group(1))
     table = front.split("<table", 1)[1].split("</table>", 1)[0]
@@ -564,7 +565,8 @@ def test_the_smoke_run_through_the_slurm_profile_goes_through_slurm_and_equals_t
         with SlurmCluster(cluster_root) as cluster:
             start = time.monotonic()
             result = subprocess.run(
-                SNAKEMAKE + ["--profile", node_profile(workdir, cluster.node()), "--configfile", "config/smoke.yaml",
+                SNAKEMAKE + ["--profile", node_profile(workdir, cluster.node()),
+                             "--configfile", ".test/config/smoke.yaml",
                              "--slurm-status-command", "squeue", "--slurm-init-seconds-before-status-checks", "5",
                              "--slurm-keep-successful-logs"],
                 cwd=workdir, env=cluster.env, capture_output=True, text=True)

@@ -149,7 +149,7 @@ def test_a_single_cwru_file_is_read_by_the_bearing_systems_reader(tmp_path):
     from condmon.predict import read_input
     from condmon.systems import get_system
 
-    config = config_of("config/cwru-smoke.yaml")
+    config = config_of(".test/config/cwru-smoke.yaml")
     system = get_system(config)
     train_dir = tmp_path / "train"
     train_dir.mkdir()

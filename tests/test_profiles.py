@@ -39,7 +39,7 @@ def test_the_slurm_plugin_is_pinned_at_the_installed_version(package):
 def test_the_slurm_profile_gives_each_rule_its_resources():
     # --forceall: every job is planned whatever results/ holds
     result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--forceall", "--profile", "profiles/slurm",
-                             "--configfile", "config/smoke.yaml"], cwd=ROOT, capture_output=True, text=True)
+                             "--configfile", ".test/config/smoke.yaml"], cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 0, result.stderr[-3000:]
     jobs = {}  # rule -> its first job's block of the dry run
     for block in result.stdout.split("\nrule ")[1:]:

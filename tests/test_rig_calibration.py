@@ -8,7 +8,7 @@ from condmon.systems.bearing.model import build_rig_parameters, rig_settings
 from condmon.calibrate import spectrum_cost
 from condmon.systems.bearing.calibration import CALIBRATION_FEATURES, COSTS, calibrate_rig
 from condmon.signals import make_rows
-from condmon.models.bearing_rig import simulate_rig
+from condmon.models.bearing.rig import simulate_rig
 
 NUMERICS = {"output_rate_hz": 12000.0, "oversampling": 4, "settle_time": 0.05}
 SPECTRUM = {"f_min_hz": 0.0, "f_max_hz": 6000.0, "resolution_hz": 50.0, "scale": "log",
@@ -21,7 +21,7 @@ SEGMENT = 2048
 
 def rig(model=None):
     """The bearing system with these numerics, segments and nominal `bearing.model` values."""
-    return system_of("config/cwru-smoke.yaml", {"bearing": {
+    return system_of(".test/config/cwru-smoke.yaml", {"bearing": {
         "segment_length": SEGMENT, "numerics": {"oversampling": 4, "settle_time": 0.05}, "model": model or {}}})
 
 

@@ -14,7 +14,7 @@ CALIBRATED = {"contact_law": "flores", "sensor_noise": 0.01,
 
 @pytest.fixture(scope="module")
 def gear():
-    return system_of("config/smoke.yaml", {"rig": {"segment_seconds": 0.1}, "numerics": {"settle_time": 0.02},
+    return system_of(".test/config/smoke.yaml", {"rig": {"segment_seconds": 0.1}, "numerics": {"settle_time": 0.02},
                                            "features": {"spectrum": {"resolution_hz": 10.0}}})
 
 

@@ -3,12 +3,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import ROOT
+from conftest import CWRU
 from condmon import stat_features as sf
 from condmon.stat_features import StatisticalFeatures
 from condmon.systems.bearing.model import bearing_defaults, feature_orders
 
-CWRU_DIR = (ROOT / ".." / "shared" / "data" / "cwru").resolve()
 FS = 1000.0
 N = 1000
 T = np.arange(N) / FS
@@ -210,12 +209,12 @@ def test_transformer_pandas_output():
 # -- real data -------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def cwru_features():
-    if not CWRU_DIR.is_dir():
-        pytest.skip(f"CWRU data folder {CWRU_DIR} not present")
+    if not CWRU.is_dir():
+        pytest.skip(f"CWRU data folder {CWRU} not present")
     from condmon.systems.bearing.cwru import cwru_rows
     from condmon.signals import to_arrays
 
-    ingest = cwru_rows(CWRU_DIR, task="ten_class")
+    ingest = cwru_rows(CWRU, task="ten_class")
     ids, arrays = to_arrays(pd.DataFrame(ingest.rows), ["DE"])
     est = StatisticalFeatures(defect_orders=ORDERS)
     values = est.fit_transform(arrays[:, 0], speed_rpm=ids["speed_rpm"].to_numpy())

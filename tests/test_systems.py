@@ -44,9 +44,9 @@ def toy_config(run_name="toy-smoke") -> dict:
 
 
 CONFIGS = {
-    "gear": lambda: config_of("config/smoke.yaml"),
-    "bearing": lambda: config_of("config/cwru-smoke.yaml"),
-    "cfrp": lambda: config_of("config/cfrp-smoke.yaml"),
+    "gear": lambda: config_of(".test/config/smoke.yaml"),
+    "bearing": lambda: config_of(".test/config/cwru-smoke.yaml"),
+    "cfrp": lambda: config_of(".test/config/cfrp-smoke.yaml"),
     "toy": lambda: config_of(toy_config()),
 }
 
@@ -247,26 +247,26 @@ def test_a_systems_own_simulation_knob_reruns_its_simulations_only_and_never_ano
     params are the system's job_spec("simulate") plus the shared simulation section, so an edit
     of it reruns the gear's simulations and what follows (not the bench or calibration), and a
     bearing (CWRU) run has no such knob at all: nothing of it reaches a bearing job."""
-    gear = config_of("config/smoke.yaml")
+    gear = config_of(".test/config/smoke.yaml")
     assert "perturbation_sigma" not in gear["simulation"]
     system = get_system(gear)
     assert system.job_spec("simulate")["config"]["model"]["variability"]["perturbation_sigma"] == 0.03
     for stage in ("bench", "calibrate"):
         assert "perturbation_sigma" not in system.job_spec(stage)["config"]["model"]["variability"], stage
-    bearing = config_of("config/cwru-smoke.yaml")
+    bearing = config_of(".test/config/cwru-smoke.yaml")
     assert "perturbation_sigma" not in json.dumps(get_system(bearing).job_spec("simulate")) + json.dumps(bearing)
     with pytest.raises(ConfigError, match="unknown key model"):
-        config_of("config/cwru-smoke.yaml", {"model": {"variability": {"perturbation_sigma": 0.05}}})
+        config_of(".test/config/cwru-smoke.yaml", {"model": {"variability": {"perturbation_sigma": 0.05}}})
     with pytest.raises(ConfigError, match="unknown key simulation.perturbation_sigma"):
-        config_of("config/cwru-smoke.yaml", {"simulation": {"perturbation_sigma": 0.05}})
+        config_of(".test/config/cwru-smoke.yaml", {"simulation": {"perturbation_sigma": 0.05}})
 
     # real Snakemake plans (params trigger) on a project whose jobs look done
-    workdir, run = touched_project(tmp_path / "gear", "config/smoke.yaml")
+    workdir, run = touched_project(tmp_path / "gear", ".test/config/smoke.yaml")
     knob = {"model": {"variability": {"perturbation_sigma": 0.05}}}
     # and the report's pages (they show the full config)
     after = {"train", "track", "report", "run_config", "report_pages", "all"}
     assert planned_rules(workdir, run, knob) == {"simulate", "features_simulated", *after}
-    workdir, run = touched_project(tmp_path / "bearing", "config/cwru-smoke.yaml", f"measured_dir={CWRU}")
+    workdir, run = touched_project(tmp_path / "bearing", ".test/config/cwru-smoke.yaml", f"measured_dir={CWRU}")
     assert planned_rules(workdir, run, {"simulation": {"max_failed_share": 0.2}}) == {
         "simulate", "features_simulated", *after}
     assert "unknown key model" in planned_rules(workdir, run, knob)  # a CWRU run has no gear knob
@@ -278,13 +278,13 @@ def test_the_benchs_records_never_move_with_the_models_step():
     short = {"virtual_bench": {"records_per_state": 1, "record_seconds": 0.3}}
     records = []
     for oversampling in (6, 10):
-        system = get_system(config_of("config/smoke.yaml", {**short, "numerics": {"oversampling": oversampling}}))
+        system = get_system(config_of(".test/config/smoke.yaml", {**short, "numerics": {"oversampling": oversampling}}))
         assert "oversampling" not in system.job_spec("bench")["config"]["numerics"]
         records.append(pd.DataFrame(system.measured_part_rows("healthy_450rpm")))
     coarse, fine = records
     pd.testing.assert_frame_equal(coarse.drop(columns="signal"), fine.drop(columns="signal"))
     assert np.array_equal(np.stack(coarse["signal"]), np.stack(fine["signal"]))
-    finer = get_system(config_of("config/smoke.yaml", {**short, "virtual_bench": {**short["virtual_bench"],
+    finer = get_system(config_of(".test/config/smoke.yaml", {**short, "virtual_bench": {**short["virtual_bench"],
                                                                                   "oversampling": 12}}))
     assert not np.allclose(np.stack(pd.DataFrame(finer.measured_part_rows("healthy_450rpm"))["signal"]),
                            np.stack(records[0]["signal"]))
@@ -293,12 +293,13 @@ def test_the_benchs_records_never_move_with_the_models_step():
 def test_each_system_checks_its_own_costs_variants_and_bounds():
     """The costs, model variants and parameter checks are the system's: the shared layer names none."""
     with pytest.raises(ConfigError, match=r"calibration.cost: 'features_eq6' is not a cost of the gear system"):
-        config_of("config/smoke.yaml", {"calibration": {"cost": "features_eq6"}})
-    assert config_of("config/cwru-smoke.yaml", {"calibration": {"cost": "features_eq6"}})
+        config_of(".test/config/smoke.yaml", {"calibration": {"cost": "features_eq6"}})
+    assert config_of(".test/config/cwru-smoke.yaml", {"calibration": {"cost": "features_eq6"}})
     with pytest.raises(ConfigError, match=r"calibration.parameters.restitution: bounds must lie in \(0, 1\]"):
-        config_of("config/smoke.yaml", {"calibration": {"parameters": {"restitution": {"low": 0.5, "high": 1.2}}}})
+        config_of(".test/config/smoke.yaml",
+                  {"calibration": {"parameters": {"restitution": {"low": 0.5, "high": 1.2}}}})
     with pytest.raises(ConfigError, match="unknown key calibration.contact_laws"):
-        config_of("config/cwru-smoke.yaml", {"calibration": {"contact_laws": ["flores"]}})
+        config_of(".test/config/cwru-smoke.yaml", {"calibration": {"contact_laws": ["flores"]}})
     gear, bearing, toy = (get_system(CONFIGS[name]()) for name in ("gear", "bearing", "toy"))
     assert gear.model_variants({"contact_laws": ["flores", "gonthier"]}) == ["flores", "gonthier"]
     assert bearing.model_variants({}) == ["hertz"] and toy.model_variants({}) == [toy.nominal_variant]
@@ -310,9 +311,9 @@ def test_registry_errors_name_the_culprit():
     with pytest.raises(ValueError, match=r"unknown system 'turbine'; registered: \[.*'bearing'.*'gear'"):
         system_class("turbine")
     with pytest.raises(ConfigError, match="unknown system 'turbine'"):
-        config_of("config/smoke.yaml", {"system": "turbine"})
+        config_of(".test/config/smoke.yaml", {"system": "turbine"})
     with pytest.raises(ConfigError, match="unknown key cwru"):  # another system's section
-        config_of("config/smoke.yaml", {"cwru": {"task": "location"}})
+        config_of(".test/config/smoke.yaml", {"cwru": {"task": "location"}})
     with pytest.raises(ConfigError, match="no such file"):
         config_of(toy_config() | {"system_modules": [str(ROOT / "tests" / "no_such_system.py")]})
 
@@ -487,7 +488,7 @@ def test_a_bearing_run_from_another_rigs_signal_table(tmp_path):
 
     labels = {"ok": {"defect": "none"}, "outer": {"defect": "outer_race", "diameter_mm": [0.3, 0.6]},
               "inner": {"defect": "inner_race", "diameter_mm": [0.3, 0.6]}}
-    config = yaml.safe_load((ROOT / "config" / "cwru-smoke.yaml").read_text())
+    config = yaml.safe_load((ROOT / ".test" / "config" / "cwru-smoke.yaml").read_text())
     config.update(run_name="rig2-smoke", measured_table=str(tmp_path / "rig2.parquet"))
     config["bearing"].update(segment_length=2048, health_states=labels, healthy_state="ok",
                              geometry={"n_balls": 12, "ball_diameter": 7.0e-3, "pitch_diameter": 46.0e-3,
@@ -520,7 +521,7 @@ def test_the_default_profile_is_loaded():
     import subprocess
     import sys
 
-    result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--configfile", "config/smoke.yaml"],
+    result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--configfile", ".test/config/smoke.yaml"],
                             cwd=ROOT, capture_output=True, text=True, check=True)
     assert "Using workflow specific profile profiles/default" in result.stdout + result.stderr
     profile = yaml.safe_load((ROOT / "profiles" / "default" / "config.yaml").read_text())
@@ -560,7 +561,7 @@ def test_the_library_has_no_import_cycle():
     through importlib too); the physics models import nothing of the workflow above them."""
     graph = import_graph()
     assert graph["condmon.systems"] >= {"condmon.systems.bearing", "condmon.systems.gear"}
-    assert "condmon.models.bearing_rig" in graph["condmon.systems.bearing"]
+    assert "condmon.models.bearing.rig" in graph["condmon.systems.bearing"]
     # tracking reads the train tables and labels as the report does, never through the report
     assert not graph["condmon.labels"] and "condmon.report" not in graph["condmon.tracking"]
     for name, imported in graph.items():
@@ -579,3 +580,53 @@ def test_the_library_has_no_import_cycle():
     for name in sorted(graph):
         if name not in state:
             visit(name, [])
+
+
+def test_the_models_mirror_the_systems_that_use_them():
+    """models/ holds one subpackage per system (models/gear used by systems/gear, ...) beside the
+    modules several share (numerics, structure). A model imports no workflow module and no other
+    system's subpackage; a system imports its own subpackage and those of the systems it builds on
+    (cfrp on gear), the shared layer only the shared modules; pyproject.toml installs them all."""
+    import tomllib
+
+    from condmon.systems import BUILT_IN
+
+    graph = import_graph()
+    packages = {path.parent for path in (ROOT / "models").rglob("__init__.py")} - {ROOT / "models"}
+    subpackages = {folder.name for folder in packages}
+    assert subpackages and subpackages <= set(BUILT_IN), f"models/ subpackages that are no system: {subpackages}"
+
+    def models_subpackage(module):  # "gear" for condmon.models.gear.mesh, None for a shared one
+        parts = module.split(".")
+        return parts[2] if parts[:2] == ["condmon", "models"] and len(parts) > 2 and parts[2] in subpackages else None
+
+    def system_of_module(module):
+        parts = module.split(".")
+        return parts[2] if parts[:2] == ["condmon", "systems"] and len(parts) > 2 and parts[2] in BUILT_IN else None
+
+    for name, imported in graph.items():
+        if name.startswith("condmon.models"):
+            allowed = {models_subpackage(name), None}
+            assert all(m.startswith("condmon.models.") for m in imported), f"{name} imports the workflow: {imported}"
+            assert {models_subpackage(m) for m in imported} <= allowed, \
+                f"{name} imports another system's models: {imported}"
+    bases = {system: set() for system in BUILT_IN}  # the systems each system builds on
+    for name, imported in graph.items():
+        if system_of_module(name):
+            bases[system_of_module(name)] |= {system_of_module(m) for m in imported} - {None, system_of_module(name)}
+    assert bases["cfrp"] == {"gear"}  # the cfrp system is the gear system built from other parameters
+    for name, imported in graph.items():
+        if name.startswith("condmon.models"):
+            continue
+        system = system_of_module(name)
+        allowed = ({system} | bases[system]) if system else set()
+        used = {models_subpackage(m) for m in imported} - {None}
+        assert used <= allowed, f"{name} imports the models of {sorted(used - allowed)}"
+    assert "condmon.models.gear.drivetrain" in graph["condmon.systems.gear"]
+    assert "condmon.models.cfrp.laminate" in graph["condmon.systems.cfrp.parameters"]
+
+    on_disk = {"condmon.models." + ".".join(folder.relative_to(ROOT / "models").parts) for folder in packages}
+    on_disk |= {"condmon.models"} | {".".join(path.parent.relative_to(ROOT / "workflow").parts)
+                                    for path in (ROOT / "workflow" / "condmon").rglob("__init__.py")}
+    listed = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+    assert set(listed) == on_disk, f"pyproject.toml's packages differ from the folders: {set(listed) ^ on_disk}"

@@ -3,7 +3,6 @@ import json
 import logging
 import runpy
 import sys
-from pathlib import Path
 from types import SimpleNamespace
 
 import joblib
@@ -14,6 +13,7 @@ from sklearn.neighbors import KNeighborsClassifier
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
+from conftest import SCRIPTS
 from condmon.classifiers import make_classifier
 from condmon.features import read_feature_table
 from condmon.hybrid import read_split_table
@@ -27,7 +27,6 @@ CLASSES = ("healthy", "surface_fault", "missing_tooth")
 SPEEDS = (450.0, 775.0)
 N_FEATURES = 12
 FEATURES = [f"f{i:02d}" for i in range(N_FEATURES)]
-SCRIPTS = Path(__file__).resolve().parents[1] / "workflow" / "scripts"
 
 
 def synthetic_features(source, n_records, n_segments, seed, separable=True):

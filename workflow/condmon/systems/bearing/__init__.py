@@ -1,5 +1,5 @@
 """The ball-bearing rig (`system: bearing`): the exudyn rotor on two ball bearings of
-`condmon.models.bearing_rig`, calibrated on healthy records and simulated under domain
+`condmon.models.bearing.rig`, calibrated on healthy records and simulated under domain
 randomisation. Measured data: the original CWRU `.mat` files of `measured_dir` (cwru.py), or a
 user's signal table (`measured_table`) from any bearing rig.
 
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from condmon.models.bearing_rig import CHANNELS, simulate_rig
+from condmon.models.bearing.rig import CHANNELS, simulate_rig
 from condmon.models.numerics import SimulationError
 from condmon.seeds import job_rng
 from condmon.systems.base import System

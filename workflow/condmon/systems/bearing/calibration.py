@@ -1,4 +1,4 @@
-"""Calibration of the bearing rig (`condmon.models.bearing_rig`) on the measured healthy records.
+"""Calibration of the bearing rig (`condmon.models.bearing.rig`) on the measured healthy records.
 
 CMA-ES (`condmon.calibrate.Calibrator`, one model variant: Hertz contacts) tunes the `calibration.parameters`
 of the rig (contact stiffness, clearance, damping, the transfer path's resonance scales, gain,

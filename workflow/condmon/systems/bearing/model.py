@@ -1,5 +1,5 @@
 """Bridge between the `bearing` config section and the pure bearing-rig model
-(`condmon.models.bearing_rig`): labels to defects, domain randomisation, rig parameters.
+(`condmon.models.bearing.rig`): labels to defects, domain randomisation, rig parameters.
 
 The `bearing` config section (schema.yaml beside this file holds its defaults, `bearing_defaults()`
 reads them):
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from condmon.schema import load_schema, schema_defaults
-from condmon.models.bearing_rig import INCH, BearingGeometry, BearingRigParameters, RigSettings
+from condmon.models.bearing.rig import INCH, BearingGeometry, BearingRigParameters, RigSettings
 
 CHANNEL = "DE"
 SIZES_IN = (0.007, 0.014, 0.021)

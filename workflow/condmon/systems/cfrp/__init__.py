@@ -1,11 +1,11 @@
 """The CFRP drivetrain of the CFRP study (`system: cfrp`): a single-stage spur pair of 3D-printed
 composite gears on two carbon-fibre tube shafts, four bearings, four accelerometers (x, y each).
 
-The same exudyn drivetrain model as the helical rig (`condmon.models.gear_drivetrain`), built from
+The same exudyn drivetrain model as the helical rig (`condmon.models.gear.drivetrain`), built from
 the CFRP rig's config: flexible Timoshenko shafts whose sections come from the laminate (classical
 laminate theory), the gears' modulus that of a quasi-isotropic laminate of the same ply, the
 study's calibrated contact law and bushings (Table 3), and two shaft faults a rigid shaft cannot
-show: a breathing crack and a delamination (`condmon.models.shaft_damage`).
+show: a breathing crack and a delamination (`condmon.models.gear.shaft_damage`).
 
 Config sections as the gear system's (`rig`, `model`, `numerics`, `virtual_bench`), with this
 rig's defaults (schema.yaml beside this file, merged over the gear system's) and `model.laminate`.

@@ -1,11 +1,11 @@
 """Bridge between the CFRP rig's config sections and the drivetrain model: the gear drivetrain's
-parameters with laminate tube shafts (classical laminate theory, `models/laminate.py`)."""
+parameters with laminate tube shafts (classical laminate theory, `models/cfrp/laminate.py`)."""
 from __future__ import annotations
 
 import dataclasses
 
-from condmon.models.gear_drivetrain import GearDrivetrainParameters, ShaftLayout
-from condmon.models.laminate import Laminate, Ply, laminate_tube_section
+from condmon.models.cfrp.laminate import Laminate, Ply, laminate_tube_section
+from condmon.models.gear.drivetrain import GearDrivetrainParameters, ShaftLayout
 from condmon.systems.gear.parameters import build_parameters
 
 

@@ -1,4 +1,4 @@
-"""The helical-gear drivetrain (`system: gear`): the exudyn model of `condmon.models.gear_drivetrain`
+"""The helical-gear drivetrain (`system: gear`): the exudyn model of `condmon.models.gear.drivetrain`
 on the virtual bench (`measured_parts`) or on a user's signal table (`measured_table`).
 
 Config sections (schema.yaml beside this file): `rig` (speeds, health states, output rate,
@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from condmon.calibrate import calibrate_on_spectra
-from condmon.models.gear_drivetrain import (Drivetrain, SimulationSettings, operating_mesh_stiffness, sensor_channels,
+from condmon.models.gear.drivetrain import (Drivetrain, SimulationSettings, operating_mesh_stiffness, sensor_channels,
                                             simulate)
 from condmon.systems.base import System
 from condmon.systems.gear.parameters import CALIBRATABLE, build_parameters, perturb, sample_effects
@@ -161,7 +161,7 @@ class GearSystem(System):
         except (ValueError, TypeError) as exc:
             problems.append(f"model: {exc}")
         if config["measured_table"] is None:
-            from condmon.models.virtual_bench import FAULT_FORMS
+            from condmon.models.gear.virtual_bench import FAULT_FORMS
 
             for state, spec in config["virtual_bench"]["faults"].items():
                 missing = [key for key in FAULT_FORMS[spec["form"]] if key not in spec]

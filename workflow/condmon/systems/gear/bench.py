@@ -4,7 +4,7 @@ from __future__ import annotations
 import logging
 import time
 
-from condmon.models.virtual_bench import BenchForm, bench_fault, bench_gears, bench_record
+from condmon.models.gear.virtual_bench import BenchForm, bench_fault, bench_gears, bench_record
 from condmon.seeds import job_rng
 from condmon.signals import make_rows
 from condmon.systems.gear.parameters import simulation_settings

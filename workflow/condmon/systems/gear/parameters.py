@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from condmon.models.gear_drivetrain import GearDrivetrainParameters, GearGeometry, ShaftLayout, SimulationSettings
-from condmon.models.gear_errors import draw_gear_errors
+from condmon.models.gear.drivetrain import GearDrivetrainParameters, GearGeometry, ShaftLayout, SimulationSettings
+from condmon.models.gear.errors import draw_gear_errors
 
 # Parameters that calibration may tune (the contact law is the categorical one).
 CALIBRATABLE = ("mesh_stiffness", "restitution", "contact_exponent", "mesh_damping_ratio", "bushing_stiffness",
@@ -56,7 +56,7 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
     """One drivetrain's manufacturing and operating scatter, drawn per sample:
     - its gears (`model.gear_errors`): an ISO 1328-1 grade uniform in `grade`, deviations a share
       of its tolerances uniform in `deviation_share`, a misalignment uniform in `misalignment`
-      (`gear_errors.draw_gear_errors`: pitch pattern, eccentricity, profile and helix slopes);
+      (`condmon.models.gear.errors.draw_gear_errors`: pitch pattern, eccentricity, profile and helix slopes);
     - slow sinusoidal speed and load fluctuations (`model.variability`: amplitude uniform up to
       the configured one, frequency uniform in its range, random phase);
     - the severity of its faults (`model.fault_severity`: the wear depth, the pits' depth and

@@ -1,6 +1,6 @@
-"""Carbon-fibre (CFRP) tube shafts by classical laminate theory, and damaged tube sections.
+"""Carbon-fibre (CFRP) tube shafts by classical laminate theory.
 
-Pure numpy / math: ply properties in, `Section`s (see structure.py) and section geometry out.
+Pure numpy / math: ply properties in, `Section`s (see models/structure.py) out.
 
 Laminate (classical laminate theory, CLT; Jones 1999, Reddy 2004):
 - each ply is a homogeneous orthotropic layer in plane stress (1 = fibre, 2 = transverse);
@@ -14,10 +14,7 @@ Tube section (`laminate_tube_section`): thin-walled. Beam bending of a thin tube
 compresses the wall in its plane, so the laminate's membrane moduli give EA, EI, GJ; the B and D
 matrices govern bending of the wall itself (ovalisation, local buckling), not beam bending.
 
-Damaged sections (`cracked_tube_geometry`, `delaminated_tube_geometry`): the area and second
-moments of an annulus with material missing on one side (the +xi side), from exact closed forms
-for circular segments and annular sectors. Missing material carries no axial stress: an open
-crack, or an outer sublaminate that slides on the inner one ('free mode' delamination).
+The damaged sections of a tube (a crack, a delamination) are the shaft damage's: `gear/shaft_damage.py`.
 """
 from __future__ import annotations
 
@@ -26,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .structure import Section
+from condmon.models.structure import Section
 
 
 @dataclass(frozen=True)
@@ -168,97 +165,3 @@ def quasi_isotropic_modulus(ply: Ply) -> float:
 def quasi_isotropic_poisson_ratio(ply: Ply) -> float:
     """In-plane Poisson ratio of the quasi-isotropic [0/45/-45/90]s laminate of `ply`."""
     return Laminate(ply, QUASI_ISOTROPIC_LAYUP, ply_thickness=1.0).poisson_ratio
-
-
-@dataclass(frozen=True)
-class SectionGeometry:
-    """Area and second moments of a (damaged) tube cross-section.
-
-    Coordinates in the section plane: xi points from the tube's centre toward the damage (the
-    crack mouth, the delaminated arc), eta is perpendicular to it; the section is symmetric
-    about the xi axis.
-    - centroid_offset: xi of the remaining section's centroid from the tube's centre (negative
-      when material on the +xi side is missing);
-    - second_moment_xi = integral of (xi - centroid_offset)^2 dA: the stiffness against bending
-      that moves the section along xi (curvature in the xi-z plane), whose axial stress varies
-      along xi, i.e. the bending that opens and closes a crack lying at +xi;
-    - second_moment_eta = integral of eta^2 dA: bending along eta (the crack sits on the neutral
-      axis of that bending).
-    Both are about axes through the remaining section's centroid."""
-    area: float
-    centroid_offset: float
-    second_moment_xi: float
-    second_moment_eta: float
-
-
-def _disc_beyond(radius: float, cut: float) -> np.ndarray:
-    """(area, integral xi dA, integral xi^2 dA, integral eta^2 dA) about the disc's centre of the
-    part of a disc of `radius` with xi > cut (a circular segment; the whole disc for cut <= -radius)."""
-    if radius == 0:
-        return np.zeros(4)
-    alpha = math.acos(min(1.0, max(-1.0, cut / radius)))  # half angle of the segment
-    return np.array([
-        radius**2 * (alpha - math.sin(alpha) * math.cos(alpha)),
-        2 / 3 * radius**3 * math.sin(alpha)**3,
-        radius**4 / 4 * (alpha - math.sin(4 * alpha) / 4),
-        2 / 3 * radius**4 * (3 * alpha / 8 - math.sin(2 * alpha) / 4 + math.sin(4 * alpha) / 32)])
-
-
-def _annular_sector(inner_radius: float, outer_radius: float, arc: float) -> np.ndarray:
-    """(area, integral xi dA, integral xi^2 dA, integral eta^2 dA) about the centre of the sector
-    inner_radius < rho < outer_radius, |theta| < arc / 2 (radians, theta from +xi)."""
-    r2, r3, r4 = (outer_radius**p - inner_radius**p for p in (2, 3, 4))
-    return np.array([arc / 2 * r2, r3 / 3 * 2 * math.sin(arc / 2),
-                     r4 / 4 * (arc + math.sin(arc)) / 2, r4 / 4 * (arc - math.sin(arc)) / 2])
-
-
-def _geometry(moments: np.ndarray) -> SectionGeometry:
-    """SectionGeometry from moments about the tube's centre (shifted to the centroid)."""
-    area, first, xi2, eta2 = (float(m) for m in moments)
-    centroid = first / area
-    return SectionGeometry(area=area, centroid_offset=centroid,
-                           second_moment_xi=xi2 - area * centroid**2, second_moment_eta=eta2)
-
-
-def _check_annulus(outer_diameter: float, inner_diameter: float) -> None:
-    if not outer_diameter > 0:
-        raise ValueError(f"outer_diameter must be positive, got {outer_diameter}")
-    if not 0 <= inner_diameter < outer_diameter:
-        raise ValueError(f"inner_diameter {inner_diameter} must be in [0, outer_diameter = {outer_diameter})")
-
-
-def cracked_tube_geometry(outer_diameter: float, inner_diameter: float, depth: float) -> SectionGeometry:
-    """Section of a tube (inner_diameter 0: a solid shaft) with an open, straight-fronted
-    transverse crack entering from the outer surface at +xi: material with xi > R - a is missing,
-    depth = a / outer_diameter in [0, 1) (0: intact, 0.5: crack front on the centre line)."""
-    _check_annulus(outer_diameter, inner_diameter)
-    if not 0 <= depth < 1:
-        raise ValueError(f"depth {depth} must be in [0, 1) (crack depth / outer diameter)")
-    R, r = outer_diameter / 2, inner_diameter / 2
-    front = R - depth * outer_diameter
-    # remaining = (outer disc with xi <= front) - (bore with xi <= front)
-    remaining = (_disc_beyond(R, -R) - _disc_beyond(R, front)) - (_disc_beyond(r, -r) - _disc_beyond(r, front))
-    return _geometry(remaining)
-
-
-def delaminated_tube_geometry(outer_diameter: float, inner_diameter: float, interface_depth: float,
-                              arc_deg: float) -> SectionGeometry:
-    """Section of a tube with a 'free mode' delamination: the outer sublaminate, radius
-    R - interface_depth (R - r) to R, over an arc of `arc_deg` centred on +xi slides on the
-    inner one and carries no axial stress, so it is left out.
-
-    interface_depth is the fraction of the wall thickness from the outer surface to the
-    delaminated interface, in [0, 1) (a real interface lies between plies: k / n_plies;
-    1 would be the bore, where there is no interface). arc_deg is in [0, 360]. Leaving the
-    sublaminate out entirely is the lower bound of the stiffness: beyond the delamination's
-    ends and at the arc's edges the sublaminate still takes some load."""
-    _check_annulus(outer_diameter, inner_diameter)
-    if not 0 <= interface_depth < 1:
-        raise ValueError(f"interface_depth {interface_depth} must be in [0, 1) (fraction of the wall thickness)")
-    if not 0 <= arc_deg <= 360:
-        raise ValueError(f"arc_deg {arc_deg} must be in [0, 360]")
-    R, r = outer_diameter / 2, inner_diameter / 2
-    interface_radius = R - interface_depth * (R - r)
-    remaining = (_annular_sector(r, R, 2 * math.pi)
-                 - _annular_sector(interface_radius, R, math.radians(arc_deg)))
-    return _geometry(remaining)

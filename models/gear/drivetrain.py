@@ -28,7 +28,7 @@ accelerometer) are low-pass filtered and decimated to the output rate (no aliasi
 finite.
 
 The same model is the CFRP rig (`systems/cfrp`): tube shafts of a laminate (`shaft_sections`,
-`laminate.py`), spur gears, four accelerometers, and shaft damage (`shaft_crack`,
+`models/cfrp/laminate.py`), spur gears, four accelerometers, and shaft damage (`shaft_crack`,
 `delamination`; `shaft_damage.py`) on flexible shafts. `numerics.modal_cutoff_hz` reduces the
 structure by Craig-Bampton (`model_matrices`), which the flexible shafts need to keep one step
 per sensor sample.
@@ -43,13 +43,13 @@ from typing import Callable, NamedTuple
 import numpy as np
 from scipy.signal import resample_poly
 
-from condmon.models.gear_mesh import GearGeometry
-from condmon.models.mesh_force import (HEALTH_STATES, MESH_STIFFNESS_MODELS, MeshForce, mesh_damping,
-                                       operating_stiffness)
+from condmon.models.gear.mesh import GearGeometry
+from condmon.models.gear.mesh_force import (HEALTH_STATES, MESH_STIFFNESS_MODELS, MeshForce, mesh_damping,
+                                            operating_stiffness)
+from condmon.models.gear.shaft_damage import (RELATIVE_ROTATION, SHAFT_HEALTH_STATES, DamagedElement,
+                                              ShaftDamageForce, crack_section_ratios, delamination_section_ratios,
+                                              removed_rotational_stiffness)
 from condmon.models.numerics import SimulationError, decimation_filter, exudyn_system, solve_rk44
-from condmon.models.shaft_damage import (RELATIVE_ROTATION, SHAFT_HEALTH_STATES, DamagedElement, ShaftDamageForce,
-                                         crack_section_ratios, delamination_section_ratios,
-                                         removed_rotational_stiffness)
 from condmon.models.structure import BENDING_PLANES, LinearStructure, Section
 
 SHAFT_MODELS = ("rigid", "flexible")
@@ -187,7 +187,7 @@ class GearDrivetrainParameters:
     runout_phase_gear: float = 0.0
     pitch_errors_pinion: tuple = ()
     pitch_errors_gear: tuple = ()
-    # Flank deviations of every pinion tooth (`gear_errors.FlankMap`, material removed; empty:
+    # Flank deviations of every pinion tooth (`errors.FlankMap`, material removed; empty:
     # none): profile and helix deviations and misalignment, or a bench's own damage.
     flank_maps_pinion: tuple = ()
     # Health.
@@ -205,7 +205,7 @@ class GearDrivetrainParameters:
     spall_face: tuple = (0.25, 0.75)
     spall_depth: float = 2.0e-5
     # missing_tooth: the share of the faulty tooth's active profile broken off, from the tip (1: the
-    # whole tooth is gone; below 1 a fracture across the face, gear_errors.broken_tooth_flank_map)
+    # whole tooth is gone; below 1 a fracture across the face, errors.broken_tooth_flank_map)
     missing_share: float = 1.0
     chip_profile: float = 0.6
     chip_face: tuple = (0.0, 0.5)

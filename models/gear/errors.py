@@ -15,7 +15,7 @@ helix slope), and the eccentricity that makes its run-out.
 A tooth flank's deviation from the perfect involute helicoid is a `FlankMap`: material removed
 (m, > 0) on a grid over the active profile (rows: roll fraction, 0 at the start of contact on the
 pinion root, 1 at its tip) and the face (columns: fraction of the face width). The mesh
-(`gear_mesh.GearMesh`) lowers the contact of every slice by the map at its contact point, so
+(`mesh.GearMesh`) lowers the contact of every slice by the map at its contact point, so
 manufacturing deviations, wear and a virtual bench's own damage are one kind of input.
 """
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Time-varying mesh stiffness (TVMS) of a spur or helical gear pair by the potential-energy method.
 
 Pure physics: geometry in, stiffness tables out. No exudyn, no files. The drivetrain model
-(`gear_drivetrain.py`) turns the tables into contact forces; everything costly (the energy
+(`drivetrain.py`) turns the tables into contact forces; everything costly (the energy
 integrals) happens once, here, when the tables are built.
 
 Method (helical-gear study, eqs. 1-13; Yang & Lin 1987, Tian 2004, Chaari et al. 2009):
@@ -365,7 +365,7 @@ class GearMesh:
     # If set: the static transmission error (m) at mesh frequency the sinusoidal profile deviation
     # must produce; its flank amplitude is then transmission_error / `sine_te_gain`.
     transmission_error: float | None = None
-    # Per pinion tooth (empty: none): a `gear_errors.FlankMap` of material removed from its flank
+    # Per pinion tooth (empty: none): a `errors.FlankMap` of material removed from its flank
     # (manufacturing deviations, wear, a bench's own damage) or None.
     flank_maps: tuple = ()
 

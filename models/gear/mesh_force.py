@@ -14,16 +14,16 @@ tooth's gap, rattle) or on the back flank carries K d^n f(c_r) d' / d'(-) with d
 approach speed, for as long as that contact lasts.
 
 Two stiffness models (`mesh_stiffness_model`): `potential_energy` (`TVMSMeshForce`, the pair
-stiffness over the mesh phase from `gear_mesh.py`, precomputed as tables) and `simple`
+stiffness over the mesh phase from `mesh.py`, precomputed as tables) and `simple`
 (`MeshForce`: equal pairs in rectangular contact windows). Health: a surface fault scales the
 contact stiffness of its pinion teeth by (1 - loss) over the whole flank; a missing tooth, spall,
-chipped tooth and root crack are tooth geometry (`gear_mesh.ToothDamage`).
+chipped tooth and root crack are tooth geometry (`mesh.ToothDamage`).
 
 Effects of a real drivetrain, per sample: a slow speed fluctuation (in the mesh phase), shaft
 run-out (eccentricity along the line of action at the shaft frequencies: it displaces the mesh and
 shifts its phase by e / base pitch, so the mesh is modulated at the shaft orders; the centre-distance
 part, which changes the contact ratio by about 0.3 % at 10 um, is left out), tooth pitch errors and
-flank maps (`gear_errors.FlankMap`: profile and helix deviations, wear, a bench's damage).
+flank maps (`errors.FlankMap`: profile and helix deviations, wear, a bench's damage).
 """
 from __future__ import annotations
 
@@ -31,13 +31,13 @@ import math
 
 import numpy as np
 
-from condmon.models.contact_laws import hysteresis_factor
-from condmon.models.gear_errors import add_flank_maps, broken_tooth_flank_map, pitted_flank_map, wear_flank_map
-from condmon.models.gear_mesh import GearMesh, ProfileDeviation, ToothDamage
+from condmon.models.gear.contact_laws import hysteresis_factor
+from condmon.models.gear.errors import add_flank_maps, broken_tooth_flank_map, pitted_flank_map, wear_flank_map
+from condmon.models.gear.mesh import GearMesh, ProfileDeviation, ToothDamage
 from condmon.models.numerics import SimulationError
 
 MESH_HEALTH_STATES = ("healthy", "surface_fault", "missing_tooth", "spall", "chipped_tooth", "root_crack")
-# States of a drivetrain whose mesh is healthy: the damage is in a shaft (gear_drivetrain.py).
+# States of a drivetrain whose mesh is healthy: the damage is in a shaft (drivetrain.py).
 SHAFT_HEALTH_STATES = ("shaft_crack", "delamination")
 HEALTH_STATES = MESH_HEALTH_STATES + SHAFT_HEALTH_STATES
 MESH_STIFFNESS_MODELS = ("potential_energy", "simple")

@@ -8,7 +8,7 @@ report labels them):
 - rolling bearings with their own tones: a radial force at each bearing's defect-free passing
   orders (`bearing_orders` x its shaft frequency);
 - the motor's torque ripple at twice the line frequency;
-- its own gears: one pair of ISO 1328-1 accuracy `gear_grade` (`gear_errors.draw_gear_errors`, drawn
+- its own gears: one pair of ISO 1328-1 accuracy `gear_grade` (`errors.draw_gear_errors`, drawn
   once from the bench seed: the same physical gears in every record) with its own misalignment;
 - its own damage (`faults`): a surface fault as pitting (pits around the pitch line) and a missing
   tooth as a tooth broken off above a height, built here as flank geometry; the model's fault code
@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
-from condmon.models.gear_drivetrain import GearDrivetrainParameters, PeriodicLoad, SimulationSettings, simulate
-from condmon.models.gear_errors import FlankMap, add_flank_maps, draw_gear_errors
+from condmon.models.gear.drivetrain import GearDrivetrainParameters, PeriodicLoad, SimulationSettings, simulate
+from condmon.models.gear.errors import FlankMap, add_flank_maps, draw_gear_errors
 
 EFFECTS = {
     "housing_model": "housings as rigid blocks on four feet (rocking modes)",

@@ -1,0 +1,1 @@
+"""The rolling-bearing rig (`system: bearing`)."""

@@ -1,0 +1,1 @@
+"""Carbon-fibre laminate shafts of the CFRP rig (`system: cfrp`)."""

@@ -1,0 +1,34 @@
+"""The test suite's own layout: a test module imports no other test module (shared helpers live in
+conftest.py or a helper module such as fake_train_outputs.py), and the project's paths are found
+once, in conftest.py (`ROOT`, `SCRIPTS`, `CWRU`)."""
+import ast
+import re
+
+from conftest import ROOT
+
+TESTS = ROOT / "tests"
+OWN_LOCATION = re.compile(r"Path\(__file__\)|dirname\(__file__\)")
+
+
+def imported_modules(path) -> set[str]:
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names |= {alias.name.split(".")[0] for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+def test_no_test_module_imports_another():
+    test_modules = {path.stem for path in TESTS.glob("test_*.py")}
+    hits = {path.name: sorted(imported_modules(path) & test_modules) for path in TESTS.glob("*.py")}
+    assert {name: found for name, found in hits.items() if found} == {}
+
+
+def test_the_project_root_is_found_only_in_conftest():
+    """A path built from a test file's own location (its `__file__`'s parents) is a second ROOT."""
+    hits = [f"{path.name}:{n}" for path in sorted(TESTS.glob("*.py")) if path.name != "conftest.py"
+            for n, line in enumerate(path.read_text().splitlines(), 1)
+            if OWN_LOCATION.search(line)]
+    assert hits == []
