@@ -41,7 +41,7 @@ from condmon.hybrid import SIMULATED_VALIDATION
 from condmon.labels import (LEAKY_PROTOCOLS, data_source_label, format_speed, is_synthetic,
                             label_order, protocol_label, protocol_title)
 from condmon.report_inputs import CalibrationOutputs, ReportInputs, RunIdentity
-from condmon.train_tables import ReportInputError, load_metrics, load_predictions
+from condmon.train_tables import ReportInputError, load_metrics, load_predictions, read_table
 
 log = logging.getLogger(__name__)
 
@@ -88,17 +88,6 @@ def load_calibration(params_path) -> dict:
         if key in params:
             summary[key] = params[key]
     return summary
-
-
-def read_table(path, required: list[str], what: str) -> pd.DataFrame:
-    path = Path(path)
-    if not path.exists():
-        raise ReportInputError(f"{path}: no such {what} file")
-    frame = pd.read_parquet(path)
-    missing = [c for c in required if c not in frame.columns]
-    if missing:
-        raise ReportInputError(f"{path}: {what} file lacks columns {missing}")
-    return frame
 
 
 # --------------------------------------------------------------------------- aggregation

@@ -25,6 +25,18 @@ class ReportInputError(ValueError):
     """A file the report (or tracking) reads breaks the stage contract."""
 
 
+def read_table(path, required: list[str], what: str) -> pd.DataFrame:
+    """A Parquet table of a stage, or an error naming the file: missing, or lacking `required`."""
+    path = Path(path)
+    if not path.exists():
+        raise ReportInputError(f"{path}: no such {what} file")
+    frame = pd.read_parquet(path)
+    missing = [c for c in required if c not in frame.columns]
+    if missing:
+        raise ReportInputError(f"{path}: {what} file lacks columns {missing}")
+    return frame
+
+
 def load_metrics(paths, extra_columns=()) -> pd.DataFrame:
     """Concatenate train metrics.csv files into the accuracy table (columns ACCURACY_COLUMNS).
 
@@ -74,12 +86,7 @@ def load_predictions(paths) -> pd.DataFrame:
         raise ReportInputError("no predictions.parquet files given")
     frames = []
     for path in paths:
-        if not path.exists():
-            raise ReportInputError(f"{path}: no such predictions file")
-        frame = pd.read_parquet(path)
-        missing = [c for c in PREDICTION_COLUMNS if c not in frame.columns]
-        if missing:
-            raise ReportInputError(f"{path}: predictions file lacks columns {missing}")
+        frame = read_table(path, PREDICTION_COLUMNS, "predictions")
         if "classifier" not in frame.columns:
             frame.insert(0, "classifier", classifier_of(path))
         protocols = set(frame["protocol"])
