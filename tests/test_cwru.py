@@ -6,8 +6,9 @@ import numpy as np
 import pandas as pd
 import pytest
 import scipy.io
+import yaml
 
-from conftest import CWRU
+from conftest import CWRU, ROOT
 from condmon.systems.bearing.cwru import (CWRU_TABLE, G, CwruError, cwru_rows, health_label, read_cwru_file,
                           read_manifest, task_labels, write_cwru_signal_table)
 from condmon.signals import read_signal_table
@@ -397,3 +398,21 @@ def test_design_specimens_are_named_as_records_csv_names_them_and_checked():
             {"fault": "ball", "diameter_in": 0.007, "position": "6:00"}]}})
     assert re.findall(r"cwru\.design_specimens\[\d\]", str(error.value)) == [
         "cwru.design_specimens[0]", "cwru.design_specimens[1]", "cwru.design_specimens[2]"]
+
+
+@pytest.mark.parametrize("task", sorted(p.name for p in (ROOT / "config" / "cwru-tasks").glob("*.yaml")))
+def test_cwru_task_variants_layer_over_the_cwru_config(task):
+    """Each CWRU task variant states only what differs: layered over config/cwru.yaml (as
+    `--configfile config/cwru.yaml config/cwru-tasks/<task>` does) it validates, names its own
+    run and task, and changes nothing of the rig, calibration, simulation or features."""
+    from conftest import system_of
+
+    changes = yaml.safe_load((ROOT / "config" / "cwru-tasks" / task).read_text())
+    base = system_of("config/cwru.yaml")
+    system = system_of("config/cwru.yaml", changes)
+    assert not system.problems()
+    assert system.config["run_name"] != base.config["run_name"]
+    assert system.config["cwru"]["task"] != base.config["cwru"]["task"]
+    assert set(changes) <= {"run_name", "cwru", "hybrid"}
+    for section in ("bearing", "rig", "calibration", "simulation", "features"):
+        assert system.config[section] == base.config[section], section
