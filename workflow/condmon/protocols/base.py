@@ -17,7 +17,6 @@ from typing import ClassVar, Iterator
 import numpy as np
 import pandas as pd
 
-# the label helpers are imported here only, so they move in one line
 from condmon.hybrid import WHOLE_RECORD, SplitError, n_train_records, unique_records
 from condmon.labels import format_speed, holdout_label
 from condmon.seeds import derive_seed, stable_int
