@@ -448,3 +448,33 @@ def test_step_refinement_divides_the_step_the_run_would_take():
     chosen = steps_per_sensor_sample(drivetrain, SimulationSettings())
     assert chosen > SimulationSettings().steps_per_sensor_sample  # the flexible shafts' modes chose it
     assert steps_per_sensor_sample(drivetrain, SimulationSettings(step_refinement=4)) == 4 * chosen
+
+
+def test_the_mesh_force_is_continuous_where_pairs_close_and_open():
+    """Spur gears with a tooth 20 um proud (a printed gear's pitch error) and a light load: over a
+    sweep of the mesh deflection through zero, at any mesh phase, the force never jumps (a pair
+    that entered the sum only once the deflection grew made it jump, and the CFRP rig's step check
+    read 30 dB), and the steady damping grows in from zero as a pair closes (a viscous force that
+    jumps at contact onset makes RK4 first order)."""
+    z1, z2 = 20, 30
+    p = GearDrivetrainParameters(geometry=GearGeometry(teeth_pinion=z1, teeth_gear=z2, helix_angle_deg=0.0),
+                                 speed_rpm=775.0, load_torque=2.0, transmission_error=0.0, contact_exponent=1.2,
+                                 pitch_errors_pinion=[2.0e-5] + [0.0] * (z1 - 1), pitch_errors_gear=[0.0] * z2,
+                                 restitution=1.0)  # no impact damping: the steady damping alone
+    mesh = MeshForce(p, damping=50.0)
+    assert mesh.extended
+    deflections = np.linspace(-3.0e-5, 1.5e-5, 4501)  # 10 nm apart
+    for phase in np.linspace(-0.6, 1.9, 26):  # the proud pair from far before to far after its window
+        t = phase / mesh.mesh_frequency
+        forces = {}
+        for rate in (0.0, 0.05):  # closing at 0.05 m/s, a viscous force would jump by 2.5 N at onset
+            forces[rate] = np.array([mesh(t, d, rate) for d in deflections])
+            steps = np.abs(np.diff(forces[rate]))
+            # a continuous force's increments change gradually; a jump is one far above both neighbours
+            neighbours = np.maximum(steps[:-2], steps[2:])
+            jumps = np.flatnonzero(steps[1:-1] > 4.0 * neighbours + 1e-9)
+            assert not jumps.size, (f"the force jumps at phase {phase:.2f}, {rate} m/s, deflection "
+                                    f"{deflections[jumps[0] + 1] * 1e6:.2f} um: {steps[jumps[0] + 1]:.3g} N")
+        first_contact = np.flatnonzero(forces[0.0] > 0.0)[0]
+        damping_force = forces[0.05][first_contact] - forces[0.0][first_contact]
+        assert damping_force < 0.01 * 50.0 * 0.05, f"the damping jumps in at phase {phase:.2f}"

@@ -697,7 +697,7 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
 
         try:
             solve_rk44(mbs, settings.output_rate * settings.oversampling, steps,
-                       settings.settle_time + settings.duration, sparse=True)
+                       settings.settle_time + settings.duration, sparse=True, sensed_accelerations=False)
         except Exception as exc:
             message = " ".join(str(exc).split())  # one line: exudyn appends the Python traceback
             raise SimulationError(

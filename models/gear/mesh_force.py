@@ -4,11 +4,16 @@ deflection rate) summing the tooth-pair contact forces (Algorithm 1 of the helic
 Pure: parameters in, a force function out (no exudyn; the drivetrain calls it from a connector).
 
 Per tooth pair j (pinion tooth j mod z1, gear tooth j mod z2) at pair phase u = phase - j:
-    F_j = K_j(u) (d_j / d_ref)^n  +  c K_j(u) / K_mean d_j'  [+ impact term]
+    F_j = K_j(u) (d_j / d_ref)^n  +  c K_j(u) / K_mean S(d_j / d_op) d_j'  [+ impact term]
 with the pair deflection d_j = mesh deflection - profile deviation e(u) + pitch errors of both
 teeth - (outside the contact window) the tip gap s^2 / (2 rho). The steady mesh damping is viscous,
 from a damping ratio (`mesh_damping_ratio`, calibrated), shared by the pairs in proportion to their
-stiffness, so it vanishes with contact. The Table-1 contact laws (`contact_laws.py`) act where
+stiffness. It grows in as a pair closes, by a smooth step S from 0 at contact to 1 at the operating
+deflection d_op (the static load on the mean mesh), as multibody contact codes do: a damping force
+that jumps at contact onset makes RK4 first order, and a mesh that loses contact (a lightly loaded
+one rattles) then converges with the step only slowly. A damping that grew with the elastic force
+(Hunt-Crossley) would also be continuous, but swings of many operating deflections would then see
+it many times over, past critical. The Table-1 contact laws (`contact_laws.py`) act where
 they were built for, impacts: a contact that closes after the whole mesh lost contact (a missing
 tooth's gap, rattle) or on the back flank carries K d^n f(c_r) d' / d'(-) with d'(-) its real
 approach speed, for as long as that contact lasts.
@@ -158,8 +163,10 @@ class MeshForce:
         self.mean_force_ref = p.mesh_stiffness * DEFLECTION_REF
         self.exponent = p.contact_exponent
         self.hysteresis = hysteresis_factor(p.contact_law, p.restitution)
-        # viscous damping per unit of pair stiffness (pair stiffness in force-at-d_ref units)
+        # viscous damping per unit of pair stiffness (pair stiffness in force-at-d_ref units), and
+        # the pair deflection over which it grows in
         self.damping_per_stiffness = damping / self.mean_force_ref
+        self.inverse_damping_onset = 1.0 / operating_deflection(p) if damping else 0.0
         self.backlash = p.backlash
         self.te_amplitude = p.transmission_error
         self.fluct = p.speed_fluctuation
@@ -233,7 +240,7 @@ class MeshForce:
     def _contact(self, key, stiffness_ref, d, d_t, touching):
         """Force of one contact (pair group) at deflection d > 0."""
         elastic = stiffness_ref * (d / DEFLECTION_REF) ** self.exponent
-        force = elastic + self.damping_per_stiffness * stiffness_ref * d_t
+        force = elastic + self.damping_per_stiffness * stiffness_ref * damping_onset(d * self.inverse_damping_onset) * d_t
         if touching is not None:
             touching.append(key)
             if self.separated and d_t > 0.0:
@@ -294,6 +301,11 @@ class MeshForce:
         return DEFLECTION_REF * (force / self.mean_force_ref) ** (1.0 / self.exponent)
 
 
+def damping_onset(x: float) -> float:
+    """The smooth step 3 x^2 - 2 x^3 from 0 at x = 0 to 1 at x >= 1 (continuous, with its slope)."""
+    return x * x * (3.0 - 2.0 * x) if x < 1.0 else 1.0
+
+
 def _pitch_errors(values, teeth: int, name: str) -> list[float]:
     if not values:
         return [0.0] * teeth
@@ -341,6 +353,10 @@ class TVMSMeshForce(MeshForce):
                             for groups in self.tooth_groups for _, edges in groups)
         # per pair j mod lcm(z1, z2): its pinion tooth's contact groups and its pitch errors
         self.pairs = [(self.tooth_groups[j % self.teeth], self.pair_pitch_error[j]) for j in range(self.pitch_period)]
+        # how far a pair's flank can stand proud of the mesh deflection at its window's edges (its
+        # pitch errors less the edge deviation): the extended contact reaches that much further
+        self.edge_excess = max(0.0, max(error - min(edges[1], edges[3])
+                                        for groups, error in self.pairs for _, edges in groups))
         healthy = tvms.healthy_groups[0]
         self.mean_deviation = float((healthy.stiffness * healthy.deviation).sum() / healthy.stiffness.sum())
 
@@ -355,9 +371,10 @@ class TVMSMeshForce(MeshForce):
             return self._back_flank(-d - self.backlash, d_t)
         touching = [] if (self.impacts or self.separated) else None
         window, ppp, pitch, rho = self.window, self.points_per_pitch, self.base_pitch, self.tip_radius
-        n, damping = self.exponent, self.damping_per_stiffness
+        n, damping, inverse_onset = self.exponent, self.damping_per_stiffness, self.inverse_damping_onset
         pairs, period = self.pairs, self.pitch_period
-        ext = math.sqrt(2.0 * rho * d) / pitch if (self.extended and d > 0.0) else 0.0
+        reach = d + self.edge_excess  # the largest pair deflection at a window's edge
+        ext = math.sqrt(2.0 * rho * reach) / pitch if (self.extended and reach > 0.0) else 0.0
         deviation_rate = ppp * phase_rate  # d(table position)/dt
         gap_rate = pitch * phase_rate / rho
         total = 0.0
@@ -386,7 +403,9 @@ class TVMSMeshForce(MeshForce):
                     gd_t = d_t + gap_t
                 if k > 0.0 and gd > 0.0:
                     if touching is None:  # steady mesh: elastic plus viscous, inline
-                        force = k * ((gd * INVERSE_DEFLECTION_REF) ** n + damping * gd_t)
+                        x = gd * inverse_onset
+                        onset = x * x * (3.0 - 2.0 * x) if x < 1.0 else 1.0  # damping_onset(x)
+                        force = k * ((gd * INVERSE_DEFLECTION_REF) ** n + damping * onset * gd_t)
                         if force > 0.0:
                             total += force
                     else:
@@ -408,13 +427,20 @@ def mesh_equivalent_mass(geometry, pinion_polar_inertia: float, gear_polar_inert
     return 1.0 / (rb1 ** 2 / pinion_polar_inertia + rb2 ** 2 / gear_polar_inertia)
 
 
+def operating_deflection(p) -> float:
+    """Deflection (m) of the mean mesh that carries the static load of `p` (> 0)."""
+    if not p.load_torque > 0.0:
+        raise ValueError(f"load_torque {p.load_torque} N m: the mesh's operating point needs a load (> 0)")
+    g = p.geometry
+    force_ref = p.mesh_stiffness * DEFLECTION_REF
+    return DEFLECTION_REF * (p.load_torque / g.base_radius(g.teeth_gear) / force_ref) ** (1.0 / p.contact_exponent)
+
+
 def operating_stiffness(p) -> float:
     """dF/d(delta) of the mean mesh at the deflection that carries the static load of `p`: the
     stiffness the vibration sees. K and n trade off against each other at one load; this does not."""
-    g = p.geometry
-    force_ref = p.mesh_stiffness * DEFLECTION_REF
-    deflection = DEFLECTION_REF * (p.load_torque / g.base_radius(g.teeth_gear) / force_ref) ** (1.0 / p.contact_exponent)
-    return p.contact_exponent * force_ref / DEFLECTION_REF * (deflection / DEFLECTION_REF) ** (p.contact_exponent - 1.0)
+    return (p.contact_exponent * p.mesh_stiffness
+            * (operating_deflection(p) / DEFLECTION_REF) ** (p.contact_exponent - 1.0))
 
 
 def mesh_damping(p, pinion_polar_inertia: float, gear_polar_inertia: float) -> float:

@@ -21,6 +21,10 @@ from condmon.models.gear.drivetrain import (Drivetrain, SimulationSettings, oper
 from condmon.systems.base import System
 from condmon.systems.gear.parameters import CALIBRATABLE, build_parameters, perturb, sample_effects
 
+# numerics the virtual bench sets for itself (virtual_bench.<key>): it stands for a real machine, so
+# its records never move with the model's step or modal reduction
+BENCH_NUMERICS = ("oversampling", "modal_cutoff_hz")
+
 
 def speed_label(speed) -> str:
     return f"{float(speed):g}"
@@ -118,9 +122,9 @@ class GearSystem(System):
             config.pop("virtual_bench", None)  # the hidden truth reaches the bench jobs only
         if stage == "bench":
             # the bench's mesh is virtual_bench.true_parameters.mesh_stiffness_model, not the model's,
-            # and its sensor rate virtual_bench.oversampling
+            # and its sensor rate and modal reduction are virtual_bench's own
             config["model"] = {k: v for k, v in config["model"].items() if k != "mesh_stiffness_model"}
-            config["numerics"] = {k: v for k, v in config["numerics"].items() if k != "oversampling"}
+            config["numerics"] = {k: v for k, v in config["numerics"].items() if k not in BENCH_NUMERICS}
         elif stage == "calibrate":
             config["model"] = dict(config["model"], mesh_stiffness_model=variant)
         elif stage == "measured":
@@ -183,7 +187,7 @@ class GearSystem(System):
         health, speed = part.rsplit("_", 1)
         bench = self.config["virtual_bench"]
         return virtual_bench_rows(self.parameters, bench, [health], [float(speed.removesuffix("rpm"))],
-                                  dict(self.numerics, oversampling=bench["oversampling"]),
+                                  dict(self.numerics, **{key: bench[key] for key in BENCH_NUMERICS}),
                                   self.config["rig"]["segment_seconds"])
 
     def bench_effects(self) -> list[str]:
