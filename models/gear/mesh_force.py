@@ -187,6 +187,7 @@ class MeshForce:
                                  for j in range(self.pitch_period)]
         self.stiffness_factor = contact_stiffness_factors(p)
         self.impacts = {}       # contact key -> approach speed d'(-) of an impact still in contact
+        self._excitation_time, self._excitation = None, None
         self.separated = False  # the whole mesh was out of contact at the last call
 
     def __init__(self, p, damping: float = 0.0):
@@ -209,7 +210,11 @@ class MeshForce:
     # -- excitation --------------------------------------------------------------------------
     def excitation(self, t):
         """(mesh phase in mesh periods, its rate, run-out of both shafts along the line of action
-        (m), its rate) at time t. One call per force evaluation: it runs four times per step."""
+        (m), its rate) at time t. One call per force evaluation, four per RK44 step at only two
+        distinct times (the two midpoint stages share theirs, and a step's end is the next one's
+        start): the last time's result is kept."""
+        if t == self._excitation_time:
+            return self._excitation
         if self.fluct:
             angle = self.fluct_w * t + self.fluct_phase
             phase = self.start_phase + self.mesh_frequency * (
@@ -228,7 +233,8 @@ class MeshForce:
             # the mesh cycle is phase-modulated at the shaft orders as well as displaced
             phase += e * self.inverse_base_pitch
             phase_rate += e_t * self.inverse_base_pitch
-        return phase, phase_rate, e, e_t
+        self._excitation_time, self._excitation = t, (phase, phase_rate, e, e_t)
+        return self._excitation
 
     def pitch_error(self, j) -> float:
         """Pitch errors of the pinion and gear teeth of pair j (m; > 0 closes the pair earlier)."""
