@@ -3,12 +3,14 @@
 features with backward selection, the four protocols, the measured-only baseline, the report.
 
 A second run points `measured_dir` at another set of files (other fault sizes, no healthy record)
-by `--config` alone: it must run without edits, simulate every class and test the ones present.
+by config alone (`--config`, and a layer that makes it smaller): it must run without edits,
+simulate every class and test the ones present.
 """
 import json
 
 import pandas as pd
 import pytest
+import yaml
 
 from conftest import CWRU_SLICE as SLICE, cwru_folder, snakemake
 
@@ -83,9 +85,17 @@ def test_cwru_training_selects_three_features_on_training_data(cwru_run):
 
 
 def test_another_folder_without_a_healthy_record_runs_by_config_alone(cwru_run, tmp_path):
+    """Another download without a healthy record: no calibration, every class simulated, the
+    faults present tested. The plumbing is the point, so a smaller run than the smoke's (two
+    samples a state, one protocol, two shares, one classifier), layered as a user would."""
     workdir, _ = cwru_run
     folder = cwru_folder(tmp_path / "other", OTHER_SET)
-    snakemake(workdir, "--cores", "2", "--configfile", ".test/config/cwru-smoke.yaml", "--config",
+    smaller = tmp_path / "smaller.yaml"
+    smaller.write_text(yaml.safe_dump({
+        "simulation": {"samples_per_state": 2, "samples_per_job": 2},
+        "hybrid": {"protocols": ["unseen_fault"], "measured_percent": [0, 100]},
+        "classifiers": {"knn": {"enabled": False}}}))
+    snakemake(workdir, "--cores", "2", "--configfile", ".test/config/cwru-smoke.yaml", str(smaller), "--config",
               f"measured_dir={folder}", "run_name=cwru-other")
     results = workdir / "results" / "cwru-other"
     summary = json.loads((results / "report" / "summary.json").read_text())

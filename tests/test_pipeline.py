@@ -343,11 +343,14 @@ def test_simulated_files_do_not_depend_on_the_core_count(smoke, tmp_path):
     """The smoke run used 2 cores; the same config on 1 core gives byte-identical simulations.
     The last and the first batch, run alone in the reverse order: a batch's random stream must
     depend on its own key only, not on which jobs ran before it or beside it."""
-    _, results = smoke
-    workdir = copy_project(tmp_path)
+    source, results = smoke
+    workdir = tmp_path / "project"
+    shutil.copytree(source, workdir, symlinks=True)  # the bench and calibrations as the smoke run left them
     batches = sorted(p.relative_to(results.parent.parent) for p in (results / "simulated").rglob("*.parquet"))
     assert len(batches) >= 3, batches
     targets = [batches[-1], batches[0]]
+    for target in targets:
+        (workdir / target).unlink()
     snakemake(workdir, "--cores", "1", *map(str, targets), "--configfile", ".test/config/smoke.yaml")
     for target in targets:
         assert sha256(workdir / target) == sha256(results.parent.parent / target), target
@@ -412,9 +415,20 @@ def test_a_run_killed_mid_simulation_and_mid_training_resumes_to_the_same_result
     """SIGKILL mid-simulation (the OOM killer, a lost node: no clean-up at all), then SIGTERM
     mid-training (a scheduler's cancel or time limit: Snakemake cleans up), then a resume."""
     import signal
-    _, results = smoke
-    workdir = copy_project(tmp_path)
+    source, results = smoke
+    workdir = tmp_path / "project"
+    shutil.copytree(source, workdir, symlinks=True)  # with Snakemake's records of the finished run
     killed = workdir / "results" / "smoke"
+    # The bench and the calibrations stay as the smoke run left them (the kill comes after them);
+    # everything from the simulations on is gone, so the killed and resumed runs produce it all.
+    downstream = ["simulated", "features/simulated.parquet", "hybrid", "train", "models", "baselines", "report"]
+    downstream += [f"logs/{name}" for name in ("simulate", "features_simulated.log", "hybrid", "train",
+                                               "physics_baseline", "report.log", "report_pages.log",
+                                               "run_config.log", "track.log")]
+    for name in downstream:
+        path = killed / name
+        assert path.exists(), f"the smoke run has no {name}: update this list"
+        shutil.rmtree(path) if path.is_dir() else path.unlink()
     run_until(workdir, killed / "logs" / "simulate", signal.SIGKILL)
     assert_no_partial_outputs(killed)
     run_until(workdir, killed / "logs" / "train", signal.SIGTERM)
