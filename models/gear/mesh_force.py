@@ -12,8 +12,8 @@ stiffness. It grows in as a pair closes, by a smooth step S from 0 at contact to
 deflection d_op (the static load on the mean mesh), as multibody contact codes do: a damping force
 that jumps at contact onset makes RK4 first order, and a mesh that loses contact (a lightly loaded
 one rattles) then converges with the step only slowly. A damping that grew with the elastic force
-(Hunt-Crossley) would also be continuous, but swings of many operating deflections would then see
-it many times over, past critical. The Table-1 contact laws (`contact_laws.py`) act where
+(Hunt-Crossley) would also be continuous, but would multiply the calibrated damping wherever a
+pair is deflected many times its operating deflection (impacts, large pitch errors). The Table-1 contact laws (`contact_laws.py`) act where
 they were built for, impacts: a contact that closes after the whole mesh lost contact (a missing
 tooth's gap, rattle) or on the back flank carries K d^n f(c_r) d' / d'(-) with d'(-) its real
 approach speed, for as long as that contact lasts.
