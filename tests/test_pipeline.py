@@ -344,8 +344,7 @@ def test_simulated_files_do_not_depend_on_the_core_count(smoke, tmp_path):
     The last and the first batch, run alone in the reverse order: a batch's random stream must
     depend on its own key only, not on which jobs ran before it or beside it."""
     source, results = smoke
-    workdir = tmp_path / "project"
-    shutil.copytree(source, workdir, symlinks=True)  # the bench and calibrations as the smoke run left them
+    workdir = copy_of_run(source, tmp_path / "project")  # the bench and calibrations as the smoke run left them
     batches = sorted(p.relative_to(results.parent.parent) for p in (results / "simulated").rglob("*.parquet"))
     assert len(batches) >= 3, batches
     targets = [batches[-1], batches[0]]
@@ -416,8 +415,7 @@ def test_a_run_killed_mid_simulation_and_mid_training_resumes_to_the_same_result
     mid-training (a scheduler's cancel or time limit: Snakemake cleans up), then a resume."""
     import signal
     source, results = smoke
-    workdir = tmp_path / "project"
-    shutil.copytree(source, workdir, symlinks=True)  # with Snakemake's records of the finished run
+    workdir = copy_of_run(source, tmp_path / "project")  # its MLflow store writing to its own artifacts
     killed = workdir / "results" / "smoke"
     # The bench and the calibrations stay as the smoke run left them (the kill comes after them);
     # everything from the simulations on is gone, so the killed and resumed runs produce it all.

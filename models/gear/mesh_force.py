@@ -13,10 +13,12 @@ deflection d_op (the static load on the mean mesh), as multibody contact codes d
 that jumps at contact onset makes RK4 first order, and a mesh that loses contact (a lightly loaded
 one rattles) then converges with the step only slowly. A damping that grew with the elastic force
 (Hunt-Crossley) would also be continuous, but would multiply the calibrated damping wherever a
-pair is deflected many times its operating deflection (impacts, large pitch errors). The Table-1 contact laws (`contact_laws.py`) act where
-they were built for, impacts: a contact that closes after the whole mesh lost contact (a missing
-tooth's gap, rattle) or on the back flank carries K d^n f(c_r) d' / d'(-) with d'(-) its real
-approach speed, for as long as that contact lasts.
+pair is deflected many times its operating deflection (impacts, large pitch errors).
+
+The Table-1 contact laws (`contact_laws.py`) act where they were built for, impacts: a contact that
+closes after the whole mesh lost contact (a missing tooth's gap, rattle) or on the back flank
+carries K d^n f(c_r) d' / d'(-) with d'(-) its real approach speed, for as long as that contact
+lasts.
 
 Two stiffness models (`mesh_stiffness_model`): `potential_energy` (`TVMSMeshForce`, the pair
 stiffness over the mesh phase from `mesh.py`, precomputed as tables) and `simple`
@@ -246,7 +248,8 @@ class MeshForce:
     def _contact(self, key, stiffness_ref, d, d_t, touching):
         """Force of one contact (pair group) at deflection d > 0."""
         elastic = stiffness_ref * (d / DEFLECTION_REF) ** self.exponent
-        force = elastic + self.damping_per_stiffness * stiffness_ref * damping_onset(d * self.inverse_damping_onset) * d_t
+        onset = damping_onset(d * self.inverse_damping_onset)
+        force = elastic + self.damping_per_stiffness * stiffness_ref * onset * d_t
         if touching is not None:
             touching.append(key)
             if self.separated and d_t > 0.0:
