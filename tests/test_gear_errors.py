@@ -169,6 +169,25 @@ def test_a_run_starts_at_its_drawn_mesh_phase():
     assert MeshForce(shifted).excitation(0.1)[0] == pytest.approx(MeshForce(fluctuating).excitation(0.1)[0] + 3.0)
 
 
+def test_every_bench_record_starts_at_its_own_shaft_angle(monkeypatch):
+    """A real acquisition starts at any angle of the shafts: the bench draws each record's
+    start_mesh_phase over the pair's full cycle from the record's stream (reproducibly), as the
+    model's samples do."""
+    import condmon.models.gear.virtual_bench as vb
+
+    seen = []
+    monkeypatch.setattr(vb, "simulate", lambda params, settings, extra_loads=(): (
+        seen.append(params.start_mesh_phase) or {"A1_x": np.zeros(8)}))
+    truth, settings = GearDrivetrainParameters(speed_rpm=775.0), SimulationSettings(duration=0.1)
+    for seed in (5, 5):
+        rng = np.random.default_rng(seed)
+        for _ in range(10):
+            vb.bench_record(truth, vb.BenchForm(), settings, rng, gears={})
+    cycle = math.lcm(GEOMETRY.teeth_pinion, GEOMETRY.teeth_gear)
+    assert seen[:10] == seen[10:] and len(set(seen[:10])) == 10
+    assert 0.0 <= min(seen) and max(seen) < cycle and np.ptp(seen) > cycle / 4
+
+
 @pytest.mark.parametrize("variant", sorted(p.name for p in (ROOT / "config" / "benches").glob("*.yaml")))
 def test_bench_variants_layer_over_the_default_config(variant):
     """Each shipped bench variant states only what differs: layered over config/config.yaml (as

@@ -13,7 +13,8 @@ report labels them):
 - its own damage (`faults`): a surface fault as pitting (pits around the pitch line) and a missing
   tooth as a tooth broken off above a height, built here as flank geometry; the model's fault code
   is never called for a state that has a bench form;
-- slow speed and load fluctuations of its own amplitude and frequency;
+- slow speed and load fluctuations of its own amplitude and frequency; every record starts at its
+  own angle of both shafts;
 - coloured (low-frequency weighted) sensor noise on top of white noise.
 Its records are always labelled `virtual_bench`, never `measured`.
 """
@@ -144,7 +145,8 @@ def bench_record(true_params: GearDrivetrainParameters, form: BenchForm, setting
                  rng: np.random.Generator, gears: dict, fault_maps: tuple = ()) -> dict[str, np.ndarray]:
     """One acquisition of the bench at `true_params` (speed and health state the model runs
     included) with its own gears (`bench_gears`) and damage (`fault_maps`, `bench_fault`): random
-    phases of the fluctuations and bearing tones, then white plus coloured sensor noise."""
+    phases of the fluctuations and bearing tones, a random start angle of the shafts, then white
+    plus coloured sensor noise."""
     g = true_params.geometry
     shaft_hz = true_params.speed_rpm / 60.0
     shaft_frequencies = (shaft_hz, shaft_hz, shaft_hz * g.teeth_pinion / g.teeth_gear,
@@ -163,6 +165,9 @@ def bench_record(true_params: GearDrivetrainParameters, form: BenchForm, setting
         speed_fluctuation_phase=float(rng.uniform(0, 2 * math.pi)),
         load_fluctuation=form.load_fluctuation, load_fluctuation_hz=form.load_fluctuation_hz,
         load_fluctuation_phase=float(rng.uniform(0, 2 * math.pi)),
+        # an acquisition starts at any angle of both shafts: which gear teeth the damaged tooth
+        # meets within a segment differs from record to record, as on a real rig
+        start_mesh_phase=float(rng.uniform(0, math.lcm(g.teeth_pinion, g.teeth_gear))),
         **dict(gears, flank_maps_pinion=add_flank_maps(gears.get("flank_maps_pinion", ()), fault_maps)))
     signals = simulate(params, settings, extra_loads=loads)
     return {name: signal + sensor_noise(len(signal), form, rng) for name, signal in signals.items()}

@@ -1,16 +1,31 @@
 """The background healthy records reveal and the model lacks: its estimate (calibration) and its
 synthesis (simulation).
 
-The background of a channel at one speed is the power spectral density of the measured healthy
-segments minus the mean PSD of the calibrated model's healthy runs, clipped at zero: whatever the
-measurement carries that the model does not make (sensor noise, white or coloured,
-tones of parts the model lacks, a motor's ripple). The simulation adds a random-phase
-Gaussian realisation of it to every simulated sample, so a classifier trained on simulation sees
-the floor and tones a healthy measured record has.
+Two estimates (`calibration.background_method`), per channel at one speed:
+- `incoherent` (default): the part of each channel's power spectral density that no other channel
+  explains, measured minus model, clipped at zero. That part is the conditioned spectrum of the
+  channel given all the others, 1 / [G^-1(f)]_ii of the cross-spectral matrix G (Bendat & Piersol,
+  "Random Data", multiple-input systems: the output noise spectrum): sensor noise, white or
+  coloured, independent in each accelerometer chain. Vibration of the structure reaches every
+  channel and is coherent across them, so a model that is quieter than the machine, or has other
+  housing modes, does not turn its shortfall into noise. (On a virtual bench with 0.002 m/s^2 of
+  sensor noise and 1-7 m/s^2 of gear vibration, `deficit` took the model's shortfall for 0.9-6
+  m/s^2 of noise and buried the simulated faults under it; `incoherent` finds 0.004-0.02 m/s^2.)
+  Needs two or more channels.
+- `deficit`: the PSD of the measured healthy segments minus the mean PSD of the calibrated model's
+  healthy runs: whatever the measurement carries that the model does not make (noise, tones of
+  parts the model lacks, a motor's ripple), but also any shortfall of the model's own vibration.
+  For a model that reproduces the machine's level, or a single channel.
 
-PSDs are one-sided Welch densities ((m/s^2)^2/Hz for accelerations) over segments of the system's
-segment length at its output rate (Hann window, no overlap: one periodogram per segment, averaged),
-on the grid `numpy.fft.rfftfreq(segment_length, 1 / rate)`.
+The simulation adds a random-phase Gaussian realisation of the background to every simulated
+sample (independently per channel), so a classifier trained on simulation sees the floor a healthy
+measured record has.
+
+PSDs are one-sided Welch densities ((m/s^2)^2/Hz for accelerations). `deficit`: over segments of
+the system's segment length at its output rate (Hann window, no overlap: one periodogram per
+segment, averaged), on the grid `numpy.fft.rfftfreq(segment_length, 1 / rate)`. `incoherent`: Hann
+windows of `coherence_window` samples, half overlapping, within each segment (enough averages for
+the cross-spectral matrix to be inverted), on that window's grid.
 """
 from __future__ import annotations
 
@@ -40,6 +55,47 @@ def segment_psd(segments: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndar
     n = segments.shape[-1]
     freqs, psd = welch(segments, fs=fs_hz, window="hann", nperseg=n, noverlap=0, scaling="density", axis=-1)
     return freqs, psd.mean(0)
+
+
+METHODS = ("incoherent", "deficit")
+
+
+def coherence_window(segment_length: int) -> int:
+    """The Welch window of the `incoherent` estimate: the largest power of two within a quarter
+    segment (512 samples of a 2560-sample segment: 9 half-overlapping windows a segment)."""
+    return 2 ** int(np.floor(np.log2(max(segment_length // 4, 2))))
+
+
+def incoherent_psd(segments: np.ndarray, fs_hz: float, window: int) -> tuple[np.ndarray, np.ndarray]:
+    """(frequencies, per channel the part of its PSD no other channel explains) of segments shaped
+    (n_segments, n_channels, n): 1 / [G^-1(f)]_ii of the cross-spectral matrix G averaged over
+    half-overlapping Hann windows of `window` samples (mean removed), times d / (d - q) for d
+    averages and q other channels (the estimate's bias). Shaped (n_channels, window // 2 + 1)."""
+    segments = np.asarray(segments, dtype=float)
+    if segments.ndim != 3 or segments.shape[0] == 0:
+        raise ValueError(f"incoherent_psd needs segments shaped (n_segments, n_channels, n), got {segments.shape}")
+    channels, n = segments.shape[1], segments.shape[2]
+    if channels < 2:
+        raise ValueError("calibration.background_method incoherent: the part no other channel explains "
+                         "needs two or more channels (features.channels has one); use deficit")
+    if n < window:
+        raise ValueError(f"incoherent_psd: segments of {n} samples are shorter than the {window}-sample window")
+    taper = np.hanning(window)
+    starts = range(0, n - window + 1, window // 2)
+    pieces = np.stack([segment[:, start:start + window] for segment in segments for start in starts])
+    pieces = pieces - pieces.mean(axis=-1, keepdims=True)
+    spectra = np.fft.rfft(pieces * taper, axis=-1)                        # (d, channels, f)
+    averages = len(pieces)
+    if averages <= channels:
+        raise ValueError(f"incoherent_psd: {averages} windows cannot resolve {channels} channels; "
+                         "the background needs more healthy segments")
+    # one-sided density scaling of a Hann periodogram (as scipy.signal.welch's)
+    scale = 2.0 / (fs_hz * (taper ** 2).sum())
+    cross = np.einsum("dif,djf->fij", spectra, spectra.conj()) / averages * scale
+    conditioned = 1.0 / np.real(np.einsum("fii->if", np.linalg.inv(cross)))
+    conditioned *= averages / (averages - (channels - 1))
+    conditioned[:, 0] = 0.0  # the mean was removed
+    return np.fft.rfftfreq(window, 1.0 / fs_hz), np.maximum(conditioned, 0.0)
 
 
 def background_psd(measured: np.ndarray, model: np.ndarray) -> np.ndarray:
@@ -87,14 +143,28 @@ def run_seeds(seed: int, runs: int) -> list[int]:
 
 
 def estimate_background(system, frame: pd.DataFrame, calibrated: dict, channels, runs: int, sim_seconds: float,
-                        seed: int, processes: int = 1) -> pd.DataFrame:
+                        seed: int, processes: int = 1, method: str = "incoherent") -> pd.DataFrame:
     """Per speed of the measured healthy records (those among the system's simulated speeds) and
-    channel: the measured, the model's and the background PSD (`COLUMNS`, long form). The model's
+    channel: the measured, the model's and the background PSD (`COLUMNS`, long form; with
+    `method` incoherent, measured and model are the parts no other channel explains). The model's
     PSD is the mean over `runs` healthy runs of the calibrated model (`calibrated`: model_variant,
     parameters), each `sim_seconds` long with its own seed (so the model's per-run variability is
     in the mean), cut into whole segments. No healthy record at a simulated speed: an empty frame."""
     fs, n = system.output_rate_hz, system.segment_length
     channels = list(channels)
+    if method not in METHODS:
+        raise ValueError(f"calibration.background_method: {method!r} is not one of {list(METHODS)}")
+    if method == "incoherent":
+        if len(channels) < 2:
+            raise ValueError(f"calibration.background_method incoherent: the part no other channel explains "
+                             f"needs two or more channels (features.channels: {channels}); use deficit")
+        window = coherence_window(n)
+
+        def spectrum(segments):
+            return incoherent_psd(segments, fs, window)
+    else:
+        def spectrum(segments):
+            return segment_psd(segments, fs)
     healthy = frame[frame["health_state"] == system.healthy_state]
     simulated = [float(s) for s in system.speeds_rpm]
     speeds = sorted(float(s) for s in healthy["speed_rpm"].unique() if float(s) in simulated)
@@ -122,15 +192,15 @@ def estimate_background(system, frame: pd.DataFrame, calibrated: dict, channels,
         if not done:
             raise SimulationError(f"background: every healthy run of the calibrated model at {speed:g} rpm failed")
         model_segments = np.concatenate([_segments(signals, channels, n) for signals in done])
-        freqs, model = segment_psd(model_segments, fs)
+        freqs, model = spectrum(model_segments)
         _, measured_segments = to_arrays(healthy[healthy["speed_rpm"].astype(float) == speed], channels)
-        _, measured = segment_psd(measured_segments, fs)
+        _, measured = spectrum(measured_segments)
         background = background_psd(measured, model)
         for j, channel in enumerate(channels):
             parts.append(pd.DataFrame(dict(speed_rpm=speed, channel=channel, freq_hz=freqs, measured_psd=measured[j],
                                            model_psd=model[j], background_psd=background[j])))
-        log.info("background at %g rpm from %d measured and %d model segments: rms %s m/s^2", speed,
-                 len(measured_segments), len(model_segments),
+        log.info("background (%s) at %g rpm from %d measured and %d model segments: rms %s m/s^2", method,
+                 speed, len(measured_segments), len(model_segments),
                  {c: round(float(np.sqrt(background[j].sum() * (freqs[1] - freqs[0]))), 6)
                   for j, c in enumerate(channels)})
     return pd.concat(parts, ignore_index=True)[COLUMNS]

@@ -409,18 +409,20 @@ def spectra_grid(spectra, note: str):
                    note)
 
 
-def background_grid(table, note: str):
+def background_grid(table, note: str, method: str = "incoherent"):
     """Grid speed x channel: PSD (dB re 1 (m/s²)²/Hz) of the measured healthy records, of the
-    calibrated model and the background between them (`condmon.background`'s table)."""
+    calibrated model and the background between them (`condmon.background`'s table; with
+    `method` incoherent, the parts of each that no other channel explains)."""
     speeds = sorted(table["speed_rpm"].unique())
     channels = list(dict.fromkeys(table["channel"]))
     fig, axes = plt.subplots(len(speeds), len(channels),
                              figsize=(max(4.2 * len(channels), 7.0), 2.8 * len(speeds) + 0.8),
                              sharex=True, squeeze=False)
     # the background underneath, the measured record thin on top: where they coincide the model adds nothing
+    part = " (no other channel explains)" if method == "incoherent" else ""
     styles = (("background_psd", "background (measured - model, >= 0)", {"color": "tab:cyan", "lw": 1.6}),
-              ("model_psd", "calibrated model (mean of runs)", {"color": "tab:red", "lw": 0.7, "alpha": 0.8}),
-              ("measured_psd", "measured", {"color": "black", "lw": 0.5}))
+              ("model_psd", f"calibrated model (mean of runs){part}", {"color": "tab:red", "lw": 0.7, "alpha": 0.8}),
+              ("measured_psd", f"measured{part}", {"color": "black", "lw": 0.5}))
     for i, speed in enumerate(speeds):
         for j, channel in enumerate(channels):
             ax = axes[i, j]

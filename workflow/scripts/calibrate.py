@@ -24,14 +24,15 @@ if p.calibration["background"]:
     started = time.perf_counter()
     background = estimate_background(system, frame, result, list(p.channels), p.calibration["background_runs"],
                                      p.calibration["sim_seconds"], p.calibration["seed"],
-                                     processes=snakemake.threads)
+                                     processes=snakemake.threads, method=p.calibration["background_method"])
     result["background"] = background_rms(background) or None
     result["background_seconds"] = round(time.perf_counter() - started, 1)
     if background.empty:
         log.warning("no measured healthy records at the simulated speeds: no background, the simulation adds "
                     "white sensor noise only")
     write_frame(background, snakemake.output.background)
-    save_figure(background_grid(background, data_source_label(p.data_source)), snakemake.output.background_plot)
+    save_figure(background_grid(background, data_source_label(p.data_source), p.calibration["background_method"]),
+                snakemake.output.background_plot)
 write_frame(spectra, snakemake.output.spectra)
 write_frame(history, snakemake.output.history)
 save_figure(calibration_convergence(history, result["model_variant"], data_source_label(p.data_source)),
