@@ -186,6 +186,11 @@ def test_the_part_no_other_channel_explains_is_the_sensor_noise_whatever_the_str
 
 
 def test_the_incoherent_background_of_one_channel_is_refused_before_any_run(toy):
+    from condmon.config import ConfigError
+
+    with pytest.raises(ConfigError, match="calibration.background_method: incoherent"):
+        config_of(TOY, {"calibration": {"background": True}})
+    assert config_of(TOY, {"calibration": {"background": True, "background_method": "deficit"}})
     frame = toy_frame(toy, lambda rng, n: 0.0, records=1)
     with pytest.raises(ValueError, match="background_method incoherent.*two or more channels"):
         estimate_background(toy, frame, {"model_variant": toy.nominal_variant, "parameters": {}}, ["acc"], runs=1,

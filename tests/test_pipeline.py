@@ -306,8 +306,8 @@ def test_missing_tooth_adds_sidebands_at_the_input_shaft_frequency(smoke):
     # gap; over 10x with the simple mesh). Each simulated sample is a new gear pair of ISO grade
     # 4-6 whose own errors put lines at every shaft order, starts at a random shaft angle (where
     # the tooth passes in the 0.25 s Hann window varies) and loses half to all of the tooth; the
-    # background of the bench's healthy records is added: 1.8x here over four samples (the median
-    # of the six single ratios, 1.26, scatters too much for four samples). The noise-free 2x
+    # background of the bench's healthy records (its sensor noise) is added. Four samples: the
+    # median of the six single ratios scatters too much to test. The noise-free 2x
     # criterion is the model's own test (test_gear_model.py); here, no more than a rise.
     rise = 10 if smoke_config()["model"]["mesh_stiffness_model"] == "simple" else 1.3
     energy = [sum(at(spectrum, f) ** 2 for f in sidebands) for spectrum in (healthy, missing)]

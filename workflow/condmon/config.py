@@ -112,6 +112,11 @@ def cross_field_problems(config: dict) -> list[str]:
                             f"high ({bound['high']})")
         if bound.get("log") and bound["low"] <= 0:
             problems.append(f"calibration.parameters.{name}: a log-scaled bound needs low > 0")
+    calibration = config["calibration"]
+    if (calibration.get("background") and calibration.get("background_method") == "incoherent"
+            and len(config["features"]["channels"]) < 2):
+        problems.append("calibration.background_method: incoherent (the part of each channel no other channel "
+                        "explains) needs two or more features.channels; use deficit with one")
     if not any(c["enabled"] for c in config["classifiers"].values()):
         problems.append("classifiers: enable at least one classifier")
     families = config["features"]["kind"].split("+")
