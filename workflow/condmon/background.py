@@ -9,7 +9,7 @@ Two estimates (`calibration.background_method`), per channel at one speed:
   coloured, independent in each accelerometer chain. Vibration of the structure reaches every
   channel and is coherent across them, so a model that is quieter than the machine, or has other
   structural modes, does not turn its shortfall into noise. (On a virtual bench with 0.002 m/s^2 of
-  sensor noise and 1-7 m/s^2 of machine vibration, `deficit` took the model's shortfall for 0.9-6
+  sensor noise and 0.2-7 m/s^2 of machine vibration, `deficit` took the model's shortfall for 0.16-6
   m/s^2 of noise and buried the simulated faults under it; `incoherent` finds 0.003-0.023 m/s^2.)
   Needs two or more channels.
 - `deficit`: the PSD of the measured healthy segments minus the mean PSD of the calibrated model's
