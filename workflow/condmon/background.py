@@ -76,8 +76,7 @@ def incoherent_psd(segments: np.ndarray, fs_hz: float, window: int) -> tuple[np.
         raise ValueError(f"incoherent_psd needs segments shaped (n_segments, n_channels, n), got {segments.shape}")
     channels, n = segments.shape[1], segments.shape[2]
     if channels < 2:
-        raise ValueError("calibration.background_method incoherent: the part no other channel explains "
-                         "needs two or more channels (features.channels has one); use deficit")
+        raise ValueError("incoherent_psd: the part no other channel explains needs two or more channels")
     if n < window:
         raise ValueError(f"incoherent_psd: segments of {n} samples are shorter than the {window}-sample window")
     taper = np.hanning(window)
