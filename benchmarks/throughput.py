@@ -29,13 +29,16 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-import numpy as np
-import yaml
-
-ROOT = Path(__file__).resolve().parents[1]
-# one thread per worker: the pipeline's jobs are single-threaded processes
+# One thread per worker, as Snakemake gives the pipeline's jobs (OMP_NUM_THREADS and the like =
+# the job's threads). Set before numpy loads OpenBLAS: its second thread spins while idle, and on
+# two cores each worker's spinning thread took about a quarter of a core from the other worker.
 for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[variable] = "1"
+
+import numpy as np  # noqa: E402
+import yaml  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
 
 DEFAULT_CONFIGS = ["config/config.yaml", "config/config.yaml:flexible", "config/cfrp.yaml", "config/cwru.yaml"]
 CONVERGENCE_DB = 0.5       # the tolerance on the features

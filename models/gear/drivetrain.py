@@ -660,16 +660,13 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
         mesh_marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=mesh_dof))
         calls = [0]
 
-        def mesh_force(mbs_, t, item, displacement, velocity, k, d, offset):
-            return mesh(t, displacement, velocity)
-
         def counted_mesh_force(mbs_, t, item, displacement, velocity, k, d, offset):
             calls[0] += 1
             return mesh(t, displacement, velocity)
 
         mbs.AddObject(eii.ObjectConnectorCoordinateSpringDamper(
             markerNumbers=[ground_marker, mesh_marker],
-            springForceUserFunction=mesh_force if diagnostics is None else counted_mesh_force))
+            springForceUserFunction=mesh.spring_force if diagnostics is None else counted_mesh_force))
 
         keep = []  # the symbolic load functions live as long as the system
         for dof, mean, amplitude, frequency, phase in loads:  # compiled symbolic functions of time

@@ -2,6 +2,7 @@
 deflection rate) summing the tooth-pair contact forces (Algorithm 1 of the helical-gear study).
 
 Pure: parameters in, a force function out (no exudyn; the drivetrain calls it from a connector).
+The steady pair sums run compiled (`mesh_kernel.py`); the impacts' state stays here.
 
 Per tooth pair j (pinion tooth j mod z1, gear tooth j mod z2) at pair phase u = phase - j:
     F_j = K_j(u) (d_j / d_ref)^n  +  c K_j(u) / K_mean S(d_j / d_op) d_j'  [+ impact term]
@@ -34,6 +35,7 @@ flank maps (`errors.FlankMap`: profile and helix deviations, wear, a bench's dam
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -41,6 +43,9 @@ import numpy as np
 from condmon.models.gear.contact_laws import hysteresis_factor
 from condmon.models.gear.errors import add_flank_maps, broken_tooth_flank_map, pitted_flank_map, wear_flank_map
 from condmon.models.gear.mesh import GearMesh, ProfileDeviation, ToothDamage
+# DEFLECTION_REF: K = mesh stiffness at this deflection keeps K's unit N/m for any n
+from condmon.models.gear.mesh_kernel import (DEFLECTION_REF, entry_point, mesh_excitation, simple_steady_force,
+                                             tvms_steady_force)
 from condmon.models.numerics import SimulationError
 
 MESH_HEALTH_STATES = ("healthy", "surface_fault", "missing_tooth", "spall", "chipped_tooth", "root_crack")
@@ -53,8 +58,6 @@ MESH_STIFFNESS_MODELS = ("potential_energy", "simple")
 # (`surface_fault_stiffness_loss`), kept to compare with it.
 # `wear_or_pitting`: one of the two, by the parity of `wear_seed` (a random seed: half and half).
 SURFACE_FAULT_MODELS = ("wear", "pitting", "wear_or_pitting", "stiffness_loss")
-DEFLECTION_REF = 1.0e-6  # m; K = mesh stiffness at this deflection keeps K's unit N/m for any n
-INVERSE_DEFLECTION_REF = 1.0 / DEFLECTION_REF
 MAX_DEFLECTION = 1.0e-3  # m; a mesh deflection beyond this is divergence
 EDGE_CONTACT = 0.02      # a pair stiffness at its window's edge above this share of the peak: extended contact
 
@@ -171,16 +174,15 @@ class MeshForce:
         self.inverse_damping_onset = 1.0 / operating_deflection(p) if damping else 0.0
         self.backlash = p.backlash
         self.te_amplitude = p.transmission_error
-        self.fluct = p.speed_fluctuation
-        self.fluct_w = 2 * math.pi * p.speed_fluctuation_hz
-        self.fluct_phase = p.speed_fluctuation_phase
-        self.start_phase = float(p.start_mesh_phase)
-        self.fluct_cos0 = math.cos(p.speed_fluctuation_phase)
+        # the excitation's constants in mesh_kernel's layout (START_PHASE, MESH_FREQUENCY, ...)
+        self.excitation_constants = np.array([
+            float(p.start_mesh_phase), self.mesh_frequency, p.speed_fluctuation, 2 * math.pi * p.speed_fluctuation_hz,
+            p.speed_fluctuation_phase, math.cos(p.speed_fluctuation_phase), self.inverse_base_pitch], dtype=float)
         # run-out of each shaft that has one: (amplitude, shaft angle per mesh period, phase)
-        self.runout_terms = tuple((amplitude, 2 * math.pi / g.teeth_pinion * ratio, offset)
-                                  for amplitude, ratio, offset in ((p.runout_pinion, 1.0, p.runout_phase_pinion),
-                                                                   (p.runout_gear, self.gear_ratio, p.runout_phase_gear))
-                                  if amplitude)
+        self.runout = np.array([(amplitude, 2 * math.pi / g.teeth_pinion * ratio, offset)
+                                for amplitude, ratio, offset in ((p.runout_pinion, 1.0, p.runout_phase_pinion),
+                                                                 (p.runout_gear, self.gear_ratio, p.runout_phase_gear))
+                                if amplitude], dtype=float).reshape(-1, 3)
         pinion = _pitch_errors(p.pitch_errors_pinion, g.teeth_pinion, "pinion")
         gear = _pitch_errors(p.pitch_errors_gear, g.teeth_gear, "gear")
         # pair j meets pinion tooth j mod z1 and gear tooth j mod z2: periodic in lcm(z1, z2)
@@ -189,7 +191,6 @@ class MeshForce:
                                  for j in range(self.pitch_period)]
         self.stiffness_factor = contact_stiffness_factors(p)
         self.impacts = {}       # contact key -> approach speed d'(-) of an impact still in contact
-        self._excitation_time, self._excitation = None, None
         self.separated = False  # the whole mesh was out of contact at the last call
 
     def __init__(self, p, damping: float = 0.0):
@@ -208,35 +209,19 @@ class MeshForce:
             self.stiffness_factor[p.faulty_tooth % self.teeth] = (
                 sum(grp.stiffness.sum() for grp in tvms.groups(p.faulty_tooth))
                 / sum(grp.stiffness.sum() for grp in tvms.healthy_groups))
+        # mesh_kernel's layout (S_BACKLASH, S_CONTACT_RATIO, ...)
+        constants = np.array([self.backlash, self.contact_ratio, self.base_pitch, self.tip_radius,
+                              self.pair_force_ref, self.exponent, self.damping_per_stiffness,
+                              self.inverse_damping_onset, self.te_amplitude], dtype=float)
+        self.steady_force = functools.partial(
+            entry_point(simple_steady_force), self.excitation_constants, self.runout, constants,
+            np.array(self.stiffness_factor, dtype=float), np.array(self.pair_pitch_error, dtype=float))
 
     # -- excitation --------------------------------------------------------------------------
     def excitation(self, t):
         """(mesh phase in mesh periods, its rate, run-out of both shafts along the line of action
-        (m), its rate) at time t. One call per force evaluation, four per RK44 step at only two
-        distinct times (the two midpoint stages share theirs, and a step's end is the next one's
-        start): the last time's result is kept."""
-        if t == self._excitation_time:
-            return self._excitation
-        if self.fluct:
-            angle = self.fluct_w * t + self.fluct_phase
-            phase = self.start_phase + self.mesh_frequency * (
-                t + self.fluct * (self.fluct_cos0 - math.cos(angle)) / self.fluct_w)
-            phase_rate = self.mesh_frequency * (1.0 + self.fluct * math.sin(angle))
-        else:
-            phase, phase_rate = self.start_phase + self.mesh_frequency * t, self.mesh_frequency
-        e = e_t = 0.0
-        for amplitude, per_phase, offset in self.runout_terms:
-            angle = per_phase * phase + offset
-            e += amplitude * math.sin(angle)
-            e_t += amplitude * per_phase * phase_rate * math.cos(angle)
-        if self.runout_terms:
-            # an eccentric gear moves its flanks along the line of action by e: the contact lies
-            # e further along every pair's path (an involute translated is an involute turned), so
-            # the mesh cycle is phase-modulated at the shaft orders as well as displaced
-            phase += e * self.inverse_base_pitch
-            phase_rate += e_t * self.inverse_base_pitch
-        self._excitation_time, self._excitation = t, (phase, phase_rate, e, e_t)
-        return self._excitation
+        (m), its rate) at time t (`mesh_kernel.mesh_excitation`)."""
+        return mesh_excitation(t, self.excitation_constants, self.runout)
 
     def pitch_error(self, j) -> float:
         """Pitch errors of the pinion and gear teeth of pair j (m; > 0 closes the pair earlier)."""
@@ -277,6 +262,22 @@ class MeshForce:
         self.separated = not touched
 
     def __call__(self, t, deflection, rate):
+        """The mesh force (N) at time t, mesh deflection (m) and its rate (m/s)."""
+        return self.spring_force(None, t, None, deflection, rate, None, None, None)
+
+    def spring_force(self, mbs, t, item, deflection, rate, stiffness, damping, offset):
+        """The force as exudyn's springForceUserFunction takes it (the connector's own stiffness,
+        damping and offset unused). The hot path: in steady contact, the compiled sum."""
+        if not (self.impacts or self.separated):
+            total = self.steady_force(t, deflection, rate)
+            if total >= 0.0:  # else the back flank touches, or (TVMS) the run diverges
+                self.separated = not total > 0.0
+                return total
+        return self.tracked_force(t, deflection, rate)
+
+    def tracked_force(self, t, deflection, rate):
+        """The force with the impacts' state (Python): the back flank, a contact that closes after
+        the whole mesh lost contact; in steady contact the same sum as the compiled one."""
         phase, phase_rate, e, e_t = self.excitation(t)
         if self.te_amplitude:
             w = 2 * math.pi
@@ -368,8 +369,35 @@ class TVMSMeshForce(MeshForce):
                                         for groups, error in self.pairs for _, edges in groups))
         healthy = tvms.healthy_groups[0]
         self.mean_deviation = float((healthy.stiffness * healthy.deviation).sum() / healthy.stiffness.sum())
+        self._pack()
 
-    def __call__(self, t, deflection, rate):
+    def _pack(self):
+        """The tables and constants as mesh_kernel.tvms_steady_force takes them."""
+        groups = {}  # id of a compiled group -> its row in `tables`
+        for tooth_groups in self.tooth_groups:
+            for group in tooth_groups:
+                groups.setdefault(id(group), group)
+        index = {key: row for row, key in enumerate(groups)}
+        length = max(len(rows) for rows, _ in groups.values())
+        tables, edges = np.zeros((len(groups), length, 4)), np.zeros((len(groups), 4))
+        for key, (group_rows, group_edges) in groups.items():
+            tables[index[key], :len(group_rows)] = group_rows
+            edges[index[key]] = group_edges
+        slots = max(len(g) for g in self.tooth_groups)
+        group_of_tooth = np.full((self.teeth, slots), -1, dtype=np.int64)
+        for tooth, tooth_groups in enumerate(self.tooth_groups):
+            group_of_tooth[tooth, :len(tooth_groups)] = [index[id(group)] for group in tooth_groups]
+        # mesh_kernel's layout (T_BACKLASH, T_WINDOW, ...)
+        constants = np.array([self.backlash, self.window, self.points_per_pitch, self.base_pitch, self.tip_radius,
+                              self.exponent, self.damping_per_stiffness, self.inverse_damping_onset,
+                              self.edge_excess, float(self.extended), MAX_DEFLECTION], dtype=float)
+        self.steady_force = functools.partial(
+            entry_point(tvms_steady_force), self.excitation_constants, self.runout, constants, tables, edges, group_of_tooth,
+            np.array(self.pair_pitch_error, dtype=float))
+
+    def tracked_force(self, t, deflection, rate):
+        """The force with the impacts' state (Python): the back flank, a contact that closes after
+        the whole mesh lost contact; in steady contact the same sum as the compiled one."""
         if not abs(deflection) < MAX_DEFLECTION:
             # a diverging run: stop at once (the extended contact's pair range grows with the
             # deflection and would eat the memory before the run's end check)
@@ -380,7 +408,6 @@ class TVMSMeshForce(MeshForce):
             return self._back_flank(-d - self.backlash, d_t)
         touching = [] if (self.impacts or self.separated) else None
         window, ppp, pitch, rho = self.window, self.points_per_pitch, self.base_pitch, self.tip_radius
-        n, damping, inverse_onset = self.exponent, self.damping_per_stiffness, self.inverse_damping_onset
         pairs, period = self.pairs, self.pitch_period
         reach = d + self.edge_excess  # the largest pair deflection at a window's edge
         ext = math.sqrt(2.0 * rho * reach) / pitch if (self.extended and reach > 0.0) else 0.0
@@ -411,19 +438,9 @@ class TVMSMeshForce(MeshForce):
                     gd = d_pair - e0 - gap
                     gd_t = d_t + gap_t
                 if k > 0.0 and gd > 0.0:
-                    if touching is None:  # steady mesh: elastic plus viscous, inline
-                        x = gd * inverse_onset
-                        onset = x * x * (3.0 - 2.0 * x) if x < 1.0 else 1.0  # damping_onset(x)
-                        force = k * ((gd * INVERSE_DEFLECTION_REF) ** n + damping * onset * gd_t)
-                        if force > 0.0:
-                            total += force
-                    else:
-                        total += self._contact(key, k, gd, gd_t, touching)
+                    total += self._contact(key, k, gd, gd_t, touching)
                 key += 1
-        if touching is None:
-            self.separated = not total > 0.0
-        else:
-            self._finish(touching, total > 0.0)
+        self._finish(touching, total > 0.0)
         return total
 
     def static_deflection(self, force):

@@ -1,0 +1,177 @@
+"""The mesh force's hot path, compiled (numba): the excitation and the steady pair sums of
+`mesh_force.py`, called four times per RK44 step.
+
+Pure functions of plain floats and arrays, so numba compiles them once per machine (`cache=True`
+keeps the machine code beside this file). `MeshForce` and `TVMSMeshForce` pack their tables into
+the arrays these take and call them while the mesh is in steady contact; an impact (a contact that
+closes after the whole mesh lost contact, or on the back flank) keeps its state in Python, in
+`mesh_force.py`, which checks its pair sums against these in `tests/test_gear_model.py`.
+"""
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+DEFLECTION_REF = 1.0e-6  # m; K = mesh stiffness at this deflection keeps K's unit N/m for any n
+INVERSE_DEFLECTION_REF = 1.0 / DEFLECTION_REF
+
+def entry_point(kernel):
+    """`kernel`'s machine code for its one signature, called without numba's type dispatch (about
+    0.5 us of the 1 us a steady force call costs): the arrays passed must have exactly the
+    signature's types (C-contiguous float64, int64 where stated)."""
+    (signature,) = kernel.signatures
+    return kernel.overloads[signature].entry_point
+
+
+# the excitation and the steady sums' arguments: constants, run-out rows, then per kernel its tables
+VECTOR, MATRIX, TABLE, INDEX = "float64[::1]", "float64[:, ::1]", "float64[:, :, ::1]", "int64[:, ::1]"
+
+# excitation_constants: the layout `MeshForce` packs
+START_PHASE, MESH_FREQUENCY, FLUCTUATION, FLUCTUATION_W, FLUCTUATION_PHASE, FLUCTUATION_COS0, INVERSE_BASE_PITCH = range(7)
+
+
+@njit(f"UniTuple(float64, 4)(float64, {VECTOR}, {MATRIX})", cache=True)
+def mesh_excitation(t, excitation_constants, runout):
+    """(mesh phase in mesh periods, its rate, run-out of both shafts along the line of action (m),
+    its rate) at time t. runout: one row (amplitude, shaft angle per mesh period, phase) per shaft
+    that has one."""
+    c = excitation_constants
+    mesh_frequency, fluctuation = c[MESH_FREQUENCY], c[FLUCTUATION]
+    if fluctuation != 0.0:
+        angle = c[FLUCTUATION_W] * t + c[FLUCTUATION_PHASE]
+        phase = c[START_PHASE] + mesh_frequency * (t + fluctuation * (c[FLUCTUATION_COS0] - math.cos(angle))
+                                                   / c[FLUCTUATION_W])
+        phase_rate = mesh_frequency * (1.0 + fluctuation * math.sin(angle))
+    else:
+        phase, phase_rate = c[START_PHASE] + mesh_frequency * t, mesh_frequency
+    e = 0.0
+    e_t = 0.0
+    for row in range(runout.shape[0]):
+        amplitude, per_phase, offset = runout[row, 0], runout[row, 1], runout[row, 2]
+        angle = per_phase * phase + offset
+        e += amplitude * math.sin(angle)
+        e_t += amplitude * per_phase * phase_rate * math.cos(angle)
+    if runout.shape[0] > 0:
+        # an eccentric gear moves its flanks along the line of action by e: the contact lies e
+        # further along every pair's path, so the mesh cycle is phase-modulated as well as displaced
+        phase += e * c[INVERSE_BASE_PITCH]
+        phase_rate += e_t * c[INVERSE_BASE_PITCH]
+    return phase, phase_rate, e, e_t
+
+
+@njit("float64(float64, float64, float64, float64, float64, float64)", cache=True)
+def steady_contact(stiffness_ref, d, d_t, exponent, damping_per_stiffness, inverse_damping_onset):
+    """Force of one contact in steady mesh at deflection d > 0: elastic plus viscous, the viscous
+    part grown in by the smooth step 3 x^2 - 2 x^3 of x = d / d_op; never pulls."""
+    x = d * inverse_damping_onset
+    onset = x * x * (3.0 - 2.0 * x) if x < 1.0 else 1.0
+    force = stiffness_ref * (d / DEFLECTION_REF) ** exponent + damping_per_stiffness * stiffness_ref * onset * d_t
+    return force if force > 0.0 else 0.0
+
+
+# simple_constants: the layout `MeshForce` packs
+(S_BACKLASH, S_CONTACT_RATIO, S_BASE_PITCH, S_TIP_RADIUS, S_PAIR_FORCE_REF, S_EXPONENT, S_DAMPING,
+ S_INVERSE_ONSET, S_TE_AMPLITUDE) = range(9)
+
+
+@njit(f"float64({VECTOR}, {MATRIX}, {VECTOR}, {VECTOR}, {VECTOR}, float64, float64, float64)", cache=True)
+def simple_steady_force(excitation_constants, runout, constants, stiffness_factor, pair_pitch_error,
+                        t, deflection, rate):
+    """The `simple` mesh's force in steady contact (`MeshForce`); -1 where the back flank touches
+    (an impact: the caller's Python path takes it). The tables come first, so that
+    functools.partial binds them once."""
+    phase, phase_rate, e, e_t = mesh_excitation(t, excitation_constants, runout)
+    c = constants
+    te = c[S_TE_AMPLITUDE]
+    if te != 0.0:
+        w = 2 * math.pi
+        e += te * math.sin(w * phase)
+        e_t += te * w * phase_rate * math.cos(w * phase)
+    d, d_t = deflection - e, rate - e_t
+    if -d - c[S_BACKLASH] > 0.0:
+        return -1.0
+    contact_ratio, pitch, rho = c[S_CONTACT_RATIO], c[S_BASE_PITCH], c[S_TIP_RADIUS]
+    teeth, period = stiffness_factor.shape[0], pair_pitch_error.shape[0]
+    pitch_rate = pitch * phase_rate
+    total = 0.0
+    for j in range(math.floor(phase - contact_ratio), math.floor(phase) + 2):
+        u = phase - j
+        if u < 0.0:  # approaching: the gap closes as the pair nears its start of contact
+            s = -u * pitch
+            gap, gap_t = s * s / (2 * rho), -s * pitch_rate / rho
+        elif u > contact_ratio:  # receding
+            s = (u - contact_ratio) * pitch
+            gap, gap_t = s * s / (2 * rho), s * pitch_rate / rho
+        else:
+            gap, gap_t = 0.0, 0.0
+        stiffness = stiffness_factor[j % teeth] * c[S_PAIR_FORCE_REF]
+        pair_d = d - gap + pair_pitch_error[j % period]
+        if pair_d > 0.0 and stiffness > 0.0:
+            total += steady_contact(stiffness, pair_d, d_t - gap_t, c[S_EXPONENT], c[S_DAMPING], c[S_INVERSE_ONSET])
+    return total
+
+
+# tvms_constants: the layout `TVMSMeshForce` packs
+(T_BACKLASH, T_WINDOW, T_POINTS_PER_PITCH, T_BASE_PITCH, T_TIP_RADIUS, T_EXPONENT, T_DAMPING, T_INVERSE_ONSET,
+ T_EDGE_EXCESS, T_EXTENDED, T_MAX_DEFLECTION) = range(11)
+
+
+@njit(f"float64({VECTOR}, {MATRIX}, {VECTOR}, {TABLE}, {MATRIX}, {INDEX}, {VECTOR}, float64, float64, float64)",
+      cache=True)
+def tvms_steady_force(excitation_constants, runout, constants, tables, edges, tooth_groups, pair_pitch_error,
+                      t, deflection, rate):
+    """The `potential_energy` mesh's force in steady contact (`TVMSMeshForce`); -1 where the back
+    flank touches (an impact) or the deflection is out of range (divergence): the caller's Python
+    path takes both. The tables come first, so that functools.partial binds them once.
+
+    tables[group, i] = (K_i, K_(i+1) - K_i, e_i, e_(i+1) - e_i) on the pair-phase grid; edges[group] =
+    (K, e) at the window's start and end; tooth_groups[tooth] = that pinion tooth's groups (-1:
+    none); pair_pitch_error[j mod lcm(z1, z2)]: pair j's pitch errors."""
+    c = constants
+    if not abs(deflection) < c[T_MAX_DEFLECTION]:
+        return -1.0
+    phase, phase_rate, e, e_t = mesh_excitation(t, excitation_constants, runout)
+    d, d_t = deflection - e, rate - e_t
+    if -d - c[T_BACKLASH] > 0.0:
+        return -1.0
+    window, ppp, pitch, rho = c[T_WINDOW], c[T_POINTS_PER_PITCH], c[T_BASE_PITCH], c[T_TIP_RADIUS]
+    exponent, damping, inverse_onset = c[T_EXPONENT], c[T_DAMPING], c[T_INVERSE_ONSET]
+    reach = d + c[T_EDGE_EXCESS]  # the largest pair deflection at a window's edge
+    ext = math.sqrt(2.0 * rho * reach) / pitch if (c[T_EXTENDED] > 0.0 and reach > 0.0) else 0.0
+    deviation_rate = ppp * phase_rate  # d(table position)/dt
+    gap_rate = pitch * phase_rate / rho
+    teeth, slots, period = tooth_groups.shape[0], tooth_groups.shape[1], pair_pitch_error.shape[0]
+    total = 0.0
+    for j in range(math.floor(phase - window - ext) + 1, math.floor(phase + ext) + 1):
+        u = phase - j
+        d_pair = d + pair_pitch_error[j % period]
+        inside = 0.0 <= u < window
+        i, x, gap, gap_t = 0, 0.0, 0.0, 0.0
+        if inside:
+            x = u * ppp
+            i = int(x)
+            x -= i
+        else:  # extended contact beyond the window: tip gap s^2 / (2 rho)
+            s = -u * pitch if u < 0.0 else (u - window) * pitch
+            gap, gap_t = s * s / (2 * rho), (s if u < 0.0 else -s) * gap_rate
+        for slot in range(slots):
+            group = tooth_groups[j % teeth, slot]
+            if group < 0:
+                break
+            if inside:
+                k = tables[group, i, 0] + x * tables[group, i, 1]
+                gd = d_pair - tables[group, i, 2] - x * tables[group, i, 3]
+                gd_t = d_t - tables[group, i, 3] * deviation_rate
+            else:
+                side = 0 if u < 0.0 else 2
+                k = edges[group, side]
+                gd = d_pair - edges[group, side + 1] - gap
+                gd_t = d_t + gap_t
+            if k > 0.0 and gd > 0.0:  # steady_contact, inline and factored by k
+                x_onset = gd * inverse_onset
+                onset = x_onset * x_onset * (3.0 - 2.0 * x_onset) if x_onset < 1.0 else 1.0
+                force = k * ((gd * INVERSE_DEFLECTION_REF) ** exponent + damping * onset * gd_t)
+                if force > 0.0:
+                    total += force
+    return total
