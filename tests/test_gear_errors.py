@@ -9,7 +9,7 @@ from conftest import ROOT
 from condmon.models.gear.drivetrain import GearDrivetrainParameters, SimulationSettings, simulate
 from condmon.models.gear.errors import FlankMap, draw_gear_errors, iso1328_tolerances, wear_flank_map
 from condmon.models.gear.mesh import GearGeometry, GearMesh
-from condmon.models.gear.virtual_bench import bench_fault, broken_tooth_map, pitting_map
+from condmon.models.gear.virtual_bench import bench_fault, broken_tooth_map, pitting_map, spall_map
 
 GEOMETRY = GearGeometry()
 PINION_DIAMETER = 2 * GEOMETRY.pitch_radius(GEOMETRY.teeth_pinion)
@@ -110,8 +110,8 @@ def test_eccentricity_raises_the_mesh_sidebands_as_it_grows():
 
 
 def test_bench_fault_forms_are_its_own_geometry():
-    """The bench's surface fault (pitting) and missing tooth (broken tooth) are flank geometry it
-    builds itself: the model runs them as a healthy mesh with those flanks."""
+    """The bench's surface fault (pitting), missing tooth (broken tooth) and spall (a crater) are
+    flank geometry it builds itself: the model runs them as a healthy mesh with those flanks."""
     rng = np.random.default_rng(3)
     faults = {"surface_fault": {"form": "pitting", "teeth": 4, "pit_depth": 3e-5, "pitted_area": 0.3},
               "missing_tooth": {"form": "broken_tooth", "broken_height": 0.8}}
@@ -124,9 +124,18 @@ def test_bench_fault_forms_are_its_own_geometry():
     assert (band > 0).mean() >= 0.3 and pits.max() <= 3e-5 and pits[:8].max() == 0.0
     state, maps = bench_fault("missing_tooth", faults, 29, 3, rng)
     assert state == "healthy" and maps[3].array()[-1, 0] == pytest.approx(1e-3) and maps[3].array()[0, 0] == 0.0
-    assert bench_fault("spall", faults, 29, 3, rng) == ("spall", ())
+    assert bench_fault("spall", faults, 29, 3, rng) == ("spall", ())  # no bench form: the model's
     with pytest.raises(ValueError, match="unknown form"):
         bench_fault("spall", {"spall": {"form": "crater"}}, 29, 3, rng)
+    # its spall: a crater with a rough floor over the stated region of one tooth
+    faults["spall"] = {"form": "spall", "depth": 2e-4, "profile": [0.3, 0.6], "face": [0.1, 0.9]}
+    state, maps = bench_fault("spall", faults, 20, 11, rng)
+    assert state == "healthy" and [i for i, m in enumerate(maps) if m is not None] == [11]
+    crater = maps[11].array()
+    roll, face = np.meshgrid(np.linspace(0, 1, crater.shape[0]), np.linspace(0, 1, crater.shape[1]), indexing="ij")
+    inside = (roll >= 0.3) & (roll <= 0.6) & (face >= 0.1) & (face <= 0.9)
+    assert crater[~inside].max() == 0.0
+    assert 0.7 * 2e-4 <= crater[inside].min() and crater[inside].max() <= 2e-4 and np.ptp(crater[inside]) > 0
     assert pitting_map(rng, 1e-5, 0.5).array().max() <= 1e-5
     assert broken_tooth_map(0.5).array()[:20].max() == 0.0
 
@@ -144,6 +153,13 @@ def test_per_sample_gear_errors_come_from_the_config():
     assert len(effects["flank_maps_pinion"]) == params.geometry.teeth_pinion
     low, high = system.config["model"]["fault_severity"]["wear_depth"]
     assert low <= effects["wear_depth"] <= high
+    widths = []
+    for k in range(20):  # the spall: its width drawn in its range, anywhere across the face
+        start, end = sample_effects(system.config["model"], params.geometry, np.random.default_rng(k))["spall_face"]
+        assert 0.0 <= start < end <= 1.0
+        widths.append(end - start)
+    low, high = system.config["model"]["fault_severity"]["spall_width"]
+    assert low <= min(widths) and max(widths) <= high and np.ptp(widths) > (high - low) / 4
     grade_high = system.config["model"]["gear_errors"]["grade"][1]
     tol = iso1328_tolerances(grade_high, params.geometry.normal_module, PINION_DIAMETER, params.geometry.face_width)
     pitch = np.asarray(effects["pitch_errors_pinion"])
@@ -203,6 +219,14 @@ def test_bench_variants_layer_over_the_default_config(variant):
     assert set(system.bench_effects()) != set(default.bench_effects())
     assert set(changes) <= {"run_name", "virtual_bench"}  # the model section is the default run's
     assert deep_update({}, changes)  # plain mapping
+
+
+def test_the_report_lists_the_cfrp_benchs_own_spall():
+    from conftest import system_of
+
+    effects = system_of("config/cfrp.yaml").bench_effects()
+    assert "spall as its own spall (depth 0.0002, profile [0.3, 0.6], face [0.1, 0.9])" in effects
+    assert "shaft_crack: the model's own fault form (no bench form)" in effects
 
 
 def test_pitting_craters_the_dedendum_and_either_form_is_drawn():

@@ -481,11 +481,12 @@ def test_the_mesh_force_is_continuous_where_pairs_close_and_open():
 
 
 def test_the_compiled_mesh_force_is_the_python_one():
-    """The steady pair sums run compiled (mesh_kernel); the Python path that tracks impacts keeps
-    the same sums. At random times, deflections and rates, both give the same force (to rounding)
-    for a helical TVMS mesh with run-out and speed fluctuation, a spur TVMS mesh with a spall (two
-    contact groups on one tooth) and printed-gear pitch errors (extended contact), and the simple
-    mesh with a sine transmission error."""
+    """The steady force sum runs compiled (mesh_kernel); the Python path that tracks impacts sums
+    the same contacts with its own per-contact law. With no impact to track, both give the same
+    force (to rounding) at random times, deflections and rates, for a helical TVMS mesh with run-out
+    and speed fluctuation, a spur TVMS mesh with a spall (two contact groups on one tooth) and
+    printed-gear pitch errors (extended contact), and the simple mesh with a sine transmission
+    error."""
     rng = np.random.default_rng(3)
     spur = GearGeometry(teeth_pinion=20, teeth_gear=30, helix_angle_deg=0.0)
     meshes = {

@@ -301,6 +301,9 @@ def test_each_system_checks_its_own_costs_variants_and_bounds():
                   {"calibration": {"parameters": {"restitution": {"low": 0.5, "high": 1.2}}}})
     with pytest.raises(ConfigError, match="unknown key calibration.contact_laws"):
         config_of(".test/config/cwru-smoke.yaml", {"calibration": {"contact_laws": ["flores"]}})
+    with pytest.raises(ConfigError, match=r"virtual_bench.faults.spall.face: \[start, end\] with start < end"):
+        config_of(".test/config/smoke.yaml", {"virtual_bench": {"faults": {
+            "spall": {"form": "spall", "depth": 2e-4, "profile": [0.3, 0.6], "face": [0.9, 0.1]}}}})
     gear, bearing, toy = (get_system(CONFIGS[name]()) for name in ("gear", "bearing", "toy"))
     assert gear.model_variants({"contact_laws": ["flores", "gonthier"]}) == ["flores", "gonthier"]
     assert bearing.model_variants({}) == ["hertz"] and toy.model_variants({}) == [toy.nominal_variant]

@@ -44,7 +44,8 @@ from condmon.models.gear.contact_laws import hysteresis_factor
 from condmon.models.gear.errors import add_flank_maps, broken_tooth_flank_map, pitted_flank_map, wear_flank_map
 from condmon.models.gear.mesh import GearMesh, ProfileDeviation, ToothDamage
 # DEFLECTION_REF: K = mesh stiffness at this deflection keeps K's unit N/m for any n
-from condmon.models.gear.mesh_kernel import (DEFLECTION_REF, entry_point, mesh_excitation, simple_steady_force,
+from condmon.models.gear.mesh_kernel import (BACK_FLANK, DEFLECTION_REF, TOO_MANY_CONTACTS, entry_point,
+                                             mesh_excitation, simple_contacts, simple_steady_force, tvms_contacts,
                                              tvms_steady_force)
 from condmon.models.numerics import SimulationError
 
@@ -60,6 +61,7 @@ MESH_STIFFNESS_MODELS = ("potential_energy", "simple")
 SURFACE_FAULT_MODELS = ("wear", "pitting", "wear_or_pitting", "stiffness_loss")
 MAX_DEFLECTION = 1.0e-3  # m; a mesh deflection beyond this is divergence
 EDGE_CONTACT = 0.02      # a pair stiffness at its window's edge above this share of the peak: extended contact
+MAX_CONTACTS = 64        # tooth contacts one call can hold (a helical pair: about 3, a spur pair in extended contact: 6)
 
 
 def whole_tooth_missing(p) -> bool:
@@ -213,9 +215,16 @@ class MeshForce:
         constants = np.array([self.backlash, self.contact_ratio, self.base_pitch, self.tip_radius,
                               self.pair_force_ref, self.exponent, self.damping_per_stiffness,
                               self.inverse_damping_onset, self.te_amplitude], dtype=float)
-        self.steady_force = functools.partial(
-            entry_point(simple_steady_force), self.excitation_constants, self.runout, constants,
-            np.array(self.stiffness_factor, dtype=float), np.array(self.pair_pitch_error, dtype=float))
+        self._bind(simple_contacts, simple_steady_force, constants, np.array(self.stiffness_factor, dtype=float),
+                   np.array(self.pair_pitch_error, dtype=float))
+
+    def _bind(self, contacts, steady_force, *tables):
+        """Bind the compiled contact enumerator and steady force to this mesh's tables and its
+        contacts' scratch space (mesh_kernel: tables first, then the call's t, deflection, rate)."""
+        self.contacts = np.zeros((MAX_CONTACTS, 4))
+        self.find_contacts = functools.partial(entry_point(contacts), self.excitation_constants, self.runout, *tables)
+        self.steady_force = functools.partial(entry_point(steady_force), self.excitation_constants, self.runout,
+                                              *tables, self.contacts)
 
     # -- excitation --------------------------------------------------------------------------
     def excitation(self, t):
@@ -277,32 +286,23 @@ class MeshForce:
 
     def tracked_force(self, t, deflection, rate):
         """The force with the impacts' state (Python): the back flank, a contact that closes after
-        the whole mesh lost contact; in steady contact the same sum as the compiled one."""
-        phase, phase_rate, e, e_t = self.excitation(t)
-        if self.te_amplitude:
-            w = 2 * math.pi
-            e += self.te_amplitude * math.sin(w * phase)
-            e_t += self.te_amplitude * w * phase_rate * math.cos(w * phase)
-        d, d_t = deflection - e, rate - e_t
-        if -d - self.backlash > 0.0:
+        the whole mesh lost contact (the Table-1 law's hysteresis); the contacts are the compiled
+        enumerator's, so in steady contact this is the compiled sum."""
+        if not abs(deflection) < MAX_DEFLECTION:
+            # a diverging run: stop at once (the extended contact's pair range grows with the
+            # deflection and would eat the memory before the run's end check)
+            raise SimulationError(f"mesh deflection {deflection:.3g} m at t = {t:.4g} s: the simulation diverged")
+        count = self.find_contacts(t, deflection, rate, self.contacts)
+        if count == BACK_FLANK:
+            d, d_t = self.contacts[0, 2], self.contacts[0, 3]
             return self._back_flank(-d - self.backlash, d_t)
+        if count == TOO_MANY_CONTACTS:
+            raise SimulationError(f"over {MAX_CONTACTS} tooth contacts at once at t = {t:.4g} s (mesh deflection "
+                                  f"{deflection:.3g} m): the simulation diverged")
         touching = [] if (self.impacts or self.separated) else None
         total = 0.0
-        pitch_rate = self.base_pitch * phase_rate
-        for j in range(math.floor(phase - self.contact_ratio), math.floor(phase) + 2):
-            u = phase - j
-            if u < 0.0:            # approaching: the gap closes as the pair nears its start of contact
-                s = -u * self.base_pitch
-                gap, gap_t = s * s / (2 * self.tip_radius), -s * pitch_rate / self.tip_radius
-            elif u > self.contact_ratio:  # receding
-                s = (u - self.contact_ratio) * self.base_pitch
-                gap, gap_t = s * s / (2 * self.tip_radius), s * pitch_rate / self.tip_radius
-            else:
-                gap, gap_t = 0.0, 0.0
-            stiffness = self.stiffness_factor[j % self.teeth] * self.pair_force_ref
-            pair_d = d - gap + self.pair_pitch_error[j % self.pitch_period]
-            if pair_d > 0.0 and stiffness > 0.0:
-                total += self._contact(j, stiffness, pair_d, d_t - gap_t, touching)
+        for key, stiffness, d, d_t in self.contacts[:count].tolist():
+            total += self._contact(int(key), stiffness, d, d_t, touching)
         self._finish(touching, total > 0.0)
         return total
 
@@ -372,7 +372,7 @@ class TVMSMeshForce(MeshForce):
         self._pack()
 
     def _pack(self):
-        """The tables and constants as mesh_kernel.tvms_steady_force takes them."""
+        """The tables and constants as mesh_kernel.tvms_contacts takes them."""
         groups = {}  # id of a compiled group -> its row in `tables`
         for tooth_groups in self.tooth_groups:
             for group in tooth_groups:
@@ -391,57 +391,8 @@ class TVMSMeshForce(MeshForce):
         constants = np.array([self.backlash, self.window, self.points_per_pitch, self.base_pitch, self.tip_radius,
                               self.exponent, self.damping_per_stiffness, self.inverse_damping_onset,
                               self.edge_excess, float(self.extended), MAX_DEFLECTION], dtype=float)
-        self.steady_force = functools.partial(
-            entry_point(tvms_steady_force), self.excitation_constants, self.runout, constants, tables, edges, group_of_tooth,
-            np.array(self.pair_pitch_error, dtype=float))
-
-    def tracked_force(self, t, deflection, rate):
-        """The force with the impacts' state (Python): the back flank, a contact that closes after
-        the whole mesh lost contact; in steady contact the same sum as the compiled one."""
-        if not abs(deflection) < MAX_DEFLECTION:
-            # a diverging run: stop at once (the extended contact's pair range grows with the
-            # deflection and would eat the memory before the run's end check)
-            raise SimulationError(f"mesh deflection {deflection:.3g} m at t = {t:.4g} s: the simulation diverged")
-        phase, phase_rate, e, e_t = self.excitation(t)
-        d, d_t = deflection - e, rate - e_t
-        if -d - self.backlash > 0.0:
-            return self._back_flank(-d - self.backlash, d_t)
-        touching = [] if (self.impacts or self.separated) else None
-        window, ppp, pitch, rho = self.window, self.points_per_pitch, self.base_pitch, self.tip_radius
-        pairs, period = self.pairs, self.pitch_period
-        reach = d + self.edge_excess  # the largest pair deflection at a window's edge
-        ext = math.sqrt(2.0 * rho * reach) / pitch if (self.extended and reach > 0.0) else 0.0
-        deviation_rate = ppp * phase_rate  # d(table position)/dt
-        gap_rate = pitch * phase_rate / rho
-        total = 0.0
-        for j in range(math.floor(phase - window - ext) + 1, math.floor(phase + ext) + 1):
-            u = phase - j
-            groups, pitch_error = pairs[j % period]
-            d_pair = d + pitch_error
-            inside = 0.0 <= u < window
-            if inside:
-                x = u * ppp
-                i = int(x)
-                x -= i
-            else:  # extended contact beyond the window: tip gap s^2 / (2 rho)
-                s = -u * pitch if u < 0.0 else (u - window) * pitch
-                gap, gap_t = s * s / (2 * rho), (s if u < 0.0 else -s) * gap_rate
-            key = 4 * j
-            for rows, edges in groups:
-                if inside:
-                    k0, dk, e0, de = rows[i]
-                    k = k0 + x * dk
-                    gd = d_pair - e0 - x * de
-                    gd_t = d_t - de * deviation_rate
-                else:
-                    k, e0 = (edges[0], edges[1]) if u < 0.0 else (edges[2], edges[3])
-                    gd = d_pair - e0 - gap
-                    gd_t = d_t + gap_t
-                if k > 0.0 and gd > 0.0:
-                    total += self._contact(key, k, gd, gd_t, touching)
-                key += 1
-        self._finish(touching, total > 0.0)
-        return total
+        self._bind(tvms_contacts, tvms_steady_force, constants, tables, edges, group_of_tooth,
+                   np.array(self.pair_pitch_error, dtype=float))
 
     def static_deflection(self, force):
         return super().static_deflection(force) + self.mean_deviation

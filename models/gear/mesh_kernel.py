@@ -1,11 +1,11 @@
-"""The mesh force's hot path, compiled (numba): the excitation and the steady pair sums of
-`mesh_force.py`, called four times per RK44 step.
+"""The mesh force's hot path, compiled (numba): the excitation, the tooth-pair contacts in touch
+and their steady force sum, for `mesh_force.py`, four calls per RK44 step.
 
 Pure functions of plain floats and arrays, so numba compiles them once per machine (`cache=True`
 keeps the machine code beside this file). `MeshForce` and `TVMSMeshForce` pack their tables into
-the arrays these take and call them while the mesh is in steady contact; an impact (a contact that
-closes after the whole mesh lost contact, or on the back flank) keeps its state in Python, in
-`mesh_force.py`, which checks its pair sums against these in `tests/test_gear_model.py`.
+the arrays these take. While the mesh is in steady contact, one compiled call gives the force; an
+impact (a contact that closes after the whole mesh lost contact, or on the back flank) keeps its
+state in Python, which takes the same contacts from the enumerators here.
 """
 from __future__ import annotations
 
@@ -60,27 +60,40 @@ def mesh_excitation(t, excitation_constants, runout):
     return phase, phase_rate, e, e_t
 
 
-@njit("float64(float64, float64, float64, float64, float64, float64)", cache=True)
-def steady_contact(stiffness_ref, d, d_t, exponent, damping_per_stiffness, inverse_damping_onset):
-    """Force of one contact in steady mesh at deflection d > 0: elastic plus viscous, the viscous
-    part grown in by the smooth step 3 x^2 - 2 x^3 of x = d / d_op; never pulls."""
-    x = d * inverse_damping_onset
-    onset = x * x * (3.0 - 2.0 * x) if x < 1.0 else 1.0
-    force = stiffness_ref * (d / DEFLECTION_REF) ** exponent + damping_per_stiffness * stiffness_ref * onset * d_t
-    return force if force > 0.0 else 0.0
+# contacts[m] = (key, stiffness at 1 um, deflection, rate) of the m-th contact in touch; the
+# enumerators return how many, or BACK_FLANK (contacts[0, 2:] then holds the mesh's d and d')
+CONTACTS = "float64[:, ::1]"
+BACK_FLANK = -1
+TOO_MANY_CONTACTS = -2
+
+
+@njit(f"float64({CONTACTS}, int64, float64, float64, float64)", cache=True)
+def steady_sum(contacts, count, exponent, damping_per_stiffness, inverse_damping_onset):
+    """The steady mesh force of `count` contacts: per contact elastic plus viscous, the viscous part
+    grown in by the smooth step 3 x^2 - 2 x^3 of x = d / d_op; a contact never pulls. (The Python
+    path's `MeshForce._contact` is this plus an impact's hysteresis.)"""
+    total = 0.0
+    for m in range(count):
+        stiffness_ref, d, d_t = contacts[m, 1], contacts[m, 2], contacts[m, 3]
+        x = d * inverse_damping_onset
+        onset = x * x * (3.0 - 2.0 * x) if x < 1.0 else 1.0
+        force = stiffness_ref * (d / DEFLECTION_REF) ** exponent + damping_per_stiffness * stiffness_ref * onset * d_t
+        if force > 0.0:
+            total += force
+    return total
 
 
 # simple_constants: the layout `MeshForce` packs
 (S_BACKLASH, S_CONTACT_RATIO, S_BASE_PITCH, S_TIP_RADIUS, S_PAIR_FORCE_REF, S_EXPONENT, S_DAMPING,
  S_INVERSE_ONSET, S_TE_AMPLITUDE) = range(9)
+SIMPLE_TABLES = f"{VECTOR}, {MATRIX}, {VECTOR}, {VECTOR}, {VECTOR}"
 
 
-@njit(f"float64({VECTOR}, {MATRIX}, {VECTOR}, {VECTOR}, {VECTOR}, float64, float64, float64)", cache=True)
-def simple_steady_force(excitation_constants, runout, constants, stiffness_factor, pair_pitch_error,
-                        t, deflection, rate):
-    """The `simple` mesh's force in steady contact (`MeshForce`); -1 where the back flank touches
-    (an impact: the caller's Python path takes it). The tables come first, so that
-    functools.partial binds them once."""
+@njit(f"int64({SIMPLE_TABLES}, float64, float64, float64, {CONTACTS})", cache=True)
+def simple_contacts(excitation_constants, runout, constants, stiffness_factor, pair_pitch_error,
+                    t, deflection, rate, contacts):
+    """The `simple` mesh's contacts in touch (`MeshForce`): pair j nominally in contact while its
+    phase is in [0, contact ratio), all pairs equally stiff, the tip gap s^2 / (2 rho) outside."""
     phase, phase_rate, e, e_t = mesh_excitation(t, excitation_constants, runout)
     c = constants
     te = c[S_TE_AMPLITUDE]
@@ -90,11 +103,12 @@ def simple_steady_force(excitation_constants, runout, constants, stiffness_facto
         e_t += te * w * phase_rate * math.cos(w * phase)
     d, d_t = deflection - e, rate - e_t
     if -d - c[S_BACKLASH] > 0.0:
-        return -1.0
+        contacts[0, 2], contacts[0, 3] = d, d_t
+        return BACK_FLANK
     contact_ratio, pitch, rho = c[S_CONTACT_RATIO], c[S_BASE_PITCH], c[S_TIP_RADIUS]
     teeth, period = stiffness_factor.shape[0], pair_pitch_error.shape[0]
     pitch_rate = pitch * phase_rate
-    total = 0.0
+    count = 0
     for j in range(math.floor(phase - contact_ratio), math.floor(phase) + 2):
         u = phase - j
         if u < 0.0:  # approaching: the gap closes as the pair nears its start of contact
@@ -108,41 +122,58 @@ def simple_steady_force(excitation_constants, runout, constants, stiffness_facto
         stiffness = stiffness_factor[j % teeth] * c[S_PAIR_FORCE_REF]
         pair_d = d - gap + pair_pitch_error[j % period]
         if pair_d > 0.0 and stiffness > 0.0:
-            total += steady_contact(stiffness, pair_d, d_t - gap_t, c[S_EXPONENT], c[S_DAMPING], c[S_INVERSE_ONSET])
-    return total
+            if count == contacts.shape[0]:
+                return TOO_MANY_CONTACTS
+            contacts[count, 0], contacts[count, 1] = j, stiffness
+            contacts[count, 2], contacts[count, 3] = pair_d, d_t - gap_t
+            count += 1
+    return count
+
+
+@njit(f"float64({SIMPLE_TABLES}, {CONTACTS}, float64, float64, float64)", cache=True)
+def simple_steady_force(excitation_constants, runout, constants, stiffness_factor, pair_pitch_error, contacts,
+                        t, deflection, rate):
+    """The `simple` mesh's force in steady contact; -1 where the back flank touches (an impact)
+    or the contacts overflow `contacts`: the caller's Python path takes both. The tables and the
+    contacts' scratch space come first, so that functools.partial binds them once."""
+    count = simple_contacts(excitation_constants, runout, constants, stiffness_factor, pair_pitch_error,
+                            t, deflection, rate, contacts)
+    if count < 0:
+        return -1.0
+    c = constants
+    return steady_sum(contacts, count, c[S_EXPONENT], c[S_DAMPING], c[S_INVERSE_ONSET])
 
 
 # tvms_constants: the layout `TVMSMeshForce` packs
 (T_BACKLASH, T_WINDOW, T_POINTS_PER_PITCH, T_BASE_PITCH, T_TIP_RADIUS, T_EXPONENT, T_DAMPING, T_INVERSE_ONSET,
  T_EDGE_EXCESS, T_EXTENDED, T_MAX_DEFLECTION) = range(11)
+TVMS_TABLES = f"{VECTOR}, {MATRIX}, {VECTOR}, {TABLE}, {MATRIX}, {INDEX}, {VECTOR}"
 
 
-@njit(f"float64({VECTOR}, {MATRIX}, {VECTOR}, {TABLE}, {MATRIX}, {INDEX}, {VECTOR}, float64, float64, float64)",
-      cache=True)
-def tvms_steady_force(excitation_constants, runout, constants, tables, edges, tooth_groups, pair_pitch_error,
-                      t, deflection, rate):
-    """The `potential_energy` mesh's force in steady contact (`TVMSMeshForce`); -1 where the back
-    flank touches (an impact) or the deflection is out of range (divergence): the caller's Python
-    path takes both. The tables come first, so that functools.partial binds them once.
+@njit(f"int64({TVMS_TABLES}, float64, float64, float64, {CONTACTS})", cache=True)
+def tvms_contacts(excitation_constants, runout, constants, tables, edges, tooth_groups, pair_pitch_error,
+                  t, deflection, rate, contacts):
+    """The `potential_energy` mesh's contacts in touch (`TVMSMeshForce`), one per contact group of
+    each pair (key 4 j + group).
 
     tables[group, i] = (K_i, K_(i+1) - K_i, e_i, e_(i+1) - e_i) on the pair-phase grid; edges[group] =
     (K, e) at the window's start and end; tooth_groups[tooth] = that pinion tooth's groups (-1:
-    none); pair_pitch_error[j mod lcm(z1, z2)]: pair j's pitch errors."""
-    c = constants
-    if not abs(deflection) < c[T_MAX_DEFLECTION]:
-        return -1.0
+    none); pair_pitch_error[j mod lcm(z1, z2)]: pair j's pitch errors. A pair whose stiffness does
+    not vanish at its window's edges (spur gears) keeps the extended contact beyond them, as far as
+    the largest pitch error lets a flank stand proud of the mesh."""
     phase, phase_rate, e, e_t = mesh_excitation(t, excitation_constants, runout)
+    c = constants
     d, d_t = deflection - e, rate - e_t
     if -d - c[T_BACKLASH] > 0.0:
-        return -1.0
+        contacts[0, 2], contacts[0, 3] = d, d_t
+        return BACK_FLANK
     window, ppp, pitch, rho = c[T_WINDOW], c[T_POINTS_PER_PITCH], c[T_BASE_PITCH], c[T_TIP_RADIUS]
-    exponent, damping, inverse_onset = c[T_EXPONENT], c[T_DAMPING], c[T_INVERSE_ONSET]
     reach = d + c[T_EDGE_EXCESS]  # the largest pair deflection at a window's edge
     ext = math.sqrt(2.0 * rho * reach) / pitch if (c[T_EXTENDED] > 0.0 and reach > 0.0) else 0.0
     deviation_rate = ppp * phase_rate  # d(table position)/dt
     gap_rate = pitch * phase_rate / rho
     teeth, slots, period = tooth_groups.shape[0], tooth_groups.shape[1], pair_pitch_error.shape[0]
-    total = 0.0
+    count = 0
     for j in range(math.floor(phase - window - ext) + 1, math.floor(phase + ext) + 1):
         u = phase - j
         d_pair = d + pair_pitch_error[j % period]
@@ -168,10 +199,27 @@ def tvms_steady_force(excitation_constants, runout, constants, tables, edges, to
                 k = edges[group, side]
                 gd = d_pair - edges[group, side + 1] - gap
                 gd_t = d_t + gap_t
-            if k > 0.0 and gd > 0.0:  # steady_contact, inline and factored by k
-                x_onset = gd * inverse_onset
-                onset = x_onset * x_onset * (3.0 - 2.0 * x_onset) if x_onset < 1.0 else 1.0
-                force = k * ((gd * INVERSE_DEFLECTION_REF) ** exponent + damping * onset * gd_t)
-                if force > 0.0:
-                    total += force
-    return total
+            if k > 0.0 and gd > 0.0:
+                if count == contacts.shape[0]:
+                    return TOO_MANY_CONTACTS
+                contacts[count, 0], contacts[count, 1] = 4 * j + slot, k
+                contacts[count, 2], contacts[count, 3] = gd, gd_t
+                count += 1
+    return count
+
+
+@njit(f"float64({TVMS_TABLES}, {CONTACTS}, float64, float64, float64)", cache=True)
+def tvms_steady_force(excitation_constants, runout, constants, tables, edges, tooth_groups, pair_pitch_error,
+                      contacts, t, deflection, rate):
+    """The `potential_energy` mesh's force in steady contact; -1 where the back flank touches (an
+    impact), the deflection is out of range (divergence) or the contacts overflow `contacts`: the
+    caller's Python path takes them. The tables and the contacts' scratch space come first, so
+    that functools.partial binds them once."""
+    c = constants
+    if not abs(deflection) < c[T_MAX_DEFLECTION]:
+        return -1.0
+    count = tvms_contacts(excitation_constants, runout, constants, tables, edges, tooth_groups, pair_pitch_error,
+                          t, deflection, rate, contacts)
+    if count < 0:
+        return -1.0
+    return steady_sum(contacts, count, c[T_EXPONENT], c[T_DAMPING], c[T_INVERSE_ONSET])

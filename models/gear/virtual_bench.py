@@ -10,9 +10,9 @@ report labels them):
 - the motor's torque ripple at twice the line frequency;
 - its own gears: one pair of ISO 1328-1 accuracy `gear_grade` (`errors.draw_gear_errors`, drawn
   once from the bench seed: the same physical gears in every record) with its own misalignment;
-- its own damage (`faults`): a surface fault as pitting (pits around the pitch line) and a missing
-  tooth as a tooth broken off above a height, built here as flank geometry; the model's fault code
-  is never called for a state that has a bench form;
+- its own damage (`faults`): a surface fault as pitting (pits around the pitch line), a missing
+  tooth as a tooth broken off above a height, a spall as a crater with a rough floor, built here as
+  flank geometry; the model's fault code is never called for a state that has a bench form;
 - slow speed and load fluctuations of its own amplitude and frequency; every record starts at its
   own angle of both shafts;
 - coloured (low-frequency weighted) sensor noise on top of white noise.
@@ -93,7 +93,8 @@ def bench_gears(form: BenchForm, geometry, seed: int) -> dict:
 
 
 # The bench's own fault forms: health state -> form; each form's keys (`virtual_bench.faults`).
-FAULT_FORMS = {"pitting": ("teeth", "pit_depth", "pitted_area"), "broken_tooth": ("broken_height",)}
+FAULT_FORMS = {"pitting": ("teeth", "pit_depth", "pitted_area"), "broken_tooth": ("broken_height",),
+               "spall": ("depth", "profile", "face")}
 
 
 def pitting_map(rng: np.random.Generator, pit_depth: float, pitted_area: float, rows: int = 41,
@@ -121,6 +122,15 @@ def broken_tooth_map(broken_height: float, rows: int = 41) -> FlankMap:
     return FlankMap.of(np.where(roll >= 1.0 - broken_height, 1.0e-3, 0.0))
 
 
+def spall_map(rng: np.random.Generator, depth: float, profile, face, rows: int = 41, columns: int = 21) -> FlankMap:
+    """A spall of one flank: the crater pits leave when they join and flake off, over `profile` x
+    `face` ([start, end] fractions of the active profile and of the face width), its floor rough:
+    0.7-1.0 of `depth` below the flank, cell by cell."""
+    roll, across = np.meshgrid(np.linspace(0, 1, rows), np.linspace(0, 1, columns), indexing="ij")
+    inside = (roll >= profile[0]) & (roll <= profile[1]) & (across >= face[0]) & (across <= face[1])
+    return FlankMap.of(np.where(inside, depth * rng.uniform(0.7, 1.0, roll.shape), 0.0))
+
+
 def bench_fault(health_state: str, faults: dict, teeth: int, faulty_tooth: int, rng: np.random.Generator):
     """(the health state the model runs, per-tooth flank maps) of the bench's own form of
     `health_state` (`faults`: health state -> {form, its keys}); a state without a bench form
@@ -136,6 +146,8 @@ def bench_fault(health_state: str, faults: dict, teeth: int, faulty_tooth: int, 
     if form == "pitting":
         for k in range(int(spec["teeth"])):
             maps[(faulty_tooth + k) % teeth] = pitting_map(rng, spec["pit_depth"], spec["pitted_area"])
+    elif form == "spall":
+        maps[faulty_tooth % teeth] = spall_map(rng, spec["depth"], spec["profile"], spec["face"])
     else:
         maps[faulty_tooth % teeth] = broken_tooth_map(spec["broken_height"])
     return "healthy", tuple(maps)

@@ -171,6 +171,10 @@ class GearSystem(System):
                 missing = [key for key in FAULT_FORMS[spec["form"]] if key not in spec]
                 if missing:
                     problems.append(f"virtual_bench.faults.{state}: form {spec['form']} needs {missing}")
+                for key in ("profile", "face"):
+                    if key in spec and not spec[key][0] < spec[key][1]:
+                        problems.append(f"virtual_bench.faults.{state}.{key}: [start, end] with start < end "
+                                        f"(got {spec[key]})")
             try:
                 self.parameters(**dict(config["virtual_bench"]["model_overrides"]))
             except (ValueError, TypeError) as exc:
@@ -201,7 +205,7 @@ class GearSystem(System):
         for state in self.health_states:
             spec = bench["faults"].get(state)
             if spec is not None:
-                details = ", ".join(f"{k} {v:g}" for k, v in spec.items() if k != "form")
+                details = ", ".join(f"{k} {_number_or_range(v)}" for k, v in spec.items() if k != "form")
                 effects.append(f"{state} as its own {spec['form'].replace('_', ' ')} ({details})")
             elif state != self.healthy_state:
                 effects.append(f"{state}: the model's own fault form (no bench form)")
@@ -303,3 +307,10 @@ class GearSystem(System):
         geometry = self.config["model"]["geometry"]
         pinion, gear = int(geometry["teeth_pinion"]), int(geometry["teeth_gear"])
         return [("pinion", 1.0, pinion), ("gear", pinion / gear, gear)]
+
+
+def _number_or_range(value) -> str:
+    """A bench fault key's value as the report lists it: 3e-05, or [0.3, 0.6] for a range."""
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(f"{v:g}" for v in value) + "]"
+    return f"{value:g}"

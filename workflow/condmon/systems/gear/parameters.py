@@ -60,8 +60,9 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
     - slow sinusoidal speed and load fluctuations (`model.variability`: amplitude uniform up to
       the configured one, frequency uniform in its range, random phase);
     - the severity of its faults (`model.fault_severity`: the wear depth, the pits' depth and
-      pitted area, the spall's depth, the root crack's depth and the share of a broken tooth's
-      profile that is gone, each uniform in its range) and the
+      pitted area, the spall's depth and its width (at a uniform place across the face), the root
+      crack's depth and the share of a broken tooth's profile that is gone, each uniform in its
+      range) and the
       damaged surfaces' seed (its parity picks wear or pitting under `wear_or_pitting`);
     - the mesh phase the run starts at, uniform over the gear pair's full cycle (a measurement
       starts at any shaft angle: where the damaged tooth passes within a segment varies)."""
@@ -96,4 +97,11 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
         # the record starts at any shaft angle of both gears (drawn last: the draws above stay as they were)
         start_mesh_phase=uniform(0.0, math.lcm(geometry.teeth_pinion, geometry.teeth_gear)),
         missing_share=uniform(*severity["missing_share"]),
+        spall_face=_spall_face(uniform(*severity["spall_width"]), rng),  # drawn last, as the line above
     )
+
+
+def _spall_face(width: float, rng: np.random.Generator) -> tuple[float, float]:
+    """[start, end] of a spall `width` wide (share of the face width) at a uniform place across it."""
+    start = float(rng.uniform(0.0, 1.0 - width))
+    return start, start + width
