@@ -82,6 +82,11 @@ def test_summary_aggregates_over_repeats_and_labels_the_source(built_report):
     assert row["accuracy_mean"] == pytest.approx(per_repeat.mean())
     assert row["accuracy_min"] == pytest.approx(per_repeat.min())
     assert summary["n_measured_records"] == len(fake.LABELS) * len(fake.SPEEDS) * 3
+    # the measured records' own separability, per speed and over all (condmon.separability)
+    separability = summary["measured_separability"]
+    assert set(separability["per_condition"]) == {"600", "900"} and separability["condition"] == "speed_rpm"
+    assert separability["all"]["records"] == summary["n_measured_records"]
+    assert 0.0 <= separability["all"]["balanced_accuracy"] <= 1.0
 
 
 @pytest.mark.slow

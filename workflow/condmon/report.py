@@ -36,11 +36,13 @@ from sklearn.metrics import confusion_matrix
 
 from condmon import evaluation, job_timings, plots
 from condmon.evaluation import SMALL_TEST_SET, wilson_interval
+from condmon.features import read_feature_table
 from condmon.atomic import staging_directory, write_text
 from condmon.hybrid import SIMULATED_VALIDATION
 from condmon.labels import (LEAKY_PROTOCOLS, data_source_label, format_speed, is_synthetic,
                             label_order, protocol_label, protocol_title)
 from condmon.report_inputs import CalibrationOutputs, ReportInputs, RunIdentity
+from condmon.separability import measured_separability
 from condmon.train_tables import ReportInputError, load_metrics, load_predictions, read_table
 
 log = logging.getLogger(__name__)
@@ -903,6 +905,11 @@ def write_report(inputs: ReportInputs) -> dict:
                 design_records, physics, baseline_predictions)
             add_evaluation(summary, overall, predictions, upstream.measured_records,
                            design_records, chosen.design_specimens, specimens)
+            summary["measured_separability"] = measured_separability(*read_feature_table(features), condition)
+            log.info("measured records alone, leave one record out: %s over all, %s per %s",
+                     summary["measured_separability"]["all"]["balanced_accuracy"],
+                     {k: v["balanced_accuracy"] for k, v in summary["measured_separability"]["per_condition"].items()},
+                     condition)
             plots.save_figure(plots.simulation_gain(
                 gain_against_strongest(overall), 1.0 / len(labels),
                 plot_note(run.run_name, run.data_source, len(run.bench_effects), design_tested)),

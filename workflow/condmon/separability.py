@@ -1,0 +1,48 @@
+"""Can the measured records show their classes at all?
+
+A measured-only classifier, each measured record left out in turn: the ceiling a classifier
+trained on simulation can approach on these records. No simulation takes part. A class the
+measured records cannot show (on a real rig: a fault no engineer could see in its own data) is
+no failure of the simulation; the report gives this figure beside every run (summary.json
+`measured_separability`).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from sklearn.metrics import balanced_accuracy_score
+from sklearn.model_selection import LeaveOneGroupOut, cross_val_predict
+from sklearn.pipeline import make_pipeline
+from sklearn.preprocessing import StandardScaler
+from sklearn.svm import SVC
+
+METHOD = ("SVM-RBF (standardised features, C 1.2, gamma scale) on the measured records alone, all "
+          "features, each record left out in turn; balanced accuracy per segment")
+
+
+def leave_one_record_out(frame: pd.DataFrame, names, label: str = "health_state") -> float | None:
+    """Balanced accuracy of METHOD on `frame` (one row per segment, `record_id`); None where a
+    class has fewer than two records (left out, it could not be learnt) or only one class is
+    there."""
+    records_per_class = frame.groupby(label)["record_id"].nunique()
+    if len(records_per_class) < 2 or records_per_class.min() < 2:
+        return None
+    model = make_pipeline(StandardScaler(), SVC(C=1.2, gamma="scale"))
+    predicted = cross_val_predict(model, frame[list(names)].to_numpy(float), frame[label].to_numpy(),
+                                  groups=frame["record_id"].to_numpy(), cv=LeaveOneGroupOut())
+    return float(balanced_accuracy_score(frame[label], predicted))
+
+
+def measured_separability(frame: pd.DataFrame, names, condition: str) -> dict:
+    """METHOD per value of the operating `condition` (e.g. speed_rpm, load) and over all of them,
+    with the records and classes each figure rests on."""
+    def entry(part: pd.DataFrame) -> dict:
+        return {"balanced_accuracy": leave_one_record_out(part, names),
+                "records": int(part["record_id"].nunique()),
+                "records_per_class": {str(k): int(v) for k, v in
+                                      part.groupby("health_state")["record_id"].nunique().items()}}
+
+    with np.errstate(all="ignore"):
+        return {"method": METHOD, "condition": condition, "features": len(names),
+                "all": entry(frame),
+                "per_condition": {f"{value:g}": entry(part) for value, part in frame.groupby(condition)}}
