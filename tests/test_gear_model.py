@@ -187,25 +187,6 @@ def test_spur_missing_tooth_reengages_within_backlash():
     assert deflection.max() < 50e-6               # ... and the re-engagement impact stays bounded
 
 
-def test_tvms_mesh_force_costs_less_than_twice_the_simple_one():
-    """The cost of a simulated second is the mesh function's: ~200k calls. Same calls, both models."""
-    import time
-
-    costs = {}
-    for model in ("potential_energy", SIMPLE):
-        mesh = MeshForce(GearDrivetrainParameters(speed_rpm=1100.0, mesh_stiffness_model=model))
-        t = (np.arange(20000) / 204800.0).tolist()
-        d = (0.63e-6 + 0.05e-6 * np.sin(np.arange(20000) * 0.02)).tolist()
-        best = math.inf
-        for _ in range(3):
-            start = time.process_time()
-            for x, y in zip(t, d):
-                mesh(x, y, 0.0)
-            best = min(best, time.process_time() - start)
-        costs[model] = best
-    assert costs["potential_energy"] < 2.0 * costs[SIMPLE], costs
-
-
 @pytest.fixture(scope="module")
 def healthy_run():
     params = GearDrivetrainParameters(speed_rpm=1100.0)
