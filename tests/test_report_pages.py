@@ -8,6 +8,7 @@ import pytest
 
 import fake_train_outputs as fake
 from condmon import labels, plots, report
+from condmon.features import read_feature_table, write_feature_table
 from condmon.report_pages import write_pages
 
 
@@ -107,13 +108,13 @@ def test_a_cwru_like_condition_groups_the_figures_by_load_not_by_each_files_rpm(
     condition is the motor load (two values). The per-condition figures and prediction_shares.csv
     group by the load."""
     root, paths = train_outputs
-    features = pd.read_parquet(paths["features_measured"])
+    features, names = read_feature_table(paths["features_measured"])
     records = sorted(features["record_id"].unique())
     load_of = {record: float(i % 2) for i, record in enumerate(records)}
     rpm_of = {record: 1720.0 + 3 * i for i, record in enumerate(records)}  # one stored speed per file
     features["load"] = features["record_id"].map(load_of)
     features_path = tmp_path / "measured.parquet"
-    features.to_parquet(features_path)
+    write_feature_table(features, names, features_path)
     predictions = []
     for path in paths["predictions"]:
         frame = pd.read_parquet(path)
