@@ -905,11 +905,11 @@ def write_report(inputs: ReportInputs) -> dict:
                 design_records, physics, baseline_predictions)
             add_evaluation(summary, overall, predictions, upstream.measured_records,
                            design_records, chosen.design_specimens, specimens)
-            summary["measured_separability"] = measured_separability(*read_feature_table(features), condition)
+            separability = measured_separability(*read_feature_table(features), condition)
+            summary["measured_separability"] = separability
             log.info("measured records alone, leave one record out: %s over all, %s per %s",
-                     summary["measured_separability"]["all"]["balanced_accuracy"],
-                     {k: v["balanced_accuracy"] for k, v in summary["measured_separability"]["per_condition"].items()},
-                     condition)
+                     separability["all"]["balanced_accuracy"],
+                     {k: v["balanced_accuracy"] for k, v in separability["per_condition"].items()}, condition)
             plots.save_figure(plots.simulation_gain(
                 gain_against_strongest(overall), 1.0 / len(labels),
                 plot_note(run.run_name, run.data_source, len(run.bench_effects), design_tested)),

@@ -20,17 +20,17 @@ METHOD = ("SVM-RBF (standardised features, C 1.2, gamma scale) on the measured r
           "features, each record left out in turn; balanced accuracy per segment")
 
 
-def leave_one_record_out(frame: pd.DataFrame, names, label: str = "health_state") -> float | None:
+def leave_one_record_out(frame: pd.DataFrame, names) -> float | None:
     """Balanced accuracy of METHOD on `frame` (one row per segment, `record_id`); None where a
     class has fewer than two records (left out, it could not be learnt) or only one class is
     there."""
-    records_per_class = frame.groupby(label)["record_id"].nunique()
+    records_per_class = frame.groupby("health_state")["record_id"].nunique()
     if len(records_per_class) < 2 or records_per_class.min() < 2:
         return None
     model = make_pipeline(StandardScaler(), SVC(C=1.2, gamma="scale"))
-    predicted = cross_val_predict(model, frame[list(names)].to_numpy(float), frame[label].to_numpy(),
+    predicted = cross_val_predict(model, frame[list(names)].to_numpy(float), frame["health_state"].to_numpy(),
                                   groups=frame["record_id"].to_numpy(), cv=LeaveOneGroupOut())
-    return float(balanced_accuracy_score(frame[label], predicted))
+    return float(balanced_accuracy_score(frame["health_state"], predicted))
 
 
 def measured_separability(frame: pd.DataFrame, names, condition: str) -> dict:
