@@ -4,7 +4,8 @@
 Markers (pyproject.toml): `pipeline` runs a Snakemake pipeline, `slow` takes over about 5 s
 otherwise. `pytest -q` runs everything; `pytest -q -m "not pipeline and not slow"` the fast ones.
 Each pipeline config that several tests read runs once per session, in a fixture here (`smoke`,
-`cwru_run`); a test that changes a run works on a copy of it.
+`cwru_run`); a test that changes a run works on a copy of it. Each is read by one test file, and
+pytest-xdist hands a whole file to one worker (`--dist loadfile`, pyproject.toml), so it still runs once.
 """
 import copy
 import os
