@@ -92,7 +92,7 @@ def test_build_rig_parameters():
     ball = build_rig_parameters({}, "ball", 1797.0, ball_defect_strike_probability=0.3, ball_drop_scale=0.5)
     race = build_rig_parameters({}, "inner_race", 1797.0, ball_defect_strike_probability=0.3, ball_drop_scale=0.5)
     assert ball.defect_strike_probability == 0.3 and ball.defect_drop_scale == 0.5
-    assert race.defect_strike_probability == 1.0 and race.defect_drop_scale == 1.0
+    assert race.defect_strike_probability is None and race.defect_drop_scale == 1.0  # the ball's stay its own
     with pytest.raises(ValueError, match="unknown bearing model parameters"):
         build_rig_parameters({}, "normal", 1797.0, rotor_colour=1.0)
 

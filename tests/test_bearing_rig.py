@@ -6,7 +6,8 @@ from scipy.signal import welch
 
 from condmon.stat_features import envelope_line_ratio, envelope_spectrum
 from condmon.models.bearing.rig import (SKF_6203, SKF_6205, BearingRigParameters, RigSettings, SimulationError,
-                                        _DefectProfile, effective_defect_depth, simulate_rig)
+                                        _DefectProfile, ball_strike_probability, contact_half_width,
+                                        effective_defect_depth, simulate_rig)
 
 SPEED = 1797.0
 SHAFT_HZ = SPEED / 60.0
@@ -28,6 +29,36 @@ def test_effective_depth_is_limited_by_the_ball():
     assert 0.5e-6 < effective_defect_depth(small) < 2e-6          # ~1 um, far below the 0.28 mm pit
     assert effective_defect_depth(large) == pytest.approx(9 * effective_defect_depth(small), rel=1e-9)
     assert effective_defect_depth(large.replace(defect_depth=1e-6)) == 1e-6
+
+
+def test_a_ball_defect_sinks_deeper_into_the_convex_inner_race_than_into_the_outer_race():
+    ball = BearingRigParameters(defect_kind="ball", defect_width=0.014 * 0.0254)
+    rb, g = SKF_6205.ball_diameter / 2, SKF_6205
+    ratio = (1 / rb + 1 / g.inner_race_radius) / (1 / rb - 1 / g.outer_race_radius)
+    assert effective_defect_depth(ball, "inner") == pytest.approx(ratio * effective_defect_depth(ball, "outer"))
+    assert 1.4 < ratio < 1.6
+    with pytest.raises(ValueError, match="name the race"):
+        effective_defect_depth(ball)
+    # passages alternate: outer race on even ones, inner race on odd ones
+    profile = _DefectProfile(ball, hash_seed=1.0)
+    assert profile.depth == effective_defect_depth(ball, "outer")
+    assert profile.depth + profile.inner_extra == pytest.approx(effective_defect_depth(ball, "inner"))
+
+
+def test_a_ball_pit_strikes_on_the_share_of_turns_it_crosses_the_rolling_track():
+    # Hertz: the track's half-width grows as the load^(1/3); at the CWRU rig's loads it is a few
+    # tenths of a mm, so a pit on a 7.9 mm ball meets the races on about a tenth to a fifth of the turns
+    assert contact_half_width(SKF_6205, 80.0, "inner") == pytest.approx(
+        2 * contact_half_width(SKF_6205, 10.0, "inner"), rel=1e-9)
+    assert 0.2e-3 < contact_half_width(SKF_6205, 22.0, "outer") < 0.6e-3
+    small = BearingRigParameters(defect_kind="ball", defect_width=0.007 * 0.0254)
+    shares = [ball_strike_probability(small), ball_strike_probability(small.replace(defect_width=0.021 * 0.0254)),
+              ball_strike_probability(small.replace(radial_load=150.0))]
+    assert 0.05 < shares[0] < shares[1] < 0.3 and shares[0] < shares[2] < 0.3
+    assert _DefectProfile(small, hash_seed=1.0).strike == shares[0]          # None: from the contact
+    assert _DefectProfile(small.replace(defect_strike_probability=0.5), hash_seed=1.0).strike == 0.5
+    race = BearingRigParameters(defect_kind="outer_race", defect_width=0.007 * 0.0254)
+    assert _DefectProfile(race, hash_seed=1.0).strike == 1.0                  # a race pit: every passage
 
 
 # Clean signals for the kinematic checks: no background, little noise, every passage strikes.
@@ -74,6 +105,17 @@ def test_defect_line_at_the_kinematic_frequency(runs, kind, order):
     assert ratio > 4.0, f"{kind}: envelope line only {ratio:.2f} x its floor"
     healthy_peak, healthy_ratio = _line(runs["none"], order)
     assert healthy_ratio < 3.0, f"healthy rig shows a line at the {kind} frequency ({healthy_ratio:.2f})"
+
+
+@pytest.mark.slow
+def test_a_shallow_ball_defect_strikes_the_races_in_turn_so_its_envelope_shows_bsf():
+    # drops below the contact deflection: each strike's strength follows its race's curvature, so
+    # the outer/inner alternation leaves a line at BSF beside 2 x BSF (equal strikes: ratio < 2)
+    params = BearingRigParameters(speed_rpm=SPEED, defect_kind="ball", **(CLEAN | dict(defect_drop_scale=0.15)))
+    signal = simulate_rig(params, RigSettings(duration=1.0, settle_time=0.1), np.random.default_rng(4))["DE"]
+    peak, ratio = _line(signal, SKF_6205.orders()["bsf"])
+    assert peak == pytest.approx(SKF_6205.orders()["bsf"] * SHAFT_HZ, rel=0.015)
+    assert ratio > 3.0, f"no BSF line ({ratio:.2f} x its floor): the strikes do not alternate"
 
 
 @pytest.mark.slow

@@ -18,8 +18,10 @@ Mechanics (exudyn, plane x horizontal / y vertical, 8 DOF, RK44):
 - the defect (DE bearing only) is a local loss of contact deflection p(t) of the ball that is in
   it: the connector adds K [max(delta_d - p, 0)^1.5 - max(delta_d, 0)^1.5] along the line through
   the defect (`_DefectProfile`): at the fixed clock position for the outer race, rotating with the
-  shaft for the inner race, carried by the cage (ball 0) for a ball defect, which strikes the
-  races twice per spin (2 x BSF). The defect has a width (the ball can only sink by
+  shaft for the inner race, carried by the cage (ball 0) for a ball defect, which meets the outer
+  and the inner race in turn, once each per spin (strikes at 2 x BSF; the convex inner race lets
+  the ball sink deeper than the concave outer one, so the strikes alternate in strength and the
+  envelope shows BSF too). The defect has a width (the ball can only sink by
   w^2/(8 R_b) (1 +/- R_b/R_race) into a narrow slot, at most the depth), raised-cosine entry and
   exit ramps (`defect_entry`, `defect_exit` as fractions of the width: a gradual entry/exit is
   far less impulsive than a square pit), and per-passage randomness from a hash of the passage
@@ -162,7 +164,9 @@ class BearingRigParameters:
     defect_entry: float = 0.3               # entry ramp, fraction of the width (raised cosine)
     defect_exit: float = 0.1                # exit ramp, fraction of the width
     defect_depth_variation: float = 0.2     # per-passage depth spread, +/- fraction (uniform)
-    defect_strike_probability: float = 1.0  # chance that a passage strikes (ball: spin axis wanders)
+    # chance that a passage strikes; None: a race defect every passage, a ball defect the share of
+    # its spin turns on which its pit crosses the rolling track (`ball_strike_probability`)
+    defect_strike_probability: float | None = None
     defect_phase: float = 0.0               # rad: inner-race defect angle / ball defect spin angle at t=0
     slip_std: float = 0.01                  # std of the wandering slip rate, fraction of the passage rate
     # Rough running of the damaged contact (rough pit floor, debris, a ball pit rubbing obliquely):
@@ -213,19 +217,60 @@ def de_clearance(p: BearingRigParameters) -> float:
     return p.radial_clearance - p.preload_deflection
 
 
-def effective_defect_depth(p: BearingRigParameters) -> float:
+def effective_defect_depth(p: BearingRigParameters, race: str | None = None) -> float:
     """How far the ball centre can sink into the defect: a ball of radius R_b spanning a slot of
     width w sinks w^2/(8 R_b) against a flat race, more on the convex inner race and less on the
-    concave outer race (relative curvature 1/R_b +/- 1/R_race), and never deeper than the pit."""
+    concave outer race (relative curvature 1/R_b +/- 1/R_race), and never deeper than the pit.
+    A race defect meets its own race; a ball defect meets both in turn, so `race` ("outer" or
+    "inner") names the one it meets."""
     g = p.de_geometry
     rb = g.ball_diameter / 2
-    if p.defect_kind == "outer_race":
+    race = race or {"outer_race": "outer", "inner_race": "inner"}.get(p.defect_kind)
+    if race == "outer":
         curvature = 1 / rb - 1 / g.outer_race_radius
-    elif p.defect_kind == "inner_race":
+    elif race == "inner":
         curvature = 1 / rb + 1 / g.inner_race_radius
-    else:  # ball defect: the ball's own curvature against either race (mean)
-        curvature = 1 / rb
+    else:
+        raise ValueError(f"defect {p.defect_kind!r}: name the race it meets ('outer' or 'inner'), got {race!r}")
     return float(min(p.defect_depth, p.defect_drop_scale * p.defect_width ** 2 / 8 * curvature))
+
+
+# Hertz contact of steel balls on steel races, and the races' groove radius over the ball diameter
+# (deep-groove ball bearings: 0.515-0.53; Harris and Kotzalas, Rolling Bearing Analysis, ch. 2)
+STEEL_YOUNGS_MODULUS = 2.08e11
+STEEL_POISSON_RATIO = 0.3
+GROOVE_CONFORMITY = 0.52
+
+
+def contact_half_width(geometry: BearingGeometry, ball_load: float, race: str) -> float:
+    """Semi-axis of the Hertz contact ellipse across the rolling direction (m) of a ball pressed
+    with `ball_load` N on the "inner" or "outer" race: the half-width of the track the ball rolls
+    on (Hamrock and Brewe 1983: ellipticity k = 1.0339 (Ry/Rx)^0.636, elliptic integral
+    E = 1.0003 + 0.5968 Rx/Ry, semi-axis (6 k^2 E W R / (pi E'))^(1/3))."""
+    rb = geometry.ball_diameter / 2
+    race_radius = geometry.inner_race_radius if race == "inner" else -geometry.outer_race_radius
+    rx = 1 / (1 / rb + 1 / race_radius)                                      # rolling direction
+    ry = 1 / (1 / rb - 1 / (GROOVE_CONFORMITY * geometry.ball_diameter))     # across, in the groove
+    k = 1.0339 * (ry / rx) ** 0.636
+    elliptic = 1.0003 + 0.5968 * rx / ry
+    reduced_modulus = STEEL_YOUNGS_MODULUS / (1 - STEEL_POISSON_RATIO ** 2)
+    radius = 1 / (1 / rx + 1 / ry)
+    return float((6 * k ** 2 * elliptic * ball_load * radius / (math.pi * reduced_modulus)) ** (1 / 3))
+
+
+def ball_strike_probability(p: BearingRigParameters) -> float:
+    """Share of a defective ball's spin turns on which its pit meets the races. The ball rolls on
+    a band about its spin equator as wide as the contact (`contact_half_width`, at the most loaded
+    ball's load, 5 F_r / Z by Stribeck, F_r the drive-end journal's load); the pit strikes while
+    its centre is within that half-width plus its own radius of the equator. A real ball's spin
+    axis wanders (cage and race friction), so over many turns every orientation is taken: the
+    share of the sphere within an angle beta of a great circle is sin(beta)."""
+    g = p.de_geometry
+    journal_load = p.rotor_mass * p.de_mass_share * p.gravity + p.radial_load
+    ball_load = max(5 * journal_load / (g.n_balls * math.cos(math.radians(g.contact_angle_deg))), 1e-3)
+    half_width = np.mean([contact_half_width(g, ball_load, race) for race in ("inner", "outer")])
+    beta = (half_width + p.defect_width / 2) / (g.ball_diameter / 2)
+    return float(min(1.0, math.sin(min(beta, math.pi / 2))))
 
 
 def _check(p: BearingRigParameters, s: RigSettings) -> None:
@@ -244,8 +289,8 @@ def _check(p: BearingRigParameters, s: RigSettings) -> None:
             raise ValueError("defect_width, defect_depth and defect_drop_scale must be positive for a defect")
         if not (0 < p.defect_entry <= 1 and 0 < p.defect_exit <= 1):
             raise ValueError("defect_entry and defect_exit must lie in (0, 1]")
-        if not 0 < p.defect_strike_probability <= 1:
-            raise ValueError("defect_strike_probability must lie in (0, 1]")
+        if p.defect_strike_probability is not None and not 0 < p.defect_strike_probability <= 1:
+            raise ValueError("defect_strike_probability must lie in (0, 1] (or be None: from the contact)")
         if not (p.defect_roughness >= 0 and 0 <= p.defect_roughness_modulation <= 1):
             raise ValueError("defect_roughness must be >= 0 and defect_roughness_modulation in [0, 1]")
         if not 0 <= p.defect_depth_variation < 1:
@@ -303,10 +348,18 @@ class _DefectProfile:
         w_s = 2 * math.pi * p.shaft_hz
         w_c = o["ftf"] * w_s
         self.kind = p.defect_kind
-        self.depth = effective_defect_depth(p)
+        # passage k's drop: a race defect's own; a ball defect's alternates, outer race on even k
+        self.depth = self.inner_extra = 0.0
+        if self.kind in ("outer_race", "inner_race"):
+            self.depth = effective_defect_depth(p)
+        elif self.kind == "ball":
+            self.depth = effective_defect_depth(p, "outer")
+            self.inner_extra = effective_defect_depth(p, "inner") - self.depth
         self.width = p.defect_width
         self.entry, self.exit = p.defect_entry, p.defect_exit
         self.variation, self.strike = p.defect_depth_variation, p.defect_strike_probability
+        if self.strike is None:
+            self.strike = ball_strike_probability(p) if self.kind == "ball" else 1.0
         self.seed = hash_seed
         z = g.n_balls
         if self.kind == "outer_race":
@@ -322,7 +375,8 @@ class _DefectProfile:
             self.arc_per_unit = g.inner_race_radius * 2 * math.pi / z
             self.direction = (w_s, p.defect_phase)     # rotates with the shaft
         elif self.kind == "ball":
-            # two strikes per spin revolution (outer race, then inner race), spin = BSF x shaft
+            # two strikes per spin revolution (outer race on even passages, inner race on odd
+            # ones), spin = BSF x shaft
             self.psi_rate = 2 * o["bsf"] * p.shaft_hz
             self.psi0 = p.defect_phase / math.pi
             self.arc_per_unit = g.ball_diameter / 2 * math.pi
@@ -364,7 +418,11 @@ class _DefectProfile:
         if self.strike < 1.0:
             hit = esym.IfThenElse(_hash01(esym, k, 39.3468, self.seed + 3.1) < R(self.strike), R(1.0), R(0.0))
             scale = scale * hit
-        return shape * scale * self.depth
+        depth = R(self.depth)
+        if self.inner_extra:
+            inner = k - esym.floor(k * 0.5) * 2.0        # 1 on odd passages: the inner race
+            depth = depth + inner * self.inner_extra
+        return shape * scale * depth
 
     def angle_terms(self, esym, t):
         """cos and sin of the line through the defect (the ball in it)."""

@@ -110,9 +110,8 @@ def build_rig_parameters(model: dict, health_state: str, speed_rpm: float, label
 
     Extra keys besides the model fields: the four calibration scales (`SCALES`),
     `defect_diameter_in` (defect width in inches), and for ball labels only (ignored otherwise):
-    `ball_<field>` replaces `<field>` (e.g. `ball_defect_strike_probability`: the spin axis of a
-    real ball wanders, so its defect meets the races on a fraction of the turns;
-    `ball_defect_roughness`), and `ball_drop_scale` multiplies `defect_drop_scale` (a pit on the
+    `ball_<field>` replaces `<field>` (e.g. `ball_defect_roughness`: a ball pit rubbing
+    obliquely), and `ball_drop_scale` multiplies `defect_drop_scale` (a pit on the
     ball meets the race obliquely and rarely in the middle of the rolling track, so it releases
     less contact deflection than a race pit)."""
     values = _merged_model(model)
