@@ -53,6 +53,16 @@ def test_accuracy_csv_is_the_sorted_concatenation_of_metrics(built_report):
     assert raw[1].startswith("knn,condition_holdout,0,0,,")  # sorted, all-speeds row first
 
 
+def test_confusion_sides_split_the_tested_records_by_specimen():
+    predictions = pd.DataFrame({"record_id": ["d0", "e0", "d1", "e1", "e0"]})
+    sides = {name: mask for name, mask, _ in report.record_sides(predictions, ["d0", "d1", "unseen"])}
+    assert list(predictions[sides["evaluation"]].record_id) == ["e0", "e1", "e0"]
+    assert list(predictions[sides["design"]].record_id) == ["d0", "d1"]
+    # one side tested alone (the shared CWRU records are all of design specimens): no split
+    assert report.record_sides(predictions, ["d0", "d1", "e0", "e1"]) == []
+    assert report.record_sides(predictions, []) == []
+
+
 @pytest.mark.slow
 def test_summary_aggregates_over_repeats_and_labels_the_source(built_report):
     out, paths, summary = built_report
@@ -99,11 +109,13 @@ def test_plots_exist_are_listed_and_are_real_images(built_report):
                 "confusion_knn_record_split_all.png", "confusion_logreg_condition_holdout_600rpm.png",
                 "prediction_shares_knn_record_split.png",
                 "prediction_shares_logreg_condition_holdout.png", "accuracy_per_condition.png",
-                "accuracy_design_vs_evaluation.png", "simulation_gain.png"}
+                "accuracy_design_vs_evaluation.png", "simulation_gain.png",
+                "confusion_knn_record_split_evaluation.png", "confusion_logreg_condition_holdout_design.png"}
     assert expected <= set(plots)
-    # classifiers x protocols x (all + 2 speeds confusion figures + prediction shares), 8 others
-    # (the gain against the strongest baseline is drawn with or without a measured-only one)
-    assert len(plots) == 2 * 2 * 4 + 8
+    # classifiers x protocols x (all + 2 speeds + evaluation and design records' confusion figures
+    # + prediction shares), 8 others (the gain against the strongest baseline is drawn with or
+    # without a measured-only one)
+    assert len(plots) == 2 * 2 * 6 + 8
     for name in plots:
         data = (out / "plots" / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n", name

@@ -544,9 +544,19 @@ def condition_file_part(condition: str, value) -> str:
     return f"{condition}{float(value):g}"
 
 
+def record_sides(predictions: pd.DataFrame, design_records) -> list[tuple[str, pd.Series, str]]:
+    """(file name part, row mask, title) of the tested records of evaluation specimens and of
+    design specimens, where both are tested (else none: the pooled figures are one side's)."""
+    is_design = predictions["record_id"].astype(str).isin(set(map(str, design_records)))
+    if not is_design.any() or is_design.all():
+        return []
+    return [("evaluation", ~is_design, "records of evaluation specimens"),
+            ("design", is_design, "records of design specimens")]
+
+
 def make_plots(accuracy, predictions, calibrated: tuple, plots_dir: Path, run: RunIdentity,
                confusion_percent, shares: pd.DataFrame | None = None, condition: str = "speed_rpm",
-               design: bool = False) -> list[str]:
+               design_records=()) -> list[str]:
     """Write every report plot into ``plots_dir``; returns the file names. ``run``: the footnote's
     run and data source (and how many effects the bench has that the model lacks: the note says
     so; summary.json lists them), the healthy state the class order starts from. ``calibrated``:
@@ -555,9 +565,14 @@ def make_plots(accuracy, predictions, calibrated: tuple, plots_dir: Path, run: R
     ``condition``: the predictions' column of the operating condition the per-condition figures
     (confusion matrices, prediction shares) group by: speed_rpm, or e.g. a motor load
     (with_condition); the per-speed accuracy bars only where the condition is the speed
-    (accuracy_per_condition.png covers any condition). ``design``: the test records include
-    design records (every plot's note says these plots pool them)."""
-    note = plot_note(run.run_name, run.data_source, len(run.bench_effects), design)
+    (accuracy_per_condition.png covers any condition). ``design_records``: the records of design
+    specimens; where tested, every plot's note says it pools them, and where records of other
+    specimens are tested too, each classifier and protocol gets its confusion matrices on each
+    side apart (`confusion_<classifier>_<protocol>_evaluation.png`, `..._design.png`)."""
+    sides = record_sides(predictions, design_records)
+    design_tested = predictions["record_id"].astype(str).isin(set(map(str, design_records))).any()
+    note = plot_note(run.run_name, run.data_source, len(run.bench_effects), bool(design_tested))
+    side_note = plot_note(run.run_name, run.data_source, len(run.bench_effects))
     calibration, spectra, history = calibrated
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
                          run.healthy_state)
@@ -583,17 +598,20 @@ def make_plots(accuracy, predictions, calibrated: tuple, plots_dir: Path, run: R
         # the chosen ones it has, and its own largest
         own = sorted(int(p) for p in group["measured_percent"].unique())
         own_percents = sorted({p for p in percents if p in own} | {own[-1]})
-        for value in [None] + sorted(group[condition].unique()):
-            subset = group if value is None else group[group[condition] == value]
+        panels = [(group if value is None else group[group[condition] == value],
+                   plots.condition_label(condition, value), condition_file_part(condition, value), note)
+                  for value in [None] + sorted(group[condition].unique())]
+        panels += [(group[side.loc[group.index]], where, name, f"{side_note} | {where} only")
+                   for name, side, where in sides]
+        for subset, where, name, panel_note in panels:
             matrices = {}
             for percent in own_percents:
                 chosen = subset[subset["measured_percent"] == percent]
                 matrices[percent] = (confusion_counts(chosen["true_label"],
                                                       chosen["predicted_label"], labels),
                                      int(chosen["repeat"].nunique()))
-            save(plots.confusion_matrices(matrices, labels, classifier, protocol,
-                                          plots.condition_label(condition, value), note),
-                 f"confusion_{classifier}_{protocol}_{condition_file_part(condition, value)}.png")
+            save(plots.confusion_matrices(matrices, labels, classifier, protocol, where, panel_note),
+                 f"confusion_{classifier}_{protocol}_{name}.png")
         # the study's Fig. 9 at the same percentages: per speed, where each true class's
         # predictions go
         own_shares = shares[(shares["classifier"] == classifier)
@@ -877,7 +895,7 @@ def write_report(inputs: ReportInputs) -> dict:
     design_tested = bool(set(map(str, design_records)) & set(predictions["record_id"].astype(str)))
     with staging_directory(out.plots) as staging:
         plot_names = make_plots(accuracy, by_condition, (calibrations, spectra, history), staging,
-                                run, chosen.confusion_percent, shares, grouping, design_tested)
+                                run, chosen.confusion_percent, shares, grouping, design_records)
         summary = summarize(accuracy, predictions, calibration, run.run_name, run.data_source,
                             plot_names, baseline, run.healthy_state)
         summary["data_source"]["bench_effects_the_model_lacks"] = list(run.bench_effects)
