@@ -247,6 +247,8 @@ def contact_half_width(geometry: BearingGeometry, ball_load: float, race: str) -
     with `ball_load` N on the "inner" or "outer" race: the half-width of the track the ball rolls
     on (Hamrock and Brewe 1983: ellipticity k = 1.0339 (Ry/Rx)^0.636, elliptic integral
     E = 1.0003 + 0.5968 Rx/Ry, semi-axis (6 k^2 E W R / (pi E'))^(1/3))."""
+    if race not in ("inner", "outer"):
+        raise ValueError(f"race {race!r}: 'inner' or 'outer'")
     rb = geometry.ball_diameter / 2
     race_radius = geometry.inner_race_radius if race == "inner" else -geometry.outer_race_radius
     rx = 1 / (1 / rb + 1 / race_radius)                                      # rolling direction
