@@ -32,6 +32,17 @@ def test_separable_records_score_one_and_noise_does_not():
     assert leave_one_record_out(noise, ["f0", "f1"]) < 0.7
 
 
+def test_the_recall_per_class_names_the_class_the_records_cannot_show():
+    rng = np.random.default_rng(2)
+    frame = records(rng, ["healthy", "missing_tooth", "surface_fault"])
+    hidden = frame["health_state"] == "missing_tooth"
+    frame.loc[hidden, "f0"] = rng.normal(0.0, 0.1, hidden.sum())  # a missing tooth that looks healthy
+    out = measured_separability(frame, ["f0", "f1"], "speed_rpm")["per_condition"]["450"]
+    assert out["recall_per_class"]["surface_fault"] == 1.0
+    assert out["recall_per_class"]["missing_tooth"] < 0.8 and out["recall_per_class"]["healthy"] < 0.9
+    assert out["balanced_accuracy"] == np.mean(list(out["recall_per_class"].values()))
+
+
 def test_a_class_of_one_record_cannot_be_left_out():
     """A class with one record would be tested on a model that never saw it: no figure (None) at a
     speed with one normal record; over both speeds (two normal records) a figure."""

@@ -20,24 +20,35 @@ METHOD = ("SVM-RBF (standardised features, C 1.2, gamma scale) on the measured r
           "features, each record left out in turn; balanced accuracy per segment")
 
 
-def leave_one_record_out(frame: pd.DataFrame, names) -> float | None:
-    """Balanced accuracy of METHOD on `frame` (one row per segment, `record_id`); None where a
-    class has fewer than two records (left out, it could not be learnt) or only one class is
-    there."""
+def left_out_predictions(frame: pd.DataFrame, names) -> np.ndarray | None:
+    """METHOD's prediction of every segment of `frame` (one row per segment, `record_id`) by a
+    model that never saw its record; None where a class has fewer than two records (left out, it
+    could not be learnt) or only one class is there."""
     records_per_class = frame.groupby("health_state")["record_id"].nunique()
     if len(records_per_class) < 2 or records_per_class.min() < 2:
         return None
     model = make_pipeline(StandardScaler(), SVC(C=1.2, gamma="scale"))
-    predicted = cross_val_predict(model, frame[list(names)].to_numpy(float), frame["health_state"].to_numpy(),
-                                  groups=frame["record_id"].to_numpy(), cv=LeaveOneGroupOut())
-    return float(balanced_accuracy_score(frame["health_state"], predicted))
+    return cross_val_predict(model, frame[list(names)].to_numpy(float), frame["health_state"].to_numpy(),
+                             groups=frame["record_id"].to_numpy(), cv=LeaveOneGroupOut())
+
+
+def leave_one_record_out(frame: pd.DataFrame, names) -> float | None:
+    """Balanced accuracy of METHOD on `frame` (None: see left_out_predictions)."""
+    predicted = left_out_predictions(frame, names)
+    return None if predicted is None else float(balanced_accuracy_score(frame["health_state"], predicted))
 
 
 def measured_separability(frame: pd.DataFrame, names, condition: str) -> dict:
-    """METHOD per value of the operating `condition` (e.g. speed_rpm, load) and over all of them,
-    with the records and classes each figure rests on."""
+    """METHOD per value of the operating `condition` (e.g. speed_rpm, load) and over all of them:
+    balanced accuracy and each class's recall (which class the records cannot show), with the
+    records and classes each figure rests on."""
     def entry(part: pd.DataFrame) -> dict:
-        return {"balanced_accuracy": leave_one_record_out(part, names),
+        predicted = left_out_predictions(part, names)
+        truth = part["health_state"].to_numpy()
+        recall = (None if predicted is None else
+                  {str(c): float(np.mean(predicted[truth == c] == c)) for c in sorted(set(truth))})
+        return {"balanced_accuracy": None if recall is None else float(np.mean(list(recall.values()))),
+                "recall_per_class": recall,
                 "records": int(part["record_id"].nunique()),
                 "records_per_class": {str(k): int(v) for k, v in
                                       part.groupby("health_state")["record_id"].nunique().items()}}
