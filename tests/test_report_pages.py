@@ -1,5 +1,6 @@
 """The report's front-page headline, its tables as HTML, figures per operating condition, and
 plot text that fits its figure, on small fake train outputs."""
+import json
 import re
 
 import numpy as np
@@ -72,7 +73,12 @@ def test_the_headline_gives_the_accuracy_at_both_ends_beside_the_baselines(train
         assert len(row) == 1, (classifier, protocol)
         cell = row.iloc[0][columns[0] if percent == low else columns[1]]
         assert float(cell.split()[0]) == pytest.approx(mean, abs=5e-4), (classifier, protocol, percent)
-    for protocol in headline.protocol.unique():
+    # last, the ceiling: the measured records alone, each left out (summary.json's figure)
+    ceiling = headline.iloc[-1]
+    assert ceiling.model == report.CEILING_MODEL and ceiling[columns[0]] == "-"
+    separability = json.loads((out / "summary.json").read_text())["measured_separability"]["all"]
+    assert float(ceiling[columns[1]]) == pytest.approx(separability["balanced_accuracy"], abs=5e-4)
+    for protocol in headline.protocol.unique()[:-1]:
         rows = headline[headline.protocol == protocol].set_index("model")
         alone = rows.loc["baseline: measured data only (best classifier)", columns[1]]
         assert float(alone.split()[0]) == pytest.approx(means[("knn", protocol, high)] - 0.25, abs=5e-4)

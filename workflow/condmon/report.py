@@ -328,6 +328,25 @@ def headline_table(accuracy: pd.DataFrame, baseline: pd.DataFrame | None,
     return pd.concat(parts, ignore_index=True)
 
 
+CEILING_PROTOCOL = "measured records alone"
+CEILING_MODEL = ("ceiling: a classifier on the measured records alone, each record left out "
+                 "(balanced accuracy; summary.json measured_separability)")
+
+
+def with_ceiling(headline: pd.DataFrame, separability: dict | None) -> pd.DataFrame:
+    """The headline with a last row, in its largest share's column: how well the measured records
+    separate their classes on their own (`measured_separability`'s balanced accuracy over all
+    records), the most a classifier trained elsewhere can be expected to reach on them; unchanged
+    without that figure (a class with a single record)."""
+    ceiling = None if separability is None else separability["all"]["balanced_accuracy"]
+    if ceiling is None:
+        return headline
+    shares = list(headline.columns[3:])
+    row = {"records": HEADLINE_RECORDS[evaluation.ALL], "protocol": CEILING_PROTOCOL, "model": CEILING_MODEL,
+           **{column: "-" for column in shares[:-1]}, shares[-1]: f"{ceiling:.3f}"}
+    return pd.concat([headline, pd.DataFrame([row])], ignore_index=True)
+
+
 def _headline_rows(records: str, results: pd.DataFrame, alone: pd.DataFrame | None,
                    physics_overall: pd.DataFrame | None, chance: float, chosen: list,
                    columns: dict) -> pd.DataFrame:
@@ -916,7 +935,7 @@ def write_report(inputs: ReportInputs) -> dict:
                                                        staging, summary["plots"],
                                                        note=f"run {run.run_name}")
         note = plot_note(run.run_name, run.data_source, len(run.bench_effects))
-        table = physics_table = baseline_table = physics_overall = None
+        table = physics_table = baseline_table = physics_overall = separability = None
         if features is not None:
             table, overall, physics_table, physics_overall, baseline_table = evaluation_tables(
                 predictions, baseline, labels, run.healthy_state, features, condition,
@@ -951,8 +970,8 @@ def write_report(inputs: ReportInputs) -> dict:
             summary["plots"].append("simulation_gain.png")
         write_text(labelled_accuracy(accuracy).to_csv(index=False), out.accuracy)
         if out.headline is not None:
-            headline = headline_table(accuracy, baseline, physics_overall, 1.0 / len(labels),
-                                      table, physics_table, baseline_table)
+            headline = with_ceiling(headline_table(accuracy, baseline, physics_overall, 1.0 / len(labels),
+                                                   table, physics_table, baseline_table), separability)
             write_text(headline.to_csv(index=False), out.headline)
         if out.recall_per_record is not None:
             write_text(recall_per_record(predictions).to_csv(index=False), out.recall_per_record)

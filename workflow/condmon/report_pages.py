@@ -47,7 +47,9 @@ NOTES = {
                  "measured records never seen in training, at the smallest and the largest "
                  "share of measured data in training, per test protocol; the baselines on the "
                  "same test sets below each protocol's classifiers. `records`: all test records, "
-                 "or the evaluation specimens' (the headline) and the design specimens' apart."),
+                 "or the evaluation specimens' (the headline) and the design specimens' apart. "
+                 "The last row, where the measured records allow it: a classifier on the measured "
+                 "records alone, each left out in turn, the ceiling for one trained on simulation."),
     "calibration": "The calibrated parameters, then the rest of the calibration's params.json.",
     "protocols": "What each test protocol holds out; every number of the report carries its protocol.",
 }
