@@ -563,10 +563,10 @@ def condition_file_part(condition: str, value) -> str:
     return f"{condition}{float(value):g}"
 
 
-def record_sides(predictions: pd.DataFrame, design_records) -> list[tuple[str, pd.Series, str]]:
+def record_sides(is_design: pd.Series) -> list[tuple[str, pd.Series, str]]:
     """(file name part, row mask, title) of the tested records of evaluation specimens and of
-    design specimens, where both are tested (else none: the pooled figures are one side's)."""
-    is_design = predictions["record_id"].astype(str).isin(set(map(str, design_records)))
+    design specimens (`is_design`: per prediction, whether its record is of a design specimen),
+    where both are tested (else none: the pooled figures are one side's)."""
     if not is_design.any() or is_design.all():
         return []
     return [("evaluation", ~is_design, "records of evaluation specimens"),
@@ -588,9 +588,9 @@ def make_plots(accuracy, predictions, calibrated: tuple, plots_dir: Path, run: R
     specimens; where tested, every plot's note says it pools them, and where records of other
     specimens are tested too, each classifier and protocol gets its confusion matrices on each
     side apart (`confusion_<classifier>_<protocol>_evaluation.png`, `..._design.png`)."""
-    sides = record_sides(predictions, design_records)
-    design_tested = predictions["record_id"].astype(str).isin(set(map(str, design_records))).any()
-    note = plot_note(run.run_name, run.data_source, len(run.bench_effects), bool(design_tested))
+    is_design = predictions["record_id"].astype(str).isin(set(map(str, design_records)))
+    sides = record_sides(is_design)
+    note = plot_note(run.run_name, run.data_source, len(run.bench_effects), bool(is_design.any()))
     side_note = plot_note(run.run_name, run.data_source, len(run.bench_effects))
     calibration, spectra, history = calibrated
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from sklearn.metrics import balanced_accuracy_score
+from sklearn.metrics import balanced_accuracy_score, recall_score
 from sklearn.model_selection import LeaveOneGroupOut, cross_val_predict
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
@@ -45,9 +45,11 @@ def measured_separability(frame: pd.DataFrame, names, condition: str) -> dict:
     def entry(part: pd.DataFrame) -> dict:
         predicted = left_out_predictions(part, names)
         truth = part["health_state"].to_numpy()
+        classes = sorted(set(truth))
         recall = (None if predicted is None else
-                  {str(c): float(np.mean(predicted[truth == c] == c)) for c in sorted(set(truth))})
-        return {"balanced_accuracy": None if recall is None else float(np.mean(list(recall.values()))),
+                  dict(zip(map(str, classes), map(float, recall_score(truth, predicted, labels=classes,
+                                                                       average=None)))))
+        return {"balanced_accuracy": None if predicted is None else float(balanced_accuracy_score(truth, predicted)),
                 "recall_per_class": recall,
                 "records": int(part["record_id"].nunique()),
                 "records_per_class": {str(k): int(v) for k, v in
