@@ -229,14 +229,30 @@ def test_the_report_lists_the_cfrp_benchs_own_spall():
     assert "shaft_crack: the model's own fault form (no bench form)" in effects
 
 
-def test_pitting_craters_the_dedendum_and_either_form_is_drawn():
-    from condmon.models.gear.errors import pitted_flank_map
+def test_pitting_starts_between_the_lowest_point_of_single_contact_and_the_pitch_point():
+    """The band is B..C on the pinion's profile: B at (eps_alpha - 1) / eps_alpha of the path of
+    contact (one base pitch before its end), C at the pitch point; the pits lie in it."""
+    from condmon.models.gear.errors import contact_fatigue_band, pitted_flank_map
+
+    for geometry in (GEOMETRY, GearGeometry(teeth_pinion=20, teeth_gear=30, normal_module=2e-3, helix_angle_deg=0.0)):
+        low, high = contact_fatigue_band(geometry)
+        eps = geometry.contact_ratio
+        pitch = (geometry.pitch_point - geometry.path_start) / (geometry.path_end - geometry.path_start)
+        assert (low, high) == pytest.approx(tuple(sorted(((eps - 1) / eps, pitch))))
+        assert 0.25 < low < high < 0.6   # the dedendum, up to the pitch line
+    band = contact_fatigue_band(GEOMETRY)
+    pits = pitted_flank_map(3e-5, 0.3, band, np.random.default_rng(4)).array()
+    roll = np.linspace(0, 1, pits.shape[0])
+    assert pits.max() <= 3e-5
+    assert pits[roll > 0.8].max() < 0.01 * 3e-5 and pits[roll < 0.1].max() < 0.01 * 3e-5
+    assert (pits[(roll >= band[0]) & (roll <= band[1])] > 3e-6).mean() >= 0.3
+    with pytest.raises(ValueError, match="pitting band"):
+        pitted_flank_map(3e-5, 0.3, (0.6, 0.4), np.random.default_rng(4))
+
+
+def test_either_surface_fault_form_is_drawn():
     from condmon.models.gear.mesh_force import flank_maps, surface_fault_form
 
-    pits = pitted_flank_map(3e-5, 0.3, np.random.default_rng(4)).array()
-    roll = np.linspace(0, 1, pits.shape[0])
-    assert pits.max() <= 3e-5 and pits[roll > 0.7].max() < 1e-7  # none on the addendum
-    assert (pits[(roll >= 0.1) & (roll <= 0.5)] > 3e-6).mean() >= 0.3
     p = GearDrivetrainParameters(health_state="surface_fault", surface_fault_model="wear_or_pitting")
     forms = {surface_fault_form(p.replace(wear_seed=seed)) for seed in range(4)}
     assert forms == {"wear", "pitting"}

@@ -198,7 +198,7 @@ class GearDrivetrainParameters:
     wear_depth: float = 2.0e-5             # material removed at root and tip, m
     wear_roughness: float = 2.0e-6         # rms of the worn surface, m
     pit_depth: float = 3.0e-5              # pitting: the deepest crater, m
-    pitted_area: float = 0.3               # pitting: share of the dedendum pitted
+    pitted_area: float = 0.3               # pitting: share of the contact-fatigue band pitted
     wear_seed: int = 0                     # the damaged surfaces' draw
     surface_fault_stiffness_loss: float = 0.15
     spall_profile: tuple = (0.35, 0.65)

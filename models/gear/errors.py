@@ -182,14 +182,32 @@ def draw_gear_errors(rng: np.random.Generator, grade: float, teeth: int, normal_
                       eccentricity_phase=float(rng.uniform(0, 2 * math.pi)))
 
 
-def wear_flank_map(depth: float, roughness: float, rng: np.random.Generator, rows: int = 21,
-                   columns: int = 11) -> FlankMap:
+def roll_fraction(geometry, position: float) -> float:
+    """Where a point of the path of contact (distance from T1 along the line of action) lies on
+    the pinion's active profile: 0 at the start of contact A (the pinion's root), 1 at its tip E."""
+    return (position - geometry.path_start) / (geometry.path_end - geometry.path_start)
+
+
+def contact_fatigue_band(geometry) -> tuple[float, float]:
+    """The roll fractions of the pinion flank where pitting starts: from its lowest point of single
+    tooth contact B up to the pitch point C. At B the pinion's contact stress peaks (one pair
+    carries the load where the radii of curvature are small: ISO 6336-2 rates the pinion there,
+    factor Z_B), and below C the sliding opposes the rolling, which drives the cracks into the
+    flank; so pits start in the dedendum near the pitch line. Sorted, each clipped to 0..1."""
+    lowest_single_contact = roll_fraction(geometry, geometry.path_end - geometry.base_pitch)
+    pitch = roll_fraction(geometry, geometry.pitch_point)
+    low, high = sorted(float(np.clip(x, 0.0, 1.0)) for x in (lowest_single_contact, pitch))
+    return low, high
+
+
+def wear_flank_map(depth: float, roughness: float, rng: np.random.Generator, pitch_line: float = 0.5,
+                   rows: int = 21, columns: int = 11) -> FlankMap:
     """Sliding wear of a flank (the gear model's surface fault): material removed in proportion to
-    the sliding distance (Archard's law), which grows with the distance from the pitch line, so the
-    depth is `depth` at root and tip and small at the pitch line, plus a rough surface (Gaussian,
+    the sliding distance (Archard's law), which grows with the distance from the pitch line (roll
+    fraction `pitch_line`, `roll_fraction` of the pitch point), so the depth is `depth` at the far
+    end of the flank and a fifth of it at the pitch line, plus a rough surface (Gaussian,
     `roughness` rms, correlated over a grid cell)."""
     roll = np.linspace(0.0, 1.0, rows)[:, None]
-    pitch_line = 0.5  # the pitch point lies near the middle of the active profile
     sliding = np.abs(roll - pitch_line) / max(pitch_line, 1 - pitch_line)
     removed = depth * (0.2 + 0.8 * sliding) * np.ones((1, columns))
     if roughness:
@@ -210,18 +228,23 @@ def broken_tooth_flank_map(missing_share: float, slant: float = 0.2, rows: int =
     return FlankMap.of(np.where(roll >= fracture, 1.0e-3, 0.0))
 
 
-def pitted_flank_map(pit_depth: float, pitted_area: float, rng: np.random.Generator, rows: int = 31,
-                     columns: int = 16) -> FlankMap:
-    """Pitting of a flank (the gear model's other surface fault): craters in the dedendum, where
-    the sliding opposes the rolling and contact fatigue starts (roll fraction 0.1-0.5), each a
-    Gaussian bowl up to `pit_depth` deep, added until `pitted_area` of that zone is pitted."""
+def pitted_flank_map(pit_depth: float, pitted_area: float, band: tuple, rng: np.random.Generator,
+                     rows: int = 31, columns: int = 16) -> FlankMap:
+    """Pitting of a flank (the gear model's other surface fault): craters where contact fatigue
+    starts (`band`: roll fractions, `contact_fatigue_band`), each a Gaussian bowl up to
+    `pit_depth` deep, centred in the band, added until `pitted_area` of the band is pitted."""
+    low, high = band
+    if not 0.0 <= low <= high <= 1.0:
+        raise ValueError(f"pitting band {band}: roll fractions 0 <= low <= high <= 1")
     roll, face = np.meshgrid(np.linspace(0, 1, rows), np.linspace(0, 1, columns), indexing="ij")
-    zone = (roll >= 0.1) & (roll <= 0.5)
+    # a band narrower than two grid rows still has rows to measure its pitted share on
+    half_row = 1.0 / (rows - 1)
+    zone = (roll >= low - half_row) & (roll <= high + half_row)
     removed = np.zeros_like(roll)
     for _ in range(500):
         if (removed[zone] > 0.1 * pit_depth).mean() >= pitted_area:
             break
-        centre_roll, centre_face = rng.uniform(0.1, 0.5), rng.uniform(0.0, 1.0)
+        centre_roll, centre_face = rng.uniform(low, high), rng.uniform(0.0, 1.0)
         width_roll, width_face = rng.uniform(0.02, 0.06), rng.uniform(0.04, 0.12)
         bowl = pit_depth * rng.uniform(0.4, 1.0) * np.exp(-0.5 * (((roll - centre_roll) / width_roll) ** 2
                                                                   + ((face - centre_face) / width_face) ** 2))

@@ -41,7 +41,8 @@ import math
 import numpy as np
 
 from condmon.models.gear.contact_laws import hysteresis_factor
-from condmon.models.gear.errors import add_flank_maps, broken_tooth_flank_map, pitted_flank_map, wear_flank_map
+from condmon.models.gear.errors import (add_flank_maps, broken_tooth_flank_map, contact_fatigue_band,
+                                        pitted_flank_map, roll_fraction, wear_flank_map)
 from condmon.models.gear.mesh import GearMesh, ProfileDeviation, ToothDamage
 # DEFLECTION_REF: K = mesh stiffness at this deflection keeps K's unit N/m for any n
 from condmon.models.gear.mesh_kernel import (BACK_FLANK, DEFLECTION_REF, TOO_MANY_CONTACTS, entry_point,
@@ -127,10 +128,12 @@ def flank_maps(p) -> tuple:
     if depth <= 0:
         raise ValueError(f"{form}: a damaged flank has lost material (depth {depth} m, > 0)")
     rng = np.random.default_rng([int(p.wear_seed), 0x3EA2])
+    pitch_line = roll_fraction(p.geometry, p.geometry.pitch_point)
+    band = contact_fatigue_band(p.geometry)
     damage = [None] * p.geometry.teeth_pinion
     for tooth in surface_fault_teeth(p):
-        damage[tooth] = (wear_flank_map(p.wear_depth, p.wear_roughness, rng) if form == "wear"
-                         else pitted_flank_map(p.pit_depth, p.pitted_area, rng))
+        damage[tooth] = (wear_flank_map(p.wear_depth, p.wear_roughness, rng, pitch_line=pitch_line) if form == "wear"
+                         else pitted_flank_map(p.pit_depth, p.pitted_area, band, rng))
     return add_flank_maps(tuple(p.flank_maps_pinion), tuple(damage))
 
 

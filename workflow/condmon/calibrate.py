@@ -216,6 +216,78 @@ def calibrate_on_spectra(system, frame: pd.DataFrame, calibration: dict, spectru
     return result, history, pd.concat(rows, ignore_index=True)
 
 
+# -- per-state calibration (calibration.per_state) -------------------------------------------
+SPECTRUM_FLOOR = 1e-12  # added before the log: a silent band stays finite
+
+
+def fault_change_cost(simulated_change: np.ndarray, measured_change: np.ndarray) -> float:
+    """Mean squared difference (in decades, over speeds, channels and bands) of two changes of a
+    spectrum, each a fault state's mean RMS band spectrum over its healthy one: what the fault
+    adds, compared where the transfer path and background (in both) cancel."""
+    return float(np.mean((np.log10(simulated_change) - np.log10(measured_change)) ** 2))
+
+
+class StateSpectrumModel(SpectrumModel):
+    """For one fault `state` and a candidate (variant, severities): its mean spectra over those of
+    its healthy twin (the same seed: the same manufacturing scatter and fluctuations), per speed.
+    The model runs at the healthy calibration `calibrated` (params.json)."""
+
+    def __init__(self, system, state, calibrated, speeds, channels, spectrum, resolution_hz, sim_seconds, seed=1):
+        super().__init__(system, speeds, channels, spectrum, resolution_hz, sim_seconds, seed)
+        self.state, self.calibrated = state, calibrated
+        self.healthy = self._spectra(system.healthy_state, None)
+
+    def _spectra(self, state, state_model) -> np.ndarray:
+        return self.mean_spectra([self.system.simulate_state(self.calibrated, state, state_model, speed,
+                                                             self.sim_seconds, self.seed)
+                                  for speed in self.speeds]) + SPECTRUM_FLOOR
+
+    def __call__(self, variant: str, values: dict) -> np.ndarray:
+        return self._spectra(self.state, {"variant": variant, "parameters": values}) / self.healthy
+
+
+def calibrate_state(system, frame: pd.DataFrame, state: str, calibrated: dict, calibration: dict,
+                    spectrum: dict, channels, processes: int = 1):
+    """Per-state calibration (the CFRP study's "optimal damaged MBD models"): CMA-ES over the
+    fault's form and severities (`System.state_calibration_space`) so that the model's change of
+    the spectrum from healthy to `state` matches the measured one, `frame` holding the calibration
+    set: the state's calibration records and the healthy ones (`fault_change_cost`). The healthy
+    model stays as calibrated. Returns (result, history) as `calibrate_on_spectra`."""
+    start = time.perf_counter()
+    settings = calibration["per_state"]
+    fs = system.output_rate_hz
+    at = {label: {float(s) for s in frame.loc[frame["health_state"] == label, "speed_rpm"].unique()}
+          for label in (state, system.healthy_state)}
+    speeds = sorted(at[state] & at[system.healthy_state] & {float(s) for s in system.speeds_rpm})
+    if not speeds:
+        raise ValueError(f"calibration.per_state: no speed of {system.speeds_rpm} rpm has both calibration "
+                         f"records of {state!r} ({sorted(at[state])}) and healthy ones "
+                         f"({sorted(at[system.healthy_state])})")
+    resolution = calibration["resolution_hz"]
+    target = (measured_spectra(frame, speeds, channels, spectrum, resolution, fs, label=state) + SPECTRUM_FLOOR) / (
+        measured_spectra(frame, speeds, channels, spectrum, resolution, fs, label=system.healthy_state)
+        + SPECTRUM_FLOOR)
+    variants, bounds = system.state_calibration_space(state)
+    model = StateSpectrumModel(system, state, calibrated, speeds, channels, spectrum, resolution,
+                               calibration["sim_seconds"], seed=calibration["seed"])
+    calibrator = Calibrator(bounds, variants, strategy="catcma", population=settings["population"],
+                            generations=settings["generations"], sigma0=calibration["sigma0"],
+                            seed=calibration["seed"], processes=processes)
+    log.info("calibrating the %s model (%s; %s) on %d speeds %s, %d processes", state, variants,
+             [b.name for b in bounds], len(speeds), speeds, processes)
+    best, history = calibrator.run(model, target, fault_change_cost)
+    records = sorted(frame.loc[frame["health_state"] == state, "record_id"].astype(str).unique())
+    parameters = system.state_parameters(best["model_variant"], best["parameters"])
+    result = dict(state=state, model_variant=best["model_variant"], parameters=parameters, cost=best["cost"],
+                  cost_function="fault_change_cost (decades^2)", spread=float(settings["spread"]),
+                  speeds_rpm=speeds, records=records, evaluations=best["evaluations"],
+                  bounds={b.name: [b.low, b.high] for b in bounds},
+                  seconds=round(time.perf_counter() - start, 1))
+    log.info("%s: %s %s, cost %.4g after %d evaluations (records %s)", state, best["model_variant"],
+             parameters, best["cost"], best["evaluations"], records)
+    return result, history
+
+
 # Worker state for the process pool (set once per process; fork copies it).
 _WORKER = {}
 

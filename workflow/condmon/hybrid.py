@@ -116,6 +116,9 @@ def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition
       `guard_segments`; every block is a split unit (a record to the protocols), so healthy
       data can train and test without a segment on both sides. With `segment_samples`
       (length, hop) a guard gap shorter than one segment in samples is refused (`time_blocks`).
+    - `fault_states` (calibration.per_state.states): per condition the first (by id) of each
+      listed fault state's records tunes that state's model, whole; the state needs two records
+      or more at every condition it has, so the others test.
     The same table rows in, the same layout out: the calibrate and hybrid jobs agree.
     """
     missing = [c for c in ("record_id", "segment", "health_state", condition)
@@ -130,6 +133,7 @@ def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition
              .sort_values(["record_id", "segment"]).reset_index(drop=True))
     frame["unit"] = frame["record_id"]
     frame["fixed_role"] = ""
+    _reserve_fault_records(frame, [str(s) for s in reserve.get("fault_states") or []], healthy_state)
     listed = [str(r) for r in reserve.get("records") or []]
     if listed:
         unknown = sorted(set(listed) - set(frame["record_id"]))
@@ -162,6 +166,22 @@ def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition
         frame.loc[rows, "unit"] = units
         frame.loc[rows, "fixed_role"] = roles
     return frame
+
+
+def _reserve_fault_records(frame: pd.DataFrame, states: list[str], healthy_state: str | None) -> None:
+    """Give the first record (by id) of each of `states` per condition the calibration role, in place."""
+    for state in states:
+        if state == healthy_state:
+            raise SplitError(f"calibration.per_state.states: {state!r} is the healthy state; list fault states")
+        rows = frame[frame["health_state"] == state]
+        if rows.empty:
+            raise SplitError(f"calibration.per_state.states: no measured {state!r} records to tune its model on")
+        for condition, ids in rows.groupby("condition", sort=True)["record_id"]:
+            ids = sorted(ids.unique())
+            if len(ids) < 2:
+                raise SplitError(f"calibration.per_state.states: {state!r} has one record at condition "
+                                 f"{condition:g} ({ids[0]}); tuning its model on it would leave none to test")
+            frame.loc[frame["record_id"] == ids[0], "fixed_role"] = CALIBRATION
 
 
 def guard_gap_samples(guard: int, segment_length: int, segment_hop: int) -> int:
@@ -207,10 +227,12 @@ def calibration_segments(layout: pd.DataFrame) -> pd.DataFrame:
 
 
 def calibration_frame(frame: pd.DataFrame, healthy_state: str, condition: str,
-                      reserve: dict) -> pd.DataFrame:
-    """The rows of a measured table (signals or features) in the calibration set: all the
-    calibrate job may see, and what no split ever trains on or tests."""
+                      reserve: dict, states=None) -> pd.DataFrame:
+    """The rows of a measured table (signals or features) in the calibration set of `states`
+    (default the healthy state; per-state calibration adds fault records to the set): all the
+    calibrate jobs may see, and what no split ever trains on or tests."""
     layout = measured_layout(frame, healthy_state, condition, reserve)
+    layout = layout[layout["health_state"].isin(states or [healthy_state])]
     chosen = pd.MultiIndex.from_frame(calibration_segments(layout))
     keys = pd.MultiIndex.from_arrays([frame["record_id"].astype(str),
                                       frame["segment"].astype(int)])

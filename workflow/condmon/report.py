@@ -524,12 +524,16 @@ def confusion_percents(accuracy: pd.DataFrame, requested) -> list[int]:
 
 
 def plot_note(run_name: str, data_source: str, bench_effects: int = 0,
-              design: bool = False) -> str:
-    """Every plot's footnote: the data source and run (and a bench's difference in form; with
-    design records, that the plot pools them with the evaluation records)."""
+              design: bool = False, state_models=()) -> str:
+    """Every plot's footnote: the data source and run (and a bench's difference in form; the fault
+    states whose model their own records tuned; with design records, that the plot pools them
+    with the evaluation records)."""
     note = f"Data: {data_source_label(data_source)} | run {run_name}"
     if bench_effects:
         note += f" | bench differs from the model in form: {bench_effects} effects (summary.json)"
+    if state_models:
+        note += (f" | PER-STATE CALIBRATION: {', '.join(state_models)} models tuned on their first measured "
+                 "record per condition (never tested)")
     if design:
         note += (" | all test records: design specimens' included (apart: "
                  "accuracy_design_vs_evaluation.png, headline.csv)")
@@ -590,8 +594,9 @@ def make_plots(accuracy, predictions, calibrated: tuple, plots_dir: Path, run: R
     side apart (`confusion_<classifier>_<protocol>_evaluation.png`, `..._design.png`)."""
     is_design = predictions["record_id"].astype(str).isin(set(map(str, design_records)))
     sides = record_sides(is_design)
-    note = plot_note(run.run_name, run.data_source, len(run.bench_effects), bool(is_design.any()))
-    side_note = plot_note(run.run_name, run.data_source, len(run.bench_effects))
+    note = plot_note(run.run_name, run.data_source, len(run.bench_effects), bool(is_design.any()),
+                     run.state_models)
+    side_note = plot_note(run.run_name, run.data_source, len(run.bench_effects), state_models=run.state_models)
     calibration, spectra, history = calibrated
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
                          run.healthy_state)
@@ -918,6 +923,9 @@ def write_report(inputs: ReportInputs) -> dict:
         summary = summarize(accuracy, predictions, calibration, run.run_name, run.data_source,
                             plot_names, baseline, run.healthy_state)
         summary["data_source"]["bench_effects_the_model_lacks"] = list(run.bench_effects)
+        if inputs.calibration.states:  # calibration.per_state: what each fault's own records tuned
+            summary["state_calibration"] = {state: json.loads(Path(path).read_text())
+                                            for state, path in inputs.calibration.states.items()}
         if per_model:
             summary["calibration_by_variant"] = calibrations
         summary["simulation"] = simulation_summary(upstream.simulation_reports)
@@ -934,7 +942,7 @@ def write_report(inputs: ReportInputs) -> dict:
             summary["job_timings"] = write_job_timings(upstream.benchmarks, out.job_timings,
                                                        staging, summary["plots"],
                                                        note=f"run {run.run_name}")
-        note = plot_note(run.run_name, run.data_source, len(run.bench_effects))
+        note = plot_note(run.run_name, run.data_source, len(run.bench_effects), state_models=run.state_models)
         table = physics_table = baseline_table = physics_overall = separability = None
         if features is not None:
             table, overall, physics_table, physics_overall, baseline_table = evaluation_tables(
@@ -949,7 +957,8 @@ def write_report(inputs: ReportInputs) -> dict:
                      {k: v["balanced_accuracy"] for k, v in separability["per_condition"].items()}, condition)
             plots.save_figure(plots.simulation_gain(
                 gain_against_strongest(overall), 1.0 / len(labels),
-                plot_note(run.run_name, run.data_source, len(run.bench_effects), design_tested)),
+                plot_note(run.run_name, run.data_source, len(run.bench_effects), design_tested,
+                          run.state_models)),
                 staging / "simulation_gain.png")
             summary["plots"].append("simulation_gain.png")
             if physics_overall is not None:

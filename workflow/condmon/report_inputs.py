@@ -35,7 +35,9 @@ class RunIdentity(_Frozen):
     data_source: str                     # the measured data's kind (condmon.labels.data_source_label)
     healthy_state: str | None = None     # the class confusion matrices and label orders start from
     bench_effects: tuple[str, ...] = ()  # what the virtual bench has and the model lacks (labelled)
-    _sequences = ("bench_effects",)
+    # fault states whose model was tuned on their own measured records (calibration.per_state)
+    state_models: tuple[str, ...] = ()
+    _sequences = ("bench_effects", "state_models")
 
 
 @dataclass(frozen=True)
@@ -67,6 +69,9 @@ class CalibrationOutputs:
     params: Path_ | Mapping[str, Path_]   # params.json
     spectra: Path_ | Mapping[str, Path_]  # spectra.parquet: measured vs calibrated spectra
     history: Path_ | Mapping[str, Path_]  # history.parquet: the calibration's convergence
+    # {fault state: state_calibration/<state>/params.json} (calibration.per_state; summary.json's
+    # `state_calibration`)
+    states: Mapping[str, Path_] = field(default_factory=dict)
 
     @property
     def per_variant(self) -> bool:

@@ -31,3 +31,33 @@ rule calibrate:
         f"{LOGS}/calibrate_{{variant}}.log",
     script:
         "../scripts/calibrate.py"
+
+
+# Per-state calibration (calibration.per_state): one job per listed fault state tunes its model's
+# form and severities on its calibration records, the healthy calibration (the simulation's) fixed.
+rule calibrate_state:
+    input:
+        measured=rules.measured.output[0],
+        calibration=calibration_outputs("params.json", SIM_CALIBRATION),
+    output:
+        params=f"{RESULTS}/state_calibration/{{state}}/params.json",  # read by its simulate jobs
+        history=f"{RESULTS}/state_calibration/{{state}}/history.parquet",
+        plot=f"{RESULTS}/state_calibration/{{state}}/convergence.png",
+    params:
+        system=SYSTEM.job_spec("calibrate", SIM_CALIBRATION),
+        state=lambda wc: wc.state,
+        calibration=config["calibration"],
+        reserve=RESERVE,
+        channels=config["features"]["channels"],
+        spectrum=config["features"]["spectrum"],
+        data_source=data_source(),
+        condition=CONDITION,
+    threads: workflow.resource_settings.cores or 1
+    conda:
+        "../envs/simulation.yaml"
+    benchmark:
+        f"{BENCHMARKS}/calibrate_state/{{state}}.tsv"
+    log:
+        f"{LOGS}/calibrate_state_{{state}}.log",
+    script:
+        "../scripts/calibrate_state.py"

@@ -43,6 +43,10 @@ N_BATCHES = -(
 CALIBRATIONS = SYSTEM.calibration_variants()
 SIM_CALIBRATION = CALIBRATIONS[0]
 MEASURED_PARTS = SYSTEM.measured_parts()  # a synthetic bench's jobs, or none
+# Per-state calibration (calibration.per_state): the fault states whose own model is tuned; their
+# first record per condition joins the calibration set (the reserve every split keeps out).
+STATE_CALIBRATIONS = config["calibration"]["per_state"]["states"]
+RESERVE = dict(config["calibration"]["reserve"], fault_states=STATE_CALIBRATIONS)
 
 
 wildcard_constraints:
@@ -52,6 +56,7 @@ wildcard_constraints:
     classifier="|".join(CLASSIFIERS),
     protocol="|".join(PROTOCOLS),
     variant="|".join(CALIBRATIONS),
+    state="|".join(STATE_CALIBRATIONS) or "(?!)",
     part="|".join(MEASURED_PARTS) or "(?!)",
 
 
@@ -82,6 +87,14 @@ def calibration_outputs(name, calibration=None):
     if calibration is not None:
         return f"{RESULTS}/calibration/{calibration}/{name}"
     return {m: f"{RESULTS}/calibration/{m}/{name}" for m in CALIBRATIONS}
+
+
+def state_calibration_output(health):
+    """{state_calibration: state_calibration/<health>/params.json} for a state with its own
+    calibrated model (calibration.per_state), else nothing."""
+    if health not in STATE_CALIBRATIONS:
+        return {}
+    return {"state_calibration": f"{RESULTS}/state_calibration/{health}/params.json"}
 
 
 def calibration_background_outputs(calibration, plot=True):
@@ -264,6 +277,15 @@ def upstream_benchmarks():
         "measured_part": expand(rules.measured_part.benchmark, part=MEASURED_PARTS),
         "measured": [rules.measured.benchmark],
         "calibrate": expand(rules.calibrate.benchmark, variant=CALIBRATIONS),
+        **(
+            {
+                "calibrate_state": expand(
+                    rules.calibrate_state.benchmark, state=STATE_CALIBRATIONS
+                )
+            }
+            if STATE_CALIBRATIONS
+            else {}
+        ),
         "simulate": expand(
             rules.simulate.benchmark, health=HEALTH_STATES, speed=SPEEDS, batch=BATCHES
         ),

@@ -26,7 +26,7 @@ rule hybrid:
         min_test_records=config["hybrid"]["min_test_records"],
         condition=CONDITION,
         healthy_state=SYSTEM.healthy_state,
-        reserve=config["calibration"]["reserve"],  # the calibration set: never in a split
+        reserve=RESERVE,  # the calibration set (with per-state calibration records): never in a split
         # (length, hop) of the measured segments: a guard gap under one segment is refused
         segment_samples=[SYSTEM.segment_length, SYSTEM.segment_hop],
         measured_classes=lambda wc: (

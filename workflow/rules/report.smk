@@ -66,6 +66,10 @@ rule report:
             f"calibration_history_{m}": p
             for m, p in calibration_outputs("history.parquet").items()
         },
+        **{
+            f"state_calibration_{state}": f"{RESULTS}/state_calibration/{state}/params.json"
+            for state in STATE_CALIBRATIONS
+        },
         **{f"benchmarks_{rule}": files for rule, files in upstream_benchmarks().items()},
         metrics=train_outputs("metrics.csv"),
         predictions=train_outputs("predictions.parquet"),
@@ -104,6 +108,7 @@ rule report:
         benchmarked_rules=list(upstream_benchmarks()),
         healthy_state=SYSTEM.healthy_state,
         calibrations=CALIBRATIONS,  # the first one's calibration made the simulated data
+        state_models=STATE_CALIBRATIONS,  # calibration.per_state: labelled in every plot
         condition=CONDITION,
         design_records=config["report"]["design_records"],
         # the specimens whose records the design looked at (records.csv's specimen)

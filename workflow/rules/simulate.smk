@@ -3,6 +3,8 @@
 
 rule simulate:
     input:
+        # a fault state with its own calibrated model (calibration.per_state): its params.json
+        unpack(lambda wc: state_calibration_output(wc.health)),
         **calibration_background_outputs(SIM_CALIBRATION, plot=False),
         calibration=calibration_outputs("params.json", SIM_CALIBRATION),
         # the background the simulation adds (calibration.background), so an edit of it reruns simulate

@@ -12,6 +12,12 @@ log = setup_logging(snakemake)
 p = snakemake.params
 with open(snakemake.input.calibration) as handle:
     calibrated = json.load(handle)
+# calibration.per_state: a fault state with its own calibrated model runs its tuned severities
+if "state_calibration" in snakemake.input.keys():
+    with open(snakemake.input.state_calibration) as handle:
+        state = json.load(handle)
+    calibrated["state_models"] = {state["state"]: {"variant": state["model_variant"], "parameters": state["parameters"],
+                                                   "spread": state["spread"]}}
 # calibration.background: the input is there only when it is on
 background = read_background(snakemake.input.background) if "background" in snakemake.input.keys() else None
 rows, report = simulate_batch(load_system(p.system), calibrated, snakemake.wildcards.health,

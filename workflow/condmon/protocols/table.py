@@ -68,7 +68,7 @@ def make_splits(records: pd.DataFrame, protocol: Protocol | str, *,
     rows = [row for split in protocol.split(records) for row in split.rows()]
     splits = _frame(rows, protocol.name)
     if layout is not None:
-        splits = with_layout(splits, layout, bool(reserve.get("records")), condition)
+        splits = with_layout(splits, layout, {str(r) for r in reserve.get("records") or []}, condition)
     if healthy_state is not None:
         check_healthy_tested(splits, units, healthy_state)
     splits = with_simulated_validation(splits, held_out)
@@ -82,7 +82,7 @@ def _frame(rows, protocol: str) -> pd.DataFrame:
     return typed_splits(splits)
 
 
-def with_layout(splits: pd.DataFrame, layout: pd.DataFrame, listed: bool,
+def with_layout(splits: pd.DataFrame, layout: pd.DataFrame, listed: set,
                 condition: str) -> pd.DataFrame:
     """Time blocks back to their record's segments, and the calibration and guard segments
     (measured_layout's fixed roles) added to every split."""
@@ -106,9 +106,9 @@ def with_layout(splits: pd.DataFrame, layout: pd.DataFrame, listed: bool,
     return _frame(rows, str(splits["protocol"].iloc[0]))
 
 
-def fixed_reasons(layout: pd.DataFrame, listed: bool, condition: str) -> list[str]:
+def fixed_reasons(layout: pd.DataFrame, listed: set, condition: str) -> list[str]:
     """Why each segment with a fixed role (calibration, unused) has it, in layout order
-    (`listed`: calibration.reserve lists the calibration records)."""
+    (`listed`: the records calibration.reserve lists)."""
     cut = set(layout.loc[layout["unit"] != layout["record_id"], "record_id"])
     last_block = layout[layout["unit"] != layout["record_id"]].groupby("record_id")["segment"].max()
     reasons = []
@@ -119,7 +119,7 @@ def fixed_reasons(layout: pd.DataFrame, listed: bool, condition: str) -> list[st
         if role == CALIBRATION and rid in cut:
             reasons.append(f"calibration block of the lone {health} record ({RESERVE_KEY})")
         elif role == CALIBRATION:
-            reasons.append(f"calibration record listed in {RESERVE_KEY}.records" if listed else
+            reasons.append(f"calibration record listed in {RESERVE_KEY}.records" if rid in listed else
                            f"calibration record of {health} at {holdout_label(value, condition)}")
         elif rid in cut and seg > last_block.get(rid, seg):
             reasons.append("left over after the last time block")

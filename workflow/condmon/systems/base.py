@@ -127,8 +127,8 @@ class System(ABC):
     def calibration_settings(self, calibration: dict) -> dict:
         """The `calibration` section a calibrate job depends on: all of it by default; a system
         drops the keys that only list its calibration variants (those are wildcards, so editing
-        the list never reruns a calibration)."""
-        return dict(calibration)
+        the list never reruns a calibration). `per_state` belongs to the per-state jobs only."""
+        return {key: value for key, value in calibration.items() if key != "per_state"}
 
     def calibration_variants(self) -> list[str]:
         """Names of the calibrations a run makes (one job each, `calibration/<name>/`); the
@@ -213,6 +213,15 @@ class System(ABC):
         if self.healthy_state not in self.health_states:
             problems.append(f"the healthy state {self.healthy_state!r} is not among the health states "
                             f"{self.health_states} (calibration uses healthy records)")
+        for state in config["calibration"]["per_state"]["states"]:
+            if state not in self.health_states or state == self.healthy_state:
+                problems.append(f"calibration.per_state.states: {state!r} is not a fault state of this run "
+                                f"(rig.health_states {self.health_states})")
+                continue
+            try:
+                self.state_calibration_space(state)
+            except ValueError as exc:
+                problems.append(str(exc))
         classes = config["hybrid"]["measured_classes"]
         if "unseen_fault" in config["hybrid"]["protocols"] and classes is not None:
             unknown = sorted(set(classes) - set(self.health_states))
@@ -293,6 +302,22 @@ class System(ABC):
             raise ValueError(f"the {self.name} system has one model variant, {self.nominal_variant!r}, "
                              f"not {variant!r}")
         return self.simulate_sample(dict(values), self.healthy_state, speed_rpm, duration_s, seed)
+
+    # -- per-state calibration (calibration.per_state) -----------------------------------------
+    def state_calibration_space(self, state: str):
+        """(model variants, [calibrate.Bound]) per-state calibration searches for fault `state`:
+        its fault's form and severities. A system without it says so."""
+        raise ValueError(f"calibration.per_state: the {self.name} system has no per-state calibration")
+
+    def state_parameters(self, variant: str, values: dict) -> dict:
+        """Of a per-state calibration's searched `values`, those its model `variant` uses."""
+        return dict(values)
+
+    def simulate_state(self, calibrated: dict, state: str, state_model: dict | None, speed_rpm: float,
+                       duration_s: float, seed: int) -> dict[str, np.ndarray]:
+        """One run of `state` at the healthy calibration `calibrated` (params.json), its fault as
+        `state_model` (variant, parameters; None: the fault as the sample draws it) exactly."""
+        raise ValueError(f"calibration.per_state: the {self.name} system has no per-state calibration")
 
     # -- parameters and simulation -----------------------------------------------------------
     nominal_variant: ClassVar[str] = "nominal"  # model variant of the nominal model

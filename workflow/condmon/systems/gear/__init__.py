@@ -15,11 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from condmon.calibrate import calibrate_on_spectra
+from condmon.calibrate import Bound, calibrate_on_spectra
 from condmon.models.gear.drivetrain import (Drivetrain, SimulationSettings, operating_mesh_stiffness, sensor_channels,
                                             simulate)
 from condmon.systems.base import System
-from condmon.systems.gear.parameters import CALIBRATABLE, build_parameters, perturb, sample_effects
+from condmon.systems.gear.parameters import (CALIBRATABLE, STATE_SEVERITY, build_parameters, perturb, sample_effects,
+                                             state_model_fields, state_variants)
 
 # numerics the virtual bench sets for itself (virtual_bench.<key>): it stands for a real machine, so
 # its records never move with the model's step or modal reduction
@@ -239,20 +240,46 @@ class GearSystem(System):
     def nominal_calibration(self, names=None) -> dict:
         return dict(super().nominal_calibration(names), contact_law=self.nominal_variant)
 
+    # -- per-state calibration ---------------------------------------------------------------
+    def state_calibration_space(self, state):
+        model = self.config["model"]
+        variants = state_variants(state, model["surface_fault_model"])
+        severity = model["fault_severity"]
+        names = sorted({name for variant in variants for name in STATE_SEVERITY[variant]})
+        return variants, [Bound(name, float(severity[name][0]), float(severity[name][1]), False) for name in names]
+
+    def state_parameters(self, variant, values):
+        return {name: values[name] for name in STATE_SEVERITY[variant]}
+
+    def simulate_state(self, calibrated, state, state_model, speed_rpm, duration_s, seed):
+        parameters = {**calibrated["parameters"], "contact_law": calibrated["contact_law"]}
+        if state_model is not None:
+            parameters["state_model"] = dict(state_model, spread=0.0)
+        return self.simulate_sample(parameters, state, speed_rpm, duration_s, seed)
+
     def nominal_values(self) -> dict:
         return {name: self.config["model"][name] for name in CALIBRATABLE}
 
     def sample_parameters(self, calibrated, health_state, rng, simulation) -> dict:
         values = perturb(calibrated["parameters"], list(calibrated["parameters"]),
                          self.config["model"]["variability"]["perturbation_sigma"], rng)
-        return {"contact_law": calibrated["contact_law"], **values}
+        # per-state calibration: the state's tuned severities (drawn in simulate_sample, no draw here)
+        state_model = (calibrated.get("state_models") or {}).get(health_state)
+        return {"contact_law": calibrated["contact_law"], **values,
+                **({"state_model": state_model} if state_model else {})}
 
     def simulate_sample(self, parameters, health_state, speed_rpm, duration_s, seed, step_refinement=1):
         """One run; `seed` draws this drivetrain's run-out, pitch errors and fluctuations
-        (`model.variability`)."""
+        (`model.variability`) and its fault's severity (`model.fault_severity`, or a calibrated
+        `state_model` of `parameters`: `state_model_fields`)."""
         model = self.config["model"]
+        parameters = dict(parameters)
+        state_model = parameters.pop("state_model", None)
         params = self.parameters(speed_rpm=float(speed_rpm), health_state=health_state, **parameters)
-        params = params.replace(**sample_effects(model, params.geometry, np.random.default_rng(seed)))
+        effects = sample_effects(model, params.geometry, np.random.default_rng(seed))
+        if state_model is not None:
+            effects.update(state_model_fields(state_model, effects, seed))
+        params = params.replace(**effects)
         return simulate(params, SimulationSettings(duration=duration_s, step_refinement=int(step_refinement),
                                                    **self.numerics))
 

@@ -101,6 +101,48 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
     )
 
 
+# Per-state calibration (calibration.per_state): the severities each fault state's model tunes,
+# by model variant (a surface fault's form is its variant; the other states have one, their name).
+STATE_SEVERITY = {"wear": ("wear_depth",), "pitting": ("pit_depth", "pitted_area"),
+                  "missing_tooth": ("missing_share",), "spall": ("spall_depth", "spall_width"),
+                  "root_crack": ("crack_depth",)}
+SHARES = ("pitted_area", "missing_share", "spall_width", "crack_depth")  # fractions: at most 1
+
+
+def state_variants(state: str, surface_fault_model: str) -> list[str]:
+    """The model variants per-state calibration searches for `state` (ValueError: none)."""
+    if state == "surface_fault":
+        if surface_fault_model == "stiffness_loss":
+            raise ValueError("calibration.per_state: surface_fault_model stiffness_loss removes no material; "
+                             "per-state calibration tunes the depths of wear or pitting")
+        return ["wear", "pitting"] if surface_fault_model == "wear_or_pitting" else [surface_fault_model]
+    if state not in STATE_SEVERITY:
+        raise ValueError(f"calibration.per_state.states: {state!r} has no severity to tune; the gear model "
+                         f"tunes surface_fault, {', '.join(k for k in STATE_SEVERITY if k not in ('wear', 'pitting'))}")
+    return [state]
+
+
+def state_model_fields(state_model: dict, drawn: dict, seed: int) -> dict:
+    """The fields a calibrated fault state's model sets on one sample (`state_model`: variant,
+    parameters, spread; `drawn`: the sample's `sample_effects`): each severity of the variant
+    times a factor uniform in 1 +/- spread, from a stream of its own (the run seed's), so twins'
+    draws stay aligned; a spall's width about the centre the sample drew; the surface fault's form."""
+    rng = np.random.default_rng([int(seed), 0x57A7E])
+    spread = float(state_model.get("spread", 0.0))
+    variant = state_model["variant"]
+    fields = {"surface_fault_model": variant} if variant in ("wear", "pitting") else {}
+    for name in STATE_SEVERITY[variant]:
+        value = float(state_model["parameters"][name]) * float(rng.uniform(1.0 - spread, 1.0 + spread))
+        value = min(value, 1.0) if name in SHARES else value
+        if name == "spall_width":
+            centre = 0.5 * (drawn["spall_face"][0] + drawn["spall_face"][1])
+            start = float(np.clip(centre - value / 2, 0.0, 1.0 - value))
+            fields["spall_face"] = (start, start + value)
+        else:
+            fields[name] = value
+    return fields
+
+
 def _spall_face(width: float, rng: np.random.Generator) -> tuple[float, float]:
     """[start, end] of a spall `width` wide (share of the face width) at a uniform place across it."""
     start = float(rng.uniform(0.0, 1.0 - width))

@@ -1,0 +1,135 @@
+"""Per-state calibration (calibration.per_state): the CFRP study's "optimal damaged MBD models".
+
+A fault state's first measured record per condition tunes its model's form and severities and
+joins the calibration set (never trained on, never tested); its simulated samples then take the
+tuned severities."""
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import config_of, system_of
+from condmon.calibrate import calibrate_state
+from condmon.hybrid import SplitError, calibration_frame, measured_layout
+from condmon.protocols import make_splits
+from condmon.report import plot_note
+from condmon.signals import make_rows
+from condmon.systems.gear.parameters import state_model_fields
+
+RESERVE = {"records": [], "calibration_segments": 4, "guard_segments": 1, "blocks": 2}
+
+
+def bench_records(per_stratum=3):
+    rows = [(f"{h}-{int(s)}-r{i}", seg, h, s) for h in ("healthy", "surface_fault", "missing_tooth")
+            for s in (450.0, 1100.0) for i in range(per_stratum) for seg in range(2)]
+    return pd.DataFrame(rows, columns=["record_id", "segment", "health_state", "speed_rpm"])
+
+
+def test_a_calibrated_states_first_record_per_condition_calibrates_and_never_joins_a_split():
+    records = bench_records()
+    reserve = dict(RESERVE, fault_states=["missing_tooth"])
+    layout = measured_layout(records, "healthy", "speed_rpm", reserve)
+    calibrating = set(layout.record_id[layout.fixed_role == "calibration"])
+    assert calibrating == {"healthy-450-r0", "healthy-1100-r0", "missing_tooth-450-r0", "missing_tooth-1100-r0"}
+    splits = make_splits(records, "record_split", measured_percent=[0, 100], repeats=2, seed=1,
+                         min_test_records=1, condition="speed_rpm", healthy_state="healthy", reserve=reserve)
+    tuned = splits[splits.record_id.isin(["missing_tooth-450-r0", "missing_tooth-1100-r0"])]
+    assert set(tuned.role) == {"calibration"}
+    tested = splits[(splits.role == "test") & splits.record_id.str.startswith("missing_tooth")]
+    assert set(tested.record_id) == {"missing_tooth-450-r1", "missing_tooth-450-r2",
+                                     "missing_tooth-1100-r1", "missing_tooth-1100-r2"}
+    # the calibrate jobs see a state's calibration records and the healthy ones, nothing else
+    seen = calibration_frame(records, "healthy", "speed_rpm", reserve, states=["missing_tooth", "healthy"])
+    assert set(seen.record_id) == calibrating
+    assert set(calibration_frame(records, "healthy", "speed_rpm", reserve).record_id) == {
+        "healthy-450-r0", "healthy-1100-r0"}  # the healthy reference and calibration: healthy only
+
+
+def test_a_state_with_one_record_at_a_condition_or_the_healthy_state_is_refused():
+    records = bench_records()
+    lonely = records[~records.record_id.isin(["surface_fault-1100-r1", "surface_fault-1100-r2"])]
+    with pytest.raises(SplitError, match="'surface_fault' has one record at condition 1100"):
+        measured_layout(lonely, "healthy", "speed_rpm", dict(RESERVE, fault_states=["surface_fault"]))
+    with pytest.raises(SplitError, match="is the healthy state"):
+        measured_layout(records, "healthy", "speed_rpm", dict(RESERVE, fault_states=["healthy"]))
+    with pytest.raises(SplitError, match="no measured 'spall' records"):
+        measured_layout(records, "healthy", "speed_rpm", dict(RESERVE, fault_states=["spall"]))
+
+
+def test_a_tuned_state_model_sets_each_samples_severity_within_its_spread():
+    drawn = {"spall_face": (0.1, 0.6)}
+    exact = state_model_fields({"variant": "spall", "parameters": {"spall_depth": 2e-5, "spall_width": 0.3},
+                                "spread": 0.0}, drawn, seed=4)
+    assert exact["spall_depth"] == 2e-5
+    assert exact["spall_face"] == pytest.approx((0.2, 0.5))   # the width about the drawn centre
+    pitting = {"variant": "pitting", "parameters": {"pit_depth": 3e-5, "pitted_area": 0.95}, "spread": 0.1}
+    values = [state_model_fields(pitting, drawn, seed) for seed in range(50)]
+    assert {v["surface_fault_model"] for v in values} == {"pitting"}
+    depths = np.array([v["pit_depth"] for v in values])
+    assert depths.min() >= 2.7e-5 and depths.max() <= 3.3e-5 and depths.std() > 1e-6
+    assert max(v["pitted_area"] for v in values) <= 1.0   # a share stays a share
+    assert state_model_fields(pitting, drawn, 3) == state_model_fields(pitting, drawn, 3)
+
+
+def test_the_twins_stay_twins_a_state_model_draws_from_no_shared_stream():
+    """sample_parameters hands the state model on without a draw from the job's stream, so with
+    features.healthy_reference sample i is the same machine in every health state."""
+    system = system_of("config/config.yaml")
+    calibrated = {"contact_law": "flores", "parameters": {"mesh_stiffness": 5e8},
+                  "state_models": {"missing_tooth": {"variant": "missing_tooth",
+                                                     "parameters": {"missing_share": 0.7}, "spread": 0.1}}}
+    simulation = {"seed": 1}
+    draws = {}
+    for state in ("healthy", "missing_tooth"):
+        rng = np.random.default_rng(5)
+        values = system.sample_parameters(calibrated, state, rng, simulation)
+        draws[state] = (values.pop("mesh_stiffness"), rng.integers(2 ** 32), values.get("state_model"))
+    assert draws["healthy"][:2] == draws["missing_tooth"][:2]
+    assert draws["healthy"][2] is None and draws["missing_tooth"][2]["parameters"] == {"missing_share": 0.7}
+
+
+def test_per_state_calibration_finds_the_broken_share_of_a_tooth():
+    """"Measured" records of the model itself (another seed: other gear errors) with 0.6 of a
+    tooth's profile broken off; CMA-ES over the share in [0.3, 1.0] on their change of the
+    spectrum from healthy finds it."""
+    config = config_of("config/config.yaml", {
+        "model": {"fault_severity": {"missing_share": [0.3, 1.0]}},
+        "calibration": {"sim_seconds": 0.5, "per_state": {"states": ["missing_tooth"], "population": 4,
+                                                           "generations": 3}}})
+    from condmon.systems import get_system
+
+    system = get_system(config)
+    calibrated = {"contact_law": config["model"]["contact_law"],
+                  "parameters": {"mesh_stiffness": config["model"]["mesh_stiffness"]}}
+    truth = {"variant": "missing_tooth", "parameters": {"missing_share": 0.6}}
+    rows = []
+    for state, model in (("healthy", None), ("missing_tooth", truth)):
+        signals = system.simulate_state(calibrated, state, model, 1100.0, 1.0, seed=11)
+        rows += make_rows(f"{state}-r0", "measured", state, 1100.0, 10.0, system.output_rate_hz, signals,
+                          segment_length=system.segment_length)
+    frame = pd.DataFrame(rows)
+    result, history = calibrate_state(system, frame, "missing_tooth", calibrated, config["calibration"],
+                                      config["features"]["spectrum"], config["features"]["channels"])
+    print(result, history[["cost", "missing_share"]])
+    assert len(history) == 12 and result["speeds_rpm"] == [1100.0]
+    assert result["records"] == ["missing_tooth-r0"] and result["parameters"].keys() == {"missing_share"}
+    assert result["parameters"]["missing_share"] == pytest.approx(0.6, abs=0.15)
+    assert result["cost"] < history["cost"].max()
+
+
+def test_per_state_calibration_is_checked_before_any_job():
+    from condmon.config import ConfigError
+
+    with pytest.raises(ConfigError, match="'crack' is not a fault state of this run"):
+        config_of("config/config.yaml", {"calibration": {"per_state": {"states": ["crack"]}}})
+    with pytest.raises(ConfigError, match="stiffness_loss removes no material"):
+        config_of("config/config.yaml", {"model": {"surface_fault_model": "stiffness_loss"},
+                                         "calibration": {"per_state": {"states": ["surface_fault"]}}})
+    with pytest.raises(ConfigError, match="the bearing system has no per-state calibration"):
+        config_of("config/cwru.yaml", {"calibration": {"per_state": {"states": ["ball"]}}})
+    config_of("config/config.yaml", {"calibration": {"per_state": {"states": ["surface_fault", "missing_tooth"]}}})
+
+
+def test_every_plot_says_which_fault_models_their_own_records_tuned():
+    note = plot_note("run", "virtual_bench", 3, state_models=("missing_tooth",))
+    assert "PER-STATE CALIBRATION: missing_tooth models tuned" in note
+    assert "PER-STATE" not in plot_note("run", "virtual_bench", 3)
