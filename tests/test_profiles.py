@@ -36,10 +36,14 @@ def test_the_slurm_plugin_is_pinned_at_the_installed_version(package):
     assert pins.get(package) == version(package), f"environment.txt pins {package} at {pins.get(package)}"
 
 
-def test_the_slurm_profile_gives_each_rule_its_resources():
-    # --forceall: every job is planned whatever results/ holds
+def test_the_slurm_profile_gives_each_rule_its_resources(tmp_path):
+    # --forceall: every job is planned whatever results/ holds; per-state calibration on, so that
+    # its rule is planned too
+    per_state = tmp_path / "per_state.yaml"
+    per_state.write_text("calibration: {per_state: {states: [missing_tooth]}}\n")
     result = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--forceall", "--profile", "profiles/slurm",
-                             "--configfile", ".test/config/smoke.yaml"], cwd=ROOT, capture_output=True, text=True)
+                             "--configfile", ".test/config/smoke.yaml", str(per_state)], cwd=ROOT,
+                            capture_output=True, text=True)
     assert result.returncode == 0, result.stderr[-3000:]
     jobs = {}  # rule -> its first job's block of the dry run
     for block in result.stdout.split("\nrule ")[1:]:
