@@ -133,3 +133,20 @@ def test_every_plot_says_which_fault_models_their_own_records_tuned():
     note = plot_note("run", "virtual_bench", 3, state_models=("missing_tooth",))
     assert "PER-STATE CALIBRATION: missing_tooth models tuned" in note
     assert "PER-STATE" not in plot_note("run", "virtual_bench", 3)
+
+
+def test_the_report_draws_each_tuned_states_convergence(tmp_path):
+    from condmon.report import state_convergence_plots
+    from condmon.report_inputs import CalibrationOutputs, RunIdentity
+
+    history = pd.DataFrame({"generation": [0, 0, 1, 1], "evaluation": [0, 1, 2, 3],
+                            "model_variant": ["wear", "pitting", "pitting", "wear"],
+                            "cost": [0.2, 0.08, 0.06, 0.1], "seconds": 1.0, "error": ""})
+    history.to_parquet(tmp_path / "history.parquet")
+    (tmp_path / "params.json").write_text('{"model_variant": "pitting"}')
+    calibration = CalibrationOutputs(params="unused", spectra="unused", history="unused",
+                                     states={"surface_fault": tmp_path / "params.json"},
+                                     state_histories={"surface_fault": tmp_path / "history.parquet"})
+    run = RunIdentity(run_name="run", data_source="virtual_bench", state_models=("surface_fault",))
+    assert state_convergence_plots(calibration, tmp_path, run) == ["calibration_convergence_state_surface_fault.png"]
+    assert (tmp_path / "calibration_convergence_state_surface_fault.png").stat().st_size > 10_000

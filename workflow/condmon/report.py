@@ -662,6 +662,20 @@ def make_plots(accuracy, predictions, calibrated: tuple, plots_dir: Path, run: R
     return names
 
 
+def state_convergence_plots(calibration: CalibrationOutputs, plots_dir: Path, run: RunIdentity) -> list[str]:
+    """Per-state calibration (calibration.per_state): each state's convergence,
+    `calibration_convergence_state_<state>.png`; the file names."""
+    names = []
+    for state, path in calibration.state_histories.items():
+        chosen = json.loads(Path(calibration.states[state]).read_text())["model_variant"]
+        note = plot_note(run.run_name, run.data_source, len(run.bench_effects), state_models=run.state_models)
+        name = f"calibration_convergence_state_{state}.png"
+        plots.save_figure(plots.calibration_convergence(pd.read_parquet(path), chosen,
+                                                        f"{note} | the {state} model"), plots_dir / name)
+        names.append(name)
+    return names
+
+
 def evaluation_tables(predictions, baseline, labels, healthy_state, measured_features_path,
                       condition, design_records, physics=None, baseline_predictions=None):
     """condmon.evaluation's tables: per evaluation, and over repeats; the physics baselines'
@@ -920,6 +934,7 @@ def write_report(inputs: ReportInputs) -> dict:
     with staging_directory(out.plots) as staging:
         plot_names = make_plots(accuracy, by_condition, (calibrations, spectra, history), staging,
                                 run, chosen.confusion_percent, shares, grouping, design_records)
+        plot_names += state_convergence_plots(inputs.calibration, staging, run)
         summary = summarize(accuracy, predictions, calibration, run.run_name, run.data_source,
                             plot_names, baseline, run.healthy_state)
         summary["data_source"]["bench_effects_the_model_lacks"] = list(run.bench_effects)

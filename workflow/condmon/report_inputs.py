@@ -72,6 +72,8 @@ class CalibrationOutputs:
     # {fault state: state_calibration/<state>/params.json} (calibration.per_state; summary.json's
     # `state_calibration`)
     states: Mapping[str, Path_] = field(default_factory=dict)
+    # {fault state: its history.parquet}: a convergence plot each
+    state_histories: Mapping[str, Path_] = field(default_factory=dict)
 
     @property
     def per_variant(self) -> bool:

@@ -70,6 +70,10 @@ rule report:
             f"state_calibration_{state}": f"{RESULTS}/state_calibration/{state}/params.json"
             for state in STATE_CALIBRATIONS
         },
+        **{
+            f"state_history_{state}": f"{RESULTS}/state_calibration/{state}/history.parquet"
+            for state in STATE_CALIBRATIONS
+        },
         **{f"benchmarks_{rule}": files for rule, files in upstream_benchmarks().items()},
         metrics=train_outputs("metrics.csv"),
         predictions=train_outputs("predictions.parquet"),

@@ -31,7 +31,9 @@ summary = write_report(ReportInputs(
                                    spectra=calibration_files("spectra"),
                                    history=calibration_files("history"),
                                    states={state: inputs[f"state_calibration_{state}"]
-                                           for state in params.get("state_models", [])}),
+                                           for state in params.get("state_models", [])},
+                                   state_histories={state: inputs[f"state_history_{state}"]
+                                                    for state in params.get("state_models", [])}),
     evaluation=EvaluationInputs(measured_features=inputs.measured_features,
                                 condition=params.condition, design_records=params.design_records,
                                 design_specimens=params.design_specimens,
