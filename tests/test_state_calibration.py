@@ -137,16 +137,14 @@ def test_every_plot_says_which_fault_models_their_own_records_tuned():
 
 def test_the_report_draws_each_tuned_states_convergence(tmp_path):
     from condmon.report import state_convergence_plots
-    from condmon.report_inputs import CalibrationOutputs, RunIdentity
+    from condmon.report_inputs import RunIdentity
 
     history = pd.DataFrame({"generation": [0, 0, 1, 1], "evaluation": [0, 1, 2, 3],
                             "model_variant": ["wear", "pitting", "pitting", "wear"],
                             "cost": [0.2, 0.08, 0.06, 0.1], "seconds": 1.0, "error": ""})
     history.to_parquet(tmp_path / "history.parquet")
-    (tmp_path / "params.json").write_text('{"model_variant": "pitting"}')
-    calibration = CalibrationOutputs(params="unused", spectra="unused", history="unused",
-                                     states={"surface_fault": tmp_path / "params.json"},
-                                     state_histories={"surface_fault": tmp_path / "history.parquet"})
     run = RunIdentity(run_name="run", data_source="virtual_bench", state_models=("surface_fault",))
-    assert state_convergence_plots(calibration, tmp_path, run) == ["calibration_convergence_state_surface_fault.png"]
+    names = state_convergence_plots({"surface_fault": {"model_variant": "pitting"}},
+                                    {"surface_fault": tmp_path / "history.parquet"}, tmp_path, run)
+    assert names == ["calibration_convergence_state_surface_fault.png"]
     assert (tmp_path / "calibration_convergence_state_surface_fault.png").stat().st_size > 10_000

@@ -182,20 +182,14 @@ def draw_gear_errors(rng: np.random.Generator, grade: float, teeth: int, normal_
                       eccentricity_phase=float(rng.uniform(0, 2 * math.pi)))
 
 
-def roll_fraction(geometry, position: float) -> float:
-    """Where a point of the path of contact (distance from T1 along the line of action) lies on
-    the pinion's active profile: 0 at the start of contact A (the pinion's root), 1 at its tip E."""
-    return (position - geometry.path_start) / (geometry.path_end - geometry.path_start)
-
-
 def contact_fatigue_band(geometry) -> tuple[float, float]:
     """The roll fractions of the pinion flank where pitting starts: from its lowest point of single
     tooth contact B up to the pitch point C. At B the pinion's contact stress peaks (one pair
     carries the load where the radii of curvature are small: ISO 6336-2 rates the pinion there,
     factor Z_B), and below C the sliding opposes the rolling, which drives the cracks into the
     flank; so pits start in the dedendum near the pitch line. Sorted, each clipped to 0..1."""
-    lowest_single_contact = roll_fraction(geometry, geometry.path_end - geometry.base_pitch)
-    pitch = roll_fraction(geometry, geometry.pitch_point)
+    lowest_single_contact = geometry.roll_fraction(geometry.path_end - geometry.base_pitch)
+    pitch = geometry.roll_fraction(geometry.pitch_point)
     low, high = sorted(float(np.clip(x, 0.0, 1.0)) for x in (lowest_single_contact, pitch))
     return low, high
 
@@ -204,9 +198,9 @@ def wear_flank_map(depth: float, roughness: float, rng: np.random.Generator, pit
                    rows: int = 21, columns: int = 11) -> FlankMap:
     """Sliding wear of a flank (the gear model's surface fault): material removed in proportion to
     the sliding distance (Archard's law), which grows with the distance from the pitch line (roll
-    fraction `pitch_line`, `roll_fraction` of the pitch point), so the depth is `depth` at the far
-    end of the flank and a fifth of it at the pitch line, plus a rough surface (Gaussian,
-    `roughness` rms, correlated over a grid cell)."""
+    fraction `pitch_line`: the geometry's `roll_fraction` of the pitch point), so the depth is
+    `depth` at the far end of the flank and a fifth of it at the pitch line, plus a rough surface
+    (Gaussian, `roughness` rms, correlated over a grid cell)."""
     roll = np.linspace(0.0, 1.0, rows)[:, None]
     sliding = np.abs(roll - pitch_line) / max(pitch_line, 1 - pitch_line)
     removed = depth * (0.2 + 0.8 * sliding) * np.ones((1, columns))

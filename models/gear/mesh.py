@@ -151,6 +151,12 @@ class GearGeometry:
     def pitch_point(self) -> float:
         return self.base_radius(self.teeth_pinion) * math.tan(self.transverse_pressure_angle)
 
+    def roll_fraction(self, position):
+        """Where a point of the path of contact (distance from T1 along the line of action; a
+        number or an array) lies on the pinion's active profile: 0 at the start of contact A (the
+        pinion's root), 1 at its tip E. Flank maps are on this scale."""
+        return (position - self.path_start) / (self.path_end - self.path_start)
+
     @property
     def contact_ratio(self) -> float:
         """Transverse contact ratio eps_alpha of the standard (unshifted) pair."""
@@ -411,7 +417,7 @@ class GearMesh:
         g = self.geometry
         if len(self.flank_maps) != g.teeth_pinion:
             raise ValueError(f"flank_maps: {len(self.flank_maps)} maps for {g.teeth_pinion} pinion teeth")
-        roll = (self.s_slice - g.path_start) / (g.path_end - g.path_start)
+        roll = g.roll_fraction(self.s_slice)
         face = np.broadcast_to(self.z[None, :] / g.face_width, roll.shape)
         cache, groups = {}, []
         for tooth, flank in enumerate(self.flank_maps):

@@ -42,7 +42,7 @@ import numpy as np
 
 from condmon.models.gear.contact_laws import hysteresis_factor
 from condmon.models.gear.errors import (add_flank_maps, broken_tooth_flank_map, contact_fatigue_band,
-                                        pitted_flank_map, roll_fraction, wear_flank_map)
+                                        pitted_flank_map, wear_flank_map)
 from condmon.models.gear.mesh import GearMesh, ProfileDeviation, ToothDamage
 # DEFLECTION_REF: K = mesh stiffness at this deflection keeps K's unit N/m for any n
 from condmon.models.gear.mesh_kernel import (BACK_FLANK, DEFLECTION_REF, TOO_MANY_CONTACTS, entry_point,
@@ -128,7 +128,7 @@ def flank_maps(p) -> tuple:
     if depth <= 0:
         raise ValueError(f"{form}: a damaged flank has lost material (depth {depth} m, > 0)")
     rng = np.random.default_rng([int(p.wear_seed), 0x3EA2])
-    pitch_line = roll_fraction(p.geometry, p.geometry.pitch_point)
+    pitch_line = p.geometry.roll_fraction(p.geometry.pitch_point)
     band = contact_fatigue_band(p.geometry)
     damage = [None] * p.geometry.teeth_pinion
     for tooth in surface_fault_teeth(p):

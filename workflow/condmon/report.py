@@ -662,15 +662,15 @@ def make_plots(accuracy, predictions, calibrated: tuple, plots_dir: Path, run: R
     return names
 
 
-def state_convergence_plots(calibration: CalibrationOutputs, plots_dir: Path, run: RunIdentity) -> list[str]:
-    """Per-state calibration (calibration.per_state): each state's convergence,
+def state_convergence_plots(results: dict, histories, plots_dir: Path, run: RunIdentity) -> list[str]:
+    """Per-state calibration (calibration.per_state): each state's convergence from its history
+    file (`histories`: state -> path; `results`: state -> its params.json content),
     `calibration_convergence_state_<state>.png`; the file names."""
+    note = plot_note(run.run_name, run.data_source, len(run.bench_effects), state_models=run.state_models)
     names = []
-    for state, path in calibration.state_histories.items():
-        chosen = json.loads(Path(calibration.states[state]).read_text())["model_variant"]
-        note = plot_note(run.run_name, run.data_source, len(run.bench_effects), state_models=run.state_models)
+    for state, path in histories.items():
         name = f"calibration_convergence_state_{state}.png"
-        plots.save_figure(plots.calibration_convergence(pd.read_parquet(path), chosen,
+        plots.save_figure(plots.calibration_convergence(pd.read_parquet(path), results[state]["model_variant"],
                                                         f"{note} | the {state} model"), plots_dir / name)
         names.append(name)
     return names
@@ -934,13 +934,15 @@ def write_report(inputs: ReportInputs) -> dict:
     with staging_directory(out.plots) as staging:
         plot_names = make_plots(accuracy, by_condition, (calibrations, spectra, history), staging,
                                 run, chosen.confusion_percent, shares, grouping, design_records)
-        plot_names += state_convergence_plots(inputs.calibration, staging, run)
+        # calibration.per_state: what each fault's own records tuned
+        state_results = {state: json.loads(Path(path).read_text())
+                         for state, path in inputs.calibration.states.items()}
+        plot_names += state_convergence_plots(state_results, inputs.calibration.state_histories, staging, run)
         summary = summarize(accuracy, predictions, calibration, run.run_name, run.data_source,
                             plot_names, baseline, run.healthy_state)
         summary["data_source"]["bench_effects_the_model_lacks"] = list(run.bench_effects)
-        if inputs.calibration.states:  # calibration.per_state: what each fault's own records tuned
-            summary["state_calibration"] = {state: json.loads(Path(path).read_text())
-                                            for state, path in inputs.calibration.states.items()}
+        if state_results:
+            summary["state_calibration"] = state_results
         if per_model:
             summary["calibration_by_variant"] = calibrations
         summary["simulation"] = simulation_summary(upstream.simulation_reports)
