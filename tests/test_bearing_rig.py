@@ -7,7 +7,8 @@ from scipy.signal import welch
 from condmon.stat_features import envelope_line_ratio, envelope_spectrum
 from condmon.models.bearing.rig import (SKF_6203, SKF_6205, BearingRigParameters, RigSettings, SimulationError,
                                         _DefectProfile, ball_strike_probability, contact_half_width,
-                                        effective_defect_depth, simulate_rig)
+                                        de_clearance, effective_defect_depth, most_loaded_ball_load,
+                                        preload_deflection, simulate_rig)
 
 SPEED = 1797.0
 SHAFT_HZ = SPEED / 60.0
@@ -55,6 +56,14 @@ def test_a_ball_pit_strikes_on_the_share_of_turns_it_crosses_the_rolling_track()
     shares = [ball_strike_probability(small), ball_strike_probability(small.replace(defect_width=0.021 * 0.0254)),
               ball_strike_probability(small.replace(radial_load=150.0))]
     assert 0.05 < shares[0] < shares[1] < 0.3 and shares[0] < shares[2] < 0.3
+    # an axial preload presses the balls harder: a wider track, more strikes
+    assert shares[0] < ball_strike_probability(small.replace(axial_preload=125.0)) < 0.3
+    # the most loaded ball carries Stribeck's 4.37 F_r / Z without clearance, more with one (fewer
+    # balls share the load)
+    journal = small.rotor_mass * small.de_mass_share * small.gravity
+    factor = most_loaded_ball_load(small.replace(radial_clearance=0.0)) * SKF_6205.n_balls / journal
+    assert factor == pytest.approx(4.37, abs=0.02)
+    assert most_loaded_ball_load(small) * SKF_6205.n_balls / journal > factor + 1
     assert _DefectProfile(small, hash_seed=1.0).strike == shares[0]          # None: from the contact
     assert _DefectProfile(small.replace(defect_strike_probability=0.5), hash_seed=1.0).strike == 0.5
     race = BearingRigParameters(defect_kind="outer_race", defect_width=0.007 * 0.0254)
@@ -183,20 +192,39 @@ def test_outer_race_line_weakens_as_the_defect_leaves_the_load_zone():
 TILTED = ((2900.0, 0.04, 0.6, 40.0), (3400.0, 0.03, 1.0, -40.0), (3700.0, 0.04, 0.5, 40.0))
 
 
+def test_an_axial_preload_takes_up_the_clearance_and_presses_every_ball():
+    """The preload deflection solves Z K delta^1.5 sin(alpha) = F_a with the contact angle of the
+    shifted rings, cos alpha = A cos alpha_0 / (A + delta); SKF's spring preload for the 6205
+    (125-250 N) presses every ball by a few um, more with more force, and less with a larger
+    clearance (a steeper contact angle carries the same force with less deflection)."""
+    base = BearingRigParameters(radial_clearance=4e-6)
+    assert preload_deflection(base) == 0.0 and de_clearance(base) == 4e-6   # no spring: the clearance stays
+    light, heavy = (preload_deflection(base.replace(axial_preload=f)) for f in (125.0, 250.0))
+    assert 3e-6 < light < heavy < 7e-6, (light, heavy)
+    assert de_clearance(base.replace(axial_preload=125.0)) == -light
+    assert preload_deflection(base.replace(axial_preload=125.0, radial_clearance=8e-6)) < light
+    a = (2 * 0.52 - 1) * SKF_6205.ball_diameter
+    cos_alpha = a * (1 - 4e-6 / a) / (a + light)
+    axial = SKF_6205.n_balls * base.contact_stiffness * light ** 1.5 * np.sqrt(1 - cos_alpha ** 2)
+    assert axial == pytest.approx(125.0, rel=1e-6)
+    with pytest.raises(ValueError, match="axial_preload"):
+        _outer_race(axial_preload=-1.0)
+
+
 def test_a_preload_and_tilted_modes_show_defects_above_and_beside_the_load_zone():
-    """A mounted preload beyond the clearance keeps the balls at 12:00 pressed, so a defect there
+    """An axial preload (SKF's lighter spring, 125 N) keeps the balls at 12:00 pressed, so a defect there
     strikes; a strike at 3:00 is horizontal and reaches the 12 o'clock sensor only through modes
     whose motion at the sensor is tilted (real CWRU records at 3:00 and 12:00 show the line)."""
     bpfo = SKF_6205.orders()["bpfo"]
-    preload = dict(preload_deflection=4 * CLEAN_CLEARANCE)
+    preload = dict(axial_preload=125.0)
     top = _line(_outer_race(12.0, resonances=TILTED, **preload), bpfo)[1]
     assert top > 4.0, top   # without the preload: no line (the test above)
     beside_vertical_modes = _line(_outer_race(3.0, **preload), bpfo)[1]
     beside = _line(_outer_race(3.0, resonances=TILTED, **preload), bpfo)[1]
-    assert beside_vertical_modes < 3.0 < 4.0 < beside, (beside_vertical_modes, beside)
-    # a preload must never be negative, nor a mode tilted past horizontal
-    with pytest.raises(ValueError, match="preload_deflection"):
-        _outer_race(preload_deflection=-1e-6)
+    # vertical modes see a 3:00 strike only through the journal's coupling (a line about 4x the
+    # floor at 125 N, none with a heavier preload); tilted modes carry it several times stronger
+    assert beside > 4.0 and beside > 3 * beside_vertical_modes, (beside_vertical_modes, beside)
+    # a mode must never be tilted past horizontal
     with pytest.raises(ValueError, match="tilt"):
         _outer_race(resonances=((3000.0, 0.02, 0.5, 120.0),))
 

@@ -32,7 +32,7 @@ Mechanics (exudyn, plane x horizontal / y vertical, 8 DOF, RK44):
   the defect lines spread around the kinematic frequencies by about the slip instead of sitting
   exactly on them. The outer-race defect sits at `defect_clock` (CWRU rigs: 3:00, 6:00, 12:00;
   the load pushes the journal down, so away from 6:00 its balls carry less load and strike
-  weaker, and above the load zone they strike only if a mounted preload (`preload_deflection`)
+  weaker, and above the load zone they strike only if an axial preload (`axial_preload`)
   keeps them pressed).
 
 Structure and measurement chain: the DE housing (end shield and motor frame) carries several
@@ -60,8 +60,8 @@ Speed (measured on the 2-core CI machine, exudyn 1.13.6, one process): 1.2-1.35 
 simulated second with the modes as filters after the run (defaults, oversampling 4, h = 20.8 us,
 load-zone ball sums; 96 randomised samples of 0.78 s took 100 s of CPU); the modes and the rough
 running in the model cost about 10 % more (about 20 % with rough running), measured side by side.
-Summing every ball of both bearings costs about 40 % more (a preload beyond the clearance
-presses every DE ball, so such a run sums all of the DE's), and the defect term is gated by a cheap
+Summing every ball of both bearings costs about 40 % more (an axial preload presses every
+DE ball, so such a run sums all of the DE's), and the defect term is gated by a cheap
 `IfThenElse` so it costs nothing between passages. Oversampling 4 (not 10) keeps the cost: against
 oversampling 8 (h/2), an outer-race run agrees within 0.4 % in RMS and 0.3 % in kurtosis, a
 ball-defect run with rough running within 0.7 % in RMS, kurtosis and the 2 x BSF envelope-line
@@ -146,10 +146,11 @@ class BearingRigParameters:
     # Ball-race contact (Hertz, point contact, both races in series): F = K delta^1.5.
     contact_stiffness: float = 8.0e9        # N/m^1.5, DE (6205); FE scaled by (d_FE/d_DE)^0.5
     radial_clearance: float = 5.0e-6        # m, radial internal clearance (both bearings)
-    # m, contact deflection every DE ball carries from a mounted preload (an axial wave spring, an
-    # interference fit): it takes up the clearance, and beyond it keeps the balls away from the
-    # load zone in contact too, so an outer-race defect at 12:00 or 3:00 still strikes (weaker)
-    preload_deflection: float = 0.0
+    # N, axial preload of a spring-loaded bearing arrangement (a wave spring on one outer ring):
+    # it shifts the rings axially until every DE ball touches both races (`preload_deflection`),
+    # so balls away from the load zone stay pressed and an outer-race defect at 12:00 or 3:00
+    # still strikes (weaker); 0: no spring, the radial clearance stays
+    axial_preload: float = 0.0
     bearing_damping: float = 300.0          # N s/m, linear viscous damping journal-housing
     # Housings (end shields) on the motor frame.
     housing_mass: float = 3.0               # kg, each
@@ -211,10 +212,41 @@ def clock_angle(hours: float) -> float:
     return math.radians(90.0 - 30.0 * hours)
 
 
+def preload_deflection(p: BearingRigParameters) -> float:
+    """Contact deflection (m) every DE ball carries from the axial preload `axial_preload` (0
+    without one). A deep-groove bearing under a pure axial load F_a takes up its radial clearance
+    c_r by an axial shift, each ball then contacts at the angle alpha with
+    cos alpha = A cos alpha_0 / (A + delta), cos alpha_0 = 1 - c_r / A, A = (f_i + f_o - 1) D the
+    distance of the groove curvature centres, and carries Q = K delta^1.5 with
+    Z Q sin alpha = F_a (Harris and Kotzalas, Rolling Bearing Analysis, ch. 2 and 7). Solved for
+    delta by bisection (Z K delta^1.5 sin alpha grows with delta)."""
+    if p.axial_preload <= 0:
+        return 0.0
+    g = p.de_geometry
+    curvature_centres = (2 * GROOVE_CONFORMITY - 1) * g.ball_diameter
+    cos_free = 1.0 - p.radial_clearance / curvature_centres
+    if not cos_free > 0:
+        raise ValueError(f"radial_clearance {p.radial_clearance:g} m exceeds the groove geometry's "
+                         f"{curvature_centres:g} m: no contact angle")
+
+    def axial_force(delta):
+        cos_alpha = curvature_centres * cos_free / (curvature_centres + delta)
+        return g.n_balls * p.contact_stiffness * delta ** 1.5 * math.sqrt(max(1.0 - cos_alpha ** 2, 0.0))
+
+    low, high = 0.0, 1e-3
+    if axial_force(high) < p.axial_preload:
+        raise ValueError(f"axial_preload {p.axial_preload:g} N: beyond 1 mm of contact deflection")
+    for _ in range(100):
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if axial_force(mid) < p.axial_preload else (low, mid)
+    return 0.5 * (low + high)
+
+
 def de_clearance(p: BearingRigParameters) -> float:
-    """The DE bearing's running clearance: the radial clearance less the preload deflection
-    (negative: every ball is pressed, at rest, by that much)."""
-    return p.radial_clearance - p.preload_deflection
+    """The DE bearing's running clearance in the planar model: the radial clearance, or with an
+    axial preload minus its `preload_deflection` (every ball pressed at rest; the deflection acts
+    along the contact line, whose radial share cos alpha > 0.95 here the planar model takes as 1)."""
+    return p.radial_clearance if p.axial_preload <= 0 else -preload_deflection(p)
 
 
 def effective_defect_depth(p: BearingRigParameters, race: str | None = None) -> float:
@@ -260,16 +292,27 @@ def contact_half_width(geometry: BearingGeometry, ball_load: float, race: str) -
     return float((6 * k ** 2 * elliptic * ball_load * radius / (math.pi * reduced_modulus)) ** (1 / 3))
 
 
-def ball_strike_probability(p: BearingRigParameters) -> float:
-    """Share of a defective ball's spin turns on which its pit meets the races. The ball rolls on
-    a band about its spin equator as wide as the contact (`contact_half_width`, at the most loaded
-    ball's load, 5 F_r / Z by Stribeck, F_r the drive-end journal's load); the pit strikes while
-    its centre is within that half-width plus its own radius of the equator. A real ball's spin
-    axis wanders (cage and race friction), so over many turns every orientation is taken: the
-    share of the sphere within an angle beta of a great circle is sin(beta)."""
+def most_loaded_ball_load(p: BearingRigParameters) -> float:
+    """Load (N) of the drive end's most loaded ball at rest, from the model's own static
+    equilibrium: the journal sinks until the balls carry its load (gravity and `radial_load`), over
+    the running clearance (`de_clearance`: the radial clearance, or every ball pressed by the axial
+    preload), and the bottom ball carries K delta^1.5."""
     g = p.de_geometry
     journal_load = p.rotor_mass * p.de_mass_share * p.gravity + p.radial_load
-    ball_load = max(5 * journal_load / (g.n_balls * math.cos(math.radians(g.contact_angle_deg))), 1e-3)
+    clearance = de_clearance(p)
+    sag = _static_sag(g, p.contact_stiffness, clearance, journal_load)
+    return float(p.contact_stiffness * max(-sag - clearance, 0.0) ** 1.5)
+
+
+def ball_strike_probability(p: BearingRigParameters) -> float:
+    """Share of a defective ball's spin turns on which its pit meets the races. The ball rolls on
+    a band about its spin equator as wide as the contact (`contact_half_width`, at the most
+    loaded ball's load, `most_loaded_ball_load`); the pit strikes while its centre is within that
+    half-width plus its own radius of the equator. A real ball's spin axis wanders (cage and race
+    friction), so over many turns every orientation is taken: the share of the sphere within an
+    angle beta of a great circle is sin(beta)."""
+    g = p.de_geometry
+    ball_load = max(most_loaded_ball_load(p), 1e-3)
     half_width = np.mean([contact_half_width(g, ball_load, race) for race in ("inner", "outer")])
     beta = (half_width + p.defect_width / 2) / (g.ball_diameter / 2)
     return float(min(1.0, math.sin(min(beta, math.pi / 2))))
@@ -299,10 +342,10 @@ def _check(p: BearingRigParameters, s: RigSettings) -> None:
             raise ValueError("defect_depth_variation must lie in [0, 1)")
     if not 0 <= p.slip_std < 0.2:
         raise ValueError(f"slip_std must lie in [0, 0.2) (fraction of the passage rate), got {p.slip_std}")
-    if not (np.isfinite(p.radial_clearance) and p.radial_clearance >= 0
-            and np.isfinite(p.preload_deflection) and p.preload_deflection >= 0):
-        raise ValueError(f"radial_clearance and preload_deflection must be >= 0 m, got {p.radial_clearance} "
-                         f"and {p.preload_deflection}")
+    if not (np.isfinite(p.radial_clearance) and p.radial_clearance >= 0):
+        raise ValueError(f"radial_clearance must be >= 0 m, got {p.radial_clearance}")
+    if not (np.isfinite(p.axial_preload) and p.axial_preload >= 0):
+        raise ValueError(f"axial_preload must be >= 0 N, got {p.axial_preload}")
     if not 0 <= p.defect_clock <= 12:
         raise ValueError(f"defect_clock must lie in [0, 12] hours, got {p.defect_clock}")
     # the RK44 step must resolve every mode: omega h <= 1 keeps its numerical damping small
@@ -706,11 +749,11 @@ def simulate_rig(params: BearingRigParameters, settings: RigSettings | None = No
     rough_seed = float(rng.uniform(0.0, 100.0))
     sensor_rate = s.output_rate_hz * s.oversampling
     where = (f"defect {p.defect_kind}, {p.speed_rpm:g} rpm, contact_stiffness={p.contact_stiffness:.3g}, "
-             f"radial_clearance={p.radial_clearance:.3g}, preload_deflection={p.preload_deflection:.3g}, "
+             f"radial_clearance={p.radial_clearance:.3g}, axial_preload={p.axial_preload:.3g}, "
              f"radial_load={p.radial_load:.3g}, "
              f"defect_width={p.defect_width:.3g}, h={1 / (sensor_rate * s.steps_per_sensor_sample):.3g} s")
-    # a DE preload beyond the clearance presses every DE ball: its load-zone sum cannot hold (the
-    # fan end keeps its clearance)
+    # an axial preload presses every DE ball: its load-zone sum cannot hold (the fan end keeps
+    # its clearance in the model)
     clearance_de = de_clearance(p)
     zone_only = s.load_zone_only and clearance_de > 0
     acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed,
