@@ -251,22 +251,22 @@ def test_pitting_starts_between_the_lowest_point_of_single_contact_and_the_pitch
 
 
 def test_either_surface_fault_form_is_drawn():
-    from condmon.models.gear.mesh_force import flank_maps, surface_fault_form
+    from condmon.models.gear.mesh_force import damage_maps, surface_fault_form
 
     p = GearDrivetrainParameters(health_state="surface_fault", surface_fault_model="wear_or_pitting")
     forms = {surface_fault_form(p.replace(wear_seed=seed)) for seed in range(4)}
     assert forms == {"wear", "pitting"}
-    maps = flank_maps(p.replace(wear_seed=1))  # pitting on the surface fault's three teeth
+    maps = damage_maps(p.replace(wear_seed=1))  # pitting on the surface fault's three teeth
     assert [i for i, m in enumerate(maps) if m is not None] == [0, 1, 2]
     with pytest.raises(ValueError, match="unknown surface_fault_model"):
         surface_fault_form(p.replace(surface_fault_model="rust"))
 
 
-def test_a_tooth_broken_short_of_its_root_is_a_flank_map_and_a_whole_one_is_missing():
-    """missing_tooth with missing_share < 1: the part above a diagonal fracture is gone (a flank
+def test_a_tooth_broken_short_of_its_root_is_a_damage_map_and_a_whole_one_is_missing():
+    """missing_tooth with missing_share < 1: the part above a diagonal fracture is gone (a damage
     map of the faulty tooth); at 1 the whole tooth is missing (tooth geometry, no map)."""
     from condmon.models.gear.errors import broken_tooth_flank_map
-    from condmon.models.gear.mesh_force import flank_maps, tooth_damage
+    from condmon.models.gear.mesh_force import damage_maps, tooth_damage
 
     gone = broken_tooth_flank_map(0.6).array() > 0
     assert gone.mean() == pytest.approx(0.6, abs=0.05)
@@ -275,7 +275,7 @@ def test_a_tooth_broken_short_of_its_root_is_a_flank_map_and_a_whole_one_is_miss
     with pytest.raises(ValueError, match="missing_share"):
         broken_tooth_flank_map(0.0)
     broken = GearDrivetrainParameters(health_state="missing_tooth", missing_share=0.6, faulty_tooth=3)
-    maps = flank_maps(broken)
+    maps = damage_maps(broken)
     assert tooth_damage(broken) is None and maps[3] is not None and sum(m is not None for m in maps) == 1
     whole = broken.replace(missing_share=1.0)
-    assert tooth_damage(whole).kind == "missing" and flank_maps(whole) == ()
+    assert tooth_damage(whole).kind == "missing" and damage_maps(whole) == ()

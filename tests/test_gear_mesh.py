@@ -168,8 +168,36 @@ def test_spall_chip_and_crack_act_on_their_tooth_and_region_only(rig_mesh):
     assert all(b < a for a, b in zip(means, means[1:]))
 
 
+def test_damage_deeper_than_the_deflection_takes_its_part_of_the_line_out_of_contact():
+    """Material removed over half the face, far deeper than the deflection: that half stops
+    touching and the other half carries the load (the deflection doubles, a fraction of a um);
+    one contact averaged over the face would lower the whole line by half the depth (15 um). The
+    damage map's depth-level groups agree with the spall, a contact group of its own."""
+    from condmon.models.gear.errors import FlankMap
+
+    load, depth, tooth = 196.0, 3e-5, 5
+    half = FlankMap.of(np.where(np.linspace(0, 1, 101) <= 0.5, depth, 0.0)[None, :])
+    maps = tuple(half if t == tooth else None for t in range(SPUR.teeth_pinion))
+    mapped = GearMesh(SPUR, slices=20, damage_maps=maps)
+    spall = GearMesh(SPUR, slices=20, damage=ToothDamage("spall", teeth=(tooth,), profile=(0.0, 1.0),
+                                                         face=(0.0, 0.5), depth=depth, stiffness_loss=0.0))
+    healthy = GearMesh(SPUR, slices=20)
+    alone = tooth + np.linspace(SPUR.contact_ratio - 1 + 0.05, 0.95, 20)  # tooth 5's pair alone in mesh
+    base = healthy.loaded_transmission_error(alone, load)
+    change = mapped.loaded_transmission_error(alone, load) - base
+    assert change == pytest.approx(base, rel=0.1)  # half the line: twice the deflection
+    assert change.max() < 0.1 * depth / 2                       # not half the depth
+    assert mapped.loaded_transmission_error(alone, load) == pytest.approx(
+        spall.loaded_transmission_error(alone, load), rel=1e-6)
+    with pytest.raises(ValueError, match="damage map and a spall"):
+        GearMesh(SPUR, slices=20, damage_maps=maps, damage=ToothDamage("spall", teeth=(tooth,)))
+
+
 def test_static_transmission_error_follows_the_profile_deviation():
-    load = 196.0  # N along the line of action: 10 N m on the gear
+    # N along the line of action, 100 N m on the gear: the deflection (about 5 um) exceeds the 1 um
+    # deviation, so every pair in mesh stays in contact and the TE is linear in the deviation (at
+    # 10 N m, 0.5 um, pairs standing back would leave the contact)
+    load = 1960.0
     phase = np.arange(1000) / 1000.0
     for geometry, slices, gain in ((SPUR, 1, 1.0), (RIG, 80, abs(np.sinc(RIG.overlap_ratio)))):
         smooth = GearMesh(geometry, slices=slices).loaded_transmission_error(phase, load)

@@ -188,8 +188,11 @@ class GearDrivetrainParameters:
     pitch_errors_pinion: tuple = ()
     pitch_errors_gear: tuple = ()
     # Flank deviations of every pinion tooth (`errors.FlankMap`, material removed; empty:
-    # none): profile and helix deviations and misalignment, or a bench's own damage.
+    # none): profile and helix deviations and misalignment.
     flank_maps_pinion: tuple = ()
+    # Damage of every pinion tooth beyond its health state's own (`errors.FlankMap`, material
+    # removed; empty: none): a bench's own damage. Its contact is split by depth (`GearMesh`).
+    damage_maps_pinion: tuple = ()
     # Health.
     health_state: str = "healthy"
     faulty_tooth: int = 0

@@ -30,7 +30,10 @@ Damage is geometry (`ToothDamage`): a missing tooth has no stiffness over its me
 a region of one flank to a depth (contact only once the deflection exceeds it) with a local loss of
 contact stiffness; a chipped tooth loses the flank above a roll position over part of the face;
 a root crack weakens the tooth's section (Tian 2004 / Chaari et al. 2009 crack model) and so its
-bending, shear and axial stiffness.
+bending, shear and axial stiffness. Material removed is a map over the flank: manufacturing
+deviations (`flank_maps`, averaged over each contact line: small against the deflection) and
+damage (`damage_maps`: wear, pits, a broken-off part, far deeper than the deflection, so a
+damaged tooth's slices are grouped by the depth removed and each group touches on its own).
 
 Units: SI (m, N, Pa); stiffness in N/m along the transverse line of action.
 """
@@ -331,6 +334,11 @@ def iso6336_mesh_stiffness(g: GearGeometry) -> float:
 
 # --- tables over the mesh phase -------------------------------------------------------------------
 
+# Depths removed (m) that bound the contact groups of a damaged flank: intact (up to 0.1 um),
+# then levels a factor two apart up to 0.4 mm; deeper is one group (it never touches).
+DAMAGE_DEPTH_LEVELS = 1.0e-7 * 2.0 ** np.arange(13)
+
+
 @dataclass
 class ContactGroup:
     """One contact of a tooth pair over its mesh phase u = i / points_per_pitch:
@@ -371,9 +379,14 @@ class GearMesh:
     # If set: the static transmission error (m) at mesh frequency the sinusoidal profile deviation
     # must produce; its flank amplitude is then transmission_error / `sine_te_gain`.
     transmission_error: float | None = None
-    # Per pinion tooth (empty: none): a `errors.FlankMap` of material removed from its flank
-    # (manufacturing deviations, wear, a bench's own damage) or None.
+    # Per pinion tooth (empty: none): a `errors.FlankMap` of its manufacturing deviations (profile,
+    # helix, misalignment: small against the deflection, averaged over each contact line) or None.
     flank_maps: tuple = ()
+    # Per pinion tooth (empty: none): a `errors.FlankMap` of material damage removed (wear, pits, a
+    # spall, a broken-off part; usually far deeper than the deflection) or None. Each tooth's
+    # contact line is split by the depth removed (`DAMAGE_DEPTH_LEVELS`): a slice that lies deeper
+    # than the deflection leaves the contact, and the rest of the line carries the load.
+    damage_maps: tuple = ()
 
     def __post_init__(self):
         g = self.geometry
@@ -409,24 +422,49 @@ class GearMesh:
         self._healthy = self._groups_from(self.slice_stiffness, None)
         self._damaged = self._damaged_groups() if self.damage is not None else None
         self.mean_stiffness = float(self._healthy[0].stiffness.sum() / self.points_per_pitch)
-        self._tooth_groups = self._flank_groups() if self.flank_maps else None
+        self._tooth_groups = self._flank_groups() if (self.flank_maps or self.damage_maps) else None
 
     def _flank_groups(self) -> list[list[ContactGroup]]:
-        """Every pinion tooth's contact groups with its flank map: each slice's contact lowered by
-        the map at its contact point (roll fraction along the path, fraction of the face)."""
+        """Every pinion tooth's contact groups with its flank map and damage map: each slice's
+        contact lowered by the maps at its contact point (roll fraction along the path, fraction of
+        the face); a damaged tooth's slices grouped by the depth its damage removed there."""
         g = self.geometry
-        if len(self.flank_maps) != g.teeth_pinion:
-            raise ValueError(f"flank_maps: {len(self.flank_maps)} maps for {g.teeth_pinion} pinion teeth")
+        for name in ("flank_maps", "damage_maps"):
+            maps = getattr(self, name)
+            if maps and len(maps) != g.teeth_pinion:
+                raise ValueError(f"{name}: {len(maps)} maps for {g.teeth_pinion} pinion teeth")
+        flanks = self.flank_maps or (None,) * g.teeth_pinion
+        damages = self.damage_maps or (None,) * g.teeth_pinion
         roll = g.roll_fraction(self.s_slice)
         face = np.broadcast_to(self.z[None, :] / g.face_width, roll.shape)
         cache, groups = {}, []
-        for tooth, flank in enumerate(self.flank_maps):
+        for tooth, (flank, damage) in enumerate(zip(flanks, damages)):
             damaged = self._is_damaged(tooth)
-            if (flank, damaged) not in cache:
+            key = (flank, damage, damaged)
+            if key not in cache:
                 extra = None if flank is None else flank.at(roll, face)
-                cache[flank, damaged] = (self._damaged_groups(extra) if damaged
-                                         else self._groups_from(self.slice_stiffness, extra))
-            groups.append(cache[flank, damaged])
+                if damage is not None:
+                    if damaged:
+                        raise ValueError(f"pinion tooth {tooth}: a damage map and a {self.damage.kind} at once")
+                    cache[key] = self._damage_groups(extra, damage.at(roll, face))
+                else:
+                    cache[key] = (self._damaged_groups(extra) if damaged
+                                  else self._groups_from(self.slice_stiffness, extra))
+            groups.append(cache[key])
+        return groups
+
+    def _damage_groups(self, extra, removed: np.ndarray) -> list[ContactGroup]:
+        """A damaged flank's contact groups: its slices by the depth removed (`DAMAGE_DEPTH_LEVELS`),
+        each level a contact of its own at its slices' mean deviation. A group averages only
+        slices within a factor two of each other's depth, so a pit or a spall deeper than the
+        deflection takes its slices out of contact instead of lowering the whole line by its
+        share of the face (what one averaged group would do)."""
+        deviation = removed if extra is None else extra + removed
+        level = np.searchsorted(DAMAGE_DEPTH_LEVELS, removed)
+        groups = []
+        for index in np.unique(level[self.slice_stiffness > 0]):
+            stiffness = self.slice_stiffness * (level == index)
+            groups += self._groups_from(stiffness, deviation)
         return groups
 
     def _is_damaged(self, tooth: int) -> bool:
@@ -542,14 +580,22 @@ class GearMesh:
 
     def loaded_transmission_error(self, phase, load: float) -> np.ndarray:
         """Static transmission error (m, along the line of action) under `load` (N) at mesh phase(s),
-        linear elastic: the deflection delta with sum_g K_g (delta - e_g) = load over the contact
-        groups in mesh (pits count as touching)."""
+        linear elastic: the deflection delta with sum_g K_g max(delta - e_g, 0) = load over the
+        contact groups in mesh (a group lying deeper than delta does not touch)."""
         phase = np.atleast_1d(np.asarray(phase, dtype=float))
-        k_sum, ke_sum = np.zeros_like(phase), np.zeros_like(phase)
+        stiffness, deviation = [], []
         first = int(math.floor(phase.min() - self.window)) - 1
         for j in range(first, int(math.floor(phase.max())) + 1):
             for group in self.groups(j):
-                k = np.interp(phase - j, self.u, group.stiffness, left=0.0, right=0.0)
-                k_sum += k
-                ke_sum += k * np.interp(phase - j, self.u, group.deviation)
-        return (load + ke_sum) / k_sum
+                stiffness.append(np.interp(phase - j, self.u, group.stiffness, left=0.0, right=0.0))
+                deviation.append(np.interp(phase - j, self.u, group.deviation))
+        k, e = np.array(stiffness), np.array(deviation)
+        # the force grows with delta: bisect between the least deviation (no force) and the
+        # largest plus load / K (every group touching, at least the load)
+        low = np.where(k > 0, e, np.inf).min(axis=0)
+        high = np.where(k > 0, e, -np.inf).max(axis=0) + load / np.maximum(k.sum(axis=0), 1e-30)
+        for _ in range(80):
+            mid = 0.5 * (low + high)
+            short = (k * np.maximum(mid - e, 0.0)).sum(axis=0) < load
+            low, high = np.where(short, mid, low), np.where(short, high, mid)
+        return 0.5 * (low + high)

@@ -23,15 +23,18 @@ lasts.
 
 Two stiffness models (`mesh_stiffness_model`): `potential_energy` (`TVMSMeshForce`, the pair
 stiffness over the mesh phase from `mesh.py`, precomputed as tables) and `simple`
-(`MeshForce`: equal pairs in rectangular contact windows). Health: a surface fault scales the
-contact stiffness of its pinion teeth by (1 - loss) over the whole flank; a missing tooth, spall,
-chipped tooth and root crack are tooth geometry (`mesh.ToothDamage`).
+(`MeshForce`: equal pairs in rectangular contact windows). Health: a surface fault removes
+material (wear or pitting, `damage_maps`) or, as the CFRP study did, scales the contact stiffness
+of its pinion teeth by (1 - loss) over the whole flank; a tooth broken short of its root is a
+damage map too; a whole missing tooth, spall, chipped tooth and root crack are tooth geometry
+(`mesh.ToothDamage`).
 
 Effects of a real drivetrain, per sample: a slow speed fluctuation (in the mesh phase), shaft
 run-out (eccentricity along the line of action at the shaft frequencies: it displaces the mesh and
 shifts its phase by e / base pitch, so the mesh is modulated at the shaft orders; the centre-distance
 part, which changes the contact ratio by about 0.3 % at 10 um, is left out), tooth pitch errors and
-flank maps (`errors.FlankMap`: profile and helix deviations, wear, a bench's damage).
+flank maps (`errors.FlankMap`: profile and helix deviations); a bench's own damage comes as damage
+maps (`damage_maps_pinion`).
 """
 from __future__ import annotations
 
@@ -113,35 +116,38 @@ def contact_stiffness_factors(p) -> list[float]:
     return factors
 
 
-def flank_maps(p) -> tuple:
-    """Every pinion tooth's flank map: the manufacturing deviations `flank_maps_pinion` plus, for a
-    surface fault by wear or pitting, the damage of its teeth (each tooth its own surface, from
-    `wear_seed`), or for a tooth broken off short of its root (`missing_share` < 1) the part gone."""
+def damage_maps(p) -> tuple:
+    """Every pinion tooth's damage map (material removed, `errors.FlankMap`, or None): a bench's own
+    damage `damage_maps_pinion` plus, for a surface fault by wear or pitting, the damage of its
+    teeth (each tooth its own surface, from `wear_seed`), or for a tooth broken off short of its
+    root (`missing_share` < 1) the part gone."""
+    teeth = p.geometry.teeth_pinion
     if p.health_state == "missing_tooth" and not whole_tooth_missing(p):
-        damage = [None] * p.geometry.teeth_pinion
-        damage[p.faulty_tooth % p.geometry.teeth_pinion] = broken_tooth_flank_map(p.missing_share)
-        return add_flank_maps(tuple(p.flank_maps_pinion), tuple(damage))
+        damage = [None] * teeth
+        damage[p.faulty_tooth % teeth] = broken_tooth_flank_map(p.missing_share)
+        return add_flank_maps(tuple(p.damage_maps_pinion), tuple(damage))
     form = surface_fault_form(p)
     if p.health_state != "surface_fault" or form not in ("wear", "pitting"):
-        return tuple(p.flank_maps_pinion)
+        return tuple(p.damage_maps_pinion)
     depth = p.wear_depth if form == "wear" else p.pit_depth
     if depth <= 0:
         raise ValueError(f"{form}: a damaged flank has lost material (depth {depth} m, > 0)")
     rng = np.random.default_rng([int(p.wear_seed), 0x3EA2])
     pitch_line = p.geometry.roll_fraction(p.geometry.pitch_point)
     band = contact_fatigue_band(p.geometry)
-    damage = [None] * p.geometry.teeth_pinion
+    damage = [None] * teeth
     for tooth in surface_fault_teeth(p):
         damage[tooth] = (wear_flank_map(p.wear_depth, p.wear_roughness, rng, pitch_line=pitch_line) if form == "wear"
                          else pitted_flank_map(p.pit_depth, p.pitted_area, band, rng))
-    return add_flank_maps(tuple(p.flank_maps_pinion), tuple(damage))
+    return add_flank_maps(tuple(p.damage_maps_pinion), tuple(damage))
 
 
 def gear_mesh(p) -> GearMesh:
-    """The potential-energy TVMS tables of `p` (geometry, slices, profile deviations, flank maps, damage)."""
+    """The potential-energy TVMS tables of `p` (geometry, slices, profile deviations, flank and damage maps, damage)."""
     return GearMesh(p.geometry, slices=p.helix_slices, damage=tooth_damage(p),
                     profile_deviation=ProfileDeviation(tip_relief=p.tip_relief),
-                    transmission_error=p.transmission_error, flank_maps=flank_maps(p))
+                    transmission_error=p.transmission_error, flank_maps=tuple(p.flank_maps_pinion),
+                    damage_maps=damage_maps(p))
 
 
 class MeshForce:
@@ -201,8 +207,9 @@ class MeshForce:
     def __init__(self, p, damping: float = 0.0):
         self._common(p, damping)
         self.pair_force_ref = p.mesh_stiffness * DEFLECTION_REF / self.contact_ratio
-        # equal pairs have no flank: a tooth's flank map counts by its mean, as a later contact
-        maps = flank_maps(p)
+        # equal pairs have no flank: a tooth's flank and damage maps count by their mean, as a later
+        # contact
+        maps = add_flank_maps(tuple(p.flank_maps_pinion), damage_maps(p))
         if maps:
             z1, z2 = p.geometry.teeth_pinion, p.geometry.teeth_gear
             mean = [0.0 if m is None else float(m.array().mean()) for m in maps]

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from condmon.models.gear.drivetrain import GearDrivetrainParameters, PeriodicLoad, SimulationSettings, simulate
-from condmon.models.gear.errors import FlankMap, add_flank_maps, draw_gear_errors
+from condmon.models.gear.errors import FlankMap, draw_gear_errors
 
 EFFECTS = {
     "housing_model": "housings as rigid blocks on four feet (rocking modes)",
@@ -180,7 +180,7 @@ def bench_record(true_params: GearDrivetrainParameters, form: BenchForm, setting
         # an acquisition starts at any angle of both shafts: which gear teeth the damaged tooth
         # meets within a segment differs from record to record, as on a real rig
         start_mesh_phase=float(rng.uniform(0, math.lcm(g.teeth_pinion, g.teeth_gear))),
-        **dict(gears, flank_maps_pinion=add_flank_maps(gears.get("flank_maps_pinion", ()), fault_maps)))
+        **dict(gears, damage_maps_pinion=tuple(fault_maps)))
     signals = simulate(params, settings, extra_loads=loads)
     return {name: signal + sensor_noise(len(signal), form, rng) for name, signal in signals.items()}
 
