@@ -212,9 +212,10 @@ def test_an_axial_preload_takes_up_the_clearance_and_presses_every_ball():
 
 
 def test_a_preload_and_tilted_modes_show_defects_above_and_beside_the_load_zone():
-    """An axial preload (SKF's lighter spring, 125 N) keeps the balls at 12:00 pressed, so a defect there
-    strikes; a strike at 3:00 is horizontal and reaches the 12 o'clock sensor only through modes
-    whose motion at the sensor is tilted (real CWRU records at 3:00 and 12:00 show the line)."""
+    """An axial preload (SKF's lighter spring, 125 N) keeps the balls at 12:00 pressed, so a
+    defect there strikes; a strike at 3:00 is horizontal and reaches the 12 o'clock sensor mostly
+    through modes whose motion at the sensor is tilted (real CWRU records at 3:00 and 12:00 show
+    the line)."""
     bpfo = SKF_6205.orders()["bpfo"]
     preload = dict(axial_preload=125.0)
     top = _line(_outer_race(12.0, resonances=TILTED, **preload), bpfo)[1]

@@ -382,8 +382,8 @@ class GearMesh:
     # Per pinion tooth (empty: none): a `errors.FlankMap` of its manufacturing deviations (profile,
     # helix, misalignment: small against the deflection, averaged over each contact line) or None.
     flank_maps: tuple = ()
-    # Per pinion tooth (empty: none): a `errors.FlankMap` of material damage removed (wear, pits, a
-    # spall, a broken-off part; usually far deeper than the deflection) or None. Each tooth's
+    # Per pinion tooth (empty: none): a `errors.FlankMap` of the material its damage removed (wear,
+    # pits, a spall, a broken-off part; usually far deeper than the deflection) or None. Each tooth's
     # contact line is split by the depth removed (`DAMAGE_DEPTH_LEVELS`): a slice that lies deeper
     # than the deflection leaves the contact, and the rest of the line carries the load.
     damage_maps: tuple = ()
