@@ -75,6 +75,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import brentq
 from scipy.signal import bilinear, lfilter, resample_poly
 
 from condmon.models.numerics import SimulationError, decimation_filter, exudyn_system, solve_rk44
@@ -218,8 +219,8 @@ def preload_deflection(p: BearingRigParameters) -> float:
     c_r by an axial shift, each ball then contacts at the angle alpha with
     cos alpha = A cos alpha_0 / (A + delta), cos alpha_0 = 1 - c_r / A, A = (f_i + f_o - 1) D the
     distance of the groove curvature centres, and carries Q = K delta^1.5 with
-    Z Q sin alpha = F_a (Harris and Kotzalas, Rolling Bearing Analysis, ch. 2 and 7). Solved for
-    delta by bisection (Z K delta^1.5 sin alpha grows with delta)."""
+    Z Q sin alpha = F_a (Harris and Kotzalas, Rolling Bearing Analysis, ch. 2 and 7), solved for
+    delta (Z K delta^1.5 sin alpha grows with delta)."""
     if p.axial_preload <= 0:
         return 0.0
     g = p.de_geometry
@@ -233,13 +234,9 @@ def preload_deflection(p: BearingRigParameters) -> float:
         cos_alpha = curvature_centres * cos_free / (curvature_centres + delta)
         return g.n_balls * p.contact_stiffness * delta ** 1.5 * math.sqrt(max(1.0 - cos_alpha ** 2, 0.0))
 
-    low, high = 0.0, 1e-3
-    if axial_force(high) < p.axial_preload:
+    if axial_force(1e-3) < p.axial_preload:
         raise ValueError(f"axial_preload {p.axial_preload:g} N: beyond 1 mm of contact deflection")
-    for _ in range(100):
-        mid = 0.5 * (low + high)
-        low, high = (mid, high) if axial_force(mid) < p.axial_preload else (low, mid)
-    return 0.5 * (low + high)
+    return float(brentq(lambda delta: axial_force(delta) - p.axial_preload, 0.0, 1e-3, xtol=1e-18))
 
 
 def de_clearance(p: BearingRigParameters) -> float:
