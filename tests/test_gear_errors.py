@@ -258,6 +258,9 @@ def test_either_surface_fault_form_is_drawn():
     assert forms == {"wear", "pitting"}
     maps = damage_maps(p.replace(wear_seed=1))  # pitting on the surface fault's three teeth
     assert [i for i, m in enumerate(maps) if m is not None] == [0, 1, 2]
+    worn = damage_maps(p.replace(wear_seed=0))  # wear: every tooth slides alike, every tooth wears
+    assert all(m is not None for m in worn) and len(worn) == p.geometry.teeth_pinion
+    assert not np.array_equal(worn[0].array(), worn[1].array())  # each its own rough surface
     with pytest.raises(ValueError, match="unknown surface_fault_model"):
         surface_fault_form(p.replace(surface_fault_model="rust"))
 

@@ -118,7 +118,7 @@ def contact_stiffness_factors(p) -> list[float]:
 
 def damage_maps(p) -> tuple:
     """Every pinion tooth's damage map (material removed, `errors.FlankMap`, or None): a bench's own
-    damage `damage_maps_pinion` plus, for a surface fault by wear or pitting, the damage of its
+    damage `damage_maps_pinion` plus, for a surface fault, wear of every tooth or pitting of its
     teeth (each tooth its own surface, from `wear_seed`), or for a tooth broken off short of its
     root (`missing_share` < 1) the part gone."""
     teeth = p.geometry.teeth_pinion
@@ -136,7 +136,9 @@ def damage_maps(p) -> tuple:
     pitch_line = p.geometry.roll_fraction(p.geometry.pitch_point)
     band = contact_fatigue_band(p.geometry)
     damage = [None] * teeth
-    for tooth in surface_fault_teeth(p):
+    # wear removes material where the flanks slide, and every tooth slides alike (Archard): all
+    # teeth wear, each its own rough surface; pitting starts on a few teeth (surface_fault_teeth)
+    for tooth in (range(teeth) if form == "wear" else surface_fault_teeth(p)):
         damage[tooth] = (wear_flank_map(p.wear_depth, p.wear_roughness, rng, pitch_line=pitch_line) if form == "wear"
                          else pitted_flank_map(p.pit_depth, p.pitted_area, band, rng))
     return add_flank_maps(tuple(p.damage_maps_pinion), tuple(damage))
