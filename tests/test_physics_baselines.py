@@ -100,3 +100,22 @@ def test_the_threshold_comes_from_calibration_segments_only(records):
     assert (predictions.classifier == "envelope_rule").all()
     outer_rows = predictions[predictions.true_label == "outer_race"]
     assert (outer_rows.predicted_label == "outer_race").all()
+    lines = {row["record_id"]: row for row in info["envelope_rule"]["fault_lines"]}
+    assert set(lines) == {"outer", "outer2"} and all(row["shows_line"] for row in lines.values())
+    assert {row["line"] for row in lines.values()} == {"bpfo"}
+
+
+@pytest.mark.slow
+def test_a_fault_record_whose_line_stays_at_the_healthy_level_does_not_show_it(records):
+    """`fault_lines`: an outer-race record shows its BPFO line; a record labelled outer race whose
+    envelope is a healthy one's (the line under the healthy threshold) does not."""
+    healthy, outer = records
+    names = [c for c in outer.columns if c.startswith("DE_")]
+    rule = bearing_system().physics_baselines(names)["envelope_rule"].fit(healthy)
+    # the healthy record's own segments labelled outer race: its median BPFO ratio is at most the
+    # median of its largest ratio, so under the threshold (their 0.95 quantile)
+    quiet = healthy.assign(record_id="quiet", health_state="outer_race")
+    lines = {row["record_id"]: row for row in rule.fault_lines(pd.concat([healthy, outer, quiet]))}
+    assert set(lines) == {"outer", "quiet"}  # healthy records have no defect line
+    assert lines["outer"]["shows_line"] and not lines["quiet"]["shows_line"]
+    assert lines["quiet"]["median_ratio"] <= rule.threshold_ < lines["outer"]["median_ratio"]

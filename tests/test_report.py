@@ -516,3 +516,30 @@ def test_a_design_specimen_record_never_counts_in_the_evaluation_figures(tmp_pat
     with pytest.raises(report.ReportInputError, match="name no specimen"):
         records.drop(columns="specimen").to_csv(tmp_path / "bare.csv", index=False)
         report.design_record_ids([], ["normal"], tmp_path / "bare.csv")
+
+
+def test_recall_beside_whether_each_fault_record_shows_its_line(tmp_path):
+    """The envelope rule's fault_lines (physics baselines' info.json) mark each fault record;
+    recall_per_record.csv carries it and summary.json's fault_lines splits each class's recall
+    into the records that show their line and those that do not."""
+    info = tmp_path / "info.json"
+    info.write_text(json.dumps({"protocol": "unseen_fault", "baselines": {"envelope_rule": {
+        "threshold": 3.0, "threshold_from": "calibration", "fault_lines": [
+            {"record_id": "or1", "label": "outer_race", "line": "bpfo", "median_ratio": 9.0,
+             "threshold": 3.0, "shows_line": True},
+            {"record_id": "or2", "label": "outer_race", "line": "bpfo", "median_ratio": 1.2,
+             "threshold": 3.0, "shows_line": False}]}}}))
+    lines, rule = report.load_fault_lines([info])
+    predictions = pd.DataFrame({
+        "classifier": "svm", "protocol": "unseen_fault", "measured_percent": 0,
+        "record_id": ["or1", "or1", "or2", "or2", "h"], "true_label": ["outer_race"] * 4 + ["normal"],
+        "predicted_label": ["outer_race", "outer_race", "normal", "outer_race", "normal"]})
+    per_record = report.recall_per_record(predictions, lines).set_index("record_id")
+    assert per_record.loc["or1", "shows_line"] is True and per_record.loc["or2", "shows_line"] is False
+    assert pd.isna(per_record.loc["h", "shows_line"])
+    summary = report.fault_lines_summary(predictions, lines, rule)
+    (row,) = summary["recall"]
+    assert (row["recall_shows_line"], row["records_shows_line"]) == (1.0, 1)
+    assert (row["recall_no_line"], row["records_no_line"]) == (0.5, 1)
+    assert summary["rule"] == "envelope_rule" and len(summary["records"]) == 2
+    assert report.load_fault_lines([]) == (None, {})

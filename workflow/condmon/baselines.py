@@ -27,7 +27,8 @@ def physics_predictions(baselines: dict, measured_features: pd.DataFrame,
     """(predictions, info) of every rule in `baselines` ({name: rule}) on every split.
 
     predictions: `classifier` (the rule's name) and train's PREDICTION_COLUMNS; info: per rule,
-    its `describe()` after fitting on the first split's calibration segments, and the number of
+    its `describe()` after fitting on the first split's calibration segments (with a rule's
+    `fault_lines`, whether each measured fault record shows its defect line), and the number of
     splits it was evaluated on."""
     validate_splits(splits)
     protocol = str(splits["protocol"].iloc[0])
@@ -58,6 +59,8 @@ def physics_predictions(baselines: dict, measured_features: pd.DataFrame,
                 "uncertainty": np.nan}))
             if not evaluated:
                 info[name] = rule.describe()
+                if hasattr(rule, "fault_lines"):  # every fault record: does its defect line show?
+                    info[name]["fault_lines"] = rule.fault_lines(measured_features)
             evaluated += 1
         info.setdefault(name, rule.describe())["n_splits"] = evaluated
         log.info("%s: evaluated on %d splits of %s", name, evaluated, protocol)

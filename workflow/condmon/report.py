@@ -216,16 +216,56 @@ def recall_per_class(predictions: pd.DataFrame) -> pd.DataFrame:
             .agg(recall=("hit", "mean"), n_test=("hit", "size")))
 
 
-def recall_per_record(predictions: pd.DataFrame) -> pd.DataFrame:
+def recall_per_record(predictions: pd.DataFrame, fault_lines: pd.DataFrame | None = None) -> pd.DataFrame:
     """Share of every measured record's test segments predicted right, per (classifier,
     protocol, percent), pooled over repeats and holdouts: shows which records a class's recall
-    loses (a class's near-healthy records, say)."""
+    loses (a class's near-healthy records, say). With `fault_lines` (`load_fault_lines`) a column
+    `shows_line`: whether the fault record's defect line stands out of its envelope spectrum
+    (empty for a healthy record)."""
     hit = predictions["true_label"] == predictions["predicted_label"]
-    return (predictions.assign(hit=hit)
-            .groupby(["classifier", "protocol", "measured_percent", "record_id", "true_label"],
-                     as_index=False)
-            .agg(recall=("hit", "mean"), n_test=("hit", "size"),
-                 most_predicted=("predicted_label", lambda s: s.value_counts().index[0])))
+    table = (predictions.assign(hit=hit)
+             .groupby(["classifier", "protocol", "measured_percent", "record_id", "true_label"],
+                      as_index=False)
+             .agg(recall=("hit", "mean"), n_test=("hit", "size"),
+                  most_predicted=("predicted_label", lambda s: s.value_counts().index[0])))
+    if fault_lines is not None:
+        table["shows_line"] = table["record_id"].astype(str).map(
+            fault_lines.set_index("record_id")["shows_line"]).astype(object)
+    return table
+
+
+def load_fault_lines(info_paths) -> tuple[pd.DataFrame | None, dict]:
+    """(per fault record whether its defect line shows, the rule's description) from the physics
+    baselines' info.json (the first rule that gives `fault_lines`, `EnvelopeRule.fault_lines`);
+    (None, {}) without one."""
+    for path in info_paths:
+        for name, rule in json.loads(Path(path).read_text()).get("baselines", {}).items():
+            if rule.get("fault_lines"):
+                return pd.DataFrame(rule["fault_lines"]), {"rule": name, "threshold": rule.get("threshold"),
+                                                           "threshold_from": rule.get("threshold_from")}
+    return None, {}
+
+
+def fault_lines_summary(predictions: pd.DataFrame, fault_lines: pd.DataFrame, rule: dict) -> dict:
+    """summary.json's `fault_lines`: every fault record's line ratio and whether it shows, and per
+    (classifier, protocol, percent, class) the recall over the records that show their line and
+    over those that do not."""
+    shows = predictions["record_id"].astype(str).map(fault_lines.set_index("record_id")["shows_line"])
+    known = predictions[shows.notna()].assign(shows_line=shows[shows.notna()].astype(bool),
+                                              hit=lambda f: f["true_label"] == f["predicted_label"])
+    recall = []
+    for (classifier, protocol, percent, label), part in known.groupby(
+            ["classifier", "protocol", "measured_percent", "true_label"], sort=True):
+        row = {"classifier": classifier, "protocol": protocol, "measured_percent": int(percent), "label": label}
+        for shown, key in ((True, "shows_line"), (False, "no_line")):
+            chosen = part[part["shows_line"] == shown]
+            row[f"recall_{key}"] = float(chosen["hit"].mean()) if len(chosen) else None
+            row[f"records_{key}"] = int(chosen["record_id"].nunique())
+        recall.append(row)
+    return {**rule, "what": "a fault record shows its line when the median over its segments of the envelope "
+                            "line ratio at its defect's line lies above the threshold the healthy calibration "
+                            "segments set (the envelope rule's)",
+            "records": fault_lines.to_dict(orient="records"), "recall": recall}
 
 
 def simulation_gain(accuracy: pd.DataFrame, baseline: pd.DataFrame) -> pd.DataFrame:
@@ -906,6 +946,7 @@ def write_report(inputs: ReportInputs) -> dict:
     physics_with_rows = [p for p in train.physics
                          if len(pd.read_parquet(p, columns=["record_id"]))]
     physics = load_predictions(physics_with_rows) if physics_with_rows else None
+    fault_lines, fault_line_rule = load_fault_lines(train.physics_info)
     alone_with_rows = [p for p in train.measured_only_predictions
                        if len(pd.read_parquet(p, columns=["record_id"]))]
     baseline_predictions = load_predictions(alone_with_rows) if alone_with_rows else None
@@ -1000,7 +1041,9 @@ def write_report(inputs: ReportInputs) -> dict:
                                                    table, physics_table, baseline_table), separability)
             write_text(headline.to_csv(index=False), out.headline)
         if out.recall_per_record is not None:
-            write_text(recall_per_record(predictions).to_csv(index=False), out.recall_per_record)
+            write_text(recall_per_record(predictions, fault_lines).to_csv(index=False), out.recall_per_record)
+        if fault_lines is not None:
+            summary["fault_lines"] = fault_lines_summary(predictions, fault_lines, fault_line_rule)
         if out.prediction_shares is not None:
             write_text(shares.to_csv(index=False), out.prediction_shares)
         write_text(json.dumps(summary, indent=2) + "\n", out.summary)

@@ -51,14 +51,17 @@ class TrainOutputs(_Frozen):
     # the system's physics baselines' predictions.parquet (files without rows skipped): a
     # candidate of the strongest baseline and summary.json's `physics_baselines`
     physics: tuple[Path_, ...] = ()
+    # their info.json: with a rule's `fault_lines` (the envelope rule), whether each fault record
+    # shows its defect line: recall_per_record.csv's `shows_line`, summary.json's `fault_lines`
+    physics_info: tuple[Path_, ...] = ()
     # simulated_validation.csv, given only with hybrid.simulated_validation_share > 0 (then
     # summary.json's `simulated_validation`, even when no file has a row)
     simulated_validation: tuple[Path_, ...] = ()
     # measured_only_predictions.parquet (files without rows skipped): the measured-only
     # baseline on design and evaluation records apart
     measured_only_predictions: tuple[Path_, ...] = ()
-    _sequences = ("metrics", "predictions", "measured_only", "physics", "simulated_validation",
-                  "measured_only_predictions")
+    _sequences = ("metrics", "predictions", "measured_only", "physics", "physics_info",
+                  "simulated_validation", "measured_only_predictions")
 
 
 @dataclass(frozen=True)

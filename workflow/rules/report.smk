@@ -83,6 +83,8 @@ rule report:
         measured_only_predictions=train_outputs("measured_only_predictions.parquet"),
         # the system's training-free physics baselines on the same test sets (may be empty)
         physics_baselines=physics_baseline_outputs("predictions.parquet"),
+        # + whether each fault record shows its defect line (the envelope rule's fault_lines)
+        physics_baseline_info=physics_baseline_outputs("info.json"),
         measured_records=rules.measured.output.records,
         measured_features=rules.features_measured.output.features,  # each record's condition
         # accuracy on the held-out simulated records (hybrid.simulated_validation_share > 0)

@@ -25,6 +25,7 @@ summary = write_report(ReportInputs(
                     state_models=params.get("state_models", [])),
     train=TrainOutputs(metrics=inputs.metrics, predictions=inputs.predictions,
                        measured_only=inputs.measured_only, physics=inputs.physics_baselines,
+                       physics_info=inputs.get("physics_baseline_info", []),
                        simulated_validation=inputs.get("simulated_validation", []),
                        measured_only_predictions=inputs.measured_only_predictions),
     calibration=CalibrationOutputs(params=calibration_files("params"),

@@ -89,6 +89,24 @@ class EnvelopeRule:
         healthy = ratios.max(axis=1).to_numpy() <= self.threshold_
         return np.where(healthy, self.healthy_state, strongest).astype(str)
 
+    def fault_lines(self, frame: pd.DataFrame) -> list[dict]:
+        """Whether each fault record of `frame` shows its defect's envelope line: the median over
+        its segments of the line ratio at the line of its label (BPFO for an outer-race record)
+        above `threshold_`, the level the healthy calibration segments stay under. A fault whose
+        line does not stand out is one no envelope analysis sees, and the record says so beside its
+        recall (a criterion "at every size that shows a BPFO line" is taken on these)."""
+        line_of_label = {label: line for line, label in self.labels.items()}
+        faulty = frame[frame["health_state"].astype(str).isin(line_of_label)].reset_index(drop=True)
+        ratios = self.line_ratios(faulty)
+        rows = []
+        for (record_id, label), index in faulty.groupby(["record_id", "health_state"], sort=True).groups.items():
+            line = line_of_label[str(label)]
+            median = float(np.median(ratios.loc[index, line]))
+            rows.append({"record_id": str(record_id), "label": str(label), "line": line,
+                         "median_ratio": median, "threshold": self.threshold_,
+                         "shows_line": bool(median > self.threshold_)})
+        return rows
+
     def describe(self) -> dict:
         """What the rule is and the threshold it took from the calibration segments."""
         return {"rule": "argmax of the envelope line-to-floor ratios at "
