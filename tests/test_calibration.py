@@ -98,8 +98,9 @@ def _bench_spectra(config, bench, speeds, channels):
 def bench():
     """Healthy records at two speeds of a bench of the model's own form (the potential-energy
     mesh at the hidden truth, white sensor noise; the bench's other effects off), and the pieces
-    calibration needs: a spectrum model per mesh stiffness model, without per-sample scatter."""
-    config = config_of("config/config.yaml")
+    calibration needs: a spectrum model per mesh stiffness model, without per-sample scatter
+    (half-second segments, as these tests were sized: the default run's 1.5 s triples their cost)."""
+    config = config_of("config/config.yaml", {"rig": {"segment_seconds": 0.5}})
     assert config["virtual_bench"]["true_parameters"]["mesh_stiffness_model"] == "potential_energy"
     speeds, channels = [450.0, 1100.0], config["features"]["channels"]
     config["model"] = dict(config["model"], variability=dict(config["model"]["variability"], **NO_VARIABILITY),

@@ -94,6 +94,7 @@ def test_per_state_calibration_finds_the_broken_share_of_a_tooth():
     every tooth carries load: with coarser ones a tooth standing back hides its break, and no
     record could tell the share."""
     config = config_of("config/config.yaml", {
+        "rig": {"segment_seconds": 0.5},
         "model": {"fault_severity": {"missing_share": [0.3, 1.0]},
                   "gear_errors": {"grade": [4, 4], "deviation_share": [0.3, 0.3]}},
         "calibration": {"sim_seconds": 0.5, "per_state": {"states": ["missing_tooth"], "population": 4,
