@@ -8,9 +8,10 @@ import pandas as pd
 import pytest
 
 from conftest import config_of, system_of
-from condmon.calibrate import calibrate_state
+from condmon.calibrate import calibrate_state, change_fit
 from condmon.hybrid import SplitError, calibration_frame, measured_layout
 from condmon.protocols import make_splits
+from condmon.plots import state_fit_label
 from condmon.report import plot_note
 from condmon.signals import make_rows
 from condmon.systems.gear.parameters import state_model_fields
@@ -118,6 +119,34 @@ def test_per_state_calibration_finds_the_broken_share_of_a_tooth():
     assert result["records"] == ["missing_tooth-r0"] and result["parameters"].keys() == {"missing_share"}
     assert result["parameters"]["missing_share"] == pytest.approx(0.6, abs=0.15)
     assert result["cost"] < history["cost"].max()
+    # the model's own records: its change is of the measured change's form (other gear errors:
+    # much of it differs all the same, so it explains less than none of it)
+    assert result["identified"] and "warning" not in result and result["at_bounds"] == []
+    assert result["change_correlation"] > 0.15 and result["no_change_cost"] > 0
+
+
+def test_a_model_whose_change_is_not_the_measured_ones_is_not_identified():
+    """The default bench's per-state calibration of its missing tooth: the model's change of the
+    spectrum correlated at -0.2 with the records', and no fault fitted better than any (the search
+    settled near the range's lower bound). change_fit says so; of a model of the measured form, not."""
+    rng = np.random.default_rng(3)
+    measured = 10 ** rng.normal(0.0, 0.1, (3, 4, 50))
+    same = change_fit(measured, measured)
+    assert same["explained_share"] == pytest.approx(1.0) and same["change_correlation"] == pytest.approx(1.0)
+    assert same["identified"]
+    half = change_fit(np.sqrt(measured), measured)  # the right form at half the size (in decades)
+    assert half["explained_share"] == pytest.approx(0.75) and half["identified"]
+    opposite = change_fit(1 / measured, measured)
+    assert opposite["explained_share"] == pytest.approx(-3.0) and opposite["change_correlation"] == pytest.approx(-1.0)
+    assert not opposite["identified"]
+    unrelated = change_fit(10 ** rng.normal(0.0, 0.1, (3, 4, 50)), measured)
+    assert unrelated["explained_share"] < 0 and not unrelated["identified"]
+    nothing = change_fit(np.ones_like(measured), measured)
+    assert nothing["explained_share"] == 0.0 and nothing["change_correlation"] == 0.0 and not nothing["identified"]
+    assert nothing["no_change_cost"] == pytest.approx(np.mean(np.log10(measured) ** 2))
+    assert state_fit_label(dict(opposite)).startswith("NOT IDENTIFIED by its records: explains -300%")
+    assert state_fit_label(dict(same)) == "explains 100% of the measured change (correlation 1.00)"
+    assert state_fit_label({"model_variant": "pitting"}) == ""
 
 
 def test_per_state_calibration_is_checked_before_any_job():
@@ -148,7 +177,8 @@ def test_the_report_draws_each_tuned_states_convergence(tmp_path):
                             "cost": [0.2, 0.08, 0.06, 0.1], "seconds": 1.0, "error": ""})
     history.to_parquet(tmp_path / "history.parquet")
     run = RunIdentity(run_name="run", data_source="virtual_bench", state_models=("surface_fault",))
-    names = state_convergence_plots({"surface_fault": {"model_variant": "pitting"}},
+    fit = {"no_change_cost": 0.07, "explained_share": -0.2, "change_correlation": -0.1, "identified": False}
+    names = state_convergence_plots({"surface_fault": {"model_variant": "pitting", **fit}},
                                     {"surface_fault": tmp_path / "history.parquet"}, tmp_path, run)
     assert names == ["calibration_convergence_state_surface_fault.png"]
     assert (tmp_path / "calibration_convergence_state_surface_fault.png").stat().st_size > 10_000

@@ -227,6 +227,26 @@ def fault_change_cost(simulated_change: np.ndarray, measured_change: np.ndarray)
     return float(np.mean((np.log10(simulated_change) - np.log10(measured_change)) ** 2))
 
 
+def change_fit(simulated_change: np.ndarray, measured_change: np.ndarray) -> dict:
+    """How far a fault model's change of the spectrum explains the measured one:
+    - `no_change_cost`: `fault_change_cost` of a model that changes nothing (the fault adds no line);
+    - `explained_share`: 1 - cost / no_change_cost; at or below 0 the model fits no better than no
+      fault at all;
+    - `change_correlation`: correlation of the two log changes over speeds, channels and bands.
+    The records identify the state's model (`identified`) when that correlation is one chance
+    would not give two unrelated changes: above 3 / sqrt(values), about 3 standard deviations. A
+    model of the measured change's form can still explain less than none of it (its other lines
+    vary with the manufacturing errors, which the records' machine and the model's draw do not share)."""
+    no_change = fault_change_cost(np.ones_like(measured_change), measured_change)
+    cost = fault_change_cost(simulated_change, measured_change)
+    simulated, measured = np.log10(simulated_change).ravel(), np.log10(measured_change).ravel()
+    flat = np.std(simulated) == 0 or np.std(measured) == 0
+    correlation = 0.0 if flat else float(np.corrcoef(simulated, measured)[0, 1])
+    explained = 1.0 - cost / no_change if no_change > 0 else 0.0
+    return {"no_change_cost": no_change, "explained_share": explained, "change_correlation": correlation,
+            "identified": bool(correlation > 3.0 / math.sqrt(measured.size))}
+
+
 class StateSpectrumModel(SpectrumModel):
     """For one fault `state` and a candidate (variant, severities): its mean spectra over those of
     its healthy twin (the same seed: the same manufacturing scatter and fluctuations), per speed.
@@ -278,13 +298,26 @@ def calibrate_state(system, frame: pd.DataFrame, state: str, calibrated: dict, c
     best, history = calibrator.run(model, target, fault_change_cost)
     records = sorted(frame.loc[frame["health_state"] == state, "record_id"].astype(str).unique())
     parameters = system.state_parameters(best["model_variant"], best["parameters"])
+    # the same seed: the best candidate's change again, to say how much of the measured one it explains
+    fit = change_fit(model(best["model_variant"], best["parameters"]), target)
+    at_bounds = sorted(b.name for b in bounds if b.name in parameters  # the chosen variant's only
+                       and not 0.01 < b.to_unit(best["parameters"][b.name]) < 0.99)
     result = dict(state=state, model_variant=best["model_variant"], parameters=parameters, cost=best["cost"],
                   cost_function="fault_change_cost (decades^2)", spread=float(settings["spread"]),
                   speeds_rpm=speeds, records=records, evaluations=best["evaluations"],
-                  bounds={b.name: [b.low, b.high] for b in bounds},
+                  bounds={b.name: [b.low, b.high] for b in bounds}, **fit, at_bounds=at_bounds,
                   seconds=round(time.perf_counter() - start, 1))
-    log.info("%s: %s %s, cost %.4g after %d evaluations (records %s)", state, best["model_variant"],
-             parameters, best["cost"], best["evaluations"], records)
+    log.info("%s: %s %s, cost %.4g after %d evaluations (records %s); no fault: %.4g, explained share %.2f, "
+             "correlation %.2f", state, best["model_variant"], parameters, best["cost"], best["evaluations"],
+             records, fit["no_change_cost"], fit["explained_share"], fit["change_correlation"])
+    if not fit["identified"]:
+        bound_note = f" ({', '.join(at_bounds)} at a bound of its range)" if at_bounds else ""
+        result["warning"] = (
+            f"the {state} model's change of the spectrum is not its records' (correlation "
+            f"{fit['change_correlation']:.2f}, it explains {fit['explained_share']:.0%} of it): the records do "
+            f"not identify its severities, the search settles where the model changes least{bound_note}; "
+            "its simulated samples take them all the same")
+        log.warning("%s", result["warning"])
     return result, history
 
 

@@ -441,10 +441,22 @@ def background_grid(table, note: str, method: str = "incoherent"):
                    legend_from=axes[0, 0])
 
 
-def calibration_convergence(history, chosen: str, note: str):
+def state_fit_label(result: dict) -> str:
+    """A per-state calibration's fit (`calibrate.change_fit` in its params.json) in words, for a
+    plot's note; empty for a result without it."""
+    if "explained_share" not in result:
+        return ""
+    fit = (f"explains {result['explained_share']:.0%} of the measured change "
+           f"(correlation {result['change_correlation']:.2f})")
+    return fit if result.get("identified", True) else f"NOT IDENTIFIED by its records: {fit}"
+
+
+def calibration_convergence(history, chosen: str, note: str, no_change_cost: float | None = None):
     """Best cost so far against model evaluation, one colour per model variant.
 
-    Dots are single evaluations; non-finite costs (failed simulations) are left out.
+    Dots are single evaluations; non-finite costs (failed simulations) are left out. With
+    `no_change_cost` (per-state calibration: the cost of a fault that changes nothing), a dashed
+    line: a best cost above it fits the measured change no better than no fault.
     """
     variants = sorted(history["model_variant"].unique())
     colours = _colours(variants)
@@ -459,6 +471,10 @@ def calibration_convergence(history, chosen: str, note: str):
         ax.step(rows["evaluation"], best, where="post", color=colours[variant], label=label,
                 linewidth=2 if variant == chosen else 1.2)
         costs.extend(cost.dropna().tolist())
+    if no_change_cost is not None:
+        ax.axhline(no_change_cost, color="0.3", linestyle="--", linewidth=1.2,
+                   label="no fault (the model changes nothing)")
+        costs.append(no_change_cost)
     positive = [c for c in costs if c > 0]
     if positive and len(positive) == len(costs) and max(positive) / min(positive) > 20:
         ax.set_yscale("log")

@@ -710,8 +710,11 @@ def state_convergence_plots(results: dict, histories, plots_dir: Path, run: RunI
     names = []
     for state, path in histories.items():
         name = f"calibration_convergence_state_{state}.png"
+        fit = plots.state_fit_label(results[state])
         plots.save_figure(plots.calibration_convergence(pd.read_parquet(path), results[state]["model_variant"],
-                                                        f"{note} | the {state} model"), plots_dir / name)
+                                                        f"{note} | the {state} model" + (f": {fit}" if fit else ""),
+                                                        no_change_cost=results[state].get("no_change_cost")),
+                          plots_dir / name)
         names.append(name)
     return names
 

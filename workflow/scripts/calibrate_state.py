@@ -6,7 +6,7 @@ from condmon.atomic import write_frame, write_json
 from condmon.calibrate import calibrate_state
 from condmon.hybrid import calibration_frame
 from condmon.labels import data_source_label
-from condmon.plots import calibration_convergence, save_figure
+from condmon.plots import calibration_convergence, save_figure, state_fit_label
 from condmon.runlog import setup_logging
 from condmon.signals import read_signal_table
 from condmon.systems import load_system
@@ -23,6 +23,7 @@ result, history = calibrate_state(system, frame, p.state, calibrated, p.calibrat
                                   list(p.channels), processes=snakemake.threads)
 write_frame(history, snakemake.output.history)
 save_figure(calibration_convergence(history, result["model_variant"],
-                                    f"{p.state} model, {data_source_label(p.data_source)}"),
+                                    f"{p.state} model, {data_source_label(p.data_source)} | {state_fit_label(result)}",
+                                    no_change_cost=result["no_change_cost"]),
             snakemake.output.plot)
 write_json(result, snakemake.output.params)
