@@ -216,7 +216,7 @@ def test_bench_variants_layer_over_the_default_config(variant):
     system = system_of("config/config.yaml", changes)
     assert not system.problems()
     assert system.config["run_name"] != default.config["run_name"]
-    assert set(system.bench_effects()) != set(default.bench_effects())
+    assert system.bench_differences() != default.bench_differences()
     assert set(changes) <= {"run_name", "virtual_bench"}  # the model section is the default run's
     assert deep_update({}, changes)  # plain mapping
 
@@ -224,9 +224,57 @@ def test_bench_variants_layer_over_the_default_config(variant):
 def test_the_report_lists_the_cfrp_benchs_own_spall():
     from conftest import system_of
 
-    effects = system_of("config/cfrp.yaml").bench_effects()
-    assert "spall as its own spall (depth 0.0002, profile [0.3, 0.6], face [0.1, 0.9])" in effects
-    assert "shaft_crack: the model's own fault form (no bench form)" in effects
+    rows = {row["difference"]: row for row in system_of("config/cfrp.yaml").bench_differences()}
+    spall = rows["spall as its own spall (depth 0.0002, profile [0.3, 0.6], face [0.1, 0.9])"]
+    assert spall["handled"] == "randomised" and spall["within_range"]
+    assert rows["shaft_crack: no form of its own"]["handled"] == "same"
+
+
+def _differences(changes=None):
+    from conftest import system_of
+
+    rows = system_of("config/config.yaml", changes).bench_differences()
+    assert all(row["handled"] in ("calibrated", "randomised", "neither", "same") for row in rows)
+    return {row["difference"].split(" (")[0].split(":")[0]: row for row in rows}
+
+
+def test_every_difference_of_the_default_bench_says_whether_it_is_calibrated_randomised_or_neither():
+    rows = _differences()
+    assert rows["mesh_stiffness 5.5e+08"]["handled"] == "calibrated" and rows["mesh_stiffness 5.5e+08"]["within_range"]
+    assert rows["contact_law flores"]["handled"] == "calibrated"
+    assert rows["housings as rigid blocks on four feet"]["handled"] == "neither"
+    # bearing tones reach every channel through the structure: the incoherent background leaves them out
+    tones = next(row for name, row in rows.items() if name.startswith("rolling-bearing tones"))
+    assert tones["handled"] == "neither"
+    assert rows["coloured sensor noise 0.002 m/s^2 rms"]["handled"] == "calibrated"
+    gears = next(row for name, row in rows.items() if name.startswith("its own gears"))
+    assert gears["handled"] == "randomised" and gears["within_range"]
+    assert rows["missing_tooth as its own broken tooth"]["handled"] == "randomised"
+
+
+def test_bench_differences_follow_the_config():
+    """Each row is read from the config: a deficit background takes the tones, a truth outside the
+    search range or a fluctuation beyond the drawn one says so, an override no calibration tunes is
+    neither, per-state calibration calibrates its state, a parameter the search leaves out is neither."""
+    deficit = _differences({"calibration": {"background_method": "deficit"}})
+    assert next(row for name, row in deficit.items() if name.startswith("motor torque ripple"))["handled"] == "calibrated"
+    outside = _differences({"virtual_bench": {"true_parameters": {"mesh_stiffness": 2.0e9}, "speed_fluctuation": 0.01,
+                                              "model_overrides": {"gear_mass": 1.6},
+                                              "faults": {"missing_tooth": {"form": "broken_tooth",
+                                                                           "broken_height": 0.3}}}})
+    assert outside["mesh_stiffness 2e+09"]["within_range"] is False
+    assert outside["speed fluctuation 0.01 at 1.5 Hz"]["within_range"] is False
+    assert outside["gear_mass 1.6"]["handled"] == "neither"
+    assert outside["missing_tooth as its own broken tooth"]["within_range"] is False
+    per_state = _differences({"calibration": {"per_state": {"states": ["surface_fault"]}}})
+    assert per_state["surface_fault as its own pitting"]["handled"] == "calibrated"
+    from conftest import system_of
+    from condmon.systems.gear.differences import bench_differences
+
+    system = system_of("config/config.yaml")
+    calibration = dict(system.config["calibration"], parameters={"mesh_stiffness": {"low": 1e8, "high": 1.5e9}})
+    rows = bench_differences(dict(system.config, calibration=calibration), system.health_states, system.healthy_state)
+    assert next(row for row in rows if row["difference"].startswith("bushing_damping"))["handled"] == "neither"
 
 
 def test_pitting_starts_between_the_lowest_point_of_single_contact_and_the_pitch_point():

@@ -92,8 +92,10 @@ def test_the_headline_gives_the_accuracy_at_both_ends_beside_the_baselines(train
     pages = tmp_path / "pages"
     names = write_pages({"accuracy": out / "accuracy.csv", "evaluation_summary": out / "evaluation_summary.csv"},
                         out / "headline.csv", {"rig": paths["calibration_params"]}, out / "plots", config, pages,
-                        protocols=labels.PROTOCOL_LABELS)
-    assert names == ["headline", "accuracy", "evaluation_summary", "protocols", "calibration_rig"]
+                        protocols=labels.PROTOCOL_LABELS,
+                        bench_differences=[{"difference": "block housings", "handled": "neither", "how": "point masses",
+                                            "within_range": None}])
+    assert names == ["headline", "accuracy", "evaluation_summary", "protocols", "bench_differences", "calibration_rig"]
     for name in names:
         page = (pages / "tables" / f"{name}.html").read_text()
         assert page.startswith("<!DOCTYPE html>") and "<table" in page, name
@@ -104,6 +106,7 @@ def test_the_headline_gives_the_accuracy_at_both_ends_beside_the_baselines(train
     assert len(rows) == len(pd.read_csv(out / "accuracy.csv")) + 1  # every row and the header
     assert "parameter: " in (pages / "tables" / "calibration_rig.html").read_text()
     assert "LEAKY" in (pages / "tables" / "protocols.html").read_text()  # segment_share's test set
+    assert "<td>block housings</td>" in (pages / "tables" / "bench_differences.html").read_text()
     assert sorted(p.name for p in (pages / "plots").iterdir()) == sorted(p.name for p in (out / "plots").iterdir())
     assert (pages / "headline.csv").read_text() == (out / "headline.csv").read_text()
     assert (pages / "config.yaml").read_text() == "run_name: demo\n"

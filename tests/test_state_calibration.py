@@ -163,9 +163,10 @@ def test_per_state_calibration_is_checked_before_any_job():
 
 
 def test_every_plot_says_which_fault_models_their_own_records_tuned():
-    note = plot_note("run", "virtual_bench", 3, state_models=("missing_tooth",))
+    differences = [{"difference": "d", "handled": "calibrated"}]
+    note = plot_note("run", "virtual_bench", differences, state_models=("missing_tooth",))
     assert "PER-STATE CALIBRATION: missing_tooth models tuned" in note
-    assert "PER-STATE" not in plot_note("run", "virtual_bench", 3)
+    assert "PER-STATE" not in plot_note("run", "virtual_bench", differences)
 
 
 def test_the_report_draws_each_tuned_states_convergence(tmp_path):

@@ -29,16 +29,6 @@ from scipy.signal import lfilter
 from condmon.models.gear.drivetrain import GearDrivetrainParameters, PeriodicLoad, SimulationSettings, simulate
 from condmon.models.gear.errors import FlankMap, draw_gear_errors
 
-EFFECTS = {
-    "housing_model": "housings as rigid blocks on four feet (rocking modes)",
-    "shaft_model": "flexible (Timoshenko) shafts",
-    "housing_stiffness": "housing mounts of their own stiffness",
-    "bearing_tone_force": "rolling-bearing tones at the bearings' passing orders",
-    "motor_ripple": "motor torque ripple at twice the line frequency",
-    "gear_grade": "its own gears (ISO 1328-1 grade, fixed pattern) and misalignment",
-    "coloured_noise": "coloured (low-frequency weighted) sensor noise",
-}
-
 
 @dataclass(frozen=True)
 class BenchForm:
@@ -59,18 +49,6 @@ class BenchForm:
     bearing_orders: tuple = (3.585, 5.415)
     line_frequency_hz: float = 50.0
     motor_ripple: float = 0.1            # N m at 2 x line frequency
-
-    def active_effects(self) -> list[str]:
-        """Descriptions of the effects this bench switches on (the report lists them)."""
-        on = []
-        for key, text in EFFECTS.items():
-            value = getattr(self, key)
-            gears = key == "gear_grade" and (self.gear_deviation_share > 0 or self.misalignment > 0)
-            if (key == "housing_model" and value == "block") or (key == "shaft_model" and value == "flexible") \
-                    or key == "housing_stiffness" or gears or (key != "gear_grade" and isinstance(value, float)
-                                                              and value > 0):
-                on.append(text)
-        return on
 
 
 def bench_gears(form: BenchForm, geometry, seed: int) -> dict:

@@ -563,14 +563,17 @@ def confusion_percents(accuracy: pd.DataFrame, requested) -> list[int]:
     return sorted(set(requested) | {available[-1]})
 
 
-def plot_note(run_name: str, data_source: str, bench_effects: int = 0,
+def plot_note(run_name: str, data_source: str, bench_differences=(),
               design: bool = False, state_models=()) -> str:
-    """Every plot's footnote: the data source and run (and a bench's difference in form; the fault
-    states whose model their own records tuned; with design records, that the plot pools them
-    with the evaluation records)."""
+    """Every plot's footnote: the data source and run (and how far a bench differs from the model;
+    the fault states whose model their own records tuned; with design records, that the plot
+    pools them with the evaluation records)."""
     note = f"Data: {data_source_label(data_source)} | run {run_name}"
-    if bench_effects:
-        note += f" | bench differs from the model in form: {bench_effects} effects (summary.json)"
+    differences = [row for row in bench_differences if row["handled"] != "same"]
+    if differences:
+        neither = sum(row["handled"] == "neither" for row in differences)
+        note += (f" | bench differs from the model in {len(differences)} ways, {neither} neither "
+                 "calibrated nor randomised (summary.json)")
     if state_models:
         note += (f" | PER-STATE CALIBRATION: {', '.join(state_models)} models tuned on their first measured "
                  "record per condition (never tested)")
@@ -634,9 +637,9 @@ def make_plots(accuracy, predictions, calibrated: tuple, plots_dir: Path, run: R
     side apart (`confusion_<classifier>_<protocol>_evaluation.png`, `..._design.png`)."""
     is_design = predictions["record_id"].astype(str).isin(set(map(str, design_records)))
     sides = record_sides(is_design)
-    note = plot_note(run.run_name, run.data_source, len(run.bench_effects), bool(is_design.any()),
+    note = plot_note(run.run_name, run.data_source, run.bench_differences, bool(is_design.any()),
                      run.state_models)
-    side_note = plot_note(run.run_name, run.data_source, len(run.bench_effects), state_models=run.state_models)
+    side_note = plot_note(run.run_name, run.data_source, run.bench_differences, state_models=run.state_models)
     calibration, spectra, history = calibrated
     labels = label_order([*predictions["true_label"], *predictions["predicted_label"]],
                          run.healthy_state)
@@ -706,7 +709,7 @@ def state_convergence_plots(results: dict, histories, plots_dir: Path, run: RunI
     """Per-state calibration (calibration.per_state): each state's convergence from its history
     file (`histories`: state -> path; `results`: state -> its params.json content),
     `calibration_convergence_state_<state>.png`; the file names."""
-    note = plot_note(run.run_name, run.data_source, len(run.bench_effects), state_models=run.state_models)
+    note = plot_note(run.run_name, run.data_source, run.bench_differences, state_models=run.state_models)
     names = []
     for state, path in histories.items():
         name = f"calibration_convergence_state_{state}.png"
@@ -984,7 +987,8 @@ def write_report(inputs: ReportInputs) -> dict:
         plot_names += state_convergence_plots(state_results, inputs.calibration.state_histories, staging, run)
         summary = summarize(accuracy, predictions, calibration, run.run_name, run.data_source,
                             plot_names, baseline, run.healthy_state)
-        summary["data_source"]["bench_effects_the_model_lacks"] = list(run.bench_effects)
+        if run.bench_differences:
+            summary["data_source"]["bench_differences"] = [dict(row) for row in run.bench_differences]
         if state_results:
             summary["state_calibration"] = state_results
         if per_model:
@@ -1003,7 +1007,7 @@ def write_report(inputs: ReportInputs) -> dict:
             summary["job_timings"] = write_job_timings(upstream.benchmarks, out.job_timings,
                                                        staging, summary["plots"],
                                                        note=f"run {run.run_name}")
-        note = plot_note(run.run_name, run.data_source, len(run.bench_effects), state_models=run.state_models)
+        note = plot_note(run.run_name, run.data_source, run.bench_differences, state_models=run.state_models)
         table = physics_table = baseline_table = physics_overall = separability = None
         if features is not None:
             table, overall, physics_table, physics_overall, baseline_table = evaluation_tables(
@@ -1018,7 +1022,7 @@ def write_report(inputs: ReportInputs) -> dict:
                      {k: v["balanced_accuracy"] for k, v in separability["per_condition"].items()}, condition)
             plots.save_figure(plots.simulation_gain(
                 gain_against_strongest(overall), 1.0 / len(labels),
-                plot_note(run.run_name, run.data_source, len(run.bench_effects), design_tested,
+                plot_note(run.run_name, run.data_source, run.bench_differences, design_tested,
                           run.state_models)),
                 staging / "simulation_gain.png")
             summary["plots"].append("simulation_gain.png")

@@ -34,10 +34,10 @@ class RunIdentity(_Frozen):
     run_name: str
     data_source: str                     # the measured data's kind (condmon.labels.data_source_label)
     healthy_state: str | None = None     # the class confusion matrices and label orders start from
-    bench_effects: tuple[str, ...] = ()  # what the virtual bench has and the model lacks (labelled)
+    bench_differences: tuple[dict, ...] = ()  # how the virtual bench differs from the model (System.bench_differences)
     # fault states whose model was tuned on their own measured records (calibration.per_state)
     state_models: tuple[str, ...] = ()
-    _sequences = ("bench_effects", "state_models")
+    _sequences = ("bench_differences", "state_models")
 
 
 @dataclass(frozen=True)

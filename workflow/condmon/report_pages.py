@@ -52,6 +52,11 @@ NOTES = {
                  "records alone, each left out in turn, the ceiling for one trained on simulation."),
     "calibration": "The calibrated parameters, then the rest of the calibration's params.json.",
     "protocols": "What each test protocol holds out; every number of the report carries its protocol.",
+    "bench_differences": ("Every way the virtual bench differs from the model, and what the pipeline does "
+                          "about it: calibrated (healthy records tune it), randomised (drawn per simulated "
+                          "sample over the stated range; within_range: the bench's value lies inside), "
+                          "neither (the classifier has to live with it) or same (a part the bench copies from "
+                          "the model, so it does not test it)."),
 }
 
 
@@ -83,11 +88,12 @@ def _place(source: Path, target: Path) -> None:
 
 def write_pages(tables: dict, headline, calibration_params: dict, plots_dir, config_path,
                 out_dir, protocols: dict | None = None, titles: dict = TITLES,
-                notes: dict = NOTES) -> list[str]:
+                notes: dict = NOTES, bench_differences=()) -> list[str]:
     """Write the report's pages into `out_dir`: tables/<name>.html of every CSV of `tables`
     ({name: path}; `titles` and `notes` by name) and of the headline, tables/protocols.html (what
     each test protocol of `protocols`, {name: description}, tests: the plots' titles name the
-    protocol only), tables/calibration_<variant>.html of every calibration ({variant:
+    protocol only), tables/bench_differences.html (rows of `System.bench_differences`, where a
+    bench made the data), tables/calibration_<variant>.html of every calibration ({variant:
     params.json}), plots/ (the report's PNGs), headline.csv (for the front page) and config.yaml
     (the run's full config). Returns the table names."""
     out_dir = Path(out_dir)
@@ -105,6 +111,11 @@ def write_pages(tables: dict, headline, calibration_params: dict, plots_dir, con
             (staging / "tables" / "protocols.html").write_text(
                 html_page(frame, "Test protocols", notes.get("protocols", "")))
             names.append("protocols")
+        if bench_differences:
+            (staging / "tables" / "bench_differences.html").write_text(
+                html_page(pd.DataFrame(list(bench_differences)), "How the bench differs from the model",
+                          notes.get("bench_differences", "")))
+            names.append("bench_differences")
         for variant, path in calibration_params.items():
             params = json.loads(Path(path).read_text())
             (staging / "tables" / f"calibration_{variant}.html").write_text(

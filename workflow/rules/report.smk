@@ -109,7 +109,7 @@ rule report:
     params:
         run_name=config["run_name"],
         data_source=data_source(),
-        bench_effects=SYSTEM.bench_effects(),
+        bench_differences=SYSTEM.bench_differences(),
         confusion_percent=config["report"]["confusion_percent"],
         benchmarked_rules=list(upstream_benchmarks()),
         healthy_state=SYSTEM.healthy_state,

@@ -21,7 +21,7 @@ def calibration_files(kind):
 summary = write_report(ReportInputs(
     run=RunIdentity(run_name=params.run_name, data_source=params.data_source,
                     healthy_state=params.get("healthy_state"),
-                    bench_effects=params.get("bench_effects", []),
+                    bench_differences=params.get("bench_differences", []),
                     state_models=params.get("state_models", [])),
     train=TrainOutputs(metrics=inputs.metrics, predictions=inputs.predictions,
                        measured_only=inputs.measured_only, physics=inputs.physics_baselines,

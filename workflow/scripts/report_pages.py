@@ -18,8 +18,9 @@ calibrations = {key[len(CALIBRATION):]: inputs[key] for key in inputs.keys()
                 if key.startswith(CALIBRATION)}
 tables = {key: inputs[key] for key in inputs.keys()
           if key not in ("headline", "plots", "config", "summary") and not key.startswith(CALIBRATION)}
-protocols = json.loads(Path(inputs.summary).read_text())["protocols"]
+summary = json.loads(Path(inputs.summary).read_text())
+protocols = summary["protocols"]
 pages = Path(snakemake.output.tables).parent  # report/pages/: tables/, plots/, the files
 names = write_pages(tables, inputs.headline, calibrations, inputs.plots, inputs.config, pages,
-                    protocols)
+                    protocols, bench_differences=summary["data_source"].get("bench_differences", ()))
 log.info("report pages of run %s: %d tables in %s", snakemake.params.run_name, len(names), pages)

@@ -151,9 +151,11 @@ class System(ABC):
         """`measured`, or `synthetic_source` when the records come from a bench."""
         return self.synthetic_source if self.measured_parts() else "measured"
 
-    def bench_effects(self) -> list[str]:
-        """What the bench that makes the measured data has and the model lacks (none for real
-        measurements); the report labels them."""
+    def bench_differences(self) -> list[dict]:
+        """Every way the bench that makes the measured data differs from the model (none for real
+        measurements): rows {difference, handled ("calibrated", "randomised", "neither", or "same":
+        a part the bench copies from the model), how, within_range (the bench's value inside the
+        calibrated or randomised range; None where none)}; the report lists them."""
         return []
 
     def design_specimens(self) -> list[str]:

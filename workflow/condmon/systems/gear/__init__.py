@@ -195,23 +195,14 @@ class GearSystem(System):
                                   dict(self.numerics, **{key: bench[key] for key in BENCH_NUMERICS}),
                                   self.config["rig"]["segment_seconds"])
 
-    def bench_effects(self) -> list[str]:
-        """Every way the bench differs from the model: its effects, fault forms and overrides."""
-        from condmon.systems.gear.bench import bench_form
+    def bench_differences(self) -> list[dict]:
+        """Every way the bench differs from the model, each calibrated, randomised or neither
+        (`differences.bench_differences`)."""
+        from condmon.systems.gear.differences import bench_differences
 
         if not self.measured_parts():
             return []
-        bench = self.config["virtual_bench"]
-        effects = bench_form(bench).active_effects()
-        for state in self.health_states:
-            spec = bench["faults"].get(state)
-            if spec is not None:
-                details = ", ".join(f"{k} {_number_or_range(v)}" for k, v in spec.items() if k != "form")
-                effects.append(f"{state} as its own {spec['form'].replace('_', ' ')} ({details})")
-            elif state != self.healthy_state:
-                effects.append(f"{state}: the model's own fault form (no bench form)")
-        effects += [f"model field {key} = {value}" for key, value in bench["model_overrides"].items()]
-        return effects
+        return bench_differences(self.config, self.health_states, self.healthy_state)
 
     # -- calibration -------------------------------------------------------------------------
     def calibrate(self, frame, variant, calibration, spectrum, channels, processes=1):
@@ -334,10 +325,3 @@ class GearSystem(System):
         geometry = self.config["model"]["geometry"]
         pinion, gear = int(geometry["teeth_pinion"]), int(geometry["teeth_gear"])
         return [("pinion", 1.0, pinion), ("gear", pinion / gear, gear)]
-
-
-def _number_or_range(value) -> str:
-    """A bench fault key's value as the report lists it: 3e-05, or [0.3, 0.6] for a range."""
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(f"{v:g}" for v in value) + "]"
-    return f"{value:g}"
