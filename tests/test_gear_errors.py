@@ -258,7 +258,8 @@ def test_bench_differences_follow_the_config():
     neither, per-state calibration calibrates its state, a parameter the search leaves out is neither."""
     deficit = _differences({"calibration": {"background_method": "deficit"}})
     assert next(row for name, row in deficit.items() if name.startswith("motor torque ripple"))["handled"] == "calibrated"
-    outside = _differences({"virtual_bench": {"true_parameters": {"mesh_stiffness": 2.0e9}, "speed_fluctuation": 0.01,
+    outside = _differences({"model": {"variability": {"speed_fluctuation_source": "config"}},
+                            "virtual_bench": {"true_parameters": {"mesh_stiffness": 2.0e9}, "speed_fluctuation": 0.01,
                                               "model_overrides": {"gear_mass": 1.6},
                                               "faults": {"missing_tooth": {"form": "broken_tooth",
                                                                            "broken_height": 0.3}}}})

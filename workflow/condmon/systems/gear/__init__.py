@@ -11,6 +11,7 @@ contact laws of `calibration.contact_laws`, the nominal one `model.contact_law`.
 """
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -19,12 +20,15 @@ from condmon.calibrate import Bound, calibrate_on_spectra
 from condmon.models.gear.drivetrain import (Drivetrain, SimulationSettings, operating_mesh_stiffness, sensor_channels,
                                             simulate)
 from condmon.systems.base import System
-from condmon.systems.gear.parameters import (CALIBRATABLE, STATE_SEVERITY, build_parameters, perturb, sample_effects,
+from condmon.systems.gear.parameters import (CALIBRATABLE, STATE_SEVERITY, build_parameters,
+                                             measured_fluctuation_fields, perturb, sample_effects,
                                              state_model_fields, state_variants)
 
 # numerics the virtual bench sets for itself (virtual_bench.<key>): it stands for a real machine, so
 # its records never move with the model's step or modal reduction
 BENCH_NUMERICS = ("oversampling", "modal_cutoff_hz")
+
+log = logging.getLogger(__name__)
 
 
 def speed_label(speed) -> str:
@@ -213,7 +217,29 @@ class GearSystem(System):
         best = self.parameters(contact_law=result["model_variant"], **result["parameters"])
         result = dict(result, contact_law=result["model_variant"], mesh_stiffness_model=model["mesh_stiffness_model"],
                       operating_mesh_stiffness=operating_mesh_stiffness(best))
+        if model["variability"]["speed_fluctuation_source"] == "healthy_records":
+            result["speed_fluctuation"] = self.measured_speed_fluctuation(frame, channels)
+            if not any(result["speed_fluctuation"].values()):
+                result["warning"] = ("speed_fluctuation_source healthy_records: no healthy record showed its "
+                                     "fluctuation; the simulation draws model.variability's ranges")
+                log.warning(result["warning"])
         return result, history, spectra
+
+    def measured_speed_fluctuation(self, frame, channels) -> dict:
+        """{speed: fluctuation.speed_fluctuation(...)} of the healthy calibration records at every
+        measured speed (None where it cannot be read: no mesh line followed, or faster than the
+        tracking band)."""
+        from condmon.signals import to_arrays
+        from condmon.systems.gear.fluctuation import speed_fluctuation
+
+        ids, segments = to_arrays(frame, list(channels))
+        teeth = self.config["model"]["geometry"]["teeth_pinion"]
+        out = {}
+        for speed in sorted(ids["speed_rpm"].astype(float).unique()):
+            chosen = (ids["speed_rpm"].astype(float) == speed).to_numpy()
+            out[f"{speed:g}"] = speed_fluctuation(segments[chosen], self.output_rate_hz, speed, teeth)
+            log.info("speed fluctuation of the healthy records at %g rpm: %s", speed, out[f"{speed:g}"])
+        return out
 
     # -- simulation --------------------------------------------------------------------------
     @property
@@ -246,6 +272,8 @@ class GearSystem(System):
         parameters = {**calibrated["parameters"], "contact_law": calibrated["contact_law"]}
         if state_model is not None:
             parameters["state_model"] = dict(state_model, spread=0.0)
+        if calibrated.get("speed_fluctuation"):
+            parameters["measured_speed_fluctuation"] = calibrated["speed_fluctuation"]
         return self.simulate_sample(parameters, state, speed_rpm, duration_s, seed)
 
     def nominal_values(self) -> dict:
@@ -256,8 +284,10 @@ class GearSystem(System):
                          self.config["model"]["variability"]["perturbation_sigma"], rng)
         # per-state calibration: the state's tuned severities (drawn in simulate_sample, no draw here)
         state_model = (calibrated.get("state_models") or {}).get(health_state)
+        measured = calibrated.get("speed_fluctuation")
         return {"contact_law": calibrated["contact_law"], **values,
-                **({"state_model": state_model} if state_model else {})}
+                **({"state_model": state_model} if state_model else {}),
+                **({"measured_speed_fluctuation": measured} if measured else {})}
 
     def simulate_sample(self, parameters, health_state, speed_rpm, duration_s, seed, step_refinement=1):
         """One run; `seed` draws this drivetrain's run-out, pitch errors and fluctuations
@@ -266,10 +296,13 @@ class GearSystem(System):
         model = self.config["model"]
         parameters = dict(parameters)
         state_model = parameters.pop("state_model", None)
+        measured_fluctuation = parameters.pop("measured_speed_fluctuation", None)
         params = self.parameters(speed_rpm=float(speed_rpm), health_state=health_state, **parameters)
         effects = sample_effects(model, params.geometry, np.random.default_rng(seed))
         if state_model is not None:
             effects.update(state_model_fields(state_model, effects, seed))
+        if measured_fluctuation:
+            effects.update(measured_fluctuation_fields(measured_fluctuation, float(speed_rpm), seed))
         params = params.replace(**effects)
         return simulate(params, SimulationSettings(duration=duration_s, step_refinement=int(step_refinement),
                                                    **self.numerics))

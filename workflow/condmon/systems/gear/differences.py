@@ -132,10 +132,15 @@ def _form_rows(model: dict, form: BenchForm, calibration: dict) -> list[dict]:
         amplitude, frequency = getattr(form, name), getattr(form, f"{name}_hz")
         if not amplitude:
             continue
+        text = f"{name.replace('_', ' ')} {amplitude:g} at {frequency:g} Hz"
+        if variability.get(f"{name}_source") == "healthy_records":
+            rows.append(row(text, CALIBRATED, "read off the healthy records' tracked speed (params.json "
+                                              f"{name}), drawn within it per sample"))
+            continue
         span = variability[f"{name}_hz"]
         inside = amplitude <= variability[name] and span[0] <= frequency <= span[1]
-        rows.append(row(f"{name.replace('_', ' ')} {amplitude:g} at {frequency:g} Hz", RANDOMISED,
-                        f"model.variability: up to {variability[name]:g} at {span} Hz", bool(inside)))
+        rows.append(row(text, RANDOMISED, f"model.variability: up to {variability[name]:g} at {span} Hz",
+                        bool(inside)))
     return rows
 
 

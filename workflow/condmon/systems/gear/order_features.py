@@ -139,6 +139,17 @@ def shaft_angle(x, fs_hz: float, shaft_hz: float, mesh_order: float, phase_band_
     return angle, "mesh_phase", snr
 
 
+def segment_angle(segment, fs_hz: float, shaft_hz: float, mesh_order: float, phase_band_orders: float = 0.3,
+                  phase_min_snr: float = 5.0) -> tuple[np.ndarray, str, float]:
+    """`shaft_angle` of a multi-channel segment (n_channels, n_samples), read on the channel where
+    the mesh line stands highest above its floor (one angle for all channels: they see the same
+    shafts); the nominal speed only when no channel's line can be followed."""
+    candidates = [shaft_angle(channel, fs_hz, shaft_hz, mesh_order, phase_band_orders, phase_min_snr)
+                  for channel in segment]
+    tracked = [c for c in candidates if c[1] == "mesh_phase"]
+    return max(tracked or candidates, key=lambda c: c[2])
+
+
 def angular_resample(x, fs_hz: float, angle, samples_per_revolution: int, n_out: int | None = None
                      ) -> np.ndarray:
     """x at the angles 0, 1/P, 2/P, ... revolutions (P = samples_per_revolution) of a shaft whose
@@ -416,10 +427,8 @@ class OrderFeatures(TransformerMixin, BaseEstimator):
         first_name, first_ratio, first_teeth = self._shafts()[0]
         mesh_order = self.phase_harmonic * first_teeth * first_ratio
         # the phase from the channel where the mesh line stands highest above its floor
-        candidates = [shaft_angle(channel, fs_hz, shaft_hz, mesh_order, self.phase_band_orders,
-                                  self.phase_min_snr) for channel in segment]
-        tracked = [c for c in candidates if c[1] == "mesh_phase"]
-        angle, method, snr = max(tracked or candidates, key=lambda c: c[2])
+        angle, method, snr = segment_angle(segment, fs_hz, shaft_hz, mesh_order, self.phase_band_orders,
+                                           self.phase_min_snr)
         log.debug("order features: shaft angle from %s (mesh order %g, line/floor %.1f)",
                   "the mesh phase" if method == "mesh_phase" else "the nominal speed", mesh_order, snr)
         P = int(self.samples_per_revolution)

@@ -101,6 +101,22 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
     )
 
 
+def measured_fluctuation_fields(measured: dict, speed_rpm: float, seed: int) -> dict:
+    """The speed fluctuation of one sample when the calibration read it from the healthy records
+    (`model.variability.speed_fluctuation_source: healthy_records`; `measured`: {speed: estimate
+    or None}, `systems/gear/fluctuation.py`): amplitude and frequency uniform over the range the
+    calibration segments gave at this speed, or at the nearest speed that has an estimate, from a
+    stream of its own (the run seed's), so twins' draws stay aligned; its phase stays the sample's
+    draw. {} when no speed has one: the configured ranges stand (the calibration warned)."""
+    known = {float(speed): estimate for speed, estimate in measured.items() if estimate}
+    if not known:
+        return {}
+    estimate = known[min(known, key=lambda speed: abs(speed - speed_rpm))]
+    rng = np.random.default_rng([int(seed), 0x5FEED])
+    return {"speed_fluctuation": float(rng.uniform(*estimate["amplitude"])),
+            "speed_fluctuation_hz": float(rng.uniform(*estimate["frequency_hz"]))}
+
+
 # Per-state calibration (calibration.per_state): the severities each fault state's model tunes,
 # by model variant (a surface fault's form is its variant; the other states have one, their name).
 STATE_SEVERITY = {"wear": ("wear_depth",), "pitting": ("pit_depth", "pitted_area"),
