@@ -48,6 +48,8 @@ def test_a_fluctuation_faster_than_the_tracking_band_is_not_read():
     assert speed_fluctuation(mesh_records(0.004, 3.0, speed_rpm=450.0), FS, 450.0, TEETH) is None
     # a quarter-second segment holds no period of a 1.5 Hz fluctuation
     assert speed_fluctuation(mesh_records(0.002, 1.5, seconds=0.25), FS, 775.0, TEETH) is None
+    # shorter than the filter's two edges: nothing left to read
+    assert speed_fluctuation(mesh_records(0.002, 1.5, seconds=0.15), FS, 775.0, TEETH) is None
     # no mesh line to follow at all
     assert speed_fluctuation(np.random.default_rng(1).standard_normal((2, 4, 7680)), FS, 775.0, TEETH) is None
 

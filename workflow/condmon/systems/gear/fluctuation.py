@@ -52,6 +52,9 @@ def speed_fluctuation(segments, fs_hz: float, speed_rpm: float, mesh_order: floa
     `band_hz`; None when no segment could be followed, the fluctuation lies outside the band, or
     a segment holds less than one period of it (too short to tell a fluctuation from a drift)."""
     shaft_hz = speed_rpm / 60.0
+    usable_seconds = np.asarray(segments).shape[-1] / fs_hz - 2 * EDGE_SECONDS
+    if usable_seconds <= 0:
+        return None
     estimates = []
     for segment in np.asarray(segments, dtype=float):
         angle, method, _ = segment_angle(segment, fs_hz, shaft_hz, mesh_order, phase_band_orders, phase_min_snr)
@@ -61,8 +64,7 @@ def speed_fluctuation(segments, fs_hz: float, speed_rpm: float, mesh_order: floa
     if not estimates:
         return None
     amplitudes, frequencies = np.array(estimates).T
-    usable_seconds = np.asarray(segments).shape[-1] / fs_hz - 2 * EDGE_SECONDS
-    if not 1.0 / max(usable_seconds, 1e-9) <= np.median(frequencies) <= band_hz:
+    if not 1.0 / usable_seconds <= np.median(frequencies) <= band_hz:
         return None
     return {"amplitude": [float(amplitudes.min()), float(amplitudes.max())],
             "frequency_hz": [float(frequencies.min()), float(frequencies.max())],
