@@ -200,7 +200,7 @@ class GearSystem(System):
                                   self.config["rig"]["segment_seconds"])
 
     def bench_differences(self) -> list[dict]:
-        """Every way the bench differs from the model, each calibrated, randomised or neither
+        """Every way the bench differs from the model, each calibrated, randomised, neither or same
         (`differences.bench_differences`)."""
         from condmon.systems.gear.differences import bench_differences
 
@@ -227,8 +227,7 @@ class GearSystem(System):
 
     def measured_speed_fluctuation(self, frame, channels) -> dict:
         """{speed: fluctuation.speed_fluctuation(...)} of the healthy calibration records at every
-        measured speed (None where it cannot be read: no mesh line followed, or faster than the
-        tracking band)."""
+        measured speed (None where they cannot show it: `speed_fluctuation` says when)."""
         from condmon.signals import to_arrays
         from condmon.systems.gear.fluctuation import speed_fluctuation
 

@@ -80,15 +80,14 @@ def _parameter_rows(model: dict, bench: dict, calibration: dict) -> list[dict]:
 
 def _background_rows(form: BenchForm, calibration: dict) -> list[dict]:
     background, method = calibration["background"], calibration["background_method"]
+    estimated = f"the {method} background of the healthy records"
     rows = []
     if form.sensor_noise:
         rows.append(row(f"white sensor noise {form.sensor_noise:g} m/s^2 rms", CALIBRATED,
-                        f"the {method} background of the healthy records" if background else
-                        "the sensor noise from the floor of the healthy spectra"))
+                        estimated if background else "the sensor noise from the floor of the healthy spectra"))
     if form.coloured_noise:
         rows.append(row(f"coloured sensor noise {form.coloured_noise:g} m/s^2 rms", CALIBRATED if background else NEITHER,
-                        f"the {method} background of the healthy records" if background else
-                        "calibration.background off: white noise only"))
+                        estimated if background else "calibration.background off: white noise only"))
     # tones reach every channel through the structure: only the `deficit` background takes them
     tones = [(form.bearing_tone_force, f"rolling-bearing tones ({form.bearing_tone_force:g} N at orders "
                                        f"{', '.join(f'{o:g}' for o in form.bearing_orders)} of each shaft)"),

@@ -51,12 +51,13 @@ def speed_fluctuation(segments, fs_hz: float, speed_rpm: float, mesh_order: floa
     followed (on the channel where it stands highest), `segments` used and the tracking band
     `band_hz`; None when no segment could be followed, the fluctuation lies outside the band, or
     a segment holds less than one period of it (too short to tell a fluctuation from a drift)."""
+    segments = np.asarray(segments, dtype=float)
     shaft_hz = speed_rpm / 60.0
-    usable_seconds = np.asarray(segments).shape[-1] / fs_hz - 2 * EDGE_SECONDS
+    usable_seconds = segments.shape[-1] / fs_hz - 2 * EDGE_SECONDS
     if usable_seconds <= 0:
         return None
     estimates = []
-    for segment in np.asarray(segments, dtype=float):
+    for segment in segments:
         angle, method, _ = segment_angle(segment, fs_hz, shaft_hz, mesh_order, phase_band_orders, phase_min_snr)
         if method == "mesh_phase":
             estimates.append(fluctuation_of(relative_speed(angle, fs_hz), fs_hz))
