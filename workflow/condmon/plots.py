@@ -10,6 +10,7 @@ import matplotlib
 
 matplotlib.use("Agg")  # batch jobs have no display
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.ticker import FormatStrFormatter, NullFormatter  # noqa: E402
 
 from condmon.atomic import temporary_path  # noqa: E402
 from condmon.labels import protocol_title  # noqa: E402
@@ -527,3 +528,40 @@ def accuracy_per_subset(summary, column: str, chance: float, note: str, title: s
     axes[0, 0].set_ylabel(f"{ACCURACY_LABEL} (fraction)")
     return _finish(fig, f"{title}\n(mean over repeats; bars: 95 % Wilson interval on one "
                         "repeat's test segments)", note, legend_from=axes[0, 0])
+
+
+def fault_signatures(table, condition: str, note: str):
+    """One panel per value of the operating ``condition``: per fault class, how far its measured
+    and its simulated segments lie from their healthy ones (bars, in simulated healthy spreads,
+    log scale; the dotted line is one spread), and above them how alike the two shifts are in
+    direction (r). ``table``: condmon.signature.signature_table's rows."""
+    values = list(dict.fromkeys(table["condition"]))
+    shifts = table[["measured_shift", "simulated_shift"]].to_numpy(float)
+    low, high = min(np.nanmin(shifts), 1.0) / 1.5, max(np.nanmax(shifts), 1.0) * 1.8  # room for r
+    fig, axes = plt.subplots(1, len(values), figsize=(max(4.2 * len(values), 9.0), 4.8), sharey=True,
+                             squeeze=False)
+    for ax, value in zip(axes[0], values):
+        rows = table[table["condition"] == value].reset_index(drop=True)
+        x = np.arange(len(rows))
+        ax.bar(x - 0.2, rows["measured_shift"], width=0.4, color="tab:blue", label="measured fault")
+        ax.bar(x + 0.2, rows["simulated_shift"], width=0.4, color="tab:orange", label="simulated fault")
+        for position, row in zip(x, rows.itertuples()):
+            top = np.nanmax([row.measured_shift, row.simulated_shift])
+            text = "r n/a" if row.direction_correlation is None or np.isnan(row.direction_correlation) \
+                else f"r {row.direction_correlation:+.2f}"
+            ax.annotate(text, (position, top), textcoords="offset points", xytext=(0, 3), ha="center",
+                        fontsize=8)
+        ax.axhline(1.0, linestyle=":", color="0.4", label="one simulated healthy spread")
+        ax.set_xticks(x, rows["health_state"], rotation=30, ha="right", fontsize=8)
+        ax.set_yscale("log")
+        ax.set_ylim(low, high)
+        ax.set_yticks([tick for tick in (0.05, 0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 50, 100, 200)
+                       if low <= tick <= high])
+        ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))  # 0.5, 2: not 5 x 10^-1
+        ax.yaxis.set_minor_formatter(NullFormatter())
+        ax.set_title(condition_label(condition, value), fontsize=10)
+        ax.grid(alpha=0.3, axis="y")
+    axes[0, 0].set_ylabel("shift from healthy\n(rms over features, simulated healthy spreads)")
+    return _finish(fig, "Does the simulation move the features as the measured faults do?\n"
+                        "(bars: shift from healthy; r: correlation of the two shifts over features)",
+                   note, legend_from=axes[0, 0])

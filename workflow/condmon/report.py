@@ -43,6 +43,7 @@ from condmon.labels import (LEAKY_PROTOCOLS, data_source_label, format_speed, is
                             label_order, protocol_label, protocol_title)
 from condmon.report_inputs import CalibrationOutputs, ReportInputs, RunIdentity
 from condmon.separability import measured_separability
+from condmon.signature import fault_signatures, signature_table
 from condmon.train_tables import ReportInputError, load_metrics, load_predictions, read_table
 
 log = logging.getLogger(__name__)
@@ -930,6 +931,26 @@ def load_calibrations(calibration: CalibrationOutputs) -> tuple:
     return calibrations, spectra, history
 
 
+def signature_report(summary: dict, measured_frame, names, simulated_features, healthy_state: str,
+                     condition: str, note: str, staging) -> list[str]:
+    """summary.json `fault_signatures` (condmon.signature: each fault class's measured and
+    simulated shift from healthy, and how alike their directions are) and its plot; the plot's
+    name, none without a fault class measured and simulated at one condition."""
+    simulated_frame, simulated_names = read_feature_table(simulated_features)
+    if list(simulated_names) != list(names):
+        raise ValueError(f"{simulated_features}: its features differ from the measured features' "
+                         f"({len(simulated_names)} against {len(names)}); rerun the features stage")
+    signatures = fault_signatures(measured_frame, simulated_frame, names, healthy_state, condition)
+    summary["fault_signatures"] = signatures
+    table = signature_table(signatures)
+    if table.empty:
+        return []
+    log.info("fault signatures (shift in simulated healthy spreads, measured / simulated, direction):\n%s",
+             table.round(2).to_string(index=False))
+    plots.save_figure(plots.fault_signatures(table, condition, note), staging / "fault_signatures.png")
+    return ["fault_signatures.png"]
+
+
 def write_report(inputs: ReportInputs) -> dict:
     """Build the whole report from `inputs` (condmon.report_inputs: what each input adds, and
     which outputs are optional); returns the summary dict. Every output is written atomically.
@@ -1015,11 +1036,15 @@ def write_report(inputs: ReportInputs) -> dict:
                 design_records, physics, baseline_predictions)
             add_evaluation(summary, overall, predictions, upstream.measured_records,
                            design_records, chosen.design_specimens, specimens)
-            separability = measured_separability(*read_feature_table(features), condition)
+            measured_frame, names = read_feature_table(features)
+            separability = measured_separability(measured_frame, names, condition)
             summary["measured_separability"] = separability
             log.info("measured records alone, leave one record out: %s over all, %s per %s",
                      separability["all"]["balanced_accuracy"],
                      {k: v["balanced_accuracy"] for k, v in separability["per_condition"].items()}, condition)
+            if chosen.simulated_features is not None and run.healthy_state is not None:
+                summary["plots"] += signature_report(summary, measured_frame, names, chosen.simulated_features,
+                                                     run.healthy_state, condition, note, staging)
             plots.save_figure(plots.simulation_gain(
                 gain_against_strongest(overall), 1.0 / len(labels),
                 plot_note(run.run_name, run.data_source, run.bench_differences, design_tested,

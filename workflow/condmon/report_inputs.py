@@ -96,6 +96,9 @@ class EvaluationInputs(_Frozen):
     # evaluation tables, per-speed figures only, the gain against the same classifier's
     # measured-only baseline
     measured_features: Path_ | None = None
+    # the simulated features: with the measured ones, how each simulated fault's shift compares
+    # with the measured fault's (condmon.signature; summary.json fault_signatures); None: not given
+    simulated_features: Path_ | None = None
     condition: str = "speed_rpm"                # hybrid.condition: the column figures group by
     design_records: tuple[str, ...] = ()        # report.design_records: results given apart
     # the system's design specimens (System.design_specimens): their records, matched to

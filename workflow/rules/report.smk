@@ -87,6 +87,8 @@ rule report:
         physics_baseline_info=physics_baseline_outputs("info.json"),
         measured_records=rules.measured.output.records,
         measured_features=rules.features_measured.output.features,  # each record's condition
+        # beside it: how each simulated fault moves the features against the measured one
+        simulated_features=rules.features_simulated.output.features,
         # accuracy on the held-out simulated records (hybrid.simulated_validation_share > 0)
         simulated_validation=(
             train_outputs("simulated_validation.csv")

@@ -36,6 +36,7 @@ summary = write_report(ReportInputs(
                                    state_histories={state: inputs[f"state_history_{state}"]
                                                     for state in params.get("state_models", [])}),
     evaluation=EvaluationInputs(measured_features=inputs.measured_features,
+                                simulated_features=inputs.get("simulated_features"),
                                 condition=params.condition, design_records=params.design_records,
                                 design_specimens=params.design_specimens,
                                 confusion_percent=params.get("confusion_percent", [0])),

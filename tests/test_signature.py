@@ -1,0 +1,95 @@
+"""How the simulated faults move the features against the measured faults (condmon.signature),
+and the report's summary.json `fault_signatures` and plot."""
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import fake_train_outputs as fake
+from condmon.features import read_feature_table, write_feature_table
+from condmon.signature import fault_signatures, signature_table
+
+NAMES = [f"f{i}" for i in range(8)]
+
+
+def segments(rng, source, shifts: dict, speeds=(450.0,), n=200):
+    """`n` segments per class and speed; the features are unit normal noise plus the class's
+    shift vector (`shifts`: class -> 8 values), the healthy class unshifted."""
+    rows = []
+    for speed in speeds:
+        for state, shift in {"healthy": np.zeros(len(NAMES)), **shifts}.items():
+            values = rng.normal(0.0, 1.0, (n, len(NAMES))) + np.asarray(shift, float)
+            for k, row in enumerate(values):
+                rows.append({"record_id": f"{source}-{state}-{speed:g}-{k // 4}", "segment": k % 4,
+                             "health_state": state, "speed_rpm": speed, **dict(zip(NAMES, row))})
+    return pd.DataFrame(rows)
+
+
+def test_shifts_in_healthy_spreads_and_their_direction():
+    rng = np.random.default_rng(0)
+    along = np.array([3.0, -3.0, 0, 0, 0, 0, 0, 0])
+    simulated = segments(rng, "sim", {"missing_tooth": along, "surface_fault": along})
+    # the measured missing tooth as the simulated one; the surface fault small and the other way
+    measured = segments(rng, "bench", {"missing_tooth": along, "surface_fault": -0.3 * along})
+    out = fault_signatures(measured, simulated, NAMES, "healthy", "speed_rpm")
+    rows = out["per_condition"]["450"]["classes"]
+    simulated_rms = np.sqrt(np.mean(along ** 2))  # 1.5 spreads
+    assert rows["missing_tooth"]["simulated_shift"] == pytest.approx(simulated_rms, rel=0.1)
+    assert rows["missing_tooth"]["measured_shift"] == pytest.approx(simulated_rms, rel=0.1)
+    assert rows["missing_tooth"]["direction_correlation"] > 0.9
+    assert rows["surface_fault"]["measured_shift"] < 0.5 * simulated_rms
+    assert rows["surface_fault"]["direction_correlation"] < -0.5
+    assert rows["missing_tooth"]["features"] == len(NAMES) and rows["missing_tooth"]["measured_records"] == 50
+    table = signature_table(out)
+    assert list(table["health_state"]) == ["missing_tooth", "surface_fault"] and set(table["condition"]) == {"450"}
+
+
+def test_each_measured_condition_takes_the_nearest_simulated_one_and_skips_what_it_cannot_compare():
+    rng = np.random.default_rng(1)
+    simulated = segments(rng, "sim", {"missing_tooth": np.full(8, 2.0)}, speeds=(450.0, 1100.0))
+    simulated.loc[:, "f7"] = 1.0  # no healthy spread: left out
+    measured = segments(rng, "bench", {"missing_tooth": np.full(8, 2.0), "spall": np.full(8, 2.0)},
+                        speeds=(460.0, 1090.0))
+    out = fault_signatures(measured, simulated, NAMES, "healthy", "speed_rpm")
+    assert {k: v["simulated_at"] for k, v in out["per_condition"].items()} == {"460": 450.0, "1090": 1100.0}
+    for entry in out["per_condition"].values():
+        assert list(entry["classes"]) == ["missing_tooth"]  # spall was never simulated
+        assert entry["classes"]["missing_tooth"]["features"] == 7
+    # measured records without their healthy class: nothing to take a shift from
+    alone = measured[measured["health_state"] != "healthy"]
+    assert fault_signatures(alone, simulated, NAMES, "healthy", "speed_rpm")["per_condition"] == {}
+    assert signature_table({"per_condition": {}}).empty
+
+
+@pytest.fixture(scope="module")
+def train_outputs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("results") / "demo"
+    return root, fake.build(root)
+
+
+def test_the_report_gives_the_signatures_and_their_plot(train_outputs, tmp_path):
+    _, paths = train_outputs
+    out = tmp_path / "report"
+    summary = fake.write_report(paths, out, evaluation={"measured_features": paths["features_measured"],
+                                                        "simulated_features": paths["features_simulated"]})
+    signatures = json.loads((out / "summary.json").read_text())["fault_signatures"]
+    assert signatures == summary["fault_signatures"] and signatures["condition"] == "speed_rpm"
+    measured, names = read_feature_table(paths["features_measured"])
+    simulated, _ = read_feature_table(paths["features_simulated"])
+    assert signatures == json.loads(json.dumps(fault_signatures(measured, simulated, names, "healthy", "speed_rpm")))
+    assert signatures["per_condition"] and "fault_signatures.png" in summary["plots"]
+    assert (out / "plots" / "fault_signatures.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # without the simulated features: neither
+    plain = fake.write_report(paths, tmp_path / "plain", evaluation={"measured_features": paths["features_measured"]})
+    assert "fault_signatures" not in plain and "fault_signatures.png" not in plain["plots"]
+
+
+def test_simulated_features_of_other_names_are_refused_with_the_file_named(train_outputs, tmp_path):
+    _, paths = train_outputs
+    simulated, names = read_feature_table(paths["features_simulated"])
+    other = tmp_path / "simulated.parquet"
+    write_feature_table(simulated.drop(columns=names[-1]), names[:-1], other)
+    with pytest.raises(ValueError, match="simulated.parquet: its features differ"):
+        fake.write_report(paths, tmp_path / "report", evaluation={"measured_features": paths["features_measured"],
+                                                                  "simulated_features": other})

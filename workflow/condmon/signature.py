@@ -1,0 +1,87 @@
+"""Do the simulated faults move the features as the measured faults do?
+
+A classifier trained on simulation recognises a measured fault only where the fault moves the
+features beyond what the simulation calls normal variation, and the way the simulated fault does.
+Per operating condition and fault class, both shifts are taken from their own healthy class:
+the measured class's mean from the measured healthy segments' mean, the simulated class's from the
+simulated healthy's, each feature in units of the simulated healthy segments' spread (the variation
+a simulation-trained classifier learns as healthy). Then
+
+- `measured_shift`, `simulated_shift`: the root mean square of the shift over the features;
+- `direction_correlation`: the correlation of the two shifts over the features (1: the same
+  direction, 0: unrelated).
+
+A measured fault whose shift is well below one spread, or whose direction is unlike the simulated
+fault's, cannot be recognised from simulation, whatever the classifier; the measured-only ceiling
+(`condmon.separability`) says whether the measured records show it at all. The report gives both
+beside the accuracy (summary.json `fault_signatures`). It needs labelled measured fault records:
+a bench, or a rig whose faults were recorded.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+METHOD = ("per condition and fault class: mean shift from the healthy class, measured and simulated "
+          "apart, each feature in units of the simulated healthy spread; shift = rms over features, "
+          "direction = correlation of the two shifts over features")
+
+
+def healthy_spread(simulated: pd.DataFrame, names, healthy_state: str) -> pd.Series:
+    """Each feature's standard deviation over the simulated healthy segments; features that do not
+    vary there (NaN or 0) are left out."""
+    spread = simulated.loc[simulated["health_state"] == healthy_state, list(names)].std()
+    return spread[spread > 0]
+
+
+def class_shift(frame: pd.DataFrame, state: str, healthy_state: str, spread: pd.Series) -> pd.Series:
+    """The mean of `state`'s segments minus the healthy segments' mean, per feature of `spread`,
+    in units of it."""
+    columns = list(spread.index)
+    mean = frame.loc[frame["health_state"] == state, columns].mean()
+    healthy = frame.loc[frame["health_state"] == healthy_state, columns].mean()
+    return (mean - healthy) / spread
+
+
+def compare_shifts(measured: pd.Series, simulated: pd.Series) -> dict:
+    """rms of each shift and their correlation over the features both define."""
+    both = measured.notna() & simulated.notna()
+    measured, simulated = measured[both].to_numpy(float), simulated[both].to_numpy(float)
+    correlation = (float(np.corrcoef(measured, simulated)[0, 1])
+                   if len(measured) > 1 and measured.std() > 0 and simulated.std() > 0 else None)
+    return {"measured_shift": float(np.sqrt(np.mean(measured ** 2))) if len(measured) else None,
+            "simulated_shift": float(np.sqrt(np.mean(simulated ** 2))) if len(simulated) else None,
+            "direction_correlation": correlation, "features": int(both.sum())}
+
+
+def fault_signatures(measured: pd.DataFrame, simulated: pd.DataFrame, names, healthy_state: str,
+                     condition: str) -> dict:
+    """METHOD for every value of `condition` the measured records have (the simulated rows at the
+    nearest simulated value) and every fault class with measured and simulated segments there."""
+    per_condition = {}
+    simulated_values = np.sort(simulated[condition].unique())
+    for value in np.sort(measured[condition].unique()):
+        nearest = simulated_values[np.argmin(np.abs(simulated_values - value))]
+        here = measured[measured[condition] == value]
+        simulated_here = simulated[simulated[condition] == nearest]
+        spread = healthy_spread(simulated_here, names, healthy_state)
+        if spread.empty or not (here["health_state"] == healthy_state).any():
+            continue
+        states = sorted(set(here["health_state"]) & set(simulated_here["health_state"]) - {healthy_state})
+        rows = {}
+        for state in states:
+            rows[state] = {**compare_shifts(class_shift(here, state, healthy_state, spread),
+                                            class_shift(simulated_here, state, healthy_state, spread)),
+                           "measured_records": int(here.loc[here["health_state"] == state, "record_id"].nunique())}
+        if rows:
+            per_condition[f"{value:g}"] = {"simulated_at": float(nearest), "classes": rows}
+    return {"method": METHOD, "condition": condition, "per_condition": per_condition}
+
+
+def signature_table(signatures: dict) -> pd.DataFrame:
+    """One row per (condition value, fault class) of `fault_signatures`' result."""
+    rows = [{"condition": value, "health_state": state, **figures}
+            for value, entry in signatures["per_condition"].items()
+            for state, figures in entry["classes"].items()]
+    return pd.DataFrame(rows, columns=["condition", "health_state", "measured_shift", "simulated_shift",
+                                       "direction_correlation", "features", "measured_records"])
