@@ -9,6 +9,7 @@ import pytest
 import fake_train_outputs as fake
 from condmon.features import read_feature_table, write_feature_table
 from condmon.signature import fault_signatures, signature_table
+from condmon.train_tables import ReportInputError
 
 NAMES = [f"f{i}" for i in range(8)]
 
@@ -90,6 +91,6 @@ def test_simulated_features_of_other_names_are_refused_with_the_file_named(train
     simulated, names = read_feature_table(paths["features_simulated"])
     other = tmp_path / "simulated.parquet"
     write_feature_table(simulated.drop(columns=names[-1]), names[:-1], other)
-    with pytest.raises(ValueError, match="simulated.parquet: its features differ"):
+    with pytest.raises(ReportInputError, match="simulated.parquet: its features differ"):
         fake.write_report(paths, tmp_path / "report", evaluation={"measured_features": paths["features_measured"],
                                                                   "simulated_features": other})

@@ -938,7 +938,7 @@ def signature_report(summary: dict, measured_frame, names, simulated_features, h
     name, none without a fault class measured and simulated at one condition."""
     simulated_frame, simulated_names = read_feature_table(simulated_features)
     if list(simulated_names) != list(names):
-        raise ValueError(f"{simulated_features}: its features differ from the measured features' "
+        raise ReportInputError(f"{simulated_features}: its features differ from the measured features' "
                          f"({len(simulated_names)} against {len(names)}); rerun the features stage")
     signatures = fault_signatures(measured_frame, simulated_frame, names, healthy_state, condition)
     summary["fault_signatures"] = signatures
