@@ -142,6 +142,8 @@ def test_a_cwru_like_condition_groups_the_figures_by_load_not_by_each_files_rpm(
                                for part in ("all", "load0", "load1"))
     assert "accuracy_per_speed.png" not in summary["plots"]  # accuracy_per_condition covers it
     assert "accuracy_per_condition.png" in summary["plots"]
+    # no simulated features given: no fault signatures
+    assert "fault_signatures" not in summary and "fault_signatures.png" not in summary["plots"]
     shares = pd.read_csv(out / "prediction_shares.csv")
     assert "speed_rpm" not in shares.columns and set(shares["load"]) == {0.0, 1.0}
     # n: a true class's test segments at that load, pooled over repeats and holdouts

@@ -7,6 +7,7 @@ import pandas as pd
 import pytest
 
 import fake_train_outputs as fake
+from condmon import report
 from condmon.features import read_feature_table, write_feature_table
 from condmon.signature import fault_signatures, signature_table
 from condmon.train_tables import ReportInputError
@@ -81,9 +82,6 @@ def test_the_report_gives_the_signatures_and_their_plot(train_outputs, tmp_path)
     assert signatures == json.loads(json.dumps(fault_signatures(measured, simulated, names, "healthy", "speed_rpm")))
     assert signatures["per_condition"] and "fault_signatures.png" in summary["plots"]
     assert (out / "plots" / "fault_signatures.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    # without the simulated features: neither
-    plain = fake.write_report(paths, tmp_path / "plain", evaluation={"measured_features": paths["features_measured"]})
-    assert "fault_signatures" not in plain and "fault_signatures.png" not in plain["plots"]
 
 
 def test_simulated_features_of_other_names_are_refused_with_the_file_named(train_outputs, tmp_path):
@@ -91,6 +89,6 @@ def test_simulated_features_of_other_names_are_refused_with_the_file_named(train
     simulated, names = read_feature_table(paths["features_simulated"])
     other = tmp_path / "simulated.parquet"
     write_feature_table(simulated.drop(columns=names[-1]), names[:-1], other)
+    measured, names = read_feature_table(paths["features_measured"])
     with pytest.raises(ReportInputError, match="simulated.parquet: its features differ"):
-        fake.write_report(paths, tmp_path / "report", evaluation={"measured_features": paths["features_measured"],
-                                                                  "simulated_features": other})
+        report.signature_report({}, measured, names, other, "healthy", "speed_rpm", "note", tmp_path)
