@@ -537,6 +537,12 @@ def test_recall_beside_whether_each_fault_record_shows_its_line(tmp_path):
     per_record = report.recall_per_record(predictions, lines).set_index("record_id")
     assert per_record.loc["or1", "shows_line"] is True and per_record.loc["or2", "shows_line"] is False
     assert pd.isna(per_record.loc["h", "shows_line"])
+    # the rule's own reading of each record stands beside the classifiers'
+    rule_reads = predictions.assign(classifier="envelope_rule", predicted_label="inner_race")
+    both = report.recall_per_record(predictions, lines, rule_reads)
+    read = both[both["classifier"] == "envelope_rule"].set_index("record_id")
+    assert list(read["most_predicted"]) == ["inner_race"] * 3 and read.loc["or1", "recall"] == 0.0
+    assert both[both["classifier"] == "svm"].reset_index(drop=True).equals(report.recall_per_record(predictions, lines))
     summary = report.fault_lines_summary(predictions, lines, rule)
     (row,) = summary["recall"]
     assert (row["recall_shows_line"], row["records_shows_line"]) == (1.0, 1)

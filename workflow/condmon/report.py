@@ -217,12 +217,18 @@ def recall_per_class(predictions: pd.DataFrame) -> pd.DataFrame:
             .agg(recall=("hit", "mean"), n_test=("hit", "size")))
 
 
-def recall_per_record(predictions: pd.DataFrame, fault_lines: pd.DataFrame | None = None) -> pd.DataFrame:
+def recall_per_record(predictions: pd.DataFrame, fault_lines: pd.DataFrame | None = None,
+                      physics: pd.DataFrame | None = None) -> pd.DataFrame:
     """Share of every measured record's test segments predicted right, per (classifier,
     protocol, percent), pooled over repeats and holdouts: shows which records a class's recall
     loses (a class's near-healthy records, say). With `fault_lines` (`load_fault_lines`) a column
     `shows_line`: whether the fault record's defect line stands out of its envelope spectrum
-    (empty for a healthy record)."""
+    (empty for a healthy record). With `physics` (the physics baselines' predictions) their rows
+    too, `classifier` = the rule: where the classifiers and the training-free rule both call a
+    record the same other class, the record has that class's envelope line within the rule's
+    tolerance (a fault record with another location's line, say): look at its envelope spectrum."""
+    if physics is not None:
+        predictions = pd.concat([predictions, physics], ignore_index=True)
     hit = predictions["true_label"] == predictions["predicted_label"]
     table = (predictions.assign(hit=hit)
              .groupby(["classifier", "protocol", "measured_percent", "record_id", "true_label"],
@@ -1073,7 +1079,8 @@ def write_report(inputs: ReportInputs) -> dict:
                                                    table, physics_table, baseline_table), separability)
             write_text(headline.to_csv(index=False), out.headline)
         if out.recall_per_record is not None:
-            write_text(recall_per_record(predictions, fault_lines).to_csv(index=False), out.recall_per_record)
+            write_text(recall_per_record(predictions, fault_lines, physics).to_csv(index=False),
+                       out.recall_per_record)
         if fault_lines is not None:
             summary["fault_lines"] = fault_lines_summary(predictions, fault_lines, fault_line_rule)
         if out.prediction_shares is not None:
