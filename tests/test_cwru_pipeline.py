@@ -7,12 +7,14 @@ by config alone (`--config`, and a layer that makes it smaller): it must run wit
 simulate every class and test the ones present.
 """
 import json
+import os
+import time
 
 import pandas as pd
 import pytest
 import yaml
 
-from conftest import CWRU_SLICE as SLICE, cwru_folder, snakemake
+from conftest import CWRU, CWRU_SLICE as SLICE, cwru_folder, snakemake
 
 pytestmark = pytest.mark.pipeline
 # another set: 0.021 in faults at 0 and 1 HP, and no healthy record
@@ -106,3 +108,24 @@ def test_another_folder_without_a_healthy_record_runs_by_config_alone(cwru_run, 
     assert simulated == {"normal", "inner_race", "ball", "outer_race"}
     tested = {label for r in summary["results"] for label in r["recall_per_class"]}
     assert tested == {"ball", "inner_race", "outer_race"}
+
+
+def test_data_files_whose_times_change_but_not_their_contents_rerun_nothing(cwru_run):
+    """A refreshed share, a copied download or new links give the same data files new times.
+    Snakemake compares the contents it recorded (profiles/default's max-checksum-file-size covers
+    the 2-4 MB CWRU files; its own 1 MB default does not), so the finished run stays finished."""
+    workdir, _ = cwru_run
+    folder = workdir.parent / "slice"  # the fixture's folder of links to the shared files
+    run = ["-n", "--configfile", ".test/config/cwru-smoke.yaml", "--config", f"measured_dir={folder}"]
+    assert "Nothing to be done" in snakemake(workdir, *run).stdout
+    links = sorted(folder.glob("*.mat"))
+    assert max((CWRU / link.name).stat().st_size for link in links) > 1_000_000
+    times = {link: link.lstat() for link in links}
+    try:
+        now = time.time()
+        for link in links:
+            os.utime(link, (now, now), follow_symlinks=False)
+        assert "Nothing to be done" in snakemake(workdir, *run).stdout
+    finally:  # the fixture's files are read only: their times go back
+        for link, stat in times.items():
+            os.utime(link, ns=(stat.st_atime_ns, stat.st_mtime_ns), follow_symlinks=False)
