@@ -9,8 +9,9 @@ import scipy.io
 import yaml
 
 from conftest import CWRU, ROOT
-from condmon.systems.bearing.cwru import (CWRU_TABLE, G, CwruError, cwru_rows, health_label, read_cwru_file,
-                          read_manifest, task_labels, write_cwru_signal_table)
+from condmon.systems.bearing.cwru import (CWRU_TABLE, G, NOMINAL_RPM, CwruError, cwru_rows,
+                                          health_label, read_cwru_file, read_manifest,
+                                          task_labels, write_cwru_signal_table)
 from condmon.signals import read_signal_table
 
 CWRU_DIR = CWRU
@@ -100,6 +101,21 @@ def test_a_file_holding_only_another_record_is_an_error(tmp_path):
     with pytest.raises(CwruError, match=r"130\.mat.*no X130_DE_time.*\[131\]"):
         read_cwru_file(tmp_path / "130.mat")
 
+
+
+@pytest.mark.parametrize("number,stored_as,load_hp", [(3001, 56, 0), (3007, 50, 2)])
+def test_the_0028_in_files_are_read_under_the_number_they_store(tmp_path, number, stored_as,
+                                                                load_hp, caplog):
+    # the data centre's 3001.mat (inner race 0.028 in, 0 HP) holds X056_DE_time and no RPM
+    own = write_mat(tmp_path / f"{number}.mat", stored_as, rpm=None, channels=("DE",))
+    with caplog.at_level(logging.WARNING, logger="condmon.systems.bearing.cwru"):
+        record = read_cwru_file(tmp_path / f"{number}.mat")
+    assert record.number == number and record.fs_hz == 12000.0
+    assert record.signals["DE"] == pytest.approx(own[f"X{stored_as:03d}_DE_time"].ravel() * G)
+    assert record.speed_rpm == NOMINAL_RPM[load_hp] and not record.speed_from_file
+    write_mat(tmp_path / "3002.mat", 56)  # 3002 stores X057: record 56 is another file's
+    with pytest.raises(CwruError, match=r"3002\.mat.*\[56\]"):
+        read_cwru_file(tmp_path / "3002.mat")
 
 def test_missing_speed_falls_back_to_the_table_with_a_warning(tmp_path, caplog):
     write_mat(tmp_path / "131.mat", 131, rpm=None)

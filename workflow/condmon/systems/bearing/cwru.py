@@ -252,9 +252,21 @@ def _loadmat(path: Path, data: bytes) -> dict:
         raise CwruError(f"{path}: not a readable MATLAB file, truncated or corrupt ({exc})") from exc
 
 
+# The data centre's 0.028-in files (3001-3008) hold their record under another number:
+# 3001.mat (inner race, 0 HP) stores X056_DE_time, 3005.mat (ball, 0 HP) X048_DE_time.
+_STORED_AS = {3001: 56, 3002: 57, 3003: 58, 3004: 59, 3005: 48, 3006: 49, 3007: 50, 3008: 51}
+
+
+def _stored_numbers(number: int) -> list[int]:
+    """The record numbers a file of this number may store its variables under."""
+    return [number] + ([_STORED_AS[number]] if number in _STORED_AS else [])
+
+
 def _variable_prefixes(number: int) -> list[str]:
-    """`X097` (the CWRU spelling) first, then the unpadded `X97` if a file uses it."""
-    return list(dict.fromkeys([f"X{number:03d}", f"X{number}"]))
+    """`X097` (the CWRU spelling) first, then the unpadded `X97` if a file uses it; for the
+    0.028-in files, the same for the number they store their record under."""
+    return list(dict.fromkeys(prefix for stored in _stored_numbers(number)
+                              for prefix in (f"X{stored:03d}", f"X{stored}")))
 
 
 def read_cwru_file(path, channels=("DE",), table: pd.DataFrame | None = None,
@@ -295,7 +307,7 @@ def read_cwru_file(path, channels=("DE",), table: pd.DataFrame | None = None,
             raise CwruError(f"{path}: no file number in the name and several records in the file "
                             f"{de_numbers}; name the file <number>.mat or list it in a manifest")
         number = de_numbers[0]
-    if number not in de_numbers:
+    if not set(_stored_numbers(number)) & set(de_numbers):
         raise CwruError(f"{path}: no X{number:03d}_DE_time for file number {number}; the file "
                         f"holds record(s) {de_numbers} (a stray copy, or a misnamed file?)")
     rows = table.loc[table["cwru_number"] == number]
