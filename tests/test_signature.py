@@ -9,7 +9,7 @@ import pytest
 import fake_train_outputs as fake
 from condmon import report
 from condmon.features import read_feature_table, write_feature_table
-from condmon.signature import fault_signatures, signature_table
+from condmon.signature import fault_signatures, outside_simulation, signature_table
 from condmon.train_tables import ReportInputError
 
 NAMES = [f"f{i}" for i in range(8)]
@@ -64,6 +64,15 @@ def test_each_measured_condition_takes_the_nearest_simulated_one_and_skips_what_
     assert signature_table({"per_condition": {}}).empty
 
 
+def test_outside_simulation_marks_the_segments_no_simulated_example_covers():
+    simulated = pd.DataFrame({"record_id": "sim", "a": [0.0, 1.0, 2.0], "b": [10.0, 20.0, 30.0]})
+    measured = pd.DataFrame({"record_id": ["in", "in", "low", "low", "both"],
+                             "a": [0.0, 2.0, -0.1, 1.0, 3.0], "b": [10.0, 30.0, 15.0, 15.0, 5.0]})
+    out = outside_simulation(measured, simulated, ["a", "b"]).set_index("record_id")
+    assert out["outside_simulation"].to_dict() == {"both": 1.0, "in": 0.0, "low": 0.5}
+    assert out["features_outside_simulation"].to_dict() == {"both": "a, b", "in": "", "low": "a"}
+
+
 @pytest.fixture(scope="module")
 def train_outputs(tmp_path_factory):
     root = tmp_path_factory.mktemp("results") / "demo"
@@ -74,7 +83,8 @@ def test_the_report_gives_the_signatures_and_their_plot(train_outputs, tmp_path)
     _, paths = train_outputs
     out = tmp_path / "report"
     summary = fake.write_report(paths, out, evaluation={"measured_features": paths["features_measured"],
-                                                        "simulated_features": paths["features_simulated"]})
+                                                        "simulated_features": paths["features_simulated"]},
+                                outputs={"recall_per_record": out / "recall_per_record.csv"})
     signatures = json.loads((out / "summary.json").read_text())["fault_signatures"]
     assert signatures == summary["fault_signatures"] and signatures["condition"] == "speed_rpm"
     measured, names = read_feature_table(paths["features_measured"])
@@ -82,6 +92,11 @@ def test_the_report_gives_the_signatures_and_their_plot(train_outputs, tmp_path)
     assert signatures == json.loads(json.dumps(fault_signatures(measured, simulated, names, "healthy", "speed_rpm")))
     assert signatures["per_condition"] and "fault_signatures.png" in summary["plots"]
     assert (out / "plots" / "fault_signatures.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # each record's share of segments outside the simulated range stands beside its recall
+    per_record = pd.read_csv(out / "recall_per_record.csv", keep_default_na=False)
+    outside = outside_simulation(measured, simulated, names).set_index("record_id")
+    for _, row in per_record.iterrows():
+        assert row["outside_simulation"] == pytest.approx(outside.loc[row["record_id"], "outside_simulation"])
 
 
 def test_simulated_features_of_other_names_are_refused_with_the_file_named(train_outputs, tmp_path):

@@ -43,7 +43,7 @@ from condmon.labels import (LEAKY_PROTOCOLS, data_source_label, format_speed, is
                             label_order, protocol_label, protocol_title)
 from condmon.report_inputs import CalibrationOutputs, ReportInputs, RunIdentity
 from condmon.separability import measured_separability
-from condmon.signature import fault_signatures, signature_table
+from condmon.signature import fault_signatures, outside_simulation, signature_table
 from condmon.train_tables import ReportInputError, load_metrics, load_predictions, read_table
 
 log = logging.getLogger(__name__)
@@ -218,7 +218,8 @@ def recall_per_class(predictions: pd.DataFrame) -> pd.DataFrame:
 
 
 def recall_per_record(predictions: pd.DataFrame, fault_lines: pd.DataFrame | None = None,
-                      physics: pd.DataFrame | None = None) -> pd.DataFrame:
+                      physics: pd.DataFrame | None = None,
+                      outside: pd.DataFrame | None = None) -> pd.DataFrame:
     """Share of every measured record's test segments predicted right, per (classifier,
     protocol, percent), pooled over repeats and holdouts: shows which records a class's recall
     loses (a class's near-healthy records, say). With `fault_lines` (`load_fault_lines`) a column
@@ -226,7 +227,9 @@ def recall_per_record(predictions: pd.DataFrame, fault_lines: pd.DataFrame | Non
     (empty for a healthy record). With `physics` (the physics baselines' predictions) their rows
     too, `classifier` = the rule: where the classifiers and the training-free rule both call a
     record the same other class, the record has that class's envelope line within the rule's
-    tolerance (a fault record with another location's line, say): look at its envelope spectrum."""
+    tolerance (a fault record with another location's line, say): look at its envelope spectrum.
+    With `outside` (`condmon.signature.outside_simulation`) its two columns: the share of the
+    record's segments whose features leave the simulated range, and which features do."""
     if physics is not None:
         predictions = pd.concat([predictions, physics], ignore_index=True)
     hit = predictions["true_label"] == predictions["predicted_label"]
@@ -238,6 +241,8 @@ def recall_per_record(predictions: pd.DataFrame, fault_lines: pd.DataFrame | Non
     if fault_lines is not None:
         table["shows_line"] = table["record_id"].astype(str).map(
             fault_lines.set_index("record_id")["shows_line"]).astype(object)
+    if outside is not None:
+        table = table.merge(outside, on="record_id", how="left")
     return table
 
 
@@ -938,23 +943,25 @@ def load_calibrations(calibration: CalibrationOutputs) -> tuple:
 
 
 def signature_report(summary: dict, measured_frame, names, simulated_features, healthy_state: str,
-                     condition: str, note: str, staging) -> list[str]:
+                     condition: str, note: str, staging) -> tuple[list[str], pd.DataFrame]:
     """summary.json `fault_signatures` (condmon.signature: each fault class's measured and
-    simulated shift from healthy, and how alike their directions are) and its plot; the plot's
-    name, none without a fault class measured and simulated at one condition."""
+    simulated shift from healthy, and how alike their directions are) and its plot; returns the
+    plot's name (none without a fault class measured and simulated at one condition) and each
+    measured record's share of segments outside the simulated range (`outside_simulation`)."""
     simulated_frame, simulated_names = read_feature_table(simulated_features)
     if list(simulated_names) != list(names):
         raise ReportInputError(f"{simulated_features}: its features differ from the measured features' "
                          f"({len(simulated_names)} against {len(names)}); rerun the features stage")
     signatures = fault_signatures(measured_frame, simulated_frame, names, healthy_state, condition)
     summary["fault_signatures"] = signatures
+    outside = outside_simulation(measured_frame, simulated_frame, names)
     table = signature_table(signatures)
     if table.empty:
-        return []
+        return [], outside
     log.info("fault signatures (shift in simulated healthy spreads, measured / simulated, direction):\n%s",
              table.round(2).to_string(index=False))
     plots.save_figure(plots.fault_signatures(table, condition, note), staging / "fault_signatures.png")
-    return ["fault_signatures.png"]
+    return ["fault_signatures.png"], outside
 
 
 def write_report(inputs: ReportInputs) -> dict:
@@ -1035,7 +1042,7 @@ def write_report(inputs: ReportInputs) -> dict:
                                                        staging, summary["plots"],
                                                        note=f"run {run.run_name}")
         note = plot_note(run.run_name, run.data_source, run.bench_differences, state_models=run.state_models)
-        table = physics_table = baseline_table = physics_overall = separability = None
+        table = physics_table = baseline_table = physics_overall = separability = outside = None
         if features is not None:
             table, overall, physics_table, physics_overall, baseline_table = evaluation_tables(
                 predictions, baseline, labels, run.healthy_state, features, condition,
@@ -1049,8 +1056,10 @@ def write_report(inputs: ReportInputs) -> dict:
                      separability["all"]["balanced_accuracy"],
                      {k: v["balanced_accuracy"] for k, v in separability["per_condition"].items()}, condition)
             if chosen.simulated_features is not None and run.healthy_state is not None:
-                summary["plots"] += signature_report(summary, measured_frame, names, chosen.simulated_features,
-                                                     run.healthy_state, condition, note, staging)
+                signature_plots, outside = signature_report(
+                    summary, measured_frame, names, chosen.simulated_features, run.healthy_state,
+                    condition, note, staging)
+                summary["plots"] += signature_plots
             plots.save_figure(plots.simulation_gain(
                 gain_against_strongest(overall), 1.0 / len(labels),
                 plot_note(run.run_name, run.data_source, run.bench_differences, design_tested,
@@ -1079,7 +1088,7 @@ def write_report(inputs: ReportInputs) -> dict:
                                                    table, physics_table, baseline_table), separability)
             write_text(headline.to_csv(index=False), out.headline)
         if out.recall_per_record is not None:
-            write_text(recall_per_record(predictions, fault_lines, physics).to_csv(index=False),
+            write_text(recall_per_record(predictions, fault_lines, physics, outside).to_csv(index=False),
                        out.recall_per_record)
         if fault_lines is not None:
             summary["fault_lines"] = fault_lines_summary(predictions, fault_lines, fault_line_rule)

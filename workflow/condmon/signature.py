@@ -16,6 +16,9 @@ fault's, cannot be recognised from simulation, whatever the classifier; the meas
 (`condmon.separability`) says whether the measured records show it at all. The report gives both
 beside the accuracy (summary.json `fault_signatures`). It needs labelled measured fault records:
 a bench, or a rig whose faults were recorded.
+
+`outside_simulation` asks it of each measured record, labels aside: how many of its segments lie
+where no simulated segment does (recall_per_record.csv).
 """
 from __future__ import annotations
 
@@ -76,6 +79,24 @@ def fault_signatures(measured: pd.DataFrame, simulated: pd.DataFrame, names, hea
         if rows:
             per_condition[f"{value:g}"] = {"simulated_at": float(nearest), "classes": rows}
     return {"method": METHOD, "condition": condition, "per_condition": per_condition}
+
+
+def outside_simulation(measured: pd.DataFrame, simulated: pd.DataFrame, names) -> pd.DataFrame:
+    """Per measured record: the share of its segments with a feature outside the range of every
+    simulated segment (its minimum to maximum over all classes and conditions), and those
+    features. A classifier trained on simulation extrapolates there: its call on such a segment
+    rests on no simulated example, however confident it is. Columns `record_id`,
+    `outside_simulation`, `features_outside_simulation` (comma-separated)."""
+    names = list(names)
+    values = measured[names]
+    outside = values.lt(simulated[names].min()) | values.gt(simulated[names].max())
+    record = measured["record_id"].astype(str)
+    share = outside.any(axis=1).groupby(record).mean()
+    leaving = outside.groupby(record).any()
+    return pd.DataFrame({"record_id": share.index,
+                         "outside_simulation": share.to_numpy(float),
+                         "features_outside_simulation": [", ".join(row.index[row]) for _, row in
+                                                         leaving.loc[share.index].iterrows()]})
 
 
 def signature_table(signatures: dict) -> pd.DataFrame:
