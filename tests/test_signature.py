@@ -71,6 +71,10 @@ def test_outside_simulation_marks_the_segments_no_simulated_example_covers():
     out = outside_simulation(measured, simulated, ["a", "b"]).set_index("record_id")
     assert out["outside_simulation"].to_dict() == {"both": 1.0, "in": 0.0, "low": 0.5}
     assert out["features_outside_simulation"].to_dict() == {"both": "a, b", "in": "", "low": "a"}
+    # the features out on most segments first, the rest counted
+    measured = pd.DataFrame({"record_id": "r", "a": [5.0, 5.0], "b": [15.0, 40.0]})
+    (row,) = outside_simulation(measured, simulated, ["b", "a"], listed=1).itertuples()
+    assert row.features_outside_simulation == "a (+1 more)" and row.outside_simulation == 1.0
 
 
 @pytest.fixture(scope="module")

@@ -81,22 +81,30 @@ def fault_signatures(measured: pd.DataFrame, simulated: pd.DataFrame, names, hea
     return {"method": METHOD, "condition": condition, "per_condition": per_condition}
 
 
-def outside_simulation(measured: pd.DataFrame, simulated: pd.DataFrame, names) -> pd.DataFrame:
+def outside_simulation(measured: pd.DataFrame, simulated: pd.DataFrame, names,
+                       listed: int = 5) -> pd.DataFrame:
     """Per measured record: the share of its segments with a feature outside the range of every
     simulated segment (its minimum to maximum over all classes and conditions), and those
     features. A classifier trained on simulation extrapolates there: its call on such a segment
     rests on no simulated example, however confident it is. Columns `record_id`,
-    `outside_simulation`, `features_outside_simulation` (comma-separated)."""
+    `outside_simulation`, `features_outside_simulation` (comma-separated, the `listed` features
+    out on most of the record's segments first, then how many more)."""
     names = list(names)
     values = measured[names]
     outside = values.lt(simulated[names].min()) | values.gt(simulated[names].max())
     record = measured["record_id"].astype(str)
     share = outside.any(axis=1).groupby(record).mean()
-    leaving = outside.groupby(record).any()
+    per_feature = outside.groupby(record).mean()
+
+    def leaving(row: pd.Series) -> str:
+        out = row[row > 0].sort_values(ascending=False, kind="stable")
+        more = f" (+{len(out) - listed} more)" if len(out) > listed else ""
+        return ", ".join(out.index[:listed]) + more
+
     return pd.DataFrame({"record_id": share.index,
                          "outside_simulation": share.to_numpy(float),
-                         "features_outside_simulation": [", ".join(row.index[row]) for _, row in
-                                                         leaving.loc[share.index].iterrows()]})
+                         "features_outside_simulation": [leaving(per_feature.loc[record_id])
+                                                         for record_id in share.index]})
 
 
 def signature_table(signatures: dict) -> pd.DataFrame:
