@@ -102,7 +102,6 @@ def test_a_file_holding_only_another_record_is_an_error(tmp_path):
         read_cwru_file(tmp_path / "130.mat")
 
 
-
 @pytest.mark.parametrize("number,stored_as,load_hp", [(3001, 56, 0), (3007, 50, 2)])
 def test_the_0028_in_files_are_read_under_the_number_they_store(tmp_path, number, stored_as,
                                                                 load_hp, caplog):
@@ -116,6 +115,7 @@ def test_the_0028_in_files_are_read_under_the_number_they_store(tmp_path, number
     write_mat(tmp_path / "3002.mat", 56)  # 3002 stores X057: record 56 is another file's
     with pytest.raises(CwruError, match=r"3002\.mat.*\[56\]"):
         read_cwru_file(tmp_path / "3002.mat")
+
 
 def test_missing_speed_falls_back_to_the_table_with_a_warning(tmp_path, caplog):
     write_mat(tmp_path / "131.mat", 131, rpm=None)

@@ -242,7 +242,9 @@ def recall_per_record(predictions: pd.DataFrame, fault_lines: pd.DataFrame | Non
         table["shows_line"] = table["record_id"].astype(str).map(
             fault_lines.set_index("record_id")["shows_line"]).astype(object)
     if outside is not None:
-        table = table.merge(outside, on="record_id", how="left")
+        by_record = outside.set_index("record_id")
+        for column in ("outside_simulation", "features_outside_simulation"):
+            table[column] = table["record_id"].astype(str).map(by_record[column])
     return table
 
 
