@@ -186,6 +186,8 @@ def test_condmon_predict_and_the_registered_model_give_the_same_labels(smoke, tm
     subprocess.run([*predict, "--output", str(tmp_path / "out")], check=True, cwd=workdir)
     segments = pd.read_csv(tmp_path / "out" / "segments.csv")
     assert {"health_summary.csv", "records.csv", "predictions.png"} <= {p.name for p in (tmp_path / "out").iterdir()}
+    # the packaged model keeps its training range: each segment says whether it lies outside
+    assert segments["outside_training"].isin([True, False]).all()
     mlflow.set_tracking_uri(f"sqlite:///{workdir}/results/mlflow.db")
     registered = mlflow.pyfunc.load_model("models:/condmon-smoke@best")
     labels = registered.predict(read_signal_table(tmp_path / "new.parquet"))

@@ -12,7 +12,9 @@ import pytest
 from condmon.classifiers import make_classifier
 from condmon.features import compute_feature_table
 from condmon.predict import main
-from condmon.signal_model import SignalModel, UnsupportedRecords, log_pyfunc
+from condmon.model_store import training_range
+from condmon.signal_model import (SignalModel, UnsupportedRecords, health_summary, log_pyfunc,
+                                  record_predictions)
 from condmon.signals import make_rows, write_signal_table
 from conftest import CWRU, config_of
 
@@ -77,6 +79,46 @@ def test_records_the_model_was_not_trained_for_are_refused_by_name(model, change
     assert sorted(problems["record_id"].unique()) == bad  # only those, each by name
     assert problems.groupby("record_id")["reason"].agg(lambda lines: any(reason in r for r in lines)).all()
     assert bad[0] in str(refused.value)
+
+
+def test_segments_outside_the_training_range_are_marked_per_segment_and_record(model, tmp_path, capsys):
+    train = compute_feature_table(records(1), CHANNELS, SPECTRUM)
+    names = model.features["feature_names"]
+    used = names[:5]
+    ranged = SignalModel(model.estimator, model.features, model.domain, "healthy", info=model.info,
+                         training_range={"features": used, "low": train[used].min().tolist(),
+                                         "high": train[used].max().tolist()})
+    loud = records(6, per_state=1)
+    loud = loud.assign(signal=[np.asarray(s) * (20.0 if r.startswith("fault") else 1.0)
+                               for s, r in zip(loud["signal"], loud["record_id"])])
+    segments = ranged.predict_segments(loud)
+    faulty = segments["record_id"].str.startswith("fault")
+    assert segments.loc[faulty, "outside_training"].all()  # 20 x louder: above every trained level
+    per_record = record_predictions(segments, ranged.classes, "healthy").set_index("record_id")
+    assert (per_record["outside_training"] == segments.groupby("record_id")["outside_training"].mean()).all()
+    summary = health_summary(per_record.reset_index(), ranged.classes, "healthy")
+    assert list(summary["outside_training"]) == list(per_record["outside_training"])
+    # a model packaged before the range was kept says nothing rather than "inside"
+    assert "outside_training" not in model.predict_segments(loud)
+    # the command names the records
+    joblib.dump(ranged, tmp_path / "ranged.joblib")
+    write_signal_table(loud, tmp_path / "loud.parquet")
+    assert main(["predict", "--model", str(tmp_path / "ranged.joblib"), "--input", str(tmp_path / "loud.parquet"),
+                 "--output", str(tmp_path / "out")]) == 0
+    said = capsys.readouterr().out
+    assert "outside the model's training range" in said and "fault-" in said
+    assert (pd.read_csv(tmp_path / "out" / "health_summary.csv")["outside_training"] > 0).any()
+
+
+def test_the_training_range_covers_the_fits_training_segments_only():
+    simulated = pd.DataFrame({"record_id": ["s1", "s1", "s2"], "a": [0.0, 1.0, 50.0]})
+    measured = pd.DataFrame({"record_id": ["m1", "m1", "m2"], "segment": [0, 1, 0],
+                             "a": [-2.0, 3.0, 99.0]})
+    split = pd.DataFrame({"record_id": ["s2", "m1", "m1", "m2"], "segment": [-1, 0, 1, -1],
+                          "role": ["simulated_validation", "train", "test", "test"]})
+    # s2 is held out for validation, m1's second segment and m2 are tested: none of them count
+    assert training_range(simulated, measured, split, ["a"]) == {"features": ["a"], "low": [-2.0],
+                                                                 "high": [1.0]}
 
 
 def test_condmon_predict_writes_predictions_summary_and_plot(model, tmp_path, capsys):

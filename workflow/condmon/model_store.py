@@ -23,7 +23,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from condmon.atomic import staging_directory
-from condmon.hybrid import measured_rows, read_split_table
+from condmon.hybrid import measured_rows, read_split_table, simulated_validation_ids
 from condmon.labels import LEAKY_PROTOCOLS
 from condmon.signal_model import SPEED_TOLERANCE, SignalModel
 
@@ -50,6 +50,21 @@ def training_speeds(simulated_speeds, measured: pd.DataFrame, split: pd.DataFram
     return sorted({float(s) for s in [*simulated_speeds, *measured_speeds]})
 
 
+def training_range(simulated: pd.DataFrame, measured: pd.DataFrame, split: pd.DataFrame,
+                   names) -> dict:
+    """The range (minimum, maximum) of every feature of `names` over a fit's training segments:
+    the simulated ones the split does not hold out for validation and the measured ones it
+    trains on (`SignalModel.training_range`)."""
+    from condmon.train import segment_roles  # the train job's own reading of a split
+
+    names = list(names)
+    simulated = simulated[~simulated["record_id"].astype(str).isin(simulated_validation_ids(split))]
+    trained = measured[segment_roles(measured_rows(split), measured) == "train"]
+    rows = pd.concat([simulated[names], trained[names]], ignore_index=True)
+    return {"features": names, "low": rows.min().astype(float).tolist(),
+            "high": rows.max().astype(float).tolist()}
+
+
 def build_store(directory, train_dirs, split_tables, measured_signals, simulated_features,
                 measured_features, features: dict, healthy_state: str, system: dict | None,
                 config_hash: str) -> dict:
@@ -62,7 +77,10 @@ def build_store(directory, train_dirs, split_tables, measured_signals, simulated
     """
     fs_hz, n_samples = signal_shape(measured_signals)
     simulated_speeds = pq.read_table(simulated_features, columns=["speed_rpm"]).column(0).unique().to_pylist()
-    measured = pq.read_table(measured_features, columns=["record_id", "speed_rpm"]).to_pandas()
+    names = feature_names(measured_features)
+    measured = pq.read_table(measured_features,
+                             columns=["record_id", "segment", "speed_rpm", *names]).to_pandas()
+    simulated = pq.read_table(simulated_features, columns=["record_id", *names]).to_pandas()
     splits = {protocol: read_split_table(path) for protocol, path in split_tables.items()}
     entries = []
     with staging_directory(Path(directory)) as tmp:
@@ -87,10 +105,12 @@ def build_store(directory, train_dirs, split_tables, measured_signals, simulated
                           "speed_tolerance": SPEED_TOLERANCE}
                 signal_model = SignalModel(
                     joblib.load(train_dir / "models" / model["file"]),
-                    features={**features, "feature_names": feature_names(measured_features)},
+                    features={**features, "feature_names": names},
                     domain=domain, healthy_state=healthy_state, system=system,
                     info={**key, "config_hash": config_hash,
-                          "accuracy": float(row["accuracy"].iloc[0]) if len(row) else None})
+                          "accuracy": float(row["accuracy"].iloc[0]) if len(row) else None},
+                    training_range=training_range(simulated, measured, split,
+                                                  model.get("selected_features") or names))
                 name = f"{clf}/{protocol}/{model['file']}"
                 (tmp / clf / protocol).mkdir(parents=True, exist_ok=True)
                 joblib.dump(signal_model, tmp / name)

@@ -249,6 +249,11 @@ def main(argv=None) -> int:
           f"{int((summary['status'] == 'healthy').sum())} healthy"
           + (f"; {results['refused']['record_id'].nunique()} refused" if len(results["refused"]) else "")
           + f" -> {args.output}")
+    if "outside_training" in summary and (summary["outside_training"] > 0).any():
+        away = summary[summary["outside_training"] > 0]
+        print(f"{len(away)} record(s) have segments outside the model's training range (their calls "
+              f"rest on no training example): {', '.join(map(str, away['record_id'][:5]))}"
+              + (" ..." if len(away) > 5 else "") + " (health_summary.csv outside_training)")
     return 0
 
 

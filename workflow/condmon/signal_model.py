@@ -74,17 +74,22 @@ class SignalModel:
     speeds_rpm (every speed in its training data), speed_tolerance. ``info``: what it is (classifier,
     protocol, measured_percent, repeat, holdout, config_hash, accuracy, ...), kept for the record.
     ``system``: the system's `job_spec("measured")`, so a folder of the system's own records (its own
-    file format) can be read by the system's reader.
+    file format) can be read by the system's reader. ``training_range``: {"features", "low",
+    "high"}, the range of the training segments over the features the estimator uses
+    (`condmon.model_store.training_range`); a segment outside it rests on no training example,
+    and the predictions say so (``outside_training``).
     """
 
     def __init__(self, estimator, features: dict, domain: dict, healthy_state: str,
-                 system: dict | None = None, info: dict | None = None):
+                 system: dict | None = None, info: dict | None = None,
+                 training_range: dict | None = None):
         self.estimator = estimator
         self.features = features
         self.domain = domain
         self.healthy_state = healthy_state
         self.system = system
         self.info = info or {}
+        self.training_range = training_range
 
     @property
     def classes(self) -> list[str]:
@@ -186,7 +191,21 @@ class SignalModel:
             probabilities = np.full((len(x), len(self.classes)), np.nan)
         for j, label in enumerate(self.classes):
             out[f"p_{label}"] = probabilities[:, j].astype(float)
+        outside = self.outside_training(x)
+        if outside is not None:
+            out["outside_training"] = outside
         return out
+
+    def outside_training(self, x: np.ndarray) -> np.ndarray | None:
+        """Per row of a feature matrix: whether a feature the estimator uses lies outside the
+        training range; None for a model packaged without one (before it was kept)."""
+        span = getattr(self, "training_range", None)  # models pickled before it existed
+        if not span:
+            return None
+        columns = [self.features["feature_names"].index(name) for name in span["features"]]
+        values = x[:, columns]
+        return ((values < np.asarray(span["low"], np.float32))
+                | (values > np.asarray(span["high"], np.float32))).any(axis=1)
 
     def predict(self, frame: pd.DataFrame) -> np.ndarray:
         """The label of every segment, in the order of ``predict_segments``."""
@@ -208,7 +227,8 @@ class SignalModel:
 def record_predictions(segments: pd.DataFrame, classes, healthy_state: str) -> pd.DataFrame:
     """One row per record: the majority label over its segments (a tie goes to the higher mean
     probability, then the fault), each class's vote share (``vote_<class>``) and mean probability
-    (``p_<class>``), n_segments, and the true label where the table gave one."""
+    (``p_<class>``), n_segments, and the true label where the table gave one; with the segments'
+    ``outside_training``, its share of the record's segments."""
     classes = list(classes)
     votes = (pd.crosstab(segments["record_id"], segments["predicted_label"], normalize="index")
              .reindex(columns=classes, fill_value=0.0))
@@ -225,12 +245,18 @@ def record_predictions(segments: pd.DataFrame, classes, healthy_state: str) -> p
                      "predicted_label": classes[order[0]],
                      **{f"vote_{c}": float(share[c]) for c in classes},
                      **{f"p_{c}": float(v) for c, v in zip(classes, p)}})
-    return pd.DataFrame(rows)
+    records = pd.DataFrame(rows)
+    if "outside_training" in segments:
+        records["outside_training"] = records["record_id"].map(
+            segments.groupby("record_id")["outside_training"].mean())
+    return records
 
 
 def health_summary(records: pd.DataFrame, classes, healthy_state: str) -> pd.DataFrame:
     """Per record: status (``healthy`` / ``fault``), the likeliest fault and its vote share,
-    the share of segments called healthy, and whether the label agrees with a known truth."""
+    the share of segments called healthy, whether the label agrees with a known truth, and (where
+    the model keeps its training range) the share of segments outside it: a call that rests on
+    no training example."""
     faults = [c for c in classes if c != healthy_state]
     rows = []
     for row in records.to_dict("records"):
@@ -245,7 +271,8 @@ def health_summary(records: pd.DataFrame, classes, healthy_state: str) -> pd.Dat
                      "likeliest_fault": likeliest,
                      "likeliest_fault_share": row[f"vote_{likeliest}"] if likeliest else np.nan,
                      "n_segments": row["n_segments"], "true_label": row["true_label"],
-                     "correct": (row["predicted_label"] == row["true_label"]) if known else None})
+                     "correct": (row["predicted_label"] == row["true_label"]) if known else None,
+                     **({"outside_training": row["outside_training"]} if "outside_training" in row else {})})
     return pd.DataFrame(rows)
 
 
