@@ -16,8 +16,8 @@ import logging
 import numpy as np
 import pandas as pd
 
-from condmon.hybrid import CALIBRATION, measured_rows, validate_splits
-from condmon.train import PREDICTION_COLUMNS, _split_keys, segment_roles
+from condmon.hybrid import CALIBRATION, measured_rows, segment_roles, validate_splits
+from condmon.train import PREDICTION_COLUMNS, _split_keys
 
 log = logging.getLogger(__name__)
 

@@ -287,6 +287,24 @@ def measured_rows(splits: pd.DataFrame) -> pd.DataFrame:
     return splits[splits["role"] != SIMULATED_VALIDATION]
 
 
+def segment_roles(split: pd.DataFrame, measured_features: pd.DataFrame) -> np.ndarray:
+    """The role of every measured feature row in one split: by record, or by (record, segment)
+    where the split lists single segments; rows the split does not name get None."""
+    whole = split[split["segment"] < 0]
+    roles = measured_features["record_id"].astype(str).map(
+        dict(zip(whole["record_id"], whole["role"]))).to_numpy(object)
+    single = split[split["segment"] >= 0]
+    if len(single):
+        keys = pd.MultiIndex.from_arrays([measured_features["record_id"].astype(str),
+                                          measured_features["segment"].astype(int)])
+        by_segment = pd.Series(single["role"].to_numpy(),
+                               index=pd.MultiIndex.from_arrays([single["record_id"],
+                                                                single["segment"].astype(int)]))
+        found = keys.isin(by_segment.index)
+        roles[found] = by_segment.reindex(keys[found]).to_numpy()
+    return roles
+
+
 def typed_splits(splits: pd.DataFrame) -> pd.DataFrame:
     order = {label: i for i, label in enumerate(sorted_holdouts(splits["holdout"]))}
     if "segment" not in splits.columns:  # split tables written before segment_share

@@ -23,7 +23,8 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from condmon.atomic import staging_directory
-from condmon.hybrid import measured_rows, read_split_table, simulated_validation_ids
+from condmon.hybrid import (measured_rows, read_split_table, segment_roles,
+                            simulated_validation_ids)
 from condmon.labels import LEAKY_PROTOCOLS
 from condmon.signal_model import SPEED_TOLERANCE, SignalModel
 
@@ -55,8 +56,6 @@ def training_range(simulated: pd.DataFrame, measured: pd.DataFrame, split: pd.Da
     """The range (minimum, maximum) of every feature of `names` over a fit's training segments:
     the simulated ones the split does not hold out for validation and the measured ones it
     trains on (`SignalModel.training_range`)."""
-    from condmon.train import segment_roles  # the train job's own reading of a split
-
     names = list(names)
     simulated = simulated[~simulated["record_id"].astype(str).isin(simulated_validation_ids(split))]
     trained = measured[segment_roles(measured_rows(split), measured) == "train"]

@@ -48,8 +48,8 @@ from sklearn.utils.metadata_routing import get_routing_for_object
 
 from condmon import classifiers
 from condmon.atomic import staging_directory, write_frame, write_table, write_text
-from condmon.hybrid import (SIMULATED_VALIDATION, measured_rows, simulated_validation_ids,
-                            validate_splits)
+from condmon.hybrid import (SIMULATED_VALIDATION, measured_rows, segment_roles,
+                            simulated_validation_ids, validate_splits)
 from condmon.labels import sorted_holdouts
 from condmon.seeds import derive_seed, stable_int
 from condmon.selection import (ALL_FEATURES, BACKWARD, SelectionByInnerCV,
@@ -158,24 +158,6 @@ def fit_with_metadata(model, X, y, **metadata):
     with sklearn.config_context(enable_metadata_routing=True):
         wanted = get_routing_for_object(model).consumes("fit", list(metadata))
         return model.fit(X, y, **{name: metadata[name] for name in wanted})
-
-
-def segment_roles(split: pd.DataFrame, measured_features: pd.DataFrame) -> np.ndarray:
-    """The role of every measured feature row in one split: by record, or by (record, segment)
-    where the split lists single segments; rows the split does not name get None."""
-    whole = split[split["segment"] < 0]
-    roles = measured_features["record_id"].astype(str).map(
-        dict(zip(whole["record_id"], whole["role"]))).to_numpy(object)
-    single = split[split["segment"] >= 0]
-    if len(single):
-        keys = pd.MultiIndex.from_arrays([measured_features["record_id"].astype(str),
-                                          measured_features["segment"].astype(int)])
-        by_segment = pd.Series(single["role"].to_numpy(),
-                               index=pd.MultiIndex.from_arrays([single["record_id"],
-                                                                single["segment"].astype(int)]))
-        found = keys.isin(by_segment.index)
-        roles[found] = by_segment.reindex(keys[found]).to_numpy()
-    return roles
 
 
 def build_model(classifier_name, classifier_params, seed, feature_selection=None):
