@@ -13,8 +13,8 @@ from condmon.classifiers import make_classifier
 from condmon.features import compute_feature_table
 from condmon.predict import main
 from condmon.model_store import training_range
-from condmon.signal_model import (SignalModel, UnsupportedRecords, health_summary, log_pyfunc,
-                                  record_predictions)
+from condmon.signal_model import (REQUIRED_COLUMNS, SignalModel, UnsupportedRecords, health_summary,
+                                  log_pyfunc, record_predictions)
 from condmon.signals import make_rows, write_signal_table
 from conftest import CWRU, config_of
 
@@ -121,10 +121,17 @@ def test_the_training_range_covers_the_fits_training_segments_only():
                                                                  "high": [1.0]}
 
 
+def write_new_records(table: pd.DataFrame, path, columns=REQUIRED_COLUMNS) -> None:
+    """A table of new records as a user writes it: only ``columns``, by pandas, no schema."""
+    table[list(columns)].to_parquet(path, index=False)
+
+
 def test_condmon_predict_writes_predictions_summary_and_plot(model, tmp_path, capsys):
     joblib.dump(model, tmp_path / "model.joblib")
-    table = records(5).drop(columns=["health_state", "source", "params"])  # truth unknown
-    write_signal_table(table.assign(health_state="unknown", source="measured", params=""), tmp_path / "new.parquet")
+    table = records(5)
+    write_new_records(table, tmp_path / "new.parquet")  # only what a user has of new data: no truth
+    assert set(pd.read_parquet(tmp_path / "new.parquet").columns) == {
+        "record_id", "segment", "speed_rpm", "fs_hz", "channel", "signal"}
     out = tmp_path / "predictions"
     assert main(["predict", "--model", str(tmp_path / "model.joblib"), "--input", str(tmp_path / "new.parquet"),
                  "--output", str(out)]) == 0
@@ -137,9 +144,64 @@ def test_condmon_predict_writes_predictions_summary_and_plot(model, tmp_path, ca
     assert (summary.loc[faulty, "status"] == "fault").mean() > 0.8
     assert (summary.loc[~faulty, "status"] == "healthy").mean() > 0.8
     assert summary["correct"].isna().all()  # no truth given, none claimed
+    assert not (out / "score.json").exists()
     assert (out / "predictions.png").stat().st_size > 0
     assert json.loads((out / "model.json").read_text())["classifier"] == "knn"
-    assert "12 record(s)" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "12 record(s)" in said and "scored" not in said
+
+
+def test_a_table_with_health_states_is_scored(model, tmp_path, capsys):
+    joblib.dump(model, tmp_path / "model.joblib")
+    table = records(5)
+    table.loc[table["record_id"] == "fault-450-5-0", "health_state"] = "broken"  # a label the model lacks
+    write_new_records(table, tmp_path / "new.parquet", [*REQUIRED_COLUMNS, "health_state"])
+    out = tmp_path / "predictions"
+    assert main(["predict", "--model", str(tmp_path / "model.joblib"), "--input", str(tmp_path / "new.parquet"),
+                 "--output", str(out)]) == 0
+    segments = pd.read_csv(out / "segments.csv")
+    known = segments[segments["true_label"] != "broken"]
+    right = known["predicted_label"] == known["true_label"]
+    score = json.loads((out / "score.json").read_text())
+    assert score["segments"] == len(known) == len(segments) - 3
+    assert score["accuracy"] == pytest.approx(right.mean())
+    assert score["balanced_accuracy"] == pytest.approx(right.groupby(known["true_label"]).mean().mean())
+    assert score["records"] == 11 and score["unscored_labels"] == ["broken"]
+    summary = pd.read_csv(out / "health_summary.csv")
+    assert score["records_right"] == int((summary["correct"] == True).sum())  # noqa: E712 (NaN: unscored)
+    said = capsys.readouterr().out
+    assert f"{score['records_right']} of 11 record(s) right" in said and "['broken']" in said
+
+
+@pytest.mark.parametrize("table, says", [
+    (lambda: records(5).iloc[:0], "the signal table is empty (no rows)"),
+    (lambda: records(5).drop(columns=["fs_hz"]), "missing signal-table columns ['fs_hz']"),
+])
+def test_a_bad_table_is_refused_naming_the_users_file(model, tmp_path, capsys, table, says):
+    joblib.dump(model, tmp_path / "model.joblib")
+    table().to_parquet(tmp_path / "new.parquet", index=False)
+    assert main(["predict", "--model", str(tmp_path / "model.joblib"), "--input", str(tmp_path / "new.parquet"),
+                 "--output", str(tmp_path / "out")]) == 2
+    assert capsys.readouterr().err.strip() == f"condmon predict: --input {tmp_path / 'new.parquet'}: {says}"
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_file_the_systems_reader_cannot_read_is_named_as_given(tmp_path, caplog):
+    """The reader reads a folder; a single file is linked into a temporary one, which no message
+    names."""
+    from condmon.predict import PredictError, read_input
+    from condmon.systems import get_system
+
+    system = get_system(config_of(".test/config/cwru-smoke.yaml"))
+    reader = SignalModel(None, {}, {"channels": system.channels}, system.healthy_state,
+                         system=system.job_spec("measured"))
+    for name, text in (("new.csv", "a,b\n1,2\n"), ("999.mat", "not MATLAB")):
+        (tmp_path / name).write_text(text)
+        with pytest.raises(PredictError) as error, caplog.at_level("WARNING"):
+            read_input(tmp_path / name, reader)
+        said = str(error.value) + caplog.text
+        assert str(error.value).startswith(f"--input {tmp_path / name}: the bearing system cannot read it")
+        assert "/tmp" not in said.replace(str(tmp_path / name), "")  # only the user's file is named
 
 
 def test_condmon_predict_refuses_an_untrained_speed_and_writes_nothing(model, tmp_path, capsys):

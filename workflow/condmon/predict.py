@@ -4,8 +4,9 @@
     condmon predict --model models:/condmon-smoke@best --tracking-uri sqlite:///results/mlflow.db \\
         --input /data/rig-records --output predictions/
 
-``--input``: a signal table (Parquet, the project's schema; ``health_state`` may be left out or
-``unknown``), or a folder or single file of the system's own records (in its own format), read by
+``--input``: a signal table (Parquet: record_id, segment, speed_rpm, fs_hz, channel, signal;
+``health_state``, ``source``, ``load`` and ``params`` may be left out, ``health_state`` may be
+``unknown``; where it names a class of the model, the predictions are scored), or a folder or single file of the system's own records (in its own format), read by
 the system's reader with the settings the model was trained with. ``--model``: a run's results
 folder (its best model, or the one ``--classifier/--protocol/--percent/--repeat`` pick), a model
 store folder (``results/<run>/models/<config_hash>``), a packaged model file, or an MLflow model
@@ -15,7 +16,8 @@ best model).
 Writes into ``--output``: ``segments.csv`` (per segment: label and class probabilities),
 ``records.csv`` (per record: the majority label, vote shares and mean probabilities),
 ``health_summary.csv`` (per record: healthy or fault, the likeliest fault, confidence),
-``predictions.png``, ``model.json`` (which model, trained for what) and, with
+``predictions.png``, ``model.json`` (which model, trained for what), with health states given
+``score.json`` (accuracy, balanced accuracy and recalls per segment, right records) and, with
 ``--skip-unsupported``, ``refused_records.csv``. Records whose rate, channels, segment length or
 speed the model was not trained for are refused by name (exit status 2, nothing written), or
 with ``--skip-unsupported`` listed apart.
@@ -34,8 +36,8 @@ import pandas as pd
 
 from condmon.atomic import staging_directory
 from condmon.model_store import ModelStoreError, read_index, select, store_of_results
-from condmon.signal_model import (SignalModel, UnsupportedRecords, complete_signal_table,
-                                  health_summary, record_predictions)
+from condmon.signal_model import (REQUIRED_COLUMNS, UNKNOWN_LABEL, SignalModel, UnsupportedRecords,
+                                  complete_signal_table, health_summary, record_predictions)
 from condmon.signals import SignalTableError, read_unvalidated
 
 log = logging.getLogger(__name__)
@@ -108,26 +110,58 @@ def load_mlflow_model(uri: str, tracking_uri: str | None = None) -> tuple[Signal
 # -- the input ------------------------------------------------------------------------------------
 
 def read_input(source, model: SignalModel) -> tuple[pd.DataFrame, pd.DataFrame | None]:
-    """(signal table, the reader's record list or None) of a Parquet signal table, or of a folder or
-    file of the system's own records read by the system's reader with the model's settings."""
+    """(signal table, the reader's record list or None) of a Parquet signal table (only the
+    columns of new data needed: `REQUIRED_COLUMNS`), or of a folder or file of the system's own
+    records read by the system's reader with the model's settings. Every error names ``source``."""
     path = Path(source)
     if not path.exists():
         raise PredictError(f"--input {source}: no such file or folder")
     if path.is_file() and path.suffix == ".parquet":
         try:
-            return complete_signal_table(read_unvalidated(path)), None
+            return complete_signal_table(read_unvalidated(path, REQUIRED_COLUMNS)), None
         except SignalTableError as exc:
-            raise PredictError(f"--input {source}: {exc}") from None
+            raise PredictError(f"--input {source}: {str(exc).removeprefix(f'{path}: ')}") from None
     if model.system is None:
-        raise PredictError(f"--input {source}: the model knows no system reader; give a signal table")
-    with tempfile.TemporaryDirectory() as folder:
-        if path.is_file():  # the reader takes a folder: one of the single file
-            (Path(folder) / path.name).symlink_to(path.resolve())
-            path = Path(folder)
-        return read_system_records(path, model)
+        raise PredictError(f"--input {source}: the model knows no system reader; give a signal table "
+                           f"(Parquet, columns {REQUIRED_COLUMNS})")
+    if path.is_dir():
+        return read_system_records(path, model, source)
+    with tempfile.TemporaryDirectory() as folder:  # the reader takes a folder: one of the single file
+        (Path(folder) / path.name).symlink_to(path.resolve())
+        renamed = UserPath(folder, path.name, source)
+        handlers = logging.getLogger().handlers
+        for handler in handlers:  # the reader's warnings name the file it read: the user's
+            handler.addFilter(renamed)
+        try:
+            return read_system_records(Path(folder), model, source)
+        except PredictError as exc:
+            raise PredictError(renamed.text(str(exc))) from None
+        finally:
+            for handler in handlers:
+                handler.removeFilter(renamed)
 
 
-def read_system_records(folder: Path, model: SignalModel) -> tuple[pd.DataFrame, pd.DataFrame]:
+class UserPath(logging.Filter):
+    """Says ``source`` (the user's file) where a text names the temporary folder its reader was
+    given, or the file's link in it; as a logging filter, in every record it passes."""
+
+    def __init__(self, folder, name: str, source):
+        super().__init__()
+        self.names = [(str(Path(folder) / name), str(source)), (str(folder), str(source))]
+
+    def text(self, text: str) -> str:
+        for old, new in self.names:
+            text = text.replace(old, new)
+        return text
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        record.msg, record.args = self.text(record.getMessage()), None
+        return True
+
+
+def read_system_records(folder: Path, model: SignalModel, source) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The records of ``folder`` by the model's system reader; errors name ``source`` (the user's
+    input) and what the reader said."""
     from condmon.systems import load_system
 
     spec = model.system
@@ -137,10 +171,10 @@ def read_system_records(folder: Path, model: SignalModel) -> tuple[pd.DataFrame,
         files = system.measured_files()
         frame, records = system.read_measured(files, [], list(model.domain["channels"]), "skip")
     except (ValueError, OSError, NotImplementedError) as exc:
-        raise PredictError(f"--input {folder}: the {system.name} system cannot read it ({exc}); "
-                           "give a signal table (Parquet)") from None
+        raise PredictError(f"--input {source}: the {system.name} system cannot read it ({exc}); "
+                           f"give a signal table (Parquet, columns {REQUIRED_COLUMNS})") from None
     if frame.empty:
-        raise PredictError(f"--input {folder}: no records read ({len(records)} left out: "
+        raise PredictError(f"--input {source}: no records read ({len(records)} left out: "
                            f"{records.get('reason', pd.Series(dtype=str)).head(3).tolist()})")
     return complete_signal_table(frame), records
 
@@ -157,8 +191,27 @@ def predict(model: SignalModel, frame: pd.DataFrame, skip_unsupported: bool = Fa
         raise UnsupportedRecords(refused)
     segments = model.predict_segments(kept)
     records = record_predictions(segments, model.classes, model.healthy_state)
-    return {"segments": segments, "records": records,
-            "summary": health_summary(records, model.classes, model.healthy_state), "refused": refused}
+    summary = health_summary(records, model.classes, model.healthy_state)
+    return {"segments": segments, "records": records, "summary": summary, "refused": refused,
+            "score": score(segments, summary, model.classes)}
+
+
+def score(segments: pd.DataFrame, summary: pd.DataFrame, classes) -> dict | None:
+    """How the calls compare with the table's own health states, where it gave ones the model
+    knows: per segment accuracy, balanced accuracy (the mean of the recalls of the classes
+    present) and each class's recall, per record the share of right majority calls; the labels
+    the model does not know (not scored) listed. None where no record has a known label."""
+    known = segments["true_label"].isin(classes)
+    unknown = sorted(set(segments.loc[~known, "true_label"].astype(str)) - {UNKNOWN_LABEL})
+    if not known.any():
+        return None if not unknown else {"unscored_labels": unknown}
+    right = segments.loc[known, "predicted_label"] == segments.loc[known, "true_label"]
+    recall = right.groupby(segments.loc[known, "true_label"]).mean()
+    scored = summary[summary["correct"].notna()]
+    return {"segments": int(known.sum()), "accuracy": float(right.mean()),
+            "balanced_accuracy": float(recall.mean()), "recall": recall.round(4).to_dict(),
+            "records": len(scored), "records_right": int(scored["correct"].astype(bool).sum()),
+            "unscored_labels": unknown}
 
 
 def plot_records(records: pd.DataFrame, classes, healthy_state: str, path, title: str) -> None:
@@ -200,6 +253,8 @@ def write_outputs(results: dict, model: SignalModel, origin: dict, output, reade
             results["refused"].to_csv(tmp / "refused_records.csv", index=False)
         if reader_records is not None:
             reader_records.to_csv(tmp / "input_records.csv", index=False)
+        if results.get("score"):
+            (tmp / "score.json").write_text(json.dumps(results["score"], indent=1))
         key = {k: model.info.get(k) for k in ("classifier", "protocol", "measured_percent", "repeat", "holdout")}
         title = "{classifier}/{protocol}, {measured_percent} % measured, repeat {repeat}".format(**key)
         plot_records(results["records"], model.classes, model.healthy_state, tmp / "predictions.png",
@@ -249,12 +304,24 @@ def main(argv=None) -> int:
           f"{int((summary['status'] == 'healthy').sum())} healthy"
           + (f"; {results['refused']['record_id'].nunique()} refused" if len(results["refused"]) else "")
           + f" -> {args.output}")
+    print_score(results.get("score"))
     if "outside_training" in summary and (summary["outside_training"] > 0).any():
         away = summary[summary["outside_training"] > 0]
         print(f"{len(away)} record(s) have segments outside the model's training range (their calls "
               f"rest on no training example): {', '.join(map(str, away['record_id'][:5]))}"
               + (" ..." if len(away) > 5 else "") + " (health_summary.csv outside_training)")
     return 0
+
+
+
+def print_score(scored: dict | None) -> None:
+    """One line on how the calls compare with the table's health states (nothing without them)."""
+    if scored and "accuracy" in scored:
+        print(f"scored against the input's health_state: {scored['records_right']} of {scored['records']} "
+              f"record(s) right; per segment accuracy {scored['accuracy']:.3f}, balanced "
+              f"{scored['balanced_accuracy']:.3f} over {scored['segments']} segment(s) (score.json)")
+    if scored and scored["unscored_labels"]:
+        print(f"not scored: health_state {scored['unscored_labels']} is none of the model's classes")
 
 
 if __name__ == "__main__":

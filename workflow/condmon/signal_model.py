@@ -22,7 +22,7 @@ import pandas as pd
 
 from condmon.features import FEATURE_FAMILIES, family_table
 from condmon.reference import nearest_reference, reference_from_table
-from condmon.signals import COLUMNS, validate
+from condmon.signals import COLUMNS, SignalTableError, validate
 
 # Relative distance to the nearest trained speed a record may have (records of one operating point
 # differ by a few rpm in some rigs; distinct operating speeds lie hundreds of rpm apart).
@@ -30,6 +30,8 @@ SPEED_TOLERANCE = 0.02
 UNKNOWN_LABEL = "unknown"  # health_state of a record whose truth is not known
 # optional signal-table columns and what a record without them gets
 OPTIONAL_COLUMNS = {"source": "measured", "health_state": UNKNOWN_LABEL, "load": np.nan, "params": ""}
+# what a table of new records must have: record_id, segment, speed_rpm, fs_hz, channel, signal
+REQUIRED_COLUMNS = [c for c in COLUMNS if c not in OPTIONAL_COLUMNS]
 
 
 class UnsupportedRecords(ValueError):
@@ -46,6 +48,8 @@ class UnsupportedRecords(ValueError):
 def complete_signal_table(frame: pd.DataFrame) -> pd.DataFrame:
     """A signal table with the optional columns filled in (a record of unknown health state gets
     `unknown`), checked against the signal-table contract (segments of several lengths allowed)."""
+    if frame.empty:  # else every check below passes vacuously and the refusal reads "0 record(s)"
+        raise SignalTableError("the signal table is empty (no rows)")
     frame = frame.copy()
     for column, default in OPTIONAL_COLUMNS.items():
         if column not in frame.columns:

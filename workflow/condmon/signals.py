@@ -104,9 +104,9 @@ def read_signal_table(path, allowed_sources=SOURCES) -> pd.DataFrame:
     return frame
 
 
-def read_unvalidated(path) -> pd.DataFrame:
-    """The rows of a signal-table file, checked only for being one (exists, Parquet, columns);
-    `signal` as float32 arrays (empty for a null)."""
+def read_unvalidated(path, required=COLUMNS) -> pd.DataFrame:
+    """The rows of a signal-table file, checked only for being one (exists, Parquet, the
+    ``required`` columns); `signal` as float32 arrays (empty for a null)."""
     path = Path(path)
     if not path.exists():
         raise SignalTableError(f"{path}: no such signal table")
@@ -114,7 +114,7 @@ def read_unvalidated(path) -> pd.DataFrame:
         table = pq.read_table(path)
     except Exception as exc:  # pyarrow raises several types for corrupt files
         raise SignalTableError(f"{path}: not a readable Parquet file ({exc})") from exc
-    missing = [c for c in COLUMNS if c not in table.column_names]
+    missing = [c for c in required if c not in table.column_names]
     if missing:
         raise SignalTableError(f"{path}: missing signal-table columns {missing}")
     frame = table.to_pandas()
