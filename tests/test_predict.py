@@ -222,9 +222,10 @@ def test_condmon_predict_refuses_an_untrained_speed_and_writes_nothing(model, tm
 
 
 @pytest.mark.slow
-def test_the_mlflow_pyfunc_model_takes_a_signal_table_and_gives_the_same_labels(model, tmp_path):
+def test_the_mlflow_pyfunc_model_takes_a_signal_table_and_gives_the_same_labels(model, tmp_path, monkeypatch):
     joblib.dump(model, tmp_path / "model.joblib")
-    mlflow.set_tracking_uri(f"sqlite:///{tmp_path / 'mlflow.db'}")
+    (tmp_path / "results").mkdir()
+    mlflow.set_tracking_uri(f"sqlite:///{tmp_path / 'results' / 'mlflow.db'}")
     with mlflow.start_run():
         info = log_pyfunc(tmp_path / "model.joblib", model, name="signal-model")
     loaded = mlflow.pyfunc.load_model(info.model_uri)
@@ -236,13 +237,29 @@ def test_the_mlflow_pyfunc_model_takes_a_signal_table_and_gives_the_same_labels(
     assert list(out.columns) == ["record_id", "segment", "predicted_label", "p_fault", "p_healthy"]
     with pytest.raises(Exception, match="speed 900 rpm"):
         loaded.predict(records(9, speeds=(900.0,), per_state=1).drop(columns=["params"]))
-    # condmon predict takes it by its run (the run's only model) or by its model URI
-    for source in (f"runs:/{info.run_id}", info.model_uri):
+    # condmon predict takes it by its run (the run's only model) or by its model URI, from the
+    # store given or, in the project folder, from the project's own (results/mlflow.db)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
+    write_signal_table(records(8), tmp_path / "new.parquet")
+    for source, store in ((f"runs:/{info.run_id}", ["--tracking-uri", "sqlite:///results/mlflow.db"]),
+                          (info.model_uri, [])):
         out = tmp_path / source.replace(":", "").replace("/", "_")
-        write_signal_table(records(8), tmp_path / "new.parquet")
-        assert main(["predict", "--model", source, "--tracking-uri", f"sqlite:///{tmp_path / 'mlflow.db'}",
-                     "--input", str(tmp_path / "new.parquet"), "--output", str(out)]) == 0
+        assert main(["predict", "--model", source, *store, "--input", "new.parquet", "--output", str(out)]) == 0
         assert list(pd.read_csv(out / "segments.csv")["predicted_label"]) == list(model.predict(table))
+
+
+def test_an_mlflow_model_without_a_store_says_where_it_looked_and_creates_none(tmp_path, monkeypatch, capsys):
+    """MLflow's own default would make ./mlflow.db and say only that the model is not there."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
+    records(5).to_parquet(tmp_path / "new.parquet")
+    for store, named in (([], "the project's store"), (["--tracking-uri", "sqlite:///elsewhere.db"], "--tracking-uri")):
+        assert main(["predict", "--model", "models:/condmon-smoke@best", *store, "--input", "new.parquet",
+                     "--output", "out"]) == 2
+        error = capsys.readouterr().err
+        assert f"no MLflow store at {tmp_path.resolve()}/" in error and named in error and "--tracking-uri" in error
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["new.parquet"]  # nothing made
 
 
 @pytest.mark.skipif(not CWRU.is_dir(), reason=f"no CWRU data at {CWRU}")

@@ -300,6 +300,12 @@ def test_unreachable_server_fails_fast_naming_the_uri(tmp_path):
     assert compare.main(["--tracking-uri", uri]) == 2
 
 
+def test_compare_on_a_missing_store_says_so_and_creates_none(tmp_path, capsys):
+    assert compare.main(["--tracking-uri", f"sqlite:///{tmp_path}/results/mlflow.db"]) == 2
+    assert f"no MLflow store at {tmp_path}/results/mlflow.db" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
+
+
 def test_relative_sqlite_uri_is_relative_to_the_working_directory(tmp_path):
     uri = tracking.resolve_tracking_uri("sqlite:///results/mlflow.db", workdir=tmp_path)
     assert uri == f"sqlite:///{tmp_path.resolve()}/results/mlflow.db"

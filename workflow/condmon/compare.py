@@ -17,8 +17,7 @@ import sys
 import pandas as pd
 
 from condmon.labels import protocol_title
-from condmon.tracking import DEFAULT_TRACKING_URI, TrackingError, check_tracking_server, \
-    resolve_tracking_uri
+from condmon.tracking import DEFAULT_TRACKING_URI, TrackingError, check_tracking_server, existing_store
 
 KEYS = ["classifier", "protocol", "measured_percent"]
 
@@ -117,7 +116,7 @@ def main(argv=None) -> int:
     import mlflow
 
     try:
-        uri = resolve_tracking_uri(args.tracking_uri)
+        uri = existing_store(args.tracking_uri)  # reading: never an empty store made here
         check_tracking_server(uri)
     except TrackingError as exc:
         print(f"condmon-compare: {exc}", file=sys.stderr)

@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -80,31 +81,58 @@ def load_mlflow_model(uri: str, tracking_uri: str | None = None) -> tuple[Signal
     parent run's best model (tag ``best_model_id``) or the run's only model."""
     import mlflow
 
-    from condmon.tracking import resolve_tracking_uri
-
-    if tracking_uri:
-        mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))
-    if uri.startswith("runs:/") and "/" not in uri[len("runs:/"):].strip("/"):
-        run_id = uri[len("runs:/"):].strip("/")
-        run = mlflow.MlflowClient().get_run(run_id)
-        model_id = run.data.tags.get("best_model_id")
-        if model_id is None:
-            models = mlflow.search_logged_models(experiment_ids=[run.info.experiment_id],
-                                                 filter_string=f"source_run_id = '{run_id}'",
-                                                 output_format="list")
-            if len(models) != 1:
-                raise PredictError(f"run {run_id} has {len(models)} logged models and no best_model_id "
-                                   "tag; name one as models:/<model_id>")
-            model_id = models[0].model_id
-        uri = f"models:/{model_id}"
+    mlflow.set_tracking_uri(store_of(uri, tracking_uri))
     try:
+        if uri.startswith("runs:/") and "/" not in uri[len("runs:/"):].strip("/"):
+            uri = model_of_run(uri[len("runs:/"):].strip("/"))
         loaded = mlflow.pyfunc.load_model(uri)
         model = loaded.unwrap_python_model().model
-    except Exception as exc:  # MLflow raises several types for a missing model or alias
-        raise PredictError(f"--model {uri}: cannot load it ({type(exc).__name__}: {str(exc)[:300]})") from exc
+    except PredictError:
+        raise
+    except Exception as exc:  # MLflow raises several types for a missing run, model or alias
+        raise PredictError(f"--model {uri}: cannot load it from {mlflow.get_tracking_uri()} "
+                           f"({type(exc).__name__}: {str(exc)[:300]}); is it the run's store "
+                           "(--tracking-uri)?") from exc
     if not isinstance(model, SignalModel):
         raise PredictError(f"--model {uri}: not a condmon signal model")
     return model, {"source": uri, "model_id": loaded.metadata.model_id}
+
+
+def model_of_run(run_id: str) -> str:
+    """``models:/<id>`` of a parent run's best model (tag ``best_model_id``) or a run's only one."""
+    import mlflow
+
+    run = mlflow.MlflowClient().get_run(run_id)
+    model_id = run.data.tags.get("best_model_id")
+    if model_id is None:
+        models = mlflow.search_logged_models(experiment_ids=[run.info.experiment_id],
+                                             filter_string=f"source_run_id = '{run_id}'",
+                                             output_format="list")
+        if len(models) != 1:
+            raise PredictError(f"run {run_id} has {len(models)} logged models and no best_model_id "
+                               "tag; name one as models:/<model_id>")
+        model_id = models[0].model_id
+    return f"models:/{model_id}"
+
+
+def store_of(source: str, tracking_uri: str | None) -> str:
+    """The tracking store ``source`` is looked up in: ``--tracking-uri``, else MLFLOW_TRACKING_URI,
+    else the project's own (`tracking.uri`'s default, results/mlflow.db in the working folder);
+    a SQLite store that does not exist is an error, never an empty one made here."""
+    from condmon.tracking import DEFAULT_TRACKING_URI, TrackingError, existing_store
+
+    if tracking_uri:
+        uri, given = tracking_uri, "--tracking-uri"
+    elif os.environ.get("MLFLOW_TRACKING_URI"):
+        uri, given = os.environ["MLFLOW_TRACKING_URI"], "MLFLOW_TRACKING_URI"
+    else:
+        uri, given = DEFAULT_TRACKING_URI, "the project's store (tracking.uri's default)"
+    try:
+        return existing_store(uri)
+    except TrackingError as exc:
+        raise PredictError(f"--model {source}: {exc}, from {given}; run in the project folder of the run "
+                           "that logged the model, or name its store with --tracking-uri (the run's "
+                           "tracking.uri, e.g. sqlite:////path/to/condmon/results/mlflow.db)") from None
 
 
 # -- the input ------------------------------------------------------------------------------------
@@ -276,7 +304,8 @@ def parse_args(argv=None):
                                                   "system's own records")
     p.add_argument("--output", required=True, help="folder for the predictions (replaced whole)")
     p.add_argument("--tracking-uri", default=None, help="MLflow tracking URI for models:/ and runs:/ "
-                                                        "(default: MLFLOW_TRACKING_URI)")
+                                                        "(default: MLFLOW_TRACKING_URI, else the "
+                                                        "project's sqlite:///results/mlflow.db)")
     p.add_argument("--classifier", default=None)
     p.add_argument("--protocol", default=None)
     p.add_argument("--percent", type=int, default=None, help="the fit's measured percentage")

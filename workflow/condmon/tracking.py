@@ -85,13 +85,30 @@ class TrackingError(RuntimeError):
 
 def resolve_tracking_uri(uri: str, workdir=".") -> str:
     """Make a relative SQLite path absolute (relative to ``workdir``) and create its directory."""
-    if not uri.startswith(SQLITE):
+    path = sqlite_path(uri, workdir)
+    if path is None:
         return uri
-    path = Path(uri[len(SQLITE):])
-    if not path.is_absolute():
-        path = (Path(workdir) / path).resolve()
     path.parent.mkdir(parents=True, exist_ok=True)
     return f"{SQLITE}{path}"
+
+
+def existing_store(uri: str, workdir=".") -> str:
+    """``uri`` to read from: a SQLite store made absolute, which must exist (MLflow would create
+    an empty one, in the working folder, then say the model or experiment is not in it)."""
+    path = sqlite_path(uri, workdir)
+    if path is None:
+        return uri
+    if not path.is_file():
+        raise TrackingError(f"no MLflow store at {path} ({uri}; a run's track job makes it)")
+    return f"{SQLITE}{path}"
+
+
+def sqlite_path(uri: str, workdir=".") -> Path | None:
+    """The absolute file of a SQLite URI (relative to ``workdir``), None for another store."""
+    if not uri.startswith(SQLITE):
+        return None
+    path = Path(uri[len(SQLITE):])
+    return path if path.is_absolute() else (Path(workdir) / path).resolve()
 
 
 def is_remote(uri: str) -> bool:
