@@ -1,5 +1,6 @@
-"""Nested `--config` overrides read as the schema's types (Snakemake hands their values over as
-text), and a measured speed that rig.speeds_rpm lacks refused before any job runs."""
+"""Nested and dotted (`set=classifiers.svm.C=3`) `--config` overrides read as the schema's types
+(Snakemake hands their values over as text), and a measured speed that rig.speeds_rpm lacks
+refused before any job runs."""
 import re
 import subprocess
 import sys
@@ -9,7 +10,8 @@ import pandas as pd
 import pytest
 import yaml
 
-from condmon.config import ConfigError, apply_typed_overrides, load_schema, validate_config
+from condmon.config import (ConfigError, apply_dotted_overrides, apply_typed_overrides, load_schema,
+                            validate_config)
 from condmon.signals import make_rows, write_signal_table
 from conftest import ROOT, config_of, copy_project, deep_update
 
@@ -49,6 +51,38 @@ def test_a_config_files_text_is_not_retyped_and_the_hint_fits_the_text():
         validate_config(config, SCHEMA)
     assert "model.mesh_stiffness: '4e8' is text, not a number; YAML 1.1 reads an exponent" in str(error.value)
     assert "classifiers.svm.C: '3' is text, not a number; write it without quotes" in str(error.value)
+
+
+def smoke_set(text: str) -> dict:
+    """The smoke config with `--config set=<text>` as Snakemake hands it over, applied."""
+    return apply_dotted_overrides({**yaml.safe_load((ROOT / ".test" / "config" / "smoke.yaml").read_text()),
+                                   "set": text}, SCHEMA)
+
+
+def test_dotted_overrides_set_the_keys_they_name_as_the_schemas_types():
+    config = smoke_set("classifiers.svm.C=3  hybrid.measured_percent=[0, 100] classifiers.svm.gamma=scale"
+                       " features.selection.n_features=null run_name=svm-c3")
+    assert "set" not in config  # no job sees it
+    # the rest of each section stays as the config file has it: as the nested form gives it
+    assert config == smoke_with({"classifiers": {"svm": {"C": "3", "gamma": "scale"}},
+                                 "hybrid": {"measured_percent": ["0", "100"]},
+                                 "features": {"selection": {"n_features": "null"}}, "run_name": "svm-c3"})
+    validate_config(config, SCHEMA)
+    assert config["classifiers"]["svm"]["C"] == 3 and config["classifiers"]["svm"]["gamma"] == "scale"
+    assert config["hybrid"]["measured_percent"] == [0, 100]
+    assert config["features"]["selection"]["n_features"] is None and config["run_name"] == "svm-c3"
+
+
+@pytest.mark.parametrize("text, says", [
+    ("classifiers.svm.CC=3", "unknown key classifiers.svm.CC"),
+    ("classifiers.svm.C=three", "classifiers.svm.C: 'three' is not of type 'number'"),
+    ("classifiers.svm.C", "set: 'classifiers.svm.C' is no dotted key=value (e.g. set=classifiers.svm.C=3"),
+    ("run_name=a run_name.x=b", "set: run_name.x lies inside a key set to a value"),
+])
+def test_a_bad_dotted_override_is_refused_naming_it(text, says):
+    with pytest.raises(ConfigError) as error:
+        validate_config(smoke_set(text), SCHEMA)
+    assert says in str(error.value)
 
 
 def gear_table(path, speeds):

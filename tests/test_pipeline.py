@@ -218,12 +218,13 @@ def test_the_predict_rule_runs_only_the_prediction(smoke, tmp_path):
     assert (results / "logs" / "predict" / "new.log").is_file()
 
 
-def test_a_nested_config_override_is_typed_and_reruns_only_the_svm(smoke):
-    """Snakemake hands `--config classifiers='{svm: {C: 3.0}}'` over as text; read as the schema's
-    number it plans the SVM's train jobs and what follows them, nothing else."""
+@pytest.mark.parametrize("override", ["classifiers={svm: {C: 3.0}}", "set=classifiers.svm.C=3.0"])
+def test_a_nested_or_dotted_config_override_is_typed_and_reruns_only_the_svm(smoke, override):
+    """Snakemake hands `--config classifiers='{svm: {C: 3.0}}'` (or `set=classifiers.svm.C=3.0`)
+    over as text; read as the schema's number it plans the SVM's train jobs and what follows
+    them, nothing else."""
     workdir, _ = smoke
-    out = snakemake(workdir, "-n", "--configfile", ".test/config/smoke.yaml", "--config",
-                    "classifiers={svm: {C: 3.0}}").stdout
+    out = snakemake(workdir, "-n", "--configfile", ".test/config/smoke.yaml", "--config", override).stdout
     jobs = job_counts(out)
     assert jobs == {"train": len(smoke_config()["hybrid"]["protocols"]), "report": 1, "track": 1,
                     "run_config": 1, "report_pages": 1, "all": 1}

@@ -226,3 +226,53 @@ def apply_typed_overrides(config: dict, overrides: dict, schema: dict) -> dict:
 
     walk(config, overrides or {}, full)
     return config
+
+
+# -- dotted --config overrides ------------------------------------------------------------------
+# `--config set=classifiers.svm.C=3` names a key as config/README.md and MLflow's parameters do.
+# Snakemake takes only an identifier before a --config entry's "=" and keeps one value per key,
+# so the dotted assignments ride on one key, `set`, several in one value separated by spaces:
+# set='classifiers.svm.C=3 hybrid.repeats=2'. Each value is YAML (a list: [0, 100]), typed by
+# the schema as the nested form's text is.
+SET_KEY = "set"
+DOTTED_KEY = r"[A-Za-z_][\w-]*(?:\.[A-Za-z_][\w-]*)*"
+NEXT_ASSIGNMENT = re.compile(rf"\s+(?={DOTTED_KEY}=)")  # a space before "key=" starts the next one
+SET_EXAMPLE = "e.g. set=classifiers.svm.C=3, several: set='classifiers.svm.C=3 hybrid.repeats=2'"
+
+
+def dotted_overrides(text) -> dict:
+    """The nested dict of `set`'s dotted assignments (values as YAML read them: text)."""
+    import yaml
+
+    nested = {}
+    for assignment in NEXT_ASSIGNMENT.split(str(text).strip()):
+        key, _, value = assignment.partition("=")
+        if not re.fullmatch(DOTTED_KEY, key) or "=" not in assignment:
+            raise ConfigError(f"invalid config:\n  set: {assignment!r} is no dotted key=value ({SET_EXAMPLE})")
+        *sections, leaf = key.split(".")
+        target = nested
+        for section in sections:
+            target = target.setdefault(section, {})
+            if not isinstance(target, dict):
+                raise ConfigError(f"invalid config:\n  set: {key} lies inside a key set to a value")
+        target[leaf] = yaml.load(value, Loader=yaml.BaseLoader)
+    return nested
+
+
+def _merge(config: dict, changes: dict) -> None:
+    for key, value in changes.items():
+        if isinstance(value, dict) and isinstance(config.get(key), dict):
+            _merge(config[key], value)
+        else:
+            config[key] = value
+
+
+def apply_dotted_overrides(config: dict, schema: dict) -> dict:
+    """Merge the `set` key's dotted assignments into ``config`` (and drop `set`, which no job
+    sees), their text read as the schema's types; in place. Unknown keys are validation's to name."""
+    if SET_KEY not in config:
+        return config
+    changes = dotted_overrides(config.pop(SET_KEY))
+    _merge(config, changes)
+    return apply_typed_overrides(config, changes, schema)
+
