@@ -229,6 +229,9 @@ def test_a_nested_or_dotted_config_override_is_typed_and_reruns_only_the_svm(smo
     assert jobs == {"train": len(smoke_config()["hybrid"]["protocols"]), "report": 1, "track": 1,
                     "run_config": 1, "report_pages": 1, "all": 1}
     assert out.count("classifier=svm") == jobs["train"] and "classifier=knn" not in out
+    # run_config's reason names the changed key, not the whole config before and now
+    reasons = [line for line in out.splitlines() if "Params have changed" in line]
+    assert any("'classifiers.svm.C=3.0'" in line for line in reasons) and max(map(len, reasons)) < 500
 
 
 def test_choosing_which_models_mlflow_logs_reruns_only_the_tracking(smoke):

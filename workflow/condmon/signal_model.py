@@ -16,6 +16,9 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
+import warnings
+from contextlib import contextmanager
 
 import numpy as np
 import pandas as pd
@@ -325,7 +328,8 @@ def _pyfunc_class():
 
             self.model = joblib.load(context.artifacts["signal_model"])
 
-        def predict(self, context, model_input, params=None):
+        # typed, as MLflow asks (a DataFrame: it infers nothing from it; the signature is given)
+        def predict(self, context, model_input: pd.DataFrame, params: dict | None = None) -> pd.DataFrame:
             segments = self.model.predict_segments(pd.DataFrame(model_input))
             columns = ["record_id", "segment", "predicted_label", *[f"p_{c}" for c in self.model.classes]]
             return segments[columns].astype({"segment": "int64"})
@@ -338,5 +342,31 @@ def log_pyfunc(model_path, model: SignalModel, **options):
     run_id, params, tags, pip_requirements); returns the ModelInfo."""
     import mlflow.pyfunc
 
-    return mlflow.pyfunc.log_model(python_model=_pyfunc_class()(), artifacts={"signal_model": str(model_path)},
-                                   signature=signature(model), **options)
+    with without_mlflow_notices():
+        return mlflow.pyfunc.log_model(python_model=_pyfunc_class()(), artifacts={"signal_model": str(model_path)},
+                                       signature=signature(model), **options)
+
+
+# What MLflow says on every model logged that does not apply here: the signature is given whole
+# (`signature`), so an input example adds only a file; and the wrapper is cloudpickled as the
+# SignalModel artifact is joblib-pickled, so loading either trusts the store alike (models from
+# code would remove no risk). Filtered here only, by their opening words.
+MLFLOW_NOTICES = ("An input example was not provided", "Passing a Python object as `python_model`")
+
+
+class _MlflowNotices(logging.Filter):
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not record.getMessage().startswith(MLFLOW_NOTICES)
+
+
+@contextmanager
+def without_mlflow_notices():
+    """MLflow's notices MLFLOW_NOTICES silenced (a UserWarning, a warning of mlflow.pyfunc's log)."""
+    logger, notices = logging.getLogger("mlflow.pyfunc"), _MlflowNotices()
+    logger.addFilter(notices)
+    try:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=f".*{MLFLOW_NOTICES[0]}", category=UserWarning)
+            yield
+    finally:
+        logger.removeFilter(notices)

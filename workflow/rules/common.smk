@@ -227,6 +227,26 @@ RUN_CONFIG = {
 config_hash = _config_hash(RUN_CONFIG)
 
 
+def config_keys(section, prefix=""):
+    """Every leaf of a config section as 'dotted.key=value'. Unpacked into a rule's params (one
+    param each) they rerun the job on any change, as the section as one param would, and the rerun
+    reason names the changed keys: Snakemake prints a changed param whole, before and now.
+    """
+    if isinstance(section, dict) and section:
+        return [
+            leaf
+            for key in sorted(section)
+            for leaf in config_keys(section[key], f"{prefix}{key}.")
+        ]
+    return [f"{prefix.rstrip('.')}={section!r}"]
+
+
+def run_config(wildcards, output):
+    """The run's config for a script: a function of the output, so Snakemake never compares or
+    prints it (the rule's config_keys params rerun the job)."""
+    return RUN_CONFIG
+
+
 # features.healthy_reference: each machine's features against its own healthy reference
 # (condmon/reference.py). Off, no job gets its params or the reference table: the jobs are those
 # of a run without the key.

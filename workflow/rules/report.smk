@@ -23,11 +23,13 @@ rule track:
         # every fit as a model from raw segments, in a folder of this config's own (model_store.py)
         models=directory(f"{RESULTS}/models/{config_hash}"),
     params:
+        # every config key: a change reruns the job, and its reason names the changed keys
+        *config_keys(RUN_CONFIG),
         tracking_uri=config["tracking"]["uri"],
         log_models=config["tracking"]["log_models"],
         run_name=config["run_name"],
         config_hash=config_hash,
-        config=RUN_CONFIG,  # the parent run's params (any edit changes config_hash anyway)
+        config=run_config,  # the parent run's params
         data_source=data_source(),
         healthy_state=SYSTEM.healthy_state,
         protocols=PROTOCOLS,
@@ -135,7 +137,10 @@ rule run_config:
     output:
         f"{RESULTS}/report/config.yaml",
     params:
-        config=RUN_CONFIG,  # the config files with the schema's defaults filled in
+        # every config key (a rerun names the changed ones); the config files with the schema's
+        # defaults filled in, for the script
+        *config_keys(RUN_CONFIG),
+        config=run_config,
     conda:
         "../envs/report.yaml"
     benchmark:
