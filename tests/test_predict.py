@@ -227,6 +227,8 @@ def test_condmon_predict_refuses_an_untrained_speed_and_writes_nothing(model, tm
 def test_the_mlflow_pyfunc_model_takes_a_signal_table_and_gives_the_same_labels(model, tmp_path, monkeypatch):
     joblib.dump(model, tmp_path / "model.joblib")
     (tmp_path / "results").mkdir()
+    monkeypatch.chdir(tmp_path)  # a new store's artifacts go to ./mlruns: never the project's
+    monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
     mlflow.set_tracking_uri(f"sqlite:///{tmp_path / 'results' / 'mlflow.db'}")
     said = logging.handlers.BufferingHandler(1000)  # on MLflow's own logger: it does not propagate
     logging.getLogger("mlflow.pyfunc").addHandler(said)
@@ -251,8 +253,6 @@ def test_the_mlflow_pyfunc_model_takes_a_signal_table_and_gives_the_same_labels(
         loaded.predict(records(9, speeds=(900.0,), per_state=1).drop(columns=["params"]))
     # condmon predict takes it by its run (the run's only model) or by its model URI, from the
     # store given or, in the project folder, from the project's own (results/mlflow.db)
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
     write_signal_table(records(8), tmp_path / "new.parquet")
     for source, store in ((f"runs:/{info.run_id}", ["--tracking-uri", "sqlite:///results/mlflow.db"]),
                           (info.model_uri, [])):
