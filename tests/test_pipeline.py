@@ -512,6 +512,7 @@ def test_the_report_front_page_opens_on_the_headline_table_and_shows_tables_as_t
     snakemake(workdir, "--configfile", ".test/config/smoke.yaml", "--report", str(report))
     html = report.read_text()
     front = json.loads(re.search(r"var workflow_desc = (.*?);\n", html, re.S).group(1))
+    assert "A tiny run (the CI smoke run)" in front.split("<table", 1)[0]  # report.note, above the table
     table = front.split("<table", 1)[1].split("</table>", 1)[0]
     rows = [re.findall(r"<td>(.*?)</td>", row, re.S) for row in re.findall(r"<tr>(.*?)</tr>", table, re.S)]
     assert {row[0] for row in rows if row} == {"all"}  # records: no design record declared
@@ -540,6 +541,16 @@ def test_the_report_front_page_opens_on_the_headline_table_and_shows_tables_as_t
     full = yaml.safe_load((results / "report" / "pages" / "config.yaml").read_text())
     assert full["run_name"] == "smoke" and full["classifiers"]["svm"]["C"] == smoke_config()["classifiers"]["svm"]["C"]
     assert set(full) >= set(smoke_config()) - {"predict_input"}
+
+
+def test_a_report_without_its_configfile_names_the_runs_there_are(smoke, tmp_path):
+    """Without --configfile Snakemake reports the default run, which this project never made."""
+    workdir, _ = smoke
+    result = snakemake(workdir, "--report", str(tmp_path / "report.html"), check=False)
+    said = result.stdout + result.stderr
+    assert result.returncode != 0 and "no finished run 'default' to report" in said
+    assert "finished runs: smoke (the run_name of .test/config/smoke.yaml)" in said
+    assert not (tmp_path / "report.html").exists()
 
 
 def node_profile(workdir: Path, node: dict) -> str:

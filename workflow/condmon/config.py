@@ -276,3 +276,33 @@ def apply_dotted_overrides(config: dict, schema: dict) -> dict:
     _merge(config, changes)
     return apply_typed_overrides(config, changes, schema)
 
+
+# -- which run `snakemake --report` reports ------------------------------------------------------
+CONFIG_FOLDERS = ("config", ".test/config")  # where the project's run configs live
+
+
+def asks_for_report(argv) -> bool:
+    """Whether the command line is `snakemake --report`: Snakemake tells a Snakefile nothing else
+    of it, and reports a run never made by its first missing file."""
+    return any(arg == "--report" or arg.startswith("--report=") for arg in argv)
+
+
+def missing_run_message(run_name: str, results="results", project=".") -> str:
+    """What to say when `snakemake --report` finds no finished run ``run_name``: the runs there
+    are and the config files that name each one (its --configfile)."""
+    import yaml
+
+    runs = sorted(p.parent.parent.name for p in Path(results).glob("*/report/pages"))
+    files = {}
+    for folder in CONFIG_FOLDERS:
+        for path in sorted((Path(project) / folder).rglob("*.yaml")):
+            try:
+                name = (yaml.safe_load(path.read_text()) or {}).get("run_name")
+            except (yaml.YAMLError, AttributeError):
+                continue  # not a run config (the schema is a dict too, without run_name)
+            files.setdefault(name, []).append(str(path.relative_to(project)))
+    made = "; ".join(f"{run} (the run_name of {', '.join(files[run])})" if run in files else run for run in runs)
+    return (f"no finished run {run_name!r} to report ({Path(results) / run_name / 'report' / 'pages'} "
+            "is missing): give the --configfile(s) the run was made with, e.g. snakemake --report "
+            "report.html --configfile .test/config/smoke.yaml"
+            + (f"; finished runs: {made}" if runs else "; no run has finished here yet"))
