@@ -640,3 +640,63 @@ def test_the_models_mirror_the_systems_that_use_them():
                                     for path in (ROOT / "workflow" / "condmon").rglob("__init__.py")}
     listed = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
     assert set(listed) == on_disk, f"pyproject.toml's packages differ from the folders: {set(listed) ^ on_disk}"
+
+
+RIG2_LABELS = {"ok": {"defect": "none"}, "outer": {"defect": "outer_race", "diameter_mm": [0.3, 0.6]}}
+
+
+def rig2_config(table, protocols) -> dict:
+    """cwru-smoke.yaml on a user's bearing table (labels ok / outer) with ``protocols``."""
+    return config_of(".test/config/cwru-smoke.yaml", {
+        "measured_table": str(table), "hybrid": {"protocols": protocols},
+        "bearing": {"health_states": RIG2_LABELS, "healthy_state": "ok"}})
+
+
+def rig2_table(path, specimens: dict | None) -> None:
+    """Two loads, ok and two outer-race specimens of two sizes; with ``specimens`` ({record:
+    (specimen, group)}) the optional columns a user's table may carry."""
+    rng = np.random.default_rng(0)
+    rows = []
+    for load, speed in ((0.0, 1797.0), (1.0, 1772.0)):
+        for record, label in ((f"ok-{load:g}", "ok"), (f"or-a-{load:g}", "outer"), (f"or-b-{load:g}", "outer")):
+            rows += make_rows(record, "measured", label, speed, load, 12000.0, {"DE": rng.normal(size=8192)},
+                              segment_length=4096)
+    frame = pd.DataFrame(rows)
+    if specimens is not None:
+        frame["specimen"] = frame["record_id"].map(lambda r: specimens.get(r, ("", ""))[0])
+        frame["specimen_group"] = frame["record_id"].map(lambda r: specimens.get(r, ("", ""))[1])
+    frame.to_parquet(path)
+
+
+def test_a_protocol_the_measured_data_cannot_serve_is_refused_at_the_config_check(tmp_path):
+    """specimen_holdout needs each fault record's specimen: the virtual bench has none, a user's
+    table has them where it carries the columns specimen and specimen_group."""
+    with pytest.raises(ConfigError) as bench:
+        config_of(".test/config/smoke.yaml", {"hybrid": {"protocols": ["record_split", "specimen_holdout"]}})
+    assert ("hybrid.protocols: specimen_holdout needs each measured fault record's specimen and specimen_group, "
+            "and the gear system's virtual bench gives none") in str(bench.value)
+    rig2_table(tmp_path / "plain.parquet", None)
+    with pytest.raises(ConfigError) as plain:
+        rig2_config(tmp_path / "plain.parquet", ["specimen_holdout"])
+    assert (f"specimen_holdout needs each measured fault record's specimen and specimen_group, and the "
+            f"measured_table {tmp_path / 'plain.parquet'} has no columns ['specimen', 'specimen_group']") in str(plain.value)
+    rig2_config(tmp_path / "plain.parquet", ["record_split"])  # what it can serve
+    # with the columns: served, and measured/records.csv carries them for the protocol
+    specimens = {f"or-{s}-{load}": (f"outer-{s}", size) for s, size in (("a", "0.3"), ("b", "0.5")) for load in "01"}
+    rig2_table(tmp_path / "specimens.parquet", specimens)
+    system = get_system(rig2_config(tmp_path / "specimens.parquet", ["specimen_holdout"]))
+    _, records = system.read_measured([system.measured_table], [], ["DE"], "stop")
+    assert dict(zip(records["record_id"], zip(records["specimen"], records["specimen_group"]))) == {
+        **specimens, "ok-0": ("", ""), "ok-1": ("", "")}
+
+
+def test_a_record_of_several_specimens_is_refused_naming_it(tmp_path):
+    from condmon.measured import read_user_table_checked
+    from condmon.signals import SignalTableError
+
+    rig2_table(tmp_path / "mixed.parquet", {"or-a-0": ("outer-a", "0.3")})
+    frame = pd.read_parquet(tmp_path / "mixed.parquet")
+    frame.loc[(frame["record_id"] == "or-a-0") & (frame["segment"] == 1), "specimen"] = "outer-b"
+    frame.to_parquet(tmp_path / "mixed.parquet")
+    with pytest.raises(SignalTableError, match=r"mixed.parquet: record 'or-a-0' mixes several specimen values"):
+        read_user_table_checked(tmp_path / "mixed.parquet", ["ok", "outer"], ["DE"], 12000.0, 4096 / 12000.0)

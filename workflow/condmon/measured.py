@@ -6,7 +6,7 @@ import logging
 import numpy as np
 import pandas as pd
 
-from condmon.signals import SignalTableError, read_unvalidated, validate
+from condmon.signals import SPECIMEN_COLUMNS, SignalTableError, read_unvalidated, validate
 
 log = logging.getLogger(__name__)
 
@@ -45,6 +45,10 @@ def read_user_table_checked(path, health_states, channels, fs_hz: float, segment
     frame = read_unvalidated(path)
     if frame.empty:
         raise SignalTableError(f"{path}: the signal table has no rows")
+    for column in SPECIMEN_COLUMNS:  # optional; where given, one value per record
+        mixed = frame.groupby("record_id")[column].nunique(dropna=False) > 1 if column in frame else []
+        if any(mixed):
+            raise SignalTableError(f"{path}: record {mixed[mixed].index[0]!r} mixes several {column} values")
     labels = frame["health_state"].dropna().astype(str)
     unknown = sorted(set(labels) - set(health_states))
     if unknown:

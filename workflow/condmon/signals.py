@@ -36,6 +36,10 @@ SCHEMA = pa.schema(
 )
 COLUMNS = SCHEMA.names
 ID_COLUMNS = ["record_id", "segment", "source", "health_state", "speed_rpm", "load", "fs_hz"]
+# Optional columns of a user's measured table: each record's specimen (one physical fault, e.g. a
+# damaged part, recorded at every condition) and its group (e.g. the fault size), for specimen_holdout;
+# they go to measured/records.csv, not to the signal table the stages read.
+SPECIMEN_COLUMNS = ["specimen", "specimen_group"]
 
 
 class SignalTableError(ValueError):

@@ -24,6 +24,10 @@ from condmon.seeds import derive_seed, stable_int
 log = logging.getLogger(__name__)
 
 
+# What a protocol may need of the measured data, as the config check names it.
+MEASURED_NEEDS = {"specimens": "each measured fault record's specimen and specimen_group"}
+
+
 @dataclass(frozen=True)
 class Assignment:
     """One unit's place in one split: its role (train, test, unused) and why."""
@@ -131,6 +135,9 @@ class Protocol:
     # the unit the split table lists: "record" (segment -1: a whole record or time block) or
     # "segment" (segment_share; records cut in time are never its units)
     unit: ClassVar[str] = "record"
+    # what the measured data must carry for it beyond the signal table (MEASURED_NEEDS): the
+    # config check refuses a protocol whose data lack it (System.measured_offers), before any job
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     def __init__(self, measured_percent, repeats: int, seed: int, min_test_records: int = 1,
                  condition: str = "speed_rpm", healthy_state: str | None = None):

@@ -15,6 +15,7 @@ class SpecimenHoldout(Protocol):
     """`specimens`: record_id, specimen, specimen_group of the measured records (the measured
     stage's records.csv)."""
     name = "specimen_holdout"
+    needs = frozenset({"specimens"})
 
     def __init__(self, measured_percent, repeats, seed, min_test_records=1,
                  condition="speed_rpm", healthy_state=None, specimens: pd.DataFrame | None = None):
@@ -23,7 +24,8 @@ class SpecimenHoldout(Protocol):
         if specimens is None or not {"record_id", "specimen", "specimen_group"} <= set(specimens):
             raise SplitError("specimen_holdout needs the specimen and specimen_group of every "
                              "measured record (measured/records.csv: the system's measured "
-                             "stage writes them where it knows them)")
+                             "stage writes them where it knows them: a system's own record "
+                             "files, or a measured_table's columns specimen and specimen_group)")
         self.specimens = specimens
         self.group_of: dict[str, str] = {}
 

@@ -30,6 +30,7 @@ import pandas as pd
 import yaml
 
 from condmon.models.numerics import SimulationError
+from condmon.signals import SPECIMEN_COLUMNS
 
 __all__ = ["System", "SimulationError"]
 
@@ -230,6 +231,7 @@ class System(ABC):
             if unknown:
                 problems.append(f"hybrid.measured_classes: {unknown} are not health states of the "
                                 f"{self.name} system ({self.health_states})")
+        problems += self.protocol_problems()
         nyquist = self.output_rate_hz / 2
         spectrum = config["features"]["spectrum"]
         from condmon.features import FEATURE_FAMILIES  # the registry's (built-in and registered)
@@ -249,6 +251,37 @@ class System(ABC):
             if spectrum["f_min_hz"] >= spectrum["f_max_hz"]:
                 problems.append("features.spectrum.f_min_hz: must be below features.spectrum.f_max_hz")
         return problems
+
+    def protocol_problems(self) -> list[str]:
+        """The protocols of hybrid.protocols whose needs (Protocol.needs) the measured data lack."""
+        from condmon.protocols.base import MEASURED_NEEDS
+        from condmon.protocols.registry import REGISTRY
+
+        offers = self.measured_offers()
+        if offers is None:
+            return []
+        source = (f"the measured_table {self.measured_table} has no columns {SPECIMEN_COLUMNS}"
+                  if self.measured_table else f"the {self.name} system's virtual bench gives none")
+        return [f"hybrid.protocols: {name} needs {MEASURED_NEEDS[need]}, and {source}"
+                + (" (add them: one specimen and group per record; healthy records may leave them empty)"
+                   if self.measured_table else "; leave the protocol out")
+                for name in self.config["hybrid"]["protocols"] if name in REGISTRY
+                for need in sorted(REGISTRY[name].needs - offers)]
+
+    def measured_offers(self) -> set[str] | None:
+        """What the measured data carry beyond the signal table, of what protocols may need
+        (MEASURED_NEEDS): "specimens" where a measured_table has the SPECIMEN_COLUMNS; a bench's
+        records carry none. None where it cannot be known yet (a table that cannot be read: the
+        measured job names it)."""
+        if not self.measured_table:
+            return set()
+        import pyarrow.parquet as pq
+
+        try:
+            columns = set(pq.read_schema(self.measured_table).names)
+        except Exception:  # no such file, not Parquet: pyarrow raises several types
+            return None
+        return {"specimens"} if set(SPECIMEN_COLUMNS) <= columns else set()
 
     # -- measured stage ----------------------------------------------------------------------
     def measured_part_rows(self, part: str) -> list[dict]:
@@ -396,6 +429,8 @@ class System(ABC):
 
 
 def kept_records(frame: pd.DataFrame) -> pd.DataFrame:
-    """One line per record of a signal-table frame, marked kept."""
-    return (frame[["record_id", "health_state", "speed_rpm", "load"]].drop_duplicates("record_id")
+    """One line per record of a signal-table frame, marked kept (with its specimen and group
+    where a user's table gives them)."""
+    columns = ["record_id", "health_state", "speed_rpm", "load", *[c for c in SPECIMEN_COLUMNS if c in frame]]
+    return (frame[columns].drop_duplicates("record_id")
             .assign(status="kept", reason="").reset_index(drop=True))

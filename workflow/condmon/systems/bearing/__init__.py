@@ -108,6 +108,10 @@ class BearingSystem(System):
             manifest = folder / "index.csv" if (folder / "index.csv").exists() else None
         return [str(f) for f in files] + ([str(manifest)] if manifest else [])
 
+    def measured_offers(self) -> set[str] | None:
+        """The CWRU files' records carry their specimens (the file table); a table, its columns."""
+        return super().measured_offers() if self.measured_table else {"specimens"}
+
     def design_specimens(self) -> list[str]:
         """`cwru.design_specimens` as records.csv names them (a measured_table's records carry
         no CWRU specimen: none)."""
