@@ -54,14 +54,21 @@ def deep_update(base: dict, changes: dict) -> dict:
     return base
 
 
+def config_file(path) -> dict:
+    """A project config file as the Snakefile reads it: merged over its `base`, if it names one."""
+    from condmon.config import apply_base
+
+    return apply_base(yaml.safe_load((ROOT / path).read_text()), ROOT)
+
+
 def config_of(configfile=".test/config/smoke.yaml", changes: dict | None = None) -> dict:
     """A validated config: a project config file (or a config dict) with `changes` merged in."""
-    from condmon.config import load_schema, validate_config
+    from condmon.config import apply_base, load_schema, validate_config
 
     if isinstance(configfile, dict):
-        config = copy.deepcopy(configfile)
+        config = apply_base(copy.deepcopy(configfile), ROOT)
     else:
-        config = yaml.safe_load((ROOT / configfile).read_text())
+        config = config_file(configfile)
     config.update({key: str(folder) for key, folder in DATA_FOLDERS.items() if key in config})
     deep_update(config, changes or {})
     return validate_config(config, load_schema(ROOT / "config" / "schema.yaml"))

@@ -13,14 +13,14 @@ import yaml
 from condmon.config import (ConfigError, apply_dotted_overrides, apply_typed_overrides, load_schema,
                             validate_config)
 from condmon.signals import make_rows, write_signal_table
-from conftest import ROOT, config_of, copy_project, deep_update
+from conftest import ROOT, config_file, config_of, copy_project, deep_update
 
 SCHEMA = load_schema(ROOT / "config" / "schema.yaml")
 
 
 def smoke_with(overrides: dict) -> dict:
     """The smoke config with ``overrides`` merged in as Snakemake merges --config, then typed."""
-    config = deep_update(yaml.safe_load((ROOT / ".test" / "config" / "smoke.yaml").read_text()), overrides)
+    config = deep_update(config_file(".test/config/smoke.yaml"), overrides)
     return apply_typed_overrides(config, overrides, SCHEMA)
 
 
@@ -43,7 +43,7 @@ def test_text_that_is_no_value_of_the_key_still_fails_naming_it():
 
 
 def test_a_config_files_text_is_not_retyped_and_the_hint_fits_the_text():
-    config = yaml.safe_load((ROOT / ".test" / "config" / "smoke.yaml").read_text())
+    config = config_file(".test/config/smoke.yaml")
     config["model"]["mesh_stiffness"] = "4e8"  # YAML 1.1: text
     config["classifiers"]["svm"]["C"] = "3"
     apply_typed_overrides(config, {}, SCHEMA)
@@ -55,8 +55,7 @@ def test_a_config_files_text_is_not_retyped_and_the_hint_fits_the_text():
 
 def smoke_set(text: str) -> dict:
     """The smoke config with `--config set=<text>` as Snakemake hands it over, applied."""
-    return apply_dotted_overrides({**yaml.safe_load((ROOT / ".test" / "config" / "smoke.yaml").read_text()),
-                                   "set": text}, SCHEMA)
+    return apply_dotted_overrides({**config_file(".test/config/smoke.yaml"), "set": text}, SCHEMA)
 
 
 def test_dotted_overrides_set_the_keys_they_name_as_the_schemas_types():
@@ -119,3 +118,35 @@ def test_snakemake_refuses_it_before_any_job(tmp_path):
     assert result.returncode == 0, result.stderr[-2000:]
     # through the top-level Snakefile, whose default target is the pipeline's rule all
     assert re.search(r"^all\s+1$", result.stdout, re.M) and re.search(r"^train\s+4$", result.stdout, re.M)
+
+
+def test_a_config_file_merges_over_its_base_as_several_configfiles_do(tmp_path):
+    from condmon.config import apply_base
+
+    (tmp_path / "config").mkdir()
+    (tmp_path / "config" / "root.yaml").write_text(yaml.safe_dump({"run_name": "root", "hybrid": {"repeats": 3, "seed": 1},
+                                                              "tracking": {"log_models": {"repeat": [0]}}}))
+    (tmp_path / "config" / "mid.yaml").write_text(yaml.safe_dump({"base": "config/root.yaml", "hybrid": {"seed": 2}}))
+    config = {"base": "config/mid.yaml", "run_name": "leaf", "tracking": {"log_models": "all"}}
+    same = config
+    assert apply_base(config, tmp_path) is same  # in place: Snakemake's config object
+    assert config == {"run_name": "leaf", "hybrid": {"repeats": 3, "seed": 2}, "tracking": {"log_models": "all"}}
+    with pytest.raises(ConfigError, match=r"base: no config file .*config/none.yaml"):
+        apply_base({"base": "config/none.yaml"}, tmp_path)
+
+
+@pytest.mark.parametrize("layer", [".test/config/smoke.yaml", ".test/config/cwru-smoke.yaml"])
+def test_the_ci_configs_state_only_how_they_differ_from_their_base(layer):
+    text = (ROOT / layer).read_text()
+    own = yaml.safe_load(text)
+    base = config_file(own["base"])
+    assert len(text.splitlines()) <= 40
+
+    def repeated(mine, theirs, where=""):
+        for key, value in mine.items():
+            if isinstance(value, dict) and isinstance(theirs.get(key), dict):
+                yield from repeated(value, theirs[key], f"{where}{key}.")
+            elif key in theirs and theirs[key] == value:
+                yield f"{where}{key}"
+
+    assert list(repeated({k: v for k, v in own.items() if k != "base"}, base)) == []

@@ -16,7 +16,7 @@ import yaml
 from scipy.signal import find_peaks
 
 from condmon.signals import read_signal_table, to_arrays
-from conftest import ROOT, SNAKEMAKE, copy_project, snakemake
+from conftest import SNAKEMAKE, config_file, copy_project, snakemake
 
 pytestmark = pytest.mark.pipeline
 
@@ -39,7 +39,7 @@ def job_counts(out: str) -> dict:
 
 
 def smoke_config():
-    return yaml.safe_load((ROOT / ".test" / "config" / "smoke.yaml").read_text())
+    return config_file(".test/config/smoke.yaml")
 
 
 def test_every_design_output_is_written(smoke):

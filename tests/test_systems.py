@@ -18,7 +18,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from conftest import CWRU, ROOT, config_of
+from conftest import CWRU, ROOT, config_file, config_of
 from condmon.calibrate import FAILED_COST, Bound, Calibrator, SpectrumModel
 from condmon.config import ConfigError
 from condmon.features import compute_feature_table
@@ -498,7 +498,7 @@ def test_a_bearing_run_from_another_rigs_signal_table(tmp_path):
 
     labels = {"ok": {"defect": "none"}, "outer": {"defect": "outer_race", "diameter_mm": [0.3, 0.6]},
               "inner": {"defect": "inner_race", "diameter_mm": [0.3, 0.6]}}
-    config = yaml.safe_load((ROOT / ".test" / "config" / "cwru-smoke.yaml").read_text())
+    config = config_file(".test/config/cwru-smoke.yaml")
     config.update(run_name="rig2-smoke", measured_table=str(tmp_path / "rig2.parquet"))
     config["bearing"].update(segment_length=2048, health_states=labels, healthy_state="ok",
                              geometry={"n_balls": 12, "ball_diameter": 7.0e-3, "pitch_diameter": 46.0e-3,

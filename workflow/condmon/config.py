@@ -306,3 +306,29 @@ def missing_run_message(run_name: str, results="results", project=".") -> str:
             "is missing): give the --configfile(s) the run was made with, e.g. snakemake --report "
             "report.html --configfile .test/config/smoke.yaml"
             + (f"; finished runs: {made}" if runs else "; no run has finished here yet"))
+
+
+# -- layered config files ------------------------------------------------------------------------
+# A config file may state only how a run differs from another: `base: config/config.yaml` (a path
+# from the project folder) and its own keys, merged over the base's as Snakemake merges several
+# --configfile (dicts key by key, anything else replaced). So `--configfile .test/config/smoke.yaml`
+# alone is the whole smoke run, and an edit of the base reaches it.
+BASE_KEY = "base"
+
+
+def apply_base(config: dict, project=".") -> dict:
+    """``config`` merged over the config file its `base` names (that file's own base first), and
+    `base` dropped; in place (Snakemake's config object stays the same)."""
+    name = config.pop(BASE_KEY, None)
+    if name is None:
+        return config
+    import yaml
+
+    path = Path(project) / str(name)
+    if not path.is_file():
+        raise ConfigError(f"invalid config:\n  base: no config file {path} (a path from the project folder)")
+    layer = copy.deepcopy(config)
+    config.clear()
+    config.update(apply_base(yaml.safe_load(path.read_text()) or {}, project))
+    _merge(config, layer)
+    return config
