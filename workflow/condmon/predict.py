@@ -1,6 +1,6 @@
 """Apply a trained model to new measurements (console script ``condmon predict``; rule ``predict``).
 
-    condmon predict --model results/smoke --input new_records.parquet --output predictions/
+    condmon predict --model results/smoke --input new_records.parquet --output results/predictions/
     condmon predict --model models:/condmon-smoke@best --tracking-uri sqlite:///results/mlflow.db \\
         --input /data/rig-records --output predictions/
 
