@@ -2,7 +2,7 @@
 
     condmon predict --model results/smoke --input new_records.parquet --output results/predictions/
     condmon predict --model models:/condmon-smoke@best --tracking-uri sqlite:///results/mlflow.db \\
-        --input /data/rig-records --output predictions/
+        --input /data/rig-records --output results/predictions/
 
 ``--input``: a signal table (Parquet: record_id, segment, speed_rpm, fs_hz, channel, signal;
 ``health_state``, ``source``, ``load`` and ``params`` may be left out, ``health_state`` may be
