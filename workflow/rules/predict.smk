@@ -10,6 +10,7 @@ rule predict:
         directory(f"{RESULTS}/predict/{PREDICT_NAME}"),
     params:
         model=config["predict_model"],
+        tracking_uri=config["tracking"]["uri"],  # where an MLflow predict_model is looked up
     conda:
         "../envs/report.yaml"
     log:

@@ -11,7 +11,7 @@ from condmon.signal_model import UnsupportedRecords
 log = setup_logging(snakemake)  # to snakemake.log[0]
 source = snakemake.params.model or snakemake.input.models
 try:
-    model, origin = load_model(str(source))
+    model, origin = load_model(str(source), snakemake.params.tracking_uri)
     frame, reader_records = read_input(snakemake.input.data, model)
     results = predict(model, frame)
     write_outputs(results, model, origin, snakemake.output[0], reader_records)
