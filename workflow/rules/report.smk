@@ -121,6 +121,9 @@ rule report:
         design_records=config["report"]["design_records"],
         # the specimens whose records the design looked at (records.csv's specimen)
         design_specimens=SYSTEM.design_specimens(),
+        # {specimen: reason} of specimens the model does not describe: reported apart, never in
+        # the headline
+        unmodelled=SYSTEM.unmodelled_specimens(),
     conda:
         "../envs/report.yaml"
     benchmark:
