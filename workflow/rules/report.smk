@@ -75,8 +75,9 @@ rule report:
             for state in STATE_CALIBRATIONS
         },
         **{f"benchmarks_{rule}": files for rule, files in upstream_benchmarks().items()},
-        metrics=train_outputs("metrics.csv"),
-        predictions=train_outputs("predictions.parquet"),
+        # the classifiers' and the joined methods' (scored alike, beside their parts)
+        metrics=train_outputs("metrics.csv") + joined_outputs("metrics.csv"),
+        predictions=train_outputs("predictions.parquet") + joined_outputs("predictions.parquet"),
         # one calibration per variant (dict keys of the same order in each)
         simulation_reports=simulated_batches("json"),
         measured_only=train_outputs("measured_only.csv"),
