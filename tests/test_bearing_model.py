@@ -189,6 +189,49 @@ def test_another_rig_geometry_labels_and_loads():
     assert rig.de_geometry.n_balls == 12 and rig.defect_kind == "outer_race"
 
 
+@pytest.mark.slow
+def test_another_geometry_puts_the_simulated_lines_and_the_rules_at_its_own_orders():
+    """Any bearing from its config alone (issue 49): a 12-ball bearing of d/D cos(alpha) 0.145
+    (BPFO 5.13 orders, the 6205's 3.58) simulates its outer-race strikes at its own BPFO, the
+    features measure the lines at its own orders, and the envelope rule, its threshold from the
+    healthy simulated segments, names the outer race there; at the 6205's orders no line stands
+    out."""
+    from condmon.stat_features import StatisticalFeatures
+
+    labels = {"ok": {"defect": "none"}, "or": {"defect": "outer_race", "diameter_mm": [0.3, 0.3]},
+              "ir": {"defect": "inner_race", "diameter_mm": [0.3, 0.3]},
+              "b": {"defect": "ball", "diameter_mm": [0.3, 0.3]}}
+    geometry = {"n_balls": 12, "ball_diameter": 6.0e-3, "pitch_diameter": 40.0e-3, "contact_angle_deg": 15.0}
+    system = system_of(".test/config/cwru-smoke.yaml", {
+        "measured_table": "signals.parquet", "hybrid": {"protocols": ["record_split"]},
+        "bearing": {"health_states": labels, "healthy_state": "ok", "geometry": geometry,
+                    "load_speeds": [[10.0, 1500.0]]}, "rig": {"speeds_rpm": [1500]}})
+    own, cwru = system.defect_orders(), feature_orders(DEFAULT_BEARING["geometry"])
+    assert own["bpfo"] == pytest.approx(5.1307, abs=1e-4) and abs(own["bpfo"] - cwru["bpfo"]) > 1.0
+
+    def segments(label):
+        values = system.sample_parameters({"parameters": {}}, label, np.random.default_rng(0), {})
+        # the defect in the load zone, the rig's own noise and background off: the lines alone
+        signal = system.simulate_sample(system.noise_free(dict(values, defect_clock=6.0)), label,
+                                        1500.0, 0.6, 1)["DE"]
+        return signal.reshape(2, -1)
+
+    def features(orders, x):
+        names = StatisticalFeatures(defect_orders=orders, prefix="DE_").get_feature_names_out()
+        values = StatisticalFeatures(fs_hz=system.output_rate_hz, defect_orders=orders,
+                                     prefix="DE_").fit_transform(x, speed_rpm=1500.0)
+        return pd.DataFrame(values, columns=names)
+
+    healthy, outer = segments("ok"), segments("or")
+    at_own = features(own, outer)
+    ratios = at_own[["DE_env_ratio_bpfo", "DE_env_ratio_bpfi", "DE_env_ratio_bsf_x2"]]
+    assert (ratios.idxmax(axis=1) == "DE_env_ratio_bpfo").all() and (ratios["DE_env_ratio_bpfo"] > 10).all(), ratios
+    assert (features(cwru, outer)["DE_env_ratio_bpfo"] < at_own["DE_env_ratio_bpfo"] / 3).all()
+    rule = system.physics_baselines(list(at_own.columns))["envelope_rule"]
+    rule.fit(features(own, healthy))
+    assert list(rule.predict(at_own)) == ["or", "or"]
+
+
 def test_noise_free_drops_the_rigs_own_noise_and_background():
     """The benchmark's step check compares noise-free runs: the rig model adds its own sensor noise
     and machine background, so `noise_free` removes them, and what is left converges with the step."""

@@ -7,8 +7,9 @@ from scipy.signal import welch
 from condmon.stat_features import envelope_line_ratio, envelope_spectrum
 from condmon.models.bearing.rig import (SKF_6203, SKF_6205, BearingRigParameters, RigSettings, SimulationError,
                                         _DefectProfile, ball_strike_probability, contact_half_width,
-                                        de_clearance, effective_defect_depth, most_loaded_ball_load,
-                                        preload_deflection, simulate_rig)
+                                        ball_deflection_at, clock_angle, de_clearance,
+                                        effective_defect_depth, most_loaded_ball_load,
+                                        outer_race_strike, preload_deflection, simulate_rig)
 
 SPEED = 1797.0
 SHAFT_HZ = SPEED / 60.0
@@ -187,6 +188,44 @@ def test_outer_race_line_weakens_as_the_defect_leaves_the_load_zone():
     ratios = {clock: _line(_outer_race(clock), bpfo)[1] for clock in (6.0, 4.5, 12.0)}
     assert ratios[6.0] > 2 * ratios[4.5] and ratios[4.5] > 4.0, ratios
     assert ratios[12.0] < 3.0, ratios
+
+
+def _strike(clock, **changes):
+    """The strike of an outer-race defect at `clock` in the simulation: the largest force of the DE
+    bearing on its housing along the defect's direction that the defect takes away (the run less
+    the same run without the defect; no modes, no slip, every passage alike)."""
+    clean = dict(CLEAN, slip_std=0.0, defect_depth_variation=0.0, resonances=(), **changes)
+    forces = []
+    for kind in ("none", "outer_race"):
+        diagnostics = {}
+        params = BearingRigParameters(speed_rpm=SPEED, defect_kind=kind, defect_clock=clock, **clean)
+        simulate_rig(params, RigSettings(duration=0.15, settle_time=0.05), np.random.default_rng(1),
+                     diagnostics)
+        forces.append(diagnostics["de_force"])
+    along = np.array([np.cos(clock_angle(clock)), np.sin(clock_angle(clock))])
+    return float(np.percentile(np.abs((forces[1] - forces[0]) @ along), 99.5)), params
+
+
+def test_a_defect_beside_the_load_zone_strikes_weaker_by_the_load_zone_law():
+    """A radial load at 6:00 (1000 N on the journal) and SKF's lighter spring preload (125 N): a
+    ball over an outer-race defect stops carrying the load the load-zone law gives it at the
+    defect's angle (Harris: deflection s cos(psi) - c from the static sag s and the running
+    clearance c, less the depth it sinks into the defect). The simulated strike at 3:00 is that
+    law's share of the strike at 6:00 (about 0.4), at 4:30 about 0.87; without the preload 3:00 lies
+    outside the load zone and does not strike at all."""
+    loaded = dict(radial_load=1000.0, axial_preload=125.0)
+    bottom, params = _strike(6.0, **loaded)
+    assert ball_deflection_at(params, 6.0) > ball_deflection_at(params, 4.5) > ball_deflection_at(params, 3.0) > 0
+    law = {clock: outer_race_strike(params, clock) / outer_race_strike(params, 6.0) for clock in (4.5, 3.0)}
+    assert 0.3 < law[3.0] < 0.5 and 0.8 < law[4.5] < 0.95, law
+    for clock, share in law.items():
+        assert _strike(clock, **loaded)[0] / bottom == pytest.approx(share, rel=0.1), clock
+    # without the preload: the running clearance leaves 3:00 outside the load zone
+    free = dict(radial_load=1000.0)
+    beside, params = _strike(3.0, **free)
+    assert outer_race_strike(params, 3.0) == 0.0 and beside < 0.01 * _strike(6.0, **free)[0]
+    assert most_loaded_ball_load(params) == pytest.approx(
+        params.contact_stiffness * ball_deflection_at(params, 6.0) ** 1.5)
 
 
 TILTED = ((2900.0, 0.04, 0.6, 40.0), (3400.0, 0.03, 1.0, -40.0), (3700.0, 0.04, 0.5, 40.0))

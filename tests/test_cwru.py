@@ -416,6 +416,27 @@ def test_design_specimens_are_named_as_records_csv_names_them_and_checked():
         "cwru.design_specimens[0]", "cwru.design_specimens[1]", "cwru.design_specimens[2]"]
 
 
+def test_the_0028_in_inner_race_is_another_bearing_with_its_reason():
+    """cwru.other_bearing (default: the 0.028-in inner race, files 3001-3004) names the specimen as
+    records.csv does, with its reason, for the report alone; a specimen both design and another
+    bearing is a config problem naming it."""
+    from conftest import system_of
+    from condmon.config import ConfigError
+    from condmon.systems.bearing.cwru import specimen_of
+
+    system = system_of("config/cwru.yaml")
+    other = system.unmodelled_specimens()
+    row = CWRU_TABLE[CWRU_TABLE.cwru_number == 3001].iloc[0]
+    assert list(other) == [specimen_of(row)["specimen"]] == ["inner_race 0.028 in"]
+    assert "NTN" in other["inner_race 0.028 in"] and "5.32" in other["inner_race 0.028 in"]
+    assert not set(other) & set(system.design_specimens())
+    for stage in ("measured", "calibrate", "simulate", "features", "baselines"):
+        assert "other_bearing" not in system.job_config(stage).get("cwru", {}), stage
+    with pytest.raises(ConfigError, match=r"ball 0.007 in.*both a design specimen and another"):
+        system_of(".test/config/cwru-smoke.yaml", {"cwru": {"other_bearing": [
+            {"fault": "ball", "diameter_in": 0.007, "reason": "test"}]}})
+
+
 @pytest.mark.parametrize("task", sorted(p.name for p in (ROOT / "config" / "cwru-tasks").glob("*.yaml")))
 def test_cwru_task_variants_layer_over_the_cwru_config(task):
     """Each CWRU task variant states only what differs: layered over config/cwru.yaml (as

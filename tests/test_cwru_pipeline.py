@@ -60,6 +60,16 @@ def test_cwru_run_writes_every_protocol_labelled_with_gain_and_recall(cwru_run):
     assert headline.iloc[0]["records"] == "evaluation specimens"
     assert headline.iloc[0]["model"].startswith("no evaluation specimen in this data")
     assert set(headline.iloc[1:]["records"]) == {"design specimens"}
+    # the joined method (joined.classifiers: [svm]) beside its parts, on the same test sets
+    assert ("joined_svm", "unseen_fault", 0) in rows
+    keys = ["measured_percent", "repeat", "holdout", "record_id", "segment"]
+    tested = [pd.read_parquet(results / part / "unseen_fault" / "predictions.parquet")[keys]
+              for part in ("train/svm", "joined/joined_svm")]
+    pd.testing.assert_frame_equal(*(t.sort_values(keys).reset_index(drop=True) for t in tested))
+    assert "joined_svm (simulated + measured)" in set(headline["model"])
+    info = json.loads((results / "joined" / "joined_svm" / "unseen_fault" / "info.json").read_text())
+    assert info["parts"] == ["svm", "envelope_rule"] and 0 <= info["outside_training_share"] <= 1
+    assert "confusion_joined_svm_unseen_fault_all.png" in summary["plots"]
 
 
 def test_cwru_hybrid_splits_follow_their_protocols(cwru_run):

@@ -1,5 +1,6 @@
 """The report stage on small fake train outputs: accuracy table, summary, plots."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -516,6 +517,64 @@ def test_a_design_specimen_record_never_counts_in_the_evaluation_figures(tmp_pat
     with pytest.raises(report.ReportInputError, match="name no specimen"):
         records.drop(columns="specimen").to_csv(tmp_path / "bare.csv", index=False)
         report.design_record_ids([], ["normal"], tmp_path / "bare.csv")
+
+
+@pytest.mark.slow
+def test_a_record_of_another_bearing_never_reaches_the_headline(train_outputs, tmp_path):
+    """A record whose specimen the system marks as not described by its model (another bearing:
+    System.unmodelled_specimens, with its reason) is reported in rows of its own ('unmodelled'),
+    with its reason in
+    summary.json and recall_per_record.csv; the headline and the evaluation rows are exactly those
+    of the same report without its predictions (the ceiling aside: that report still has the
+    record's features)."""
+    from condmon.atomic import write_frame
+
+    _, paths = train_outputs
+    tested = pd.concat(pd.read_parquet(p) for p in paths["predictions"])["record_id"].unique()
+    apart = sorted(r for r in tested if r not in DESIGN)[0]
+    measured = pd.read_parquet(paths["features_measured"], columns=["record_id"])
+    records = pd.DataFrame({"record_id": measured["record_id"].unique()})
+    records.assign(specimen=records["record_id"], status="kept").to_csv(tmp_path / "records.csv",
+                                                                        index=False)
+    reason = "another bearing: its lines sum to 9.00 orders"
+
+    def written(name, predictions, unmodelled):
+        out = tmp_path / name
+        evaluated_report(paths, out, evaluation={"design_records": DESIGN,
+                                                 "unmodelled": unmodelled},
+                         upstream={"measured_records": tmp_path / "records.csv"},
+                         train={"predictions": predictions},
+                         outputs={"headline": out / "headline.csv",
+                                  "recall_per_record": out / "recall_per_record.csv"})
+        return out
+
+    marked = written("marked", paths["predictions"], {apart: reason})
+    dropped = []
+    for path in map(Path, paths["predictions"]):  # train/<classifier>/<protocol>/ kept
+        frame = pd.read_parquet(path)
+        dropped.append(tmp_path / "dropped" / path.parent.parent.name / path.parent.name / path.name)
+        write_frame(frame[frame["record_id"] != apart], dropped[-1])
+    without = written("without", dropped, {})
+    # the ceiling row aside: the report without its predictions still has its features
+    headline = pd.read_csv(marked / "headline.csv")
+    headline = headline[headline["model"] != report.CEILING_MODEL]
+    other = pd.read_csv(without / "headline.csv")
+    pd.testing.assert_frame_equal(headline, other[other["model"] != report.CEILING_MODEL])
+    assert "evaluation specimens" in set(headline["records"])
+    table = pd.read_csv(marked / "evaluation.csv")
+    sides = {side: table[table["records"] == side].reset_index(drop=True)
+             for side in ("evaluation", "design")}
+    other = pd.read_csv(without / "evaluation.csv")
+    for side, rows in sides.items():
+        pd.testing.assert_frame_equal(rows, other[other["records"] == side].reset_index(drop=True))
+    own = table[table["records"] == "unmodelled"]
+    assert len(own) and (own["n_records"] == 1).all()
+    summary = json.loads((marked / "summary.json").read_text())
+    entry = summary["design_records"]
+    assert entry["unmodelled"]["records"][apart]["reason"] == reason
+    assert apart not in entry["tested_evaluation_records"]
+    per_record = pd.read_csv(marked / "recall_per_record.csv", keep_default_na=False)
+    assert set(per_record.loc[per_record["unmodelled"] != "", "record_id"]) == {apart}
 
 
 def test_recall_beside_whether_each_fault_record_shows_its_line(tmp_path):

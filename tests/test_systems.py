@@ -273,8 +273,9 @@ def test_a_systems_own_simulation_knob_reruns_its_simulations_only_and_never_ano
     after = {"train", "track", "report", "run_config", "report_pages", "all"}
     assert planned_rules(workdir, run, knob) == {"simulate", "features_simulated", *after}
     workdir, run = touched_project(tmp_path / "bearing", ".test/config/cwru-smoke.yaml", f"measured_dir={CWRU}")
+    # + the joined method (joined.classifiers: [svm]), which reads the SVM's predictions
     assert planned_rules(workdir, run, {"simulation": {"max_failed_share": 0.2}}) == {
-        "simulate", "features_simulated", *after}
+        "simulate", "features_simulated", "joined", *after}
     assert "unknown key model" in planned_rules(workdir, run, knob)  # a CWRU run has no gear knob
 
 

@@ -289,16 +289,35 @@ def contact_half_width(geometry: BearingGeometry, ball_load: float, race: str) -
     return float((6 * k ** 2 * elliptic * ball_load * radius / (math.pi * reduced_modulus)) ** (1 / 3))
 
 
-def most_loaded_ball_load(p: BearingRigParameters) -> float:
-    """Load (N) of the drive end's most loaded ball at rest, from the model's own static
-    equilibrium: the journal sinks until the balls carry its load (gravity and `radial_load`), over
-    the running clearance (`de_clearance`: the radial clearance, or every ball pressed by the axial
-    preload), and the bottom ball carries K delta^1.5."""
-    g = p.de_geometry
+def ball_deflection_at(p: BearingRigParameters, clock: float) -> float:
+    """Contact deflection (m) of a drive-end ball at a clock position at rest: the load-zone law
+    (Stribeck's distribution, Harris) from the model's own static equilibrium. The journal sinks
+    by the sag s until the balls carry its load (gravity and `radial_load`, straight down, 6:00);
+    a ball at the angle psi from 6:00 is pressed by s cos(psi) - c, c the running clearance
+    (`de_clearance`: the radial clearance, or negative with every ball pressed by the axial
+    preload), and none where that is negative (outside the load zone)."""
     journal_load = p.rotor_mass * p.de_mass_share * p.gravity + p.radial_load
     clearance = de_clearance(p)
-    sag = _static_sag(g, p.contact_stiffness, clearance, journal_load)
-    return float(p.contact_stiffness * max(-sag - clearance, 0.0) ** 1.5)
+    sag = -_static_sag(p.de_geometry, p.contact_stiffness, clearance, journal_load)
+    psi = clock_angle(clock) - clock_angle(6.0)
+    return max(sag * math.cos(psi) - clearance, 0.0)
+
+
+def most_loaded_ball_load(p: BearingRigParameters) -> float:
+    """Load (N) of the drive end's most loaded ball at rest, the bottom one's (6:00, right under
+    the load): K delta^1.5 of its `ball_deflection_at`."""
+    return float(p.contact_stiffness * ball_deflection_at(p, 6.0) ** 1.5)
+
+
+def outer_race_strike(p: BearingRigParameters, clock: float | None = None) -> float:
+    """The load (N) a ball stops carrying as it rolls over an outer-race defect at `clock`
+    (default `defect_clock`): its deflection there by the load-zone law (`ball_deflection_at`)
+    less the depth it sinks into the defect (`effective_defect_depth`), K (delta^1.5 -
+    max(delta - depth, 0)^1.5). A defect away from 6:00 sees less load and strikes weaker; one
+    outside the load zone does not strike."""
+    delta = ball_deflection_at(p, p.defect_clock if clock is None else clock)
+    depth = effective_defect_depth(p, "outer")
+    return float(p.contact_stiffness * (delta ** 1.5 - max(delta - depth, 0.0) ** 1.5))
 
 
 def ball_strike_probability(p: BearingRigParameters) -> float:
@@ -733,9 +752,9 @@ def simulate_rig(params: BearingRigParameters, settings: RigSettings | None = No
     settings.output_rate_hz, settings.duration long}. `rng` draws the per-run random parts
     (defect hash seed, unbalance phase, background noise): equal seeds give identical arrays.
 
-    diagnostics: a dict to receive `time`, `de_force_y` (N, force of the DE bearing on its
-    housing), `de_displacement` (m, journal minus housing, x and y) at the sensor rate, settling
-    included, and `load_zone_only` (whether the load-zone ball sum was kept)."""
+    diagnostics: a dict to receive `time`, `de_force` (N, force of the DE bearing on its housing, x
+    and y; `de_force_y` its y), `de_displacement` (m, journal minus housing, x and y) at the sensor
+    rate, settling included, and `load_zone_only` (whether the load-zone ball sum was kept)."""
     p = params
     s = settings or RigSettings()
     rng = rng if rng is not None else np.random.default_rng(0)
@@ -760,7 +779,8 @@ def simulate_rig(params: BearingRigParameters, settings: RigSettings | None = No
         acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed, (False, False),
                                                  where)
     if diagnostics is not None:
-        diagnostics.update(time=acc[:, 0], de_force_y=force[:, 2], de_displacement=disp[:, 1:3],
+        diagnostics.update(time=acc[:, 0], de_force=force[:, 1:3], de_force_y=force[:, 2],
+                           de_displacement=disp[:, 1:3],
                            load_zone_only=zone_only)
 
     # The accelerometer (+y = 12 o'clock): the housing's acceleration and each mode's relative

@@ -119,6 +119,10 @@ def cross_field_problems(config: dict) -> list[str]:
                         "explains) needs two or more features.channels; use deficit with one")
     if not any(c["enabled"] for c in config["classifiers"].values()):
         problems.append("classifiers: enable at least one classifier")
+    disabled = [c for c in config["joined"]["classifiers"]
+                if not config["classifiers"].get(c, {}).get("enabled")]
+    if disabled:
+        problems.append(f"joined.classifiers: {disabled} not among the enabled classifiers")
     families = config["features"]["kind"].split("+")
     if len(set(families)) != len(families):
         problems.append(f"features.kind: {config['features']['kind']!r} names a family twice")

@@ -2,7 +2,9 @@
 
 Per evaluation (classifier, protocol, measured percentage, repeat, holdout), for all test data,
 per operating condition (`hybrid.condition`, e.g. load: never a file's stored rpm) and, with
-`report.design_records`, for the records design choices were tuned on and for the others apart:
+`report.design_records`, for the records design choices were tuned on and for the others apart
+(and the records of specimens the model does not describe, `System.unmodelled_specimens`, in
+rows of their own, `unmodelled`, never among the evaluation records):
 - per-segment accuracy, per-record accuracy (majority vote of a record's test segments) and
   balanced accuracy (mean recall over the tested classes: a class of few segments weighs as much);
 - the false-alarm rate: the share of healthy test segments called faulty;
@@ -34,6 +36,7 @@ from condmon.labels import LEAKY_PROTOCOLS, format_speed
 KEYS = ["classifier", "protocol", "measured_percent", "repeat", "holdout"]
 SMALL_TEST_SET = 30  # segments: fewer, and an accuracy says little
 ALL = "all"
+UNMODELLED = "unmodelled"  # the records side of specimens the model does not describe
 EVALUATION_COLUMNS = KEYS + [
     "condition", "records", "n_test", "accuracy", "accuracy_ci_low", "accuracy_ci_high",
     "n_records", "record_accuracy", "record_accuracy_ci_low", "record_accuracy_ci_high",
@@ -101,24 +104,34 @@ def with_conditions(predictions: pd.DataFrame, conditions: dict, condition: str)
     return predictions
 
 
-def subsets(test: pd.DataFrame, design: set):
+def record_side(record_ids: pd.Series, design: set, apart: set = frozenset()) -> np.ndarray:
+    """Per record: "design", UNMODELLED (a record of a specimen the model does not describe, `apart`) or
+    "evaluation" (every other record)."""
+    ids = record_ids.astype(str)
+    return np.where(ids.isin(apart), UNMODELLED,
+                    np.where(ids.isin(design), "design", "evaluation"))
+
+
+def subsets(test: pd.DataFrame, design: set, apart: set = frozenset()):
     """(condition, records, rows) of a test set: all of it, per condition and, with design
-    records, the design records and the others apart."""
+    records or unmodelled records (`apart`), the design records, the unmodelled ones and the
+    others ("evaluation") apart."""
     yield ALL, ALL, test
     for value, part in test.groupby("_condition", sort=True):
         yield value, ALL, part
-    if design:
-        in_design = test["record_id"].isin(design)
-        for name, mask in (("design", in_design), ("evaluation", ~in_design)):
-            if mask.any():
-                yield ALL, name, test[mask]
+    if design or apart:
+        side = record_side(test["record_id"], design, apart)
+        for name in ("design", "evaluation", UNMODELLED):
+            if (side == name).any():
+                yield ALL, name, test[side == name]
 
 
 def evaluation_table(predictions: pd.DataFrame, healthy_state: str | None, labels,
                      conditions: dict, condition: str, design_records=(),
                      measured_only: pd.DataFrame | None = None,
                      physics: pd.DataFrame | None = None,
-                     measured_only_predictions: pd.DataFrame | None = None) -> pd.DataFrame:
+                     measured_only_predictions: pd.DataFrame | None = None,
+                     apart_records=()) -> pd.DataFrame:
     """One row per evaluation and subset (columns EVALUATION_COLUMNS).
 
     `conditions`: {record_id: value of `condition`}; `labels`: the task's classes (chance);
@@ -129,20 +142,21 @@ def evaluation_table(predictions: pd.DataFrame, healthy_state: str | None, label
     predictions (`classifier` = the classifier), which score them on the design and evaluation
     records apart. Baselines and the gain are given on the rows of condition `all` (records
     `all`, `design`, `evaluation`; without measured-only predictions that baseline on `all`
-    only, from its metrics, as on `all` always).
+    only, from its metrics, as on `all` always). `apart_records`: records of specimens the
+    model does not describe (subset `unmodelled`, never `evaluation`).
     """
-    design = set(map(str, design_records))
+    design, apart = set(map(str, design_records)), set(map(str, apart_records))
     predictions = with_conditions(predictions, conditions, condition)
     best_alone = _best_measured_only(measured_only)
-    by_rule = _physics_accuracy(physics, design)
+    by_rule = _physics_accuracy(physics, design, apart)
     # the best measured-only classifier per split and side: the same bookkeeping as the rules'
     alone_by_records = {key: {records: max(by_classifier.values())
                               for records, by_classifier in sides.items()}
                         for key, sides in _physics_accuracy(measured_only_predictions,
-                                                            design).items()}
+                                                            design, apart).items()}
     rows = []
     for key, test in predictions.groupby(KEYS, sort=True):
-        for condition_label, records, part in subsets(test, design):
+        for condition_label, records, part in subsets(test, design, apart):
             row = dict(zip(KEYS, key), condition=condition_label, records=records,
                        **test_set_figures(part, healthy_state),
                        leaky=key[1] in LEAKY_PROTOCOLS)
@@ -166,17 +180,18 @@ def _best_measured_only(measured_only: pd.DataFrame | None) -> dict:
     return {(p, int(m), int(r), h): float(a) for (p, m, r, h), a in best.items()}
 
 
-def _physics_accuracy(physics: pd.DataFrame | None, design: set = frozenset()) -> dict:
+def _physics_accuracy(physics: pd.DataFrame | None, design: set = frozenset(),
+                      apart: set = frozenset()) -> dict:
     """{(protocol, percent, repeat, holdout): {records: {rule: accuracy}}}: on that split's whole
-    test set (records `all`) and, with design records, on its design and evaluation records.
+    test set (records `all`) and, with design or unmodelled records, on its design, evaluation
+    and unmodelled records.
     Any predictions with a `classifier` column (the rule, or a measured-only classifier)."""
     if physics is None or physics.empty:
         return {}
     hits = physics.assign(_hit=physics["true_label"] == physics["predicted_label"],
-                          _records=np.where(physics["record_id"].isin(design), "design",
-                                            "evaluation"))
+                          _records=record_side(physics["record_id"], design, apart))
     found = {}
-    for by_records in ([False, True] if design else [False]):
+    for by_records in ([False, True] if design or apart else [False]):
         group = ["classifier"] + KEYS[1:] + (["_records"] if by_records else [])
         for key, value in hits.groupby(group)["_hit"].mean().items():
             rule, protocol, percent, repeat, holdout = key[:5]
@@ -225,15 +240,15 @@ SUMMARY_MEANS = ["accuracy", "record_accuracy", "balanced_accuracy", "false_alar
 
 
 def distinct_tested(predictions: pd.DataFrame, healthy_state: str | None, conditions: dict,
-                    condition: str, design_records=()) -> pd.DataFrame:
+                    condition: str, design_records=(), apart_records=()) -> pd.DataFrame:
     """Per (classifier, protocol, measured_percent, repeat, condition, records): how many distinct
     segments, records and healthy segments the repeat tested over all its holdouts (a healthy
     record tested in every holdout counts once)."""
-    design = set(map(str, design_records))
+    design, apart = set(map(str, design_records)), set(map(str, apart_records))
     predictions = with_conditions(predictions, conditions, condition)
     rows = []
     for key, test in predictions.groupby(KEYS[:4], sort=True):
-        for condition_label, records, part in subsets(test, design):
+        for condition_label, records, part in subsets(test, design, apart):
             segments = part[["record_id", "segment"]].drop_duplicates()
             healthy = part.loc[part["true_label"] == healthy_state, ["record_id", "segment"]]
             rows.append(dict(zip(KEYS[:4], key), condition=condition_label, records=records,
@@ -257,7 +272,8 @@ def _pooled_interval(per_repeat: pd.DataFrame, successes: str, tested: str,
 
 
 def summarise(table: pd.DataFrame, predictions: pd.DataFrame, healthy_state: str | None,
-              conditions: dict, condition: str, design_records=()) -> pd.DataFrame:
+              conditions: dict, condition: str, design_records=(),
+              apart_records=()) -> pd.DataFrame:
     """Per (classifier, protocol, measured_percent, condition, records): means over repeats and
     holdouts, Wilson intervals on one repeat's distinct test segments (records, healthy
     segments; see _pooled_interval), the number of repeats and of distinct ones, the strongest
@@ -270,7 +286,8 @@ def summarise(table: pd.DataFrame, predictions: pd.DataFrame, healthy_state: str
                   [["_hits", "n_test", "_record_hits", "n_records", "_alarms", "n_healthy"]].sum()
                   .reset_index()
                   .merge(distinct_tested(predictions, healthy_state, conditions, condition,
-                                         design_records), on=group + ["repeat"], how="left"))
+                                         design_records, apart_records),
+                         on=group + ["repeat"], how="left"))
     per_repeat = {key: part for key, part in per_repeat.groupby(group, sort=True)}
     rows = []
     for key, part in table.groupby(group, sort=True):

@@ -624,19 +624,22 @@ def condition_file_part(condition: str, value) -> str:
     return f"{condition}{float(value):g}"
 
 
-def record_sides(is_design: pd.Series) -> list[tuple[str, pd.Series, str]]:
-    """(file name part, row mask, title) of the tested records of evaluation specimens and of
-    design specimens (`is_design`: per prediction, whether its record is of a design specimen),
-    where both are tested (else none: the pooled figures are one side's)."""
-    if not is_design.any() or is_design.all():
-        return []
-    return [("evaluation", ~is_design, "records of evaluation specimens"),
-            ("design", is_design, "records of design specimens")]
+def record_sides(is_design: pd.Series, is_apart: pd.Series | None = None) -> list[tuple[str, pd.Series, str]]:
+    """(file name part, row mask, title) of the tested records of evaluation specimens, of
+    design specimens (`is_design`: per prediction, whether its record is of a design specimen)
+    and of unmodelled specimens (`is_apart`, never among the evaluation records), where more than one
+    side is tested (else none: the pooled figures are one side's)."""
+    is_apart = pd.Series(False, index=is_design.index) if is_apart is None else is_apart
+    sides = [("evaluation", ~is_design & ~is_apart, "records of evaluation specimens"),
+             ("design", is_design & ~is_apart, "records of design specimens"),
+             (evaluation.UNMODELLED, is_apart, "records the model does not describe")]
+    sides = [side for side in sides if side[1].any()]
+    return sides if len(sides) > 1 else []
 
 
 def make_plots(accuracy, predictions, calibrated: tuple, plots_dir: Path, run: RunIdentity,
                confusion_percent, shares: pd.DataFrame | None = None, condition: str = "speed_rpm",
-               design_records=()) -> list[str]:
+               design_records=(), apart_records=()) -> list[str]:
     """Write every report plot into ``plots_dir``; returns the file names. ``run``: the footnote's
     run and data source (and how many effects the bench has that the model lacks: the note says
     so; summary.json lists them), the healthy state the class order starts from. ``calibrated``:
@@ -648,9 +651,10 @@ def make_plots(accuracy, predictions, calibrated: tuple, plots_dir: Path, run: R
     (accuracy_per_condition.png covers any condition). ``design_records``: the records of design
     specimens; where tested, every plot's note says it pools them, and where records of other
     specimens are tested too, each classifier and protocol gets its confusion matrices on each
-    side apart (`confusion_<classifier>_<protocol>_evaluation.png`, `..._design.png`)."""
+    side apart (`confusion_<classifier>_<protocol>_evaluation.png`, `..._design.png`; records of
+    unmodelled specimens, ``apart_records``, in `..._unmodelled.png`)."""
     is_design = predictions["record_id"].astype(str).isin(set(map(str, design_records)))
-    sides = record_sides(is_design)
+    sides = record_sides(is_design, predictions["record_id"].astype(str).isin(set(map(str, apart_records))))
     note = plot_note(run.run_name, run.data_source, run.bench_differences, bool(is_design.any()),
                      run.state_models)
     side_note = plot_note(run.run_name, run.data_source, run.bench_differences, state_models=run.state_models)
@@ -737,24 +741,29 @@ def state_convergence_plots(results: dict, histories, plots_dir: Path, run: RunI
 
 
 def evaluation_tables(predictions, baseline, labels, healthy_state, measured_features_path,
-                      condition, design_records, physics=None, baseline_predictions=None):
+                      condition, design_records, physics=None, baseline_predictions=None,
+                      apart_records=()):
     """condmon.evaluation's tables: per evaluation, and over repeats; the physics baselines'
     own, per evaluation and over repeats (None without physics predictions); and the
-    measured-only baselines' per evaluation (None without their predictions)."""
+    measured-only baselines' per evaluation (None without their predictions). `apart_records`:
+    records of unmodelled specimens (rows `unmodelled`, never `evaluation`)."""
     conditions = record_conditions(measured_features_path, condition)
     table = evaluation.evaluation_table(predictions, healthy_state, labels, conditions, condition,
-                                        design_records, baseline, physics, baseline_predictions)
+                                        design_records, baseline, physics, baseline_predictions,
+                                        apart_records)
     baseline_table = (None if baseline_predictions is None else
                       evaluation.evaluation_table(baseline_predictions, healthy_state, labels,
-                                                  conditions, condition, design_records))
+                                                  conditions, condition, design_records,
+                                                  apart_records=apart_records))
     overall = evaluation.summarise(table, predictions, healthy_state, conditions, condition,
-                                   design_records)
+                                   design_records, apart_records)
     physics_table = physics_overall = None
     if physics is not None:
         physics_table = evaluation.evaluation_table(physics, healthy_state, labels, conditions,
-                                                    condition, design_records)
+                                                    condition, design_records,
+                                                    apart_records=apart_records)
         physics_overall = evaluation.summarise(physics_table, physics, healthy_state, conditions,
-                                               condition, design_records)
+                                               condition, design_records, apart_records)
     return table, overall, physics_table, physics_overall, baseline_table
 
 
@@ -778,19 +787,39 @@ def design_record_ids(design_records, design_specimens, measured_records) -> tup
     return sorted(set(map(str, design_records)) | of_specimens), specimens
 
 
+def unmodelled_records(unmodelled: dict, specimens: dict) -> dict:
+    """{record_id: reason} of the unmodelled records: every record whose specimen (records.csv's,
+    `specimens`: {record_id: specimen}) the system says its model does not describe
+    (`unmodelled`: {specimen: reason}, System.unmodelled_specimens). Declared without a
+    specimen to match: an error, never ignored."""
+    if unmodelled and not specimens:
+        raise ReportInputError(f"unmodelled specimens {sorted(unmodelled)} are declared, "
+                               "but the measured records name no specimen to match them to")
+    return {record: unmodelled[specimen] for record, specimen in sorted(specimens.items())
+            if specimen in unmodelled}
+
+
 def design_summary(predictions: pd.DataFrame, design_records, design_specimens,
-                   specimens: dict) -> dict:
+                   specimens: dict, apart: dict | None = None) -> dict:
     """summary.json's `design_records`: which tested records and specimens count as design and
-    which as evaluation, what the headline is on, and a note that says so plainly."""
-    design = set(map(str, design_records))
+    which as evaluation, what the headline is on, and a note that says so plainly. Records of
+    unmodelled specimens (`apart`: {record_id: reason}) are neither: `unmodelled` lists them."""
+    design, apart = set(map(str, design_records)), dict(apart or {})
     tested = sorted(set(predictions["record_id"].astype(str)))
-    evaluation_records = [r for r in tested if r not in design]
+    evaluation_records = [r for r in tested if r not in design and r not in apart]
     entry = {"records": sorted(design), "design_specimens": sorted(map(str, design_specimens)),
              "tested_design_records": [r for r in tested if r in design],
              "tested_evaluation_records": evaluation_records,
              "evaluation_specimens": sorted({specimens[r] for r in evaluation_records
                                              if r in specimens})}
-    if not design:
+    if apart:
+        entry["unmodelled"] = {
+            "records": {r: {"specimen": specimens.get(r), "reason": apart[r],
+                            "tested": r in tested} for r in sorted(apart)},
+            "note": ("records of specimens the model does not describe: their figures are in rows "
+                     "of their own (records 'unmodelled'), never in the headline nor among "
+                     "the evaluation records")}
+    if not design and not apart:
         entry["headline_records"] = "all"
         entry["note"] = ("report.design_records is empty and the system declares no design "
                          "specimen: no record is declared as used in design")
@@ -808,7 +837,7 @@ def design_summary(predictions: pd.DataFrame, design_records, design_specimens,
 
 def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFrame,
                    measured_records, design_records, design_specimens=(),
-                   specimens: dict | None = None) -> None:
+                   specimens: dict | None = None, apart: dict | None = None) -> None:
     """summary.json: each result's honest figures (all test data), its accuracy per condition,
     its figures on design and evaluation records apart (`by_records`), and recall per specimen
     where records.csv names them (`specimens`: {record_id: specimen}, read here if None)."""
@@ -849,19 +878,19 @@ def add_evaluation(summary: dict, overall: pd.DataFrame, predictions: pd.DataFra
         by_records = mine[(mine["condition"] == evaluation.ALL) & (mine["records"] != evaluation.ALL)]
         result["accuracy_mean_by_records"] = {r.records: _json_number(r.accuracy_mean)
                                               for r in by_records.itertuples()}
-        if design_records:
+        if design_records or apart:
             # every figure on each side, the baselines and the gain on those records alone
             result["by_records"] = {
                 records: (_figures(by_records[by_records["records"] == records].iloc[0],
                                    ["accuracy_mean", *figures])
                           if (by_records["records"] == records).any() else
                           {"note": f"no {records} record tested"})
-                for records in ("evaluation", "design")}
+                for records in ("evaluation", "design") + ((evaluation.UNMODELLED,) if apart else ())}
         if len(recalls):
             result["recall_per_specimen"] = {s: _json_number(v)
                                              for s, v in recalls.loc[key].items()}
     summary["design_records"] = design_summary(predictions, design_records, design_specimens,
-                                               specimens)
+                                               specimens, apart)
     summary["repeats"] = (
         "a repeat redraws which measured records (time blocks, or segments under segment_share) "
         "join each share and seeds the fit (the CNN's initialisation and batches, a "
@@ -1009,14 +1038,19 @@ def write_report(inputs: ReportInputs) -> dict:
     log.info("%d metrics rows from %d files, %d predictions", len(accuracy),
              len(train.metrics), len(predictions))
 
-    design_records, specimens = chosen.design_records, {}
+    design_records, specimens, apart = chosen.design_records, {}, {}
     if features is not None:
         design_records, specimens = design_record_ids(design_records, chosen.design_specimens,
                                                       upstream.measured_records)
+        apart = unmodelled_records(dict(chosen.unmodelled), specimens)
+        if apart:
+            log.info("unmodelled records, reported apart and never in the headline: %s",
+                     apart)
     design_tested = bool(set(map(str, design_records)) & set(predictions["record_id"].astype(str)))
     with staging_directory(out.plots) as staging:
         plot_names = make_plots(accuracy, by_condition, (calibrations, spectra, history), staging,
-                                run, chosen.confusion_percent, shares, grouping, design_records)
+                                run, chosen.confusion_percent, shares, grouping, design_records,
+                                list(apart))
         # calibration.per_state: what each fault's own records tuned
         state_results = {state: json.loads(Path(path).read_text())
                          for state, path in inputs.calibration.states.items()}
@@ -1048,11 +1082,13 @@ def write_report(inputs: ReportInputs) -> dict:
         if features is not None:
             table, overall, physics_table, physics_overall, baseline_table = evaluation_tables(
                 predictions, baseline, labels, run.healthy_state, features, condition,
-                design_records, physics, baseline_predictions)
+                design_records, physics, baseline_predictions, list(apart))
             add_evaluation(summary, overall, predictions, upstream.measured_records,
-                           design_records, chosen.design_specimens, specimens)
+                           design_records, chosen.design_specimens, specimens, apart)
             measured_frame, names = read_feature_table(features)
-            separability = measured_separability(measured_frame, names, condition)
+            # the ceiling is the headline's too: on the modelled specimens' records alone
+            separability = measured_separability(
+                measured_frame[~measured_frame["record_id"].astype(str).isin(apart)], names, condition)
             summary["measured_separability"] = separability
             log.info("measured records alone, leave one record out: %s over all, %s per %s",
                      separability["all"]["balanced_accuracy"],
@@ -1090,8 +1126,10 @@ def write_report(inputs: ReportInputs) -> dict:
                                                    table, physics_table, baseline_table), separability)
             write_text(headline.to_csv(index=False), out.headline)
         if out.recall_per_record is not None:
-            write_text(recall_per_record(predictions, fault_lines, physics, outside).to_csv(index=False),
-                       out.recall_per_record)
+            per_record = recall_per_record(predictions, fault_lines, physics, outside)
+            # why a record is reported apart (empty for every modelled record)
+            per_record["unmodelled"] = [apart.get(r, "") for r in per_record["record_id"].astype(str)]
+            write_text(per_record.to_csv(index=False), out.recall_per_record)
         if fault_lines is not None:
             summary["fault_lines"] = fault_lines_summary(predictions, fault_lines, fault_line_rule)
         if out.prediction_shares is not None:

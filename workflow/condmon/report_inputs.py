@@ -105,6 +105,10 @@ class EvaluationInputs(_Frozen):
     # measured_records' `specimen`, count as design records too; the headline is then on the
     # evaluation records
     design_specimens: tuple[dict, ...] = ()
+    # {specimen: reason} of specimens the model does not describe (System.unmodelled_specimens):
+    # their records are reported in rows of their own, never in the headline nor as evaluation
+    # records
+    unmodelled: Mapping[str, str] = field(default_factory=dict)
     confusion_percent: tuple[int, ...] = (0,)   # report.confusion_percent (+ the largest)
     _sequences = ("design_records", "design_specimens", "confusion_percent")
 

@@ -35,6 +35,8 @@ SPEEDS = [speed_label(s) for s in SYSTEM.speeds_rpm]
 CONDITION = config["hybrid"]["condition"]
 CLASSIFIERS = [name for name, c in config["classifiers"].items() if c["enabled"]]
 PROTOCOLS = config["hybrid"]["protocols"]
+# the joined methods: a classifier inside its training range, the physics rule outside (joined.py)
+JOINED = list(config["joined"]["classifiers"])
 N_BATCHES = -(
     -config["simulation"]["samples_per_state"]
     // config["simulation"]["samples_per_job"]
@@ -114,6 +116,14 @@ def train_outputs(name):
     return expand(
         f"{RESULTS}/train/{{classifier}}/{{protocol}}/{name}",
         classifier=CLASSIFIERS,
+        protocol=PROTOCOLS,
+    )
+
+
+def joined_outputs(name):
+    return expand(
+        f"{RESULTS}/joined/joined_{{classifier}}/{{protocol}}/{name}",
+        classifier=JOINED,
         protocol=PROTOCOLS,
     )
 
@@ -317,6 +327,15 @@ def upstream_benchmarks():
         ),
         "physics_baseline": expand(
             rules.physics_baseline.benchmark, protocol=PROTOCOLS
+        ),
+        **(
+            {
+                "joined": expand(
+                    rules.joined.benchmark, classifier=JOINED, protocol=PROTOCOLS
+                )
+            }
+            if JOINED
+            else {}
         ),
     }
 

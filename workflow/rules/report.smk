@@ -77,8 +77,9 @@ rule report:
             for state in STATE_CALIBRATIONS
         },
         **{f"benchmarks_{rule}": files for rule, files in upstream_benchmarks().items()},
-        metrics=train_outputs("metrics.csv"),
-        predictions=train_outputs("predictions.parquet"),
+        # the classifiers' and the joined methods' (scored alike, beside their parts)
+        metrics=train_outputs("metrics.csv") + joined_outputs("metrics.csv"),
+        predictions=train_outputs("predictions.parquet") + joined_outputs("predictions.parquet"),
         # one calibration per variant (dict keys of the same order in each)
         simulation_reports=simulated_batches("json"),
         measured_only=train_outputs("measured_only.csv"),
@@ -123,6 +124,9 @@ rule report:
         design_records=config["report"]["design_records"],
         # the specimens whose records the design looked at (records.csv's specimen)
         design_specimens=SYSTEM.design_specimens(),
+        # {specimen: reason} of specimens the model does not describe: reported apart, never in
+        # the headline
+        unmodelled=SYSTEM.unmodelled_specimens(),
     conda:
         "../envs/report.yaml"
     benchmark:

@@ -60,3 +60,31 @@ rule physics_baseline:
         f"{LOGS}/physics_baseline/{{protocol}}.log",
     script:
         "../scripts/physics_baseline.py"
+
+
+# The joined method (condmon/joined.py): the classifier's call where a test segment lies inside
+# its fit's training range, the physics rule's outside it; in train's format, so the report
+# scores it beside both parts.
+rule joined:
+    input:
+        predictions=rules.train.output.predictions,
+        metrics=rules.train.output.metrics,
+        info=rules.train.output.info,
+        rule=rules.physics_baseline.output.predictions,
+        simulated=rules.features_simulated.output.features,
+        measured=rules.features_measured.output.features,
+        splits=rules.hybrid.output.splits,
+    output:
+        predictions=f"{RESULTS}/joined/joined_{{classifier}}/{{protocol}}/predictions.parquet",
+        metrics=f"{RESULTS}/joined/joined_{{classifier}}/{{protocol}}/metrics.csv",
+        info=f"{RESULTS}/joined/joined_{{classifier}}/{{protocol}}/info.json",
+    params:
+        classifier=lambda wc: wc.classifier,
+    conda:
+        "../envs/learning.yaml"
+    benchmark:
+        f"{BENCHMARKS}/joined/{{classifier}}_{{protocol}}.tsv"
+    log:
+        f"{LOGS}/joined/{{classifier}}_{{protocol}}.log",
+    script:
+        "../scripts/joined.py"

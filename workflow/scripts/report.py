@@ -39,6 +39,7 @@ summary = write_report(ReportInputs(
                                 simulated_features=inputs.get("simulated_features"),
                                 condition=params.condition, design_records=params.design_records,
                                 design_specimens=params.design_specimens,
+                                unmodelled=params.get("unmodelled", {}),
                                 confusion_percent=params.get("confusion_percent", [0])),
     upstream=StageRecords(simulation_reports=inputs.simulation_reports,
                           measured_records=inputs.measured_records,

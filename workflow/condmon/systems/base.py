@@ -166,6 +166,13 @@ class System(ABC):
         (none by default; `report.design_records` names single records)."""
         return []
 
+    def unmodelled_specimens(self) -> dict[str, str]:
+        """{specimen (records.csv's `specimen`): reason} of specimens the model does not describe
+        (another part: its geometry unknown or different): the report gives their records in
+        rows of their own ("unmodelled") and never in the headline nor among the evaluation
+        records (none by default)."""
+        return {}
+
     def job_config(self, stage: str, variant: str | None = None) -> dict:
         """The config a job of `stage` ("bench", "measured", "calibrate", "simulate",
         "features") depends on: by default every section the system owns and the measured

@@ -122,11 +122,24 @@ class BearingSystem(System):
         return [specimen_name(s["fault"], s.get("diameter_in", 0.0), s.get("position"))
                 for s in self.config["cwru"]["design_specimens"]]
 
+    def unmodelled_specimens(self) -> dict[str, str]:
+        """`cwru.other_bearing` (specimens of another bearing than bearing.geometry) as
+        {records.csv specimen name: reason} (a measured_table's records carry no CWRU specimen:
+        none)."""
+        if self.measured_table:
+            return {}
+        from condmon.systems.bearing.cwru import specimen_name
+
+        return {specimen_name(s["fault"], s.get("diameter_in", 0.0), s.get("position")): s["reason"]
+                for s in self.config["cwru"]["other_bearing"]}
+
     def job_config(self, stage: str, variant: str | None = None) -> dict:
         config = super().job_config(stage, variant)
-        # the design specimens concern the report alone (its own param): an edit reruns nothing else
+        # the design and other-bearing specimens concern the report alone (its own params): an
+        # edit reruns nothing else
         if "cwru" in config:
-            config["cwru"] = {k: v for k, v in config["cwru"].items() if k != "design_specimens"}
+            config["cwru"] = {k: v for k, v in config["cwru"].items()
+                              if k not in ("design_specimens", "other_bearing")}
         if stage == "features":
             return {"bearing": {"geometry": self.bearing["geometry"]}}
         if stage == "baselines":  # the labels and the envelope rule's setting, nothing else
@@ -169,8 +182,14 @@ class BearingSystem(System):
             if not config["measured_table"]:
                 problems.append("bearing.health_states: CWRU files are labelled by cwru.task; own labels "
                                 "need a measured_table")
-        for i, specimen in enumerate(config["cwru"]["design_specimens"]):
-            where = f"cwru.design_specimens[{i}] ({specimen})"
+        both = set(self.design_specimens()) & set(self.unmodelled_specimens())
+        if both:
+            problems.append(f"cwru: {sorted(both)} both a design specimen and another bearing "
+                            "(cwru.other_bearing): a record of another bearing tunes nothing")
+        entries = [(key, i, specimen) for key in ("design_specimens", "other_bearing")
+                   for i, specimen in enumerate(config["cwru"][key])]
+        for key, i, specimen in entries:
+            where = f"cwru.{key}[{i}] ({specimen})"
             if (specimen["fault"] == "outer_race") != ("position" in specimen):
                 problems.append(f"{where}: an outer-race specimen, and only one, names its position "
                                 "(3:00, 6:00 or 12:00)")
