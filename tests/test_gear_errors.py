@@ -299,17 +299,27 @@ def test_pitting_starts_between_the_lowest_point_of_single_contact_and_the_pitch
         pitted_flank_map(3e-5, 0.3, (0.6, 0.4), np.random.default_rng(4))
 
 
-def test_either_surface_fault_form_is_drawn():
-    from condmon.models.gear.mesh_force import damage_maps, surface_fault_form
+def test_pitting_is_the_surface_fault_and_wear_a_state_of_its_own():
+    from condmon.models.gear.mesh_force import (contact_stiffness_factors, damage_maps, pitting_band,
+                                                surface_fault_form)
 
-    p = GearDrivetrainParameters(health_state="surface_fault", surface_fault_model="wear_or_pitting")
-    forms = {surface_fault_form(p.replace(wear_seed=seed)) for seed in range(4)}
-    assert forms == {"wear", "pitting"}
-    maps = damage_maps(p.replace(wear_seed=1))  # pitting on the surface fault's three teeth
-    assert [i for i, m in enumerate(maps) if m is not None] == [0, 1, 2]
-    worn = damage_maps(p.replace(wear_seed=0))  # wear: every tooth slides alike, every tooth wears
+    p = GearDrivetrainParameters(health_state="surface_fault", surface_fault_teeth=4)
+    assert surface_fault_form(p) == "pitting"
+    maps = damage_maps(p)  # pitting on the surface fault's teeth only
+    assert [i for i, m in enumerate(maps) if m is not None] == [0, 1, 2, 3]
+    # progressive pitting spreads beyond the band where it starts
+    low, high = pitting_band(p)
+    assert pitting_band(p.replace(pitting_growth=0.1)) == pytest.approx((low - 0.1, high + 0.1))
+    worn = damage_maps(p.replace(health_state="wear"))  # wear: every tooth slides alike, every tooth wears
     assert all(m is not None for m in worn) and len(worn) == p.geometry.teeth_pinion
     assert not np.array_equal(worn[0].array(), worn[1].array())  # each its own rough surface
+    # the CFRP study's -15 %: on the surface fault's teeth, or on the whole mesh
+    teeth_only = contact_stiffness_factors(p.replace(surface_fault_model="stiffness_loss"))
+    assert teeth_only[:4] == [0.85] * 4 and teeth_only[4:] == [1.0] * (p.geometry.teeth_pinion - 4)
+    assert contact_stiffness_factors(p.replace(surface_fault_model="mesh_stiffness_loss")) == \
+        [0.85] * p.geometry.teeth_pinion
+    assert contact_stiffness_factors(p.replace(surface_fault_model="mesh_stiffness_loss",
+                                               health_state="wear")) == [1.0] * p.geometry.teeth_pinion
     with pytest.raises(ValueError, match="unknown surface_fault_model"):
         surface_fault_form(p.replace(surface_fault_model="rust"))
 

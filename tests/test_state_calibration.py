@@ -174,7 +174,7 @@ def test_the_report_draws_each_tuned_states_convergence(tmp_path):
     from condmon.report_inputs import RunIdentity
 
     history = pd.DataFrame({"generation": [0, 0, 1, 1], "evaluation": [0, 1, 2, 3],
-                            "model_variant": ["wear", "pitting", "pitting", "wear"],
+                            "model_variant": ["pitting", "pitting", "pitting", "pitting"],
                             "cost": [0.2, 0.08, 0.06, 0.1], "seconds": 1.0, "error": ""})
     history.to_parquet(tmp_path / "history.parquet")
     run = RunIdentity(run_name="run", data_source="virtual_bench", state_models=("surface_fault",))

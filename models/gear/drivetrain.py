@@ -197,11 +197,12 @@ class GearDrivetrainParameters:
     health_state: str = "healthy"
     faulty_tooth: int = 0
     surface_fault_teeth: int = 3
-    surface_fault_model: str = "wear"      # "pitting", or "stiffness_loss" (the CFRP study's)
-    wear_depth: float = 2.0e-5             # material removed at root and tip, m
+    surface_fault_model: str = "pitting"   # or "stiffness_loss" / "mesh_stiffness_loss" (the CFRP study's)
+    wear_depth: float = 2.0e-5             # wear: material removed at root and tip, m
     wear_roughness: float = 2.0e-6         # rms of the worn surface, m
     pit_depth: float = 3.0e-5              # pitting: the deepest crater, m
     pitted_area: float = 0.3               # pitting: share of the contact-fatigue band pitted
+    pitting_growth: float = 0.0            # pitting: roll fraction it spread beyond that band, each side
     wear_seed: int = 0                     # the damaged surfaces' draw
     surface_fault_stiffness_loss: float = 0.15
     spall_profile: tuple = (0.35, 0.65)

@@ -53,16 +53,18 @@ from condmon.models.gear.mesh_kernel import (BACK_FLANK, DEFLECTION_REF, TOO_MAN
                                              tvms_steady_force)
 from condmon.models.numerics import SimulationError
 
-MESH_HEALTH_STATES = ("healthy", "surface_fault", "missing_tooth", "spall", "chipped_tooth", "root_crack")
+MESH_HEALTH_STATES = ("healthy", "surface_fault", "wear", "missing_tooth", "spall", "chipped_tooth", "root_crack")
 # States of a drivetrain whose mesh is healthy: the damage is in a shaft (drivetrain.py).
 SHAFT_HEALTH_STATES = ("shaft_crack", "delamination")
 HEALTH_STATES = MESH_HEALTH_STATES + SHAFT_HEALTH_STATES
 MESH_STIFFNESS_MODELS = ("potential_energy", "simple")
-# A surface fault as material removed by sliding wear (`wear_depth`, `wear_roughness`) or by
-# pitting (`pit_depth`, `pitted_area`), or as the CFRP study's loss of contact stiffness
-# (`surface_fault_stiffness_loss`), kept to compare with it.
-# `wear_or_pitting`: one of the two, by the parity of `wear_seed` (a random seed: half and half).
-SURFACE_FAULT_MODELS = ("wear", "pitting", "wear_or_pitting", "stiffness_loss")
+# A surface fault as a gear engineer names it: localised pitting (contact fatigue on
+# `surface_fault_teeth` teeth, `pit_depth`, `pitted_area`; ISO 10825), or as the CFRP study's loss of
+# contact stiffness (`surface_fault_stiffness_loss`), on the surface fault's teeth (`stiffness_loss`)
+# or on every tooth of the mesh (`mesh_stiffness_loss`, the study's whole-mesh -15 %), kept to
+# compare with it. Sliding wear of every tooth is a health state of its own (`wear`), never a
+# surface fault: it is another kind of damage (ISO 10825) with another signature.
+SURFACE_FAULT_MODELS = ("pitting", "stiffness_loss", "mesh_stiffness_loss")
 MAX_DEFLECTION = 1.0e-3  # m; a mesh deflection beyond this is divergence
 EDGE_CONTACT = 0.02      # a pair stiffness at its window's edge above this share of the peak: extended contact
 MAX_CONTACTS = 64        # tooth contacts one call can hold (a helical pair: about 3, a spur pair in extended contact: 6)
@@ -97,50 +99,61 @@ def surface_fault_teeth(p) -> list[int]:
 
 
 def surface_fault_form(p) -> str:
-    """The surface fault's form in `p`: its `surface_fault_model`, with `wear_or_pitting` resolved."""
+    """The surface fault's form in `p`: its `surface_fault_model`."""
     if p.surface_fault_model not in SURFACE_FAULT_MODELS:
         raise ValueError(f"unknown surface_fault_model {p.surface_fault_model!r}; "
                          f"choose one of {list(SURFACE_FAULT_MODELS)}")
-    if p.surface_fault_model == "wear_or_pitting":
-        return "wear" if int(p.wear_seed) % 2 == 0 else "pitting"
     return p.surface_fault_model
 
 
 def contact_stiffness_factors(p) -> list[float]:
     """Factor on the contact stiffness of every pinion tooth: 1 - surface_fault_stiffness_loss on
-    the surface fault's teeth (`surface_fault_model: stiffness_loss`), 1 elsewhere."""
+    the surface fault's teeth (`surface_fault_model: stiffness_loss`) or on every tooth
+    (`mesh_stiffness_loss`, the CFRP study's whole mesh), 1 elsewhere."""
     factors = [1.0] * p.geometry.teeth_pinion
-    if p.health_state == "surface_fault" and surface_fault_form(p) == "stiffness_loss":
-        for tooth in surface_fault_teeth(p):
-            factors[tooth] = 1.0 - p.surface_fault_stiffness_loss
+    if p.health_state != "surface_fault":
+        return factors
+    form = surface_fault_form(p)
+    weakened = {"stiffness_loss": surface_fault_teeth(p), "mesh_stiffness_loss": range(len(factors))}.get(form, ())
+    for tooth in weakened:
+        factors[tooth] = 1.0 - p.surface_fault_stiffness_loss
     return factors
+
+
+def pitting_band(p) -> tuple[float, float]:
+    """The roll fractions pitting covers: the contact-fatigue band where it starts (from the lowest
+    point of single tooth contact up to the pitch point), grown by `pitting_growth` on either
+    side, as progressive pitting spreads over the dedendum and across the pitch line."""
+    low, high = contact_fatigue_band(p.geometry)
+    return max(0.0, low - p.pitting_growth), min(1.0, high + p.pitting_growth)
 
 
 def damage_maps(p) -> tuple:
     """Every pinion tooth's damage map (material removed, `errors.FlankMap`, or None): a bench's own
-    damage `damage_maps_pinion` plus, for a surface fault, wear of every tooth or pitting of its
-    teeth (each tooth its own surface, from `wear_seed`), or for a tooth broken off short of its
-    root (`missing_share` < 1) the part gone."""
+    damage `damage_maps_pinion` plus, for a surface fault, pitting of its teeth, for wear, sliding
+    wear of every tooth (each tooth its own surface, from `wear_seed`), or for a tooth broken off
+    short of its root (`missing_share` < 1) the part gone."""
     teeth = p.geometry.teeth_pinion
-    if p.health_state == "missing_tooth" and not whole_tooth_missing(p):
-        damage = [None] * teeth
-        damage[p.faulty_tooth % teeth] = broken_tooth_flank_map(p.missing_share)
-        return add_flank_maps(tuple(p.damage_maps_pinion), tuple(damage))
-    form = surface_fault_form(p)
-    if p.health_state != "surface_fault" or form not in ("wear", "pitting"):
-        return tuple(p.damage_maps_pinion)
-    depth = p.wear_depth if form == "wear" else p.pit_depth
-    if depth <= 0:
-        raise ValueError(f"{form}: a damaged flank has lost material (depth {depth} m, > 0)")
-    rng = np.random.default_rng([int(p.wear_seed), 0x3EA2])
-    pitch_line = p.geometry.roll_fraction(p.geometry.pitch_point)
-    band = contact_fatigue_band(p.geometry)
     damage = [None] * teeth
-    # wear removes material where the flanks slide, and every tooth slides alike (Archard): all
-    # teeth wear, each its own rough surface; pitting starts on a few teeth (surface_fault_teeth)
-    for tooth in (range(teeth) if form == "wear" else surface_fault_teeth(p)):
-        damage[tooth] = (wear_flank_map(p.wear_depth, p.wear_roughness, rng, pitch_line=pitch_line) if form == "wear"
-                         else pitted_flank_map(p.pit_depth, p.pitted_area, band, rng))
+    rng = np.random.default_rng([int(p.wear_seed), 0x3EA2])
+    if p.health_state == "missing_tooth" and not whole_tooth_missing(p):
+        damage[p.faulty_tooth % teeth] = broken_tooth_flank_map(p.missing_share)
+    elif p.health_state == "wear":
+        # wear removes material where the flanks slide, and every tooth slides alike (Archard): all
+        # teeth wear, each its own rough surface
+        if p.wear_depth <= 0:
+            raise ValueError(f"wear: a worn flank has lost material (depth {p.wear_depth} m, > 0)")
+        pitch_line = p.geometry.roll_fraction(p.geometry.pitch_point)
+        damage = [wear_flank_map(p.wear_depth, p.wear_roughness, rng, pitch_line=pitch_line) for _ in range(teeth)]
+    elif p.health_state == "surface_fault" and surface_fault_form(p) == "pitting":
+        # contact fatigue starts on a few teeth (surface_fault_teeth), each its own craters
+        if p.pit_depth <= 0:
+            raise ValueError(f"pitting: a pitted flank has lost material (depth {p.pit_depth} m, > 0)")
+        band = pitting_band(p)
+        for tooth in surface_fault_teeth(p):
+            damage[tooth] = pitted_flank_map(p.pit_depth, p.pitted_area, band, rng)
+    else:
+        return tuple(p.damage_maps_pinion)
     return add_flank_maps(tuple(p.damage_maps_pinion), tuple(damage))
 
 

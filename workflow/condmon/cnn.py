@@ -60,9 +60,11 @@ log = logging.getLogger(__name__)
 EPOCH_LOG_SECONDS = 10.0
 
 # band spectra the CNN reads, per channel: Hz bands, or a system's order bands (``ord_<channel>_<order>x``)
-# when there are no Hz bands (features.kind: order)
+# when there are no Hz bands (features.kind: order), or else the residual signatures' bands of each
+# channel and shaft (``res_<channel>_<shaft>_b<k>``, features.kind: residual)
 FEATURE_NAME = re.compile(r"fft_(?P<channel>.+)_(?P<band>[0-9.]+)Hz")
 ORDER_NAME = re.compile(r"ord_(?P<channel>.+)_(?P<band>[0-9.]+)x")
+RESIDUAL_NAME = re.compile(r"res_(?P<channel>.+)_b(?P<band>[0-9]+)")
 HISTORY_COLUMNS = ["member", "epoch", "train_loss", "train_accuracy", "val_loss",
                    "val_accuracy"]
 DEVICES = ("auto", "cpu", "cuda")
@@ -144,9 +146,10 @@ class EnsembleModule(nn.Module):
 
 def band_pattern(feature_names):
     """The band-spectrum names among `feature_names`: the Hz bands if there are any, else the
-    order bands."""
+    order bands if any, else the residual bands."""
     names = [str(name) for name in feature_names]
-    return FEATURE_NAME if any(FEATURE_NAME.fullmatch(n) for n in names) else ORDER_NAME
+    return next((pattern for pattern in (FEATURE_NAME, ORDER_NAME) if any(pattern.fullmatch(n) for n in names)),
+                RESIDUAL_NAME)
 
 
 def channels_from_feature_names(feature_names) -> int | None:

@@ -126,9 +126,9 @@ def cross_field_problems(config: dict) -> list[str]:
     families = config["features"]["kind"].split("+")
     if len(set(families)) != len(families):
         problems.append(f"features.kind: {config['features']['kind']!r} names a family twice")
-    if (config["classifiers"]["cnn"]["enabled"] and "spectrum" not in families and "order" not in families
+    if (config["classifiers"]["cnn"]["enabled"] and not {"spectrum", "order", "residual"} & set(families)
             and families != ["statistical"]):
-        problems.append(f"classifiers.cnn: the CNN reads band spectra (Hz or orders) and features.kind "
+        problems.append(f"classifiers.cnn: the CNN reads band spectra (Hz, orders or residual orders) and features.kind "
                         f"{config['features']['kind']!r} has none; add spectrum (e.g. spectrum+{families[0]}) "
                         "or disable the CNN")
     names = config["features"]["statistical"]["names"]

@@ -226,24 +226,40 @@ def family_table(signal_frame: pd.DataFrame, channels, kind: str, family_params:
 def compute_feature_table_from_files(paths, channels, kind: str, family_params: dict,
                                      defect_orders: dict | None = None,
                                      system_families: dict | None = None) -> pd.DataFrame:
-    """Features of several signal tables in one table (read one at a time to bound memory):
-    `family_table` of each (its arguments), rows sorted by record and segment."""
-    feature_families(kind, tuple(system_families or {}))  # an unknown family: before any read
-    frames = []
-    for path in paths:
-        log.info("%s features of %s", kind, path)
-        frames.append(family_table(read_signal_table(path), channels, kind, family_params,
-                                   defect_orders, system_families))
+    """Features of several signal tables in one table: `family_table` of each (its arguments),
+    rows sorted by record and segment. Read one at a time to bound memory, unless a family of
+    `kind` takes every segment against its machine's reference itself (`takes_reference`: a
+    system family; the reference may lie in another file, e.g. a simulated sample's healthy twin),
+    which reads every record at once. The table's `attrs` carry what such a family hands on
+    (`referenced_columns`, its references)."""
+    system_families = system_families or {}
+    families = feature_families(kind, tuple(system_families))  # an unknown family: before any read
+    if any(getattr(system_families.get(family), "takes_reference", False) for family in families):
+        log.info("%s features of %d signal tables at once", kind, len(paths))
+        tables = [read_signal_table(path) for path in paths]
+        if not tables:
+            raise FeatureTableError("no signal tables given")
+        frames = [family_table(pd.concat(tables, ignore_index=True), channels, kind, family_params,
+                               defect_orders, system_families)]
+    else:
+        frames = []
+        for path in paths:
+            log.info("%s features of %s", kind, path)
+            frames.append(family_table(read_signal_table(path), channels, kind, family_params,
+                                       defect_orders, system_families))
     if not frames:
         raise FeatureTableError("no signal tables given")
-    frame = pd.concat(frames, ignore_index=True)
+    attrs = frames[0].attrs if len(frames) == 1 else {}
+    frame = pd.concat([without_attrs(f) for f in frames], ignore_index=True)
     single_sampling_rate(frame, where="signal tables " + ", ".join(map(str, paths)))
     duplicated = frame.duplicated(["record_id", "segment"])
     if duplicated.any():
         first = frame.loc[duplicated].iloc[0]
         raise FeatureTableError(f"record {first.record_id!r} segment {first.segment} appears in "
                                 "more than one signal table")
-    return frame.sort_values(["record_id", "segment"]).reset_index(drop=True)
+    frame = frame.sort_values(["record_id", "segment"]).reset_index(drop=True)
+    frame.attrs = dict(attrs)
+    return frame
 
 
 def side_by_side(parts: list[pd.DataFrame]) -> pd.DataFrame:
@@ -253,7 +269,18 @@ def side_by_side(parts: list[pd.DataFrame]) -> pd.DataFrame:
     for part in parts[1:]:
         if not part[ID_COLUMNS].equals(ids):  # a guard: to_arrays sorts every family alike
             raise FeatureTableError("feature families disagree on the segments' order")
-    return pd.concat([ids] + [part[feature_columns(part)] for part in parts], axis=1)
+    attrs = {key: value for part in parts for key, value in part.attrs.items()}
+    joined = pd.concat([without_attrs(ids)] + [without_attrs(part[feature_columns(part)]) for part in parts], axis=1)
+    joined.attrs = attrs
+    return joined
+
+
+def without_attrs(frame: pd.DataFrame) -> pd.DataFrame:
+    """`frame` with empty `attrs`: pandas compares the attrs of what it concatenates, and a family's
+    references (a table) cannot be compared so."""
+    frame = frame.copy(deep=False)
+    frame.attrs = {}
+    return frame
 
 
 def feature_columns(frame: pd.DataFrame) -> list[str]:

@@ -42,7 +42,7 @@ from condmon.hybrid import SIMULATED_VALIDATION
 from condmon.labels import (LEAKY_PROTOCOLS, data_source_label, format_speed, is_synthetic,
                             label_order, protocol_label, protocol_title)
 from condmon.report_inputs import CalibrationOutputs, ReportInputs, RunIdentity
-from condmon.separability import measured_separability
+from condmon.separability import SHOWN_RECALL, measured_separability
 from condmon.signature import fault_signatures, outside_simulation, signature_table
 from condmon.train_tables import ReportInputError, load_metrics, load_predictions, read_table
 
@@ -1093,6 +1093,11 @@ def write_report(inputs: ReportInputs) -> dict:
             log.info("measured records alone, leave one record out: %s over all, %s per %s",
                      separability["all"]["balanced_accuracy"],
                      {k: v["balanced_accuracy"] for k, v in separability["per_condition"].items()}, condition)
+            for value, entry in separability["per_condition"].items():
+                if entry["not_shown"]:  # no simulation can be asked to find what its own records do not show
+                    log.warning("%s %s: the measured records' own classifier finds %s less than %.0f %% of the "
+                                "time (exempt from the simulation-trained figures)", condition, value,
+                                entry["not_shown"], 100 * SHOWN_RECALL)
             if chosen.simulated_features is not None and run.healthy_state is not None:
                 signature_plots, outside = signature_report(
                     summary, measured_frame, names, chosen.simulated_features, run.healthy_state,

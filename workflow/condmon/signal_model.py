@@ -173,13 +173,15 @@ class SignalModel:
             raise ValueError(f"the features of this signal table lack {missing[:5]} that the model "
                              "was trained on; is condmon newer than the model?")
         ids = table[["record_id", "segment", "health_state", "speed_rpm", "load"]]
-        x = table[f["feature_names"]].to_numpy(np.float64)
+        x = table[f["feature_names"]].to_numpy(np.float64, copy=True)
         reference = self.reference()
         if reference is not None:  # the change since the machine was known healthy, as in training
             condition, values = reference
             nearest, _ = nearest_reference(values, table[condition],
                                            float(self.domain.get("speed_tolerance", SPEED_TOLERANCE)))
-            x = x - values[f["feature_names"]].to_numpy(np.float64)[nearest]
+            # a family that took its reference itself (its columns are not in the table) stays
+            referred = [j for j, name in enumerate(f["feature_names"]) if name in values.columns]
+            x[:, referred] -= values[[f["feature_names"][j] for j in referred]].to_numpy(np.float64)[nearest]
         return ids, x.astype(np.float32)
 
     def predict_segments(self, frame: pd.DataFrame) -> pd.DataFrame:

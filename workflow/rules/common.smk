@@ -283,10 +283,21 @@ def healthy_reference_params(source):
 
 
 def measured_reference_output():
-    """The measured features job's reference table, only with the reference on."""
+    """The measured features job's reference table, only with the reference on; with a system
+    family that takes its reference itself (a waveform, not a mean feature), that family's
+    references too."""
     if not HEALTHY_REFERENCE["enabled"]:
         return {}
-    return {"reference": f"{RESULTS}/features/measured_reference.parquet"}
+    outputs = {"reference": f"{RESULTS}/features/measured_reference.parquet"}
+    own = SYSTEM.feature_families()
+    if any(
+        getattr(own.get(f), "takes_reference", False)
+        for f in config["features"]["kind"].split("+")
+    ):
+        outputs["family_references"] = (
+            f"{RESULTS}/features/measured_family_references.parquet"
+        )
+    return outputs
 
 
 # hybrid.simulated_validation_share > 0: the split table also lists the simulated records held out

@@ -21,28 +21,39 @@ families = dict(getattr(snakemake.params, "families", None) or {})  # the system
 
 # the system says where its envelope lines are (its defect orders), if it has any, and computes its own families
 system = load_system(snakemake.params.system)
+against = getattr(snakemake.params, "healthy_reference", None)
+family_params = {family: dict(params) for family, params in families.items()}
+own = system.feature_families()
+for family in family_params:  # a family that takes every machine against its reference itself
+    if getattr(own.get(family), "takes_reference", False):
+        family_params[family]["against"] = dict(against) if against else None
 frame = compute_feature_table_from_files(signal_paths, channels, kind,
-                                         {"spectrum": spectrum, "statistical": statistical,
-                                          **{family: dict(params) for family, params in families.items()}},
+                                         {"spectrum": spectrum, "statistical": statistical, **family_params},
                                          system.defect_orders(), system.feature_families())
 names = feature_columns(frame)
+referenced = list(frame.attrs.get("referenced_columns", ()))  # a family that took its reference itself
+family_references = frame.attrs.get("references")  # ... and its measured references, to package
+frame.attrs = {}
 config = {"channels": channels, "spectrum": spectrum, "kind": kind, "statistical": statistical}
 config.update(families)  # only with a system family, so the other families' config hash stays as it was
 
-# features.healthy_reference: each machine's features against its own healthy reference
-against = getattr(snakemake.params, "healthy_reference", None)
+# features.healthy_reference: each machine's features against its own healthy reference (a
+# family that subtracts its reference as a waveform has done so already: its own columns stay)
 if against:
     config["healthy_reference"] = dict(against)
+    levels = [name for name in names if name not in referenced]
     if against["source"] == "measured":
-        table = reference.measured_reference(frame, names, against["healthy_state"], against["condition"],
+        table = reference.measured_reference(frame, levels, against["healthy_state"], against["condition"],
                                              dict(against["reserve"]))
-        frame = reference.refer_measured(frame, names, table, against["condition"])
+        frame = reference.refer_measured(frame, levels, table, against["condition"])
+        if "family_references" in snakemake.output.keys():
+            write_frame(family_references, snakemake.output.family_references)
         write_frame(reference.reference_table(table, against["condition"]), snakemake.output.reference)
         log.info("measured segments taken against the calibration set's mean at %s %s", against["condition"],
                  sorted(table.index.tolist()))
     else:
         before = frame["record_id"].nunique()
-        frame = reference.refer_simulated(frame, names, against["healthy_state"], int(against["segments_per_sample"]))
+        frame = reference.refer_simulated(frame, levels, against["healthy_state"], int(against["segments_per_sample"]))
         log.info("simulated samples taken against their healthy twins' last %s segment(s): %d of %d records kept",
                  against["reference_segments"], frame["record_id"].nunique(), before)
 write_feature_table(frame, names, snakemake.output.features, kind=kind, config=config)

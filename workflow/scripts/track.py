@@ -29,6 +29,12 @@ try:
         if "reference" in inputs.keys():  # features.healthy_reference: new records taken against it too
             features["reference"] = {"condition": params.condition,
                                      "table": pd.read_parquet(inputs.reference).to_dict("list")}
+        if "family_references" in inputs.keys():  # a family's own references (waveforms), packaged in its params
+            own = load_system(params.features_system).feature_families()
+            features["families"] = {family: dict(settings, **({"reference_patterns": pd.read_parquet(
+                                        inputs.family_references).to_dict("list")}
+                                        if getattr(own.get(family), "takes_reference", False) else {}))
+                                    for family, settings in (features.get("families") or {}).items()}
         index = build_store(store, train_dirs, dict(zip(params.protocols, inputs.splits)),
                             inputs.measured_signals, inputs.features_simulated, inputs.features_measured,
                             features, params.healthy_state, dict(params.measured_system), params.config_hash)

@@ -19,6 +19,7 @@ import numpy as np
 from condmon.calibrate import Bound, calibrate_on_spectra
 from condmon.models.gear.drivetrain import (Drivetrain, SimulationSettings, operating_mesh_stiffness, sensor_channels,
                                             simulate)
+from condmon.models.gear.shaft_damage import SHAFT_HEALTH_STATES
 from condmon.systems.base import System
 from condmon.systems.gear.parameters import (CALIBRATABLE, STATE_SEVERITY, build_parameters,
                                              measured_fluctuation_fields, perturb, sample_effects,
@@ -315,21 +316,41 @@ class GearSystem(System):
         return float(self.config["model"]["load_torque"])
 
     # -- features ----------------------------------------------------------------------------
-    # -- features: the order-domain gear diagnostics (order_features.py) ----------------------
+    # -- features: the order-domain gear diagnostics (order_features.py) and the residual
+    # signatures against each machine's healthy reference (residual_features.py) -------------
     def feature_families(self) -> dict:
         from condmon.systems.gear.order_features import order_feature_table
+        from condmon.systems.gear.residual_features import residual_feature_table
 
-        return {"order": order_feature_table}
+        return {"order": order_feature_table, "residual": residual_feature_table}
 
     def feature_family_params(self, family: str) -> dict:
-        return {"shafts": [list(shaft) for shaft in self.shafts()]}
+        shafts = {"shafts": [list(shaft) for shaft in self.shafts()]}
+        if family == "residual":  # the shafts whose gear or shaft the simulated faults damage
+            shafts["damaged_shafts"] = self.damaged_shafts()
+        return shafts
+
+    def damaged_shafts(self) -> list[str]:
+        """The shafts the health states damage: the pinion's (every tooth fault is on a pinion
+        tooth) and, with a shaft fault, `model.damaged_shaft`'s (0: the input shaft)."""
+        names = [name for name, _, _ in self.shafts()]
+        damaged = {names[0]} if set(self.health_states) - {self.healthy_state} - set(SHAFT_HEALTH_STATES) else set()
+        if set(self.health_states) & set(SHAFT_HEALTH_STATES):
+            damaged.add(names[int(self.config["model"].get("damaged_shaft", 0))])
+        return [name for name in names if name in damaged] or names[:1]
 
     def feature_family_problems(self, family: str, order: dict) -> list[str]:
-        """What keeps the order features (`features.order`) from working on this rig's records:
-        no gears, orders above the Nyquist order at the highest speed, a segment shorter than one
-        revolution of a shaft or too short for the order bands."""
+        """What keeps the order features (`features.order`) or the residual signatures
+        (`features.residual`) from working on this rig's records: no gears, no healthy reference
+        (residual), orders above the Nyquist order at the highest speed, a segment shorter than
+        one revolution of a shaft or too short for the order bands."""
         shafts = self.shafts()
         problems = []
+        if family == "residual":
+            if not self.config["features"]["healthy_reference"]["enabled"]:
+                problems.append("features.kind residual: the residual signatures take every machine against "
+                                "its own healthy reference; set features.healthy_reference.enabled: true")
+            return problems + self._order_problems("features.residual", shafts, order["mesh_harmonics"])
         fastest, slowest = max(self.speeds_rpm) / 60, min(self.speeds_rpm) / 60
         seconds = (self.segment_length - 1) / self.output_rate_hz
         nyquist_order = self.output_rate_hz / 2 / fastest
@@ -339,17 +360,24 @@ class GearSystem(System):
         if 1 / (seconds * slowest) > order["resolution_orders"]:
             problems.append(f"features.order.resolution_orders: {order['resolution_orders']} is finer than the "
                             f"{1 / (seconds * slowest):.3g} orders a segment resolves at {min(self.speeds_rpm):g} rpm")
+        return problems + self._order_problems("features.order", shafts, order["mesh_harmonics"])
+
+    def _order_problems(self, section: str, shafts, mesh_harmonics: int) -> list[str]:
+        """Whole revolutions of every shaft in a segment, its mesh harmonics below the Nyquist order."""
+        fastest, slowest = max(self.speeds_rpm) / 60, min(self.speeds_rpm) / 60
+        seconds = (self.segment_length - 1) / self.output_rate_hz
+        nyquist_order = self.output_rate_hz / 2 / fastest
+        problems = []
         for name, ratio, teeth in shafts:
             if seconds * slowest * ratio < 1:
                 problems.append(f"rig: a segment holds less than one revolution of the {name} at "
                                 f"{min(self.speeds_rpm):g} rpm; the order features average whole revolutions")
-            top = (order["mesh_harmonics"] * teeth + 1) * ratio
+            top = (mesh_harmonics * teeth + 1) * ratio
             if top > nyquist_order:
-                problems.append(f"features.order.mesh_harmonics: the {name}'s harmonic {order['mesh_harmonics']} "
+                problems.append(f"{section}.mesh_harmonics: the {name}'s harmonic {mesh_harmonics} "
                                 f"and its sideband (input order {top:g}) lie above the Nyquist order "
                                 f"{nyquist_order:.1f} at {max(self.speeds_rpm):g} rpm")
         return problems
-
 
     def shafts(self) -> list[tuple[str, float, int]]:
         """The pinion on the input shaft (ratio 1) and the gear on the output shaft (ratio

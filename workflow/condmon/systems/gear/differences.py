@@ -27,7 +27,7 @@ CALIBRATED, RANDOMISED, NEITHER, SAME = "calibrated", "randomised", "neither", "
 # The model's severity ranges (model.fault_severity) each bench fault form is drawn against:
 # bench key -> model key, per (bench form, the model's form of the state).
 SEVERITY_OF_FORM = {
-    ("pitting", "pitting"): {"pit_depth": "pit_depth", "pitted_area": "pitted_area"},
+    ("pitting", "pitting"): {"pit_depth": "pit_depth", "pitted_area": "pitted_area", "teeth": "pitted_teeth"},
     ("broken_tooth", "missing_tooth"): {"broken_height": "missing_share"},
     ("spall", "spall"): {"depth": "spall_depth"},
 }
@@ -168,8 +168,7 @@ def _fault_rows(model: dict, bench: dict, calibration: dict, health_states, heal
             rows.append(row(text, CALIBRATED, "per-state calibration on its first record per speed"))
             continue
         model_form = _model_form(model, state)
-        forms = ("pitting", "wear") if model_form == "wear_or_pitting" else (model_form,)
-        keys = next((SEVERITY_OF_FORM[(form, f)] for f in forms if (form, f) in SEVERITY_OF_FORM), None)
+        keys = SEVERITY_OF_FORM.get((form, model_form))
         if keys is None:
             rows.append(row(text, NEITHER, f"the model's {state} is {model_form.replace('_', ' ')}, "
                                            f"not the bench's {form.replace('_', ' ')}"))

@@ -59,11 +59,11 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
       (`condmon.models.gear.errors.draw_gear_errors`: pitch pattern, eccentricity, profile and helix slopes);
     - slow sinusoidal speed and load fluctuations (`model.variability`: amplitude uniform up to
       the configured one, frequency uniform in its range, random phase);
-    - the severity of its faults (`model.fault_severity`: the wear depth, the pits' depth and
-      pitted area, the spall's depth and its width (at a uniform place across the face), the root
-      crack's depth and the share of a broken tooth's profile that is gone, each uniform in its
-      range) and the
-      damaged surfaces' seed (its parity picks wear or pitting under `wear_or_pitting`);
+    - the severity of its faults (`model.fault_severity`: the wear depth, the pits' depth, pitted
+      area, how many teeth pitted and how far beyond the contact-fatigue band, the spall's depth
+      and its width (at a uniform place across the face), the root crack's depth and the share of
+      a broken tooth's profile that is gone, each uniform in its range) and the damaged surfaces'
+      seed;
     - the mesh phase the run starts at, uniform over the gear pair's full cycle (a measurement
       starts at any shaft angle: where the damaged tooth passes within a segment varies)."""
     def uniform(low, high):
@@ -98,6 +98,8 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
         start_mesh_phase=uniform(0.0, math.lcm(geometry.teeth_pinion, geometry.teeth_gear)),
         missing_share=uniform(*severity["missing_share"]),
         spall_face=_spall_face(uniform(*severity["spall_width"]), rng),  # drawn last, as the line above
+        surface_fault_teeth=int(rng.integers(severity["pitted_teeth"][0], severity["pitted_teeth"][1] + 1)),
+        pitting_growth=uniform(*severity["pitting_growth"]),
     )
 
 
@@ -128,13 +130,13 @@ SHARES = ("pitted_area", "missing_share", "spall_width", "crack_depth")  # fract
 def state_variants(state: str, surface_fault_model: str) -> list[str]:
     """The model variants per-state calibration searches for `state` (ValueError: none)."""
     if state == "surface_fault":
-        if surface_fault_model == "stiffness_loss":
-            raise ValueError("calibration.per_state: surface_fault_model stiffness_loss removes no material; "
-                             "per-state calibration tunes the depths of wear or pitting")
-        return ["wear", "pitting"] if surface_fault_model == "wear_or_pitting" else [surface_fault_model]
+        if surface_fault_model != "pitting":
+            raise ValueError(f"calibration.per_state: surface_fault_model {surface_fault_model} removes no "
+                             "material; per-state calibration tunes the depths of pitting")
+        return ["pitting"]
     if state not in STATE_SEVERITY:
         raise ValueError(f"calibration.per_state.states: {state!r} has no severity to tune; the gear model "
-                         f"tunes surface_fault, {', '.join(k for k in STATE_SEVERITY if k not in ('wear', 'pitting'))}")
+                         f"tunes surface_fault, {', '.join(k for k in STATE_SEVERITY if k != 'pitting')}")
     return [state]
 
 
@@ -146,7 +148,7 @@ def state_model_fields(state_model: dict, drawn: dict, seed: int) -> dict:
     rng = np.random.default_rng([int(seed), 0x57A7E])
     spread = float(state_model.get("spread", 0.0))
     variant = state_model["variant"]
-    fields = {"surface_fault_model": variant} if variant in ("wear", "pitting") else {}
+    fields = {"surface_fault_model": variant} if variant == "pitting" else {}
     for name in STATE_SEVERITY[variant]:
         value = float(state_model["parameters"][name]) * float(rng.uniform(1.0 - spread, 1.0 + spread))
         value = min(value, 1.0) if name in SHARES else value

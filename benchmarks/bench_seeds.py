@@ -1,0 +1,171 @@
+"""The gear runs over several virtual-bench seeds (issue 48): one bench is one draw of a rig's
+hidden make-up (its gears, the phases of its fluctuations, its pits' craters, its noise), so a
+figure on one seed says little about the method. Each seed is a run of its own
+(`run_name <base>-seed<k>`, `virtual_bench.seed k`, every other setting the config's); the script
+runs what is missing and collects, per seed and speed:
+
+The config's own bench seed is the config's own run where it has finished.
+
+- at 0 % and 100 % measured data (protocol `record_split`, first repeat's split for 100 %: every
+  classifier's mean over repeats from evaluation_summary.csv): balanced accuracy, false-alarm rate,
+  each class's recall (prediction_shares.csv);
+- the bench-only ceiling: each class's recall by a classifier trained on that bench's own records,
+  each record left out (summary.json `measured_separability`): where it stays below
+  `EXEMPT_BELOW` the class is *exempt* on that seed (the bench cannot show it, so no method
+  trained on simulation can be asked to);
+- the fault-signature correlation per class (summary.json `fault_signatures`).
+
+and the mean over the seeds per speed and class, to `results/benchmark/bench_seeds.json` (the
+default run; `bench_seeds_<name>.json` for another).
+
+    python3 benchmarks/bench_seeds.py [--configfile config/config.yaml ...] [--seeds 7 8 9 10 11]
+        [--layer benchmarks/seeds.yaml] [--cores 2] [--classifier svm] [--collect-only] [--name default]
+
+`--layer` (default benchmarks/seeds.yaml; `--layer none` for the whole config) is layered over the
+config files: the SVM alone at 0 % and 100 %, whose figures are those of the full config.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from condmon.separability import SHOWN_RECALL
+
+import numpy as np
+import pandas as pd
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+EXEMPT_BELOW = SHOWN_RECALL  # a class the bench's own records find less often than this is exempt there
+PROTOCOL = "record_split"
+COLUMNS = ("seed", "speed_rpm", "measured_percent", "classifier", "balanced_accuracy", "false_alarm_rate",
+           "recall", "bench_only_recall", "exempt", "signature_correlation")
+
+
+def config_value(configfiles, section: str, key: str, default):
+    """A key as Snakemake merges the config files: the last file that sets it."""
+    value = default
+    for path in configfiles:
+        loaded = yaml.safe_load(Path(path).read_text()) or {}
+        loaded = loaded.get(section, {}) if section else loaded
+        value = (loaded or {}).get(key, value)
+    return value
+
+
+def run_name_of(configfiles, seed: int) -> tuple[str, bool]:
+    """(run name, whether to run it) of one seed: `<run_name>-seed<k>`; the config's own bench
+    seed is the config's own run where it has finished (the same bench, so the same SVM figures)."""
+    base = config_value(configfiles, None, "run_name", "default")
+    if seed == config_value(configfiles, "virtual_bench", "seed", None) and \
+            (ROOT / "results" / base / "report" / "summary.json").exists():
+        return base, False
+    return f"{base}-seed{seed}", True
+
+
+def run_seed(configfiles, seed: int, run_name: str, cores: int) -> float:
+    """Run (or complete) the pipeline of one seed; its wall seconds."""
+    command = [sys.executable, "-m", "snakemake", "--cores", str(cores), "--configfile", *configfiles,
+               "--config", f"run_name={run_name}", f"virtual_bench={json.dumps({'seed': seed})}"]
+    start = time.perf_counter()
+    print(f"seed {seed}: {' '.join(command)}", flush=True)
+    subprocess.run(command, cwd=ROOT, check=True)
+    return time.perf_counter() - start
+
+
+def speed_of(condition: str) -> float | None:
+    """450.0 of `speed_rpm=450`; None for `all`."""
+    return float(condition.split("=", 1)[1]) if "=" in condition else None
+
+
+def seed_rows(report: Path, seed: int, classifier: str) -> list[dict]:
+    """One row per speed and measured percentage (0, 100) of one seed's report (module docstring)."""
+    summary = json.loads((report / "summary.json").read_text())
+    evaluation = pd.read_csv(report / "evaluation_summary.csv")
+    shares = pd.read_csv(report / "prediction_shares.csv")
+    separability = summary.get("measured_separability", {}).get("per_condition", {})
+    signatures = summary.get("fault_signatures", {}).get("per_condition", {})
+    rows = []
+    for percent in (0, 100):
+        chosen = evaluation[(evaluation["classifier"] == classifier) & (evaluation["protocol"] == PROTOCOL)
+                            & (evaluation["measured_percent"] == percent) & (evaluation["records"] == "all")]
+        for row in chosen.itertuples():
+            speed = speed_of(row.condition)
+            if speed is None:
+                continue
+            here = shares[(shares["classifier"] == classifier) & (shares["protocol"] == PROTOCOL)
+                          & (shares["measured_percent"] == percent) & (shares["speed_rpm"] == speed)]
+            recall = {str(s): float(g.loc[g["predicted_label"] == s, "share"].sum())
+                      for s, g in here.groupby("true_label")}
+            ceiling = (separability.get(f"{speed:g}") or {}).get("recall_per_class") or {}
+            classes = (signatures.get(f"{speed:g}") or {}).get("classes", {})
+            rows.append({"seed": seed, "speed_rpm": speed, "measured_percent": percent, "classifier": classifier,
+                         "balanced_accuracy": float(row.balanced_accuracy_mean),
+                         "false_alarm_rate": float(row.false_alarm_rate_mean),
+                         "recall": recall, "bench_only_recall": ceiling,
+                         "exempt": sorted(c for c, r in ceiling.items() if r < EXEMPT_BELOW),
+                         "signature_correlation": {c: v.get("direction_correlation") for c, v in classes.items()}})
+    return rows
+
+
+def means(rows: list[dict]) -> list[dict]:
+    """Per speed and measured percentage: the mean over seeds of the balanced accuracy, the
+    false-alarm rate and each class's recall (a class's mean over the seeds where it is not
+    exempt), the lowest seed's balanced accuracy and the highest false-alarm rate."""
+    out = []
+    frame = pd.DataFrame(rows)
+    for (speed, percent), part in frame.groupby(["speed_rpm", "measured_percent"]):
+        classes = sorted({c for r in part["recall"] for c in r})
+        recall = {c: float(np.mean([r[c] for r, ex in zip(part["recall"], part["exempt"]) if c in r and c not in ex]
+                                   or [np.nan])) for c in classes}
+        correlation = {c: float(np.nanmean([s.get(c) if s.get(c) is not None else np.nan
+                                            for s in part["signature_correlation"]] or [np.nan]))
+                       for c in classes if any(c in s for s in part["signature_correlation"])}
+        out.append({"speed_rpm": float(speed), "measured_percent": int(percent), "seeds": int(len(part)),
+                    "balanced_accuracy": float(part["balanced_accuracy"].mean()),
+                    "lowest_balanced_accuracy": float(part["balanced_accuracy"].min()),
+                    "false_alarm_rate": float(part["false_alarm_rate"].mean()),
+                    "highest_false_alarm_rate": float(part["false_alarm_rate"].max()),
+                    "recall": recall, "signature_correlation": correlation,
+                    "exempt": {int(r.seed): r.exempt for r in part.itertuples() if r.exempt}})
+    return out
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--configfile", nargs="+", default=["config/config.yaml"])
+    parser.add_argument("--seeds", nargs="+", type=int, default=[7, 8, 9, 10, 11])
+    parser.add_argument("--layer", default="benchmarks/seeds.yaml", help="config layered last, or none")
+    parser.add_argument("--cores", type=int, default=2)
+    parser.add_argument("--classifier", default="svm")
+    parser.add_argument("--collect-only", action="store_true", help="only collect finished runs")
+    parser.add_argument("--name", default=None, help="output name (default: the config's run_name)")
+    args = parser.parse_args(argv)
+    base = config_value(args.configfile, None, "run_name", "default")
+    configfiles = list(args.configfile) + ([] if args.layer == "none" else [args.layer])
+    rows, seconds = [], {}
+    for seed in args.seeds:
+        run_name, to_run = run_name_of(args.configfile, seed)
+        if to_run and not args.collect_only:
+            seconds[seed] = run_seed(configfiles, seed, run_name, args.cores)
+        rows += seed_rows(ROOT / "results" / run_name / "report", seed, args.classifier)
+    result = {"configfiles": configfiles, "protocol": PROTOCOL, "exempt_below": EXEMPT_BELOW,
+              "columns": list(COLUMNS), "per_seed": rows, "mean": means(rows),
+              "wall_seconds": seconds}
+    name = args.name or base
+    out = ROOT / "results" / "benchmark" / ("bench_seeds.json" if name == "default" else f"bench_seeds_{name}.json")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=1))
+    for row in result["mean"]:
+        print(f"{row['speed_rpm']:g} rpm {row['measured_percent']:3d} %: balanced {row['balanced_accuracy']:.3f} "
+              f"(lowest {row['lowest_balanced_accuracy']:.3f}), false alarms {row['false_alarm_rate']:.3f}, "
+              f"recall {json.dumps({k: round(v, 2) for k, v in row['recall'].items()})}")
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,67 @@
+"""benchmarks/bench_seeds.py: the seed table has every column issue 48 asks for, its means
+leave a class out where the bench's own records cannot show it, and a seed's run name."""
+import importlib.util
+import json
+
+import pandas as pd
+import pytest
+
+from conftest import ROOT
+
+spec = importlib.util.spec_from_file_location("bench_seeds", ROOT / "benchmarks" / "bench_seeds.py")
+bench_seeds = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(bench_seeds)
+CLASSES = ("healthy", "surface_fault", "missing_tooth")
+
+
+def fake_report(folder, recall: dict, ceiling: dict, correlation: dict):
+    """The three report files the benchmark reads, as the report writes them, for one speed (450)."""
+    folder.mkdir(parents=True)
+    rows = [{"classifier": "svm", "protocol": "record_split", "measured_percent": p, "condition": condition,
+             "records": "all", "balanced_accuracy_mean": 0.9 if p == 0 else 1.0,
+             "false_alarm_rate_mean": 0.05 if p == 0 else 0.0}
+            for p in (0, 100) for condition in ("all", "speed_rpm=450")]
+    pd.DataFrame(rows).to_csv(folder / "evaluation_summary.csv", index=False)
+    shares = [{"classifier": "svm", "protocol": "record_split", "measured_percent": p, "speed_rpm": 450.0,
+               "true_label": true, "predicted_label": predicted,
+               "share": (recall[true] if predicted == true else 1 - recall[true]) if p == 0 else float(predicted == true),
+               "n": 8}
+              for p in (0, 100) for true in CLASSES
+              for predicted in (true, next(c for c in CLASSES if c != true))]
+    pd.DataFrame(shares).to_csv(folder / "prediction_shares.csv", index=False)
+    summary = {"measured_separability": {"per_condition": {"450": {"recall_per_class": ceiling}}},
+               "fault_signatures": {"per_condition": {"450": {"classes": {
+                   c: {"direction_correlation": r} for c, r in correlation.items()}}}}}
+    (folder / "summary.json").write_text(json.dumps(summary))
+
+
+def test_the_seed_table_has_every_column_and_exempts_what_the_bench_cannot_show(tmp_path):
+    fake_report(tmp_path / "a", {"healthy": 1.0, "surface_fault": 0.9, "missing_tooth": 1.0},
+                {"healthy": 1.0, "surface_fault": 1.0, "missing_tooth": 1.0}, {"surface_fault": 0.8, "missing_tooth": 0.9})
+    fake_report(tmp_path / "b", {"healthy": 1.0, "surface_fault": 0.1, "missing_tooth": 1.0},
+                {"healthy": 1.0, "surface_fault": 0.5, "missing_tooth": 1.0}, {"surface_fault": 0.2, "missing_tooth": 0.9})
+    rows = bench_seeds.seed_rows(tmp_path / "a", 7, "svm") + bench_seeds.seed_rows(tmp_path / "b", 8, "svm")
+    assert len(rows) == 4  # two seeds x (0 %, 100 %) at the one speed
+    for row in rows:
+        assert set(bench_seeds.COLUMNS) == set(row)
+    zero = next(r for r in rows if r["seed"] == 8 and r["measured_percent"] == 0)
+    assert zero["recall"]["surface_fault"] == pytest.approx(0.1)
+    assert zero["exempt"] == ["surface_fault"]  # its own records find it only half the time
+    assert zero["signature_correlation"]["surface_fault"] == pytest.approx(0.2)
+    mean = next(m for m in bench_seeds.means(rows) if m["measured_percent"] == 0)
+    assert mean["seeds"] == 2 and mean["balanced_accuracy"] == pytest.approx(0.9)
+    # the exempt seed's recall is left out of the class's mean, and the table says which seed
+    assert mean["recall"]["surface_fault"] == pytest.approx(0.9)
+    assert mean["exempt"] == {8: ["surface_fault"]}
+    assert mean["signature_correlation"]["surface_fault"] == pytest.approx(0.5)
+
+
+def test_a_seed_runs_under_its_own_name_unless_it_is_the_configs_finished_run(tmp_path, monkeypatch):
+    config = tmp_path / "c.yaml"
+    config.write_text("run_name: gears\nvirtual_bench: {seed: 7}\n")
+    monkeypatch.setattr(bench_seeds, "ROOT", tmp_path)
+    assert bench_seeds.run_name_of([config], 8) == ("gears-seed8", True)
+    assert bench_seeds.run_name_of([config], 7) == ("gears-seed7", True)  # not finished yet
+    (tmp_path / "results" / "gears" / "report").mkdir(parents=True)
+    (tmp_path / "results" / "gears" / "report" / "summary.json").write_text("{}")
+    assert bench_seeds.run_name_of([config], 7) == ("gears", False)

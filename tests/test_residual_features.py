@@ -1,0 +1,204 @@
+"""Residual signatures (systems/gear/residual_features.py): alignment, the shafts kept apart, a
+localised fault on its own teeth, a healthy twin pair within noise, the family in the features
+job and in a packaged model."""
+import numpy as np
+import pandas as pd
+import pytest
+
+from condmon.features import FeatureTableError
+from condmon.systems.gear import residual_features as rf
+
+P = 1024
+PINION, GEAR = 29, 44
+SHAFTS = [("pinion", 1.0, PINION), ("gear", PINION / GEAR, GEAR)]
+
+
+def pitch_pattern(teeth: int, rng, mesh_amplitude: float = 1.0, pitch_rms: float = 0.2) -> np.ndarray:
+    """One revolution of a gear's synchronous pattern: mesh harmonics plus a random pitch pattern
+    (a different small offset of every tooth's mesh pulse) and an eccentricity."""
+    angle = np.arange(P) / P
+    phase = np.repeat(rng.normal(0.0, pitch_rms, teeth), P // teeth + 1)[:P]
+    mesh = sum(mesh_amplitude / h * np.cos(2 * np.pi * h * teeth * angle + h * phase) for h in (1, 2, 3))
+    return mesh + 0.3 * np.cos(2 * np.pi * angle + rng.uniform(0, 2 * np.pi))
+
+
+def tooth_bump(teeth: int, tooth: int, depth: float) -> np.ndarray:
+    """A local event on one tooth: a short Gaussian dip centred on that tooth's pitch."""
+    angle = np.arange(P) / P
+    centre = (tooth + 0.5) / teeth
+    distance = (angle - centre + 0.5) % 1.0 - 0.5
+    return -depth * np.exp(-0.5 * (distance * teeth / 0.15) ** 2)
+
+
+def in_time(patterns, fs_hz: float, speed_rpm: float, seconds: float, start=(0.0, 0.0), noise=0.0, rng=None):
+    """A one-channel record of the shafts' patterns at a constant speed, each shaft starting at
+    its own angle, plus white noise: (1, n), input-shaft angle."""
+    t = np.arange(int(seconds * fs_hz)) / fs_hz
+    angle = speed_rpm / 60.0 * t
+    x = sum(rf.pattern_at(p[None, :], angle * ratio + s0)[0] for p, (_, ratio, _), s0 in zip(patterns, SHAFTS, start))
+    if noise:
+        x = x + rng.normal(0.0, noise, x.shape)
+    return x[None, :], angle
+
+
+def test_a_record_against_itself_shifted_by_whole_teeth_leaves_no_residual():
+    rng = np.random.default_rng(1)
+    pattern = np.stack([pitch_pattern(PINION, rng), pitch_pattern(PINION, rng)])  # two channels
+    for teeth_shift in (1, 7, 20):
+        moved = np.roll(pattern, teeth_shift * P // PINION + 3, axis=-1)
+        features = rf.residual_features(moved, pattern, PINION, PINION / 4, 12)
+        assert np.all(features["rms_ratio"] < 1e-3), teeth_shift
+    # a fractional shift too (the DFT's shift theorem)
+    features = rf.residual_features(rf.shifted(pattern, 12.37), pattern, PINION, PINION / 4, 12)
+    assert np.all(features["rms_ratio"] < 1e-3)
+    # without alignment, half a tooth off, the same record would leave a residual as large as itself
+    assert np.sqrt(np.mean((np.roll(pattern, 17, axis=-1) - pattern) ** 2)) > 0.5 * pattern.std()
+
+
+def test_a_pit_on_one_tooth_shows_in_that_teeths_residual_energy():
+    rng = np.random.default_rng(2)
+    healthy = pitch_pattern(PINION, rng)[None, :]
+    tooth = 11
+    pitted = healthy + tooth_bump(PINION, tooth, 0.1)
+    found = rf.residual_features(np.roll(pitted, 200, axis=-1), healthy, PINION, PINION / 4, 12)
+    same = rf.residual_features(np.roll(healthy, 200, axis=-1) + rng.normal(0, 1e-3, P), healthy, PINION, PINION / 4, 12)
+    assert found["tooth_peak1"][0] > 10 * same["tooth_peak1"][0]
+    # the largest one-tooth energy of the residual sits on that tooth
+    residual = rf.aligned(np.roll(pitted, 200, axis=-1), healthy, PINION) - healthy
+    local = rf.residual_signal(residual, PINION, 2, 3)[0]
+    window = P // PINION
+    energy = [np.sum(local[k * window:(k + 1) * window] ** 2) for k in range(PINION)]
+    assert int(np.argmax(energy)) == tooth
+
+
+def test_the_shafts_kept_apart_in_a_record_shorter_than_the_hunting_cycle():
+    """11 of the 44 pinion revolutions of the hunting cycle (1.5 s at 450 rpm): the plain TSA keeps
+    much of the gear's pattern, the joint estimate little of it."""
+    rng = np.random.default_rng(3)
+    pinion, gear = pitch_pattern(PINION, rng), rf.without_orders(pitch_pattern(GEAR, rng, 2.0, 0.4)[None, :], GEAR)[0]
+    fs, speed = 5120.0, 450.0
+    x, angle = in_time([pinion, gear], fs, speed, 1.5, start=(0.0, 0.37))
+    plain = rf.synchronous_average(x, angle, P)[0]
+    joint = rf.shaft_patterns(x, angle, SHAFTS, P)[0][0]
+    truth = pinion - pinion.mean()
+    plain_error = np.sqrt(np.mean((plain - plain.mean() - truth) ** 2))
+    joint_error = np.sqrt(np.mean((joint - truth) ** 2))
+    assert joint_error < 0.2 * plain_error
+
+
+def test_a_healthy_twin_pair_lies_within_noise_and_a_pitted_twin_does_not():
+    """Two records of one machine (other start angles, other noise): the residual of one against
+    the other is the noise's; the same machine with a pit on three teeth stands out."""
+    rng = np.random.default_rng(4)
+    pinion, gear = pitch_pattern(PINION, rng), rf.without_orders(pitch_pattern(GEAR, rng)[None, :], GEAR)[0]
+    fs, speed, noise = 5120.0, 775.0, 0.1
+    pitted = pinion + sum(tooth_bump(PINION, k, 0.5) for k in (5, 6, 7))
+
+    def patterns(pinion_pattern, start):
+        x, angle = in_time([pinion_pattern, gear], fs, speed, 1.5, start=start, noise=noise, rng=rng)
+        return rf.shaft_patterns(x, angle, SHAFTS, P)
+
+    reference = patterns(pinion, (0.1, 0.2))
+    twins = [rf.residual_features(patterns(pinion, (rng.uniform(), rng.uniform()))[0], reference[0], PINION,
+                                  PINION / 4, 12) for _ in range(4)]
+    damaged = rf.residual_features(patterns(pitted, (0.6, 0.9))[0], reference[0], PINION, PINION / 4, 12)
+    # the noise left in two averages of 19 revolutions each, over the pattern's RMS
+    expected = noise * np.sqrt(2 / 19 * fs / (speed / 60 * P)) / reference[0].std()
+    for twin in twins:
+        assert twin["rms_ratio"][0] < 2.5 * expected
+    assert damaged["rms_ratio"][0] > 2 * max(t["rms_ratio"][0] for t in twins)
+    assert damaged["tooth_peak3"][0] > 2 * max(t["tooth_peak3"][0] for t in twins)
+
+
+def signal_rows(record_id, health, speed, segment, x, fs):
+    return [{"record_id": record_id, "segment": segment, "source": "simulated", "health_state": health,
+             "speed_rpm": speed, "load": 10.0, "fs_hz": fs, "channel": "A1_x",
+             "signal": x.astype(np.float32), "params": ""}]
+
+
+def test_the_family_takes_simulated_twins_and_packaged_references():
+    """Simulated records against their healthy twin's last segment; the measured references written
+    and packaged give a new record the same features."""
+    rng = np.random.default_rng(5)
+    fs, speed = 5120.0, 1100.0
+    pinion, gear = pitch_pattern(PINION, rng), rf.without_orders(pitch_pattern(GEAR, rng)[None, :], GEAR)[0]
+    rows = []
+    for segment in range(2):  # the healthy twin: segment 1 is its reference
+        x, _ = in_time([pinion, gear], fs, speed, 0.6, start=(0.3 * segment, 0.1), noise=0.01, rng=rng)
+        rows += signal_rows("sim-healthy-1100rpm-b000-s000", "healthy", speed, segment, x[0], fs)
+    x, _ = in_time([pinion + tooth_bump(PINION, 3, 0.3), gear], fs, speed, 0.6, start=(0.5, 0.4), noise=0.01, rng=rng)
+    rows += signal_rows("sim-surface_fault-1100rpm-b000-s000", "surface_fault", speed, 0, x[0], fs)
+    frame = pd.DataFrame(rows)
+    params = {"shafts": [list(s) for s in SHAFTS], "samples_per_revolution": P, "bands_per_mesh": 4,
+              "mesh_harmonics": 3, "shaft_orders": 2, "phase_harmonic": 1, "phase_band_orders": 0.3,
+              "phase_min_snr": 5.0}
+    against = {"source": "simulated", "healthy_state": "healthy", "segments_per_sample": 1}
+    table = rf.residual_feature_table(frame, ["A1_x"], dict(params, against=against))
+    peak = table.set_index(["record_id", "segment"])["res_A1_x_pinion_tooth_peak1"]
+    assert peak[("sim-surface_fault-1100rpm-b000-s000", 0)] > peak[("sim-healthy-1100rpm-b000-s000", 0)] + 0.5
+    assert table.attrs["referenced_columns"] == rf.feature_names(["A1_x"], SHAFTS, 12)
+    with pytest.raises(FeatureTableError, match="healthy_reference"):
+        rf.residual_feature_table(frame, ["A1_x"], params)
+    # measured: the calibration set (the first healthy record) is the reference, written out ...
+    measured = frame.assign(record_id=frame["record_id"].str.replace("sim-", "vb-"), source="virtual_bench")
+    measured.loc[measured["segment"] == 1, "record_id"] = "vb-healthy-1100rpm-r00"
+    measured.loc[measured["segment"] == 1, "segment"] = 0
+    spec = {"source": "measured", "healthy_state": "healthy", "condition": "speed_rpm", "reserve": {}}
+    written = rf.residual_feature_table(measured, ["A1_x"], dict(params, against=spec))
+    # ... and a packaged model's copy gives a new record the same features
+    packaged = rf.residual_feature_table(measured, ["A1_x"],
+                                         dict(params, reference_patterns=written.attrs["references"].to_dict("list")))
+    names = rf.feature_names(["A1_x"], SHAFTS, 12)
+    np.testing.assert_allclose(packaged[names].to_numpy(), written[names].to_numpy(), atol=1e-5)
+
+
+def test_a_grid_that_folds_into_the_kept_orders_is_refused():
+    with pytest.raises(FeatureTableError, match="samples_per_revolution"):
+        rf.check_resolution(5120.0, 450.0, SHAFTS, 256, 3)
+    rf.check_resolution(5120.0, 450.0, SHAFTS, 1024, 3)
+
+
+def test_a_packaged_model_takes_a_new_record_against_its_reference_waveforms():
+    """`condmon predict`'s path: a SignalModel of the residual family computes a new record's
+    features against the packaged reference waveforms, and the feature-level reference (which
+    holds none of the family's columns) leaves them as they are."""
+    from conftest import config_of
+
+    from condmon.signal_model import SignalModel, complete_signal_table
+    from condmon.systems import get_system
+
+    rng = np.random.default_rng(6)
+    fs, speed = 5120.0, 1100.0
+    pinion, gear = pitch_pattern(PINION, rng), rf.without_orders(pitch_pattern(GEAR, rng)[None, :], GEAR)[0]
+    rows = []
+    for record_id, health, pattern, start in (("vb-healthy-1100rpm-r00", "healthy", pinion, 0.0),
+                                              ("new", "healthy", pinion, 0.4),
+                                              ("new-pitted", "surface_fault", pinion + tooth_bump(PINION, 3, 0.3), 0.7)):
+        x, _ = in_time([pattern, gear], fs, speed, 0.6, start=(start, 0.2), noise=0.01, rng=rng)
+        rows += signal_rows(record_id, health, speed, 0, x[0], fs)
+    frame = pd.DataFrame(rows)
+    params = {"shafts": [list(s) for s in SHAFTS], "damaged_shafts": ["pinion"], "samples_per_revolution": P,
+              "bands_per_mesh": 4, "mesh_harmonics": 3, "shaft_orders": 2, "phase_harmonic": 1,
+              "phase_band_orders": 0.3, "phase_min_snr": 5.0}
+    spec = {"source": "measured", "healthy_state": "healthy", "condition": "speed_rpm", "reserve": {}}
+    written = rf.residual_feature_table(frame.assign(source="measured"), ["A1_x"], dict(params, against=spec))
+    names = rf.feature_names(["A1_x"], SHAFTS[:1], 12)
+    system = get_system(config_of("config/config.yaml")).job_spec("measured")
+    features = {"kind": "residual", "channels": ["A1_x"], "spectrum": {}, "statistical": None,
+                "families": {"residual": dict(params, reference_patterns=written.attrs["references"].to_dict("list"))},
+                "feature_names": names, "reference": {"condition": "speed_rpm", "table": {"speed_rpm": [1100.0]}}}
+
+    class Peak:  # faulty where the worst tooth stands out
+        classes_ = np.array(["healthy", "surface_fault"])
+
+        def predict(self, x):
+            return np.where(x[:, names.index("res_A1_x_pinion_tooth_peak1")] > 0.9, "surface_fault", "healthy")
+
+    model = SignalModel(Peak(), features, {"fs_hz": fs, "n_samples": len(rows[0]["signal"]), "channels": ["A1_x"],
+                                           "speeds_rpm": [speed]}, "healthy", system=system)
+    new = complete_signal_table(frame[frame["record_id"] != "vb-healthy-1100rpm-r00"].drop(columns=["source", "params"]))
+    ids, x = model.feature_matrix(new)
+    expected = written.set_index("record_id").loc[ids["record_id"], names].to_numpy()
+    np.testing.assert_allclose(x, expected, atol=1e-5)
+    assert model.predict_segments(new).set_index("record_id")["predicted_label"].to_dict() == \
+        {"new": "healthy", "new-pitted": "surface_fault"}

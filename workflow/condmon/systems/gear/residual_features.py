@@ -1,0 +1,376 @@
+"""Residual signatures in the angle domain: each record's synchronous average against its own
+machine's healthy one, subtracted as a waveform before any level or log.
+
+Why: at a light load the gear pair's own manufacturing errors (a pitch pattern of several um)
+dwarf the mesh deflection (about 0.5 um), so a few damaged teeth barely move the *levels* of the
+order bands, and how they move them depends on the pair. Their change of the *waveform* at the
+damaged teeth is the same on every pair. Condition monitoring compares a machine with itself:
+take each shaft's time-synchronous average (TSA), align it to the machine's healthy TSA (a record
+starts at any shaft angle; the pitch pattern is the fingerprint the circular cross-correlation
+finds) and subtract it. What remains is the change since the machine was healthy (McFadden 1987;
+Randall 2011, ch. 5-6; ../shared/notes/gear-residuals.md).
+
+Per segment (`shaft_patterns`): the input shaft's angle by tacholess tracking of the mesh phase
+(`order_features.segment_angle`), then every shaft's synchronous pattern, the shafts kept apart:
+a record shorter than the pair's hunting cycle (29/44 teeth: 44 pinion revolutions, 5.9 s at 450
+rpm; a rig records seconds, not minutes, per operating point) leaves the mating gear's pattern in
+a shaft's plain TSA, so the patterns are estimated jointly (alternating projections: each shaft's
+TSA of the signal less the other shafts' patterns, `SEPARATION_ITERATIONS` times; the orders
+common to both shafts, the mesh harmonics, go to the first). Then per shaft against the reference
+(`residual_features`): the residual R = aligned TSA - reference TSA and from it
+- `b<k>`: R's order spectrum in bands (orders of that shaft), over the reference's own level in
+  the band (a ratio, so the transfer path from mesh to sensor, which scales both, cancels);
+- `rms_ratio`: R's RMS over the reference's;
+- `FM4`, `NA4`: kurtosis of R's difference signal (R less shaft orders, mesh harmonics and their
+  sidebands) and of its residual signal over the reference's residual variance (NA4 as defined,
+  against the healthy run: Zakrajsek, Townsend, Decker 1993, NASA TM-105950);
+- `tooth_peak1`, `tooth_peak3`: the largest energy of R's residual signal over one (three) tooth
+  pitch(es), sliding round the revolution, over the median: a localised fault stands out on its
+  own teeth, wear of every tooth does not.
+All features are log10. Names `res_<channel>_<shaft>_<feature>`.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from scipy.interpolate import CubicSpline
+
+from condmon.features import FeatureTableError, single_sampling_rate
+from condmon.hybrid import calibration_frame
+from condmon.signals import to_arrays
+from condmon.simulate import machine_of
+from condmon.systems.gear.order_features import (difference_signal, residual_signal,
+                                                 segment_angle)
+
+SEPARATION_ITERATIONS = 40
+TINY = 1e-12
+FEATURES = ("rms_ratio", "FM4", "NA4", "tooth_peak1", "tooth_peak3")
+
+
+# -- synchronous patterns ----------------------------------------------------------------------
+def resample_at(x: np.ndarray, angle: np.ndarray, samples_per_revolution: int) -> np.ndarray:
+    """Channels x (n_channels, n_samples) at the angles 0, 1/P, 2/P, ... of a shaft whose angle
+    (revolutions, increasing from 0) is `angle` at every sample: cubic spline in time, every whole
+    grid step within the segment. No anti-alias filter: on a grid coarser than the samples,
+    content above its Nyquist order folds, and `check_resolution` keeps that above every order
+    the features use."""
+    n = x.shape[-1]
+    steps = int(np.floor((angle[-1] - angle[0]) * samples_per_revolution + 1e-9)) + 1
+    grid = angle[0] + np.arange(steps) / samples_per_revolution
+    instants = np.interp(grid, angle, np.arange(n, dtype=np.float64))
+    return CubicSpline(np.arange(n), x, axis=-1)(instants)
+
+
+def synchronous_average(x: np.ndarray, angle: np.ndarray, samples_per_revolution: int) -> np.ndarray:
+    """TSA (n_channels, P) over the whole revolutions of a shaft at `angle`: the plain TSA, which
+    keeps what another shaft leaves in a short record (`shaft_patterns` keeps it out)."""
+    resampled = resample_at(x, angle, samples_per_revolution)
+    revolutions = resampled.shape[-1] // samples_per_revolution
+    if revolutions < 1:
+        raise ValueError("less than one revolution of a shaft to average")
+    return fold(resampled[..., :revolutions * samples_per_revolution], samples_per_revolution)
+
+
+def pattern_at(pattern: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """A periodic pattern (n_channels, P samples over one revolution) at the shaft angles `angle`
+    (revolutions): band-limited interpolation (its DFT evaluated there), so a pattern put back
+    in time is the pattern, whatever the angles."""
+    p = pattern.shape[-1]
+    position = np.mod(angle, 1.0) * p
+    # linear interpolation on a finely upsampled copy: the DFT's own interpolant to 1e-4
+    fine = 8
+    spectrum = np.fft.rfft(pattern, axis=-1)
+    upsampled = np.fft.irfft(spectrum, n=p * fine, axis=-1) * fine
+    grid = np.arange(p * fine + 1) / fine
+    wrapped = np.concatenate([upsampled, upsampled[..., :1]], axis=-1)
+    return np.stack([np.interp(position, grid, channel) for channel in wrapped])
+
+
+def without_orders(pattern: np.ndarray, period_orders: int) -> np.ndarray:
+    """The pattern less its components at multiples of `period_orders` (and its mean)."""
+    spectrum = np.fft.rfft(pattern, axis=-1)
+    spectrum[..., ::period_orders] = 0.0
+    return np.fft.irfft(spectrum, n=pattern.shape[-1], axis=-1)
+
+
+def shaft_patterns(segment: np.ndarray, angle: np.ndarray, shafts, samples_per_revolution: int,
+                   iterations: int = SEPARATION_ITERATIONS) -> list[np.ndarray]:
+    """Each shaft's synchronous pattern (n_channels, P) in one segment (n_channels, n_samples),
+    the shafts kept apart: alternating projections, each shaft's TSA of the segment less the other
+    shafts' patterns. An order common to two shafts (a mesh harmonic: teeth x the shaft's order)
+    cannot be told apart, so it stays with the first shaft and is taken out of the others'.
+    `shafts`: [(name, speed ratio to the input shaft, teeth)]; `angle`: the input shaft's.
+
+    The segment is resampled once per shaft; another shaft's pattern is then evaluated at the
+    angles it has on this shaft's grid (its speed ratio times the grid's angles), so an
+    iteration costs no resampling."""
+    x = np.asarray(segment, dtype=np.float64)
+    x = x - x.mean(axis=-1, keepdims=True)
+    P = samples_per_revolution
+    resampled, grids = [], []
+    for _, ratio, _ in shafts:
+        on_grid = resample_at(x, angle * float(ratio), P)
+        whole = (on_grid.shape[-1] // P) * P
+        if whole < P:
+            raise ValueError("less than one revolution of a shaft to average")
+        resampled.append(on_grid[..., :whole])
+        grids.append(np.arange(whole) / P)  # this shaft's angle at its grid points, revolutions
+    patterns = [np.zeros((x.shape[0], P)) for _ in shafts]
+    for _ in range(iterations if len(shafts) > 1 else 1):
+        for k, (_, ratio, teeth) in enumerate(shafts):
+            others = sum((pattern_at(patterns[j], grids[k] * float(shafts[j][1]) / float(ratio))
+                          for j in range(len(shafts)) if j != k), np.zeros_like(resampled[k]))
+            pattern = fold(resampled[k] - others, P)
+            patterns[k] = without_orders(pattern, int(teeth)) if k > 0 else pattern - pattern.mean(axis=-1, keepdims=True)
+    return patterns
+
+
+def fold(on_grid: np.ndarray, samples_per_revolution: int) -> np.ndarray:
+    """Mean over the whole revolutions of a signal on a shaft's angular grid: its TSA."""
+    return on_grid.reshape(*on_grid.shape[:-1], -1, samples_per_revolution).mean(axis=-2)
+
+
+# -- alignment -----------------------------------------------------------------------------------
+def alignment_shift(tsa: np.ndarray, reference: np.ndarray, teeth: int) -> float:
+    """The shift s (samples, fractional) that best aligns `tsa` to `reference` (both (n_channels,
+    P)): tsa(i + s) ~ reference(i). Circular cross-correlation summed over the channels, of both
+    less their mesh harmonics (periodic with the tooth pitch, they would make every whole-tooth
+    shift look alike; what is left, the pitch pattern and eccentricity, is the fingerprint): its
+    peak, then refined on the correlation of the whole patterns as a continuous function of the
+    shift (Newton steps on its DFT form), since a residue of the strong mesh harmonics would
+    otherwise remain."""
+    a = np.fft.rfft(np.atleast_2d(tsa), axis=-1)
+    b = np.fft.rfft(np.atleast_2d(reference), axis=-1)
+    p = np.atleast_2d(tsa).shape[-1]
+    fingerprint = (a * np.conj(b)).sum(axis=0)
+    fingerprint[::teeth] = 0.0
+    shift = float(np.argmax(np.fft.irfft(fingerprint, n=p)))
+    # the correlation c(s) = sum_m w_m Re(A_m conj(B_m) e^{2 pi i m s / P}); maximise near the peak
+    cross = (a * np.conj(b)).sum(axis=0) * np.where(np.arange(p // 2 + 1) % (p // 2) == 0, 1.0, 2.0)
+    omega = 2 * np.pi * np.arange(p // 2 + 1) / p
+    for _ in range(4):
+        turned = cross * np.exp(1j * omega * shift)
+        slope, curvature = -np.sum(omega * turned.imag), -np.sum(omega ** 2 * turned.real)
+        if curvature >= 0:
+            break
+        shift -= float(np.clip(slope / curvature, -0.5, 0.5))
+    return shift - p if shift > p / 2 else shift
+
+
+def shifted(pattern: np.ndarray, shift: float) -> np.ndarray:
+    """pattern(i + shift), circularly, by the DFT's shift theorem (any fractional shift)."""
+    p = pattern.shape[-1]
+    spectrum = np.fft.rfft(pattern, axis=-1) * np.exp(2j * np.pi * np.arange(p // 2 + 1) * shift / p)
+    return np.fft.irfft(spectrum, n=p, axis=-1)
+
+
+def aligned(tsa: np.ndarray, reference: np.ndarray, teeth: int) -> np.ndarray:
+    """`tsa` shifted onto `reference` (`alignment_shift`)."""
+    return shifted(tsa, alignment_shift(tsa, reference, teeth))
+
+
+def reference_pattern(patterns, teeth: int) -> np.ndarray:
+    """The healthy reference of one shaft from several segments' patterns (each (n_channels, P)):
+    each aligned to the first, then their mean."""
+    first = np.asarray(patterns[0], dtype=np.float64)
+    return np.mean([first] + [aligned(np.asarray(p, dtype=np.float64), first, teeth) for p in patterns[1:]], axis=0)
+
+
+# -- features of a residual ----------------------------------------------------------------------
+def band_levels(pattern: np.ndarray, band_orders: float, n_bands: int) -> np.ndarray:
+    """RMS order amplitude of a one-revolution pattern (n_channels, P) in bands `band_orders` wide
+    from order 0.5: (n_channels, n_bands). Bin m of its DFT is shaft order m exactly."""
+    amplitudes = 2.0 * np.abs(np.fft.rfft(pattern, axis=-1)) / pattern.shape[-1]
+    orders = np.arange(amplitudes.shape[-1])
+    band = np.floor((orders - 0.5) / band_orders).astype(int)
+    out = np.zeros((pattern.shape[0], n_bands))
+    for k in range(n_bands):
+        inside = band == k
+        out[:, k] = np.sqrt(np.mean(amplitudes[:, inside] ** 2, axis=-1)) if inside.any() else 0.0
+    return out
+
+
+def tooth_peak(signal: np.ndarray, teeth: int, pitches: int) -> np.ndarray:
+    """Largest energy of `signal` (n_channels, P, one revolution) over `pitches` tooth pitches,
+    sliding round the revolution, over the median such energy: near 1 for a change spread over
+    every tooth, large for one on a few teeth."""
+    p = signal.shape[-1]
+    window = max(1, int(round(pitches * p / teeth)))
+    energy = np.concatenate([signal, signal[..., :window]], axis=-1) ** 2
+    cumulative = np.concatenate([np.zeros((energy.shape[0], 1)), np.cumsum(energy, axis=-1)], axis=-1)
+    sliding = cumulative[:, window:window + p] - cumulative[:, :p]
+    return sliding.max(axis=-1) / np.maximum(np.median(sliding, axis=-1), TINY)
+
+
+def residual_features(pattern: np.ndarray, reference: np.ndarray, teeth: int, band_orders: float, n_bands: int,
+                      shaft_orders: int = 2, mesh_harmonics: int = 3) -> dict:
+    """The residual features of one shaft's pattern against its healthy reference (both
+    (n_channels, P)): {feature: (n_channels,)}, linear (the caller takes logs). Module docstring."""
+    residual = aligned(pattern, reference, teeth) - reference
+    levels = band_levels(residual, band_orders, n_bands)
+    reference_levels = band_levels(reference, band_orders, n_bands)
+    reference_rms = np.sqrt(np.mean((reference - reference.mean(axis=-1, keepdims=True)) ** 2, axis=-1))
+    local = residual_signal(residual, teeth, shaft_orders, mesh_harmonics)
+    reference_local = residual_signal(reference, teeth, shaft_orders, mesh_harmonics)
+    difference = difference_signal(residual, teeth, shaft_orders, mesh_harmonics)
+    centred = difference - difference.mean(axis=-1, keepdims=True)
+    fm4 = np.mean(centred ** 4, axis=-1) / np.maximum(np.mean(centred ** 2, axis=-1), TINY) ** 2
+    na4 = (np.mean((local - local.mean(axis=-1, keepdims=True)) ** 4, axis=-1)
+           / np.maximum(np.var(reference_local, axis=-1), TINY) ** 2)
+    out = {f"b{k:02d}": levels[:, k] / np.maximum(reference_levels[:, k], TINY) for k in range(n_bands)}
+    out.update(rms_ratio=np.sqrt(np.mean(residual ** 2, axis=-1)) / np.maximum(reference_rms, TINY),
+               FM4=fm4, NA4=na4, tooth_peak1=tooth_peak(local, teeth, 1), tooth_peak3=tooth_peak(local, teeth, 3))
+    return out
+
+
+def band_names(n_bands: int) -> list[str]:
+    return [f"b{k:02d}" for k in range(n_bands)]
+
+
+def segment_patterns(segment: np.ndarray, fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int,
+                     phase_harmonic: int = 1, phase_band_orders: float = 0.3, phase_min_snr: float = 5.0):
+    """(patterns per shaft, phase method) of one segment (n_channels, n_samples): the angle from
+    the first shaft's mesh phase (`order_features.segment_angle`), then `shaft_patterns`."""
+    shaft_hz = speed_rpm / 60.0
+    _, ratio, teeth = shafts[0]
+    angle, method, _ = segment_angle(segment, fs_hz, shaft_hz, phase_harmonic * teeth * ratio,
+                                     phase_band_orders, phase_min_snr)
+    return shaft_patterns(segment, angle, shafts, samples_per_revolution), method
+
+
+# -- the feature family --------------------------------------------------------------------------
+RESIDUAL_PARAMS = ("samples_per_revolution", "bands_per_mesh", "mesh_harmonics", "shaft_orders",
+                   "phase_harmonic", "phase_band_orders", "phase_min_snr")
+KEY = "features.residual"
+
+
+def feature_names(channels, shafts, n_bands: int) -> list[str]:
+    """`res_<channel>_<shaft>_<feature>`: per channel and shaft its bands, then FEATURES (each
+    channel and shaft a block of bands, as the CNN reads band spectra)."""
+    return [f"res_{channel}_{shaft}_{feature}" for channel in channels for shaft, _, _ in shafts
+            for feature in band_names(n_bands) + list(FEATURES)]
+
+
+def reference_rows(ids: pd.DataFrame, against: dict) -> dict:
+    """{reference key: row positions of its reference segments} and each row's key: a measured
+    segment's key is its condition (the calibration set there), a simulated one's its machine (its
+    healthy twin's last segments), as `condmon.reference` takes the features."""
+    if against["source"] == "measured":
+        chosen = calibration_frame(ids, against["healthy_state"], against["condition"], dict(against["reserve"]))
+        keys = ids[against["condition"]].astype(float).to_numpy()
+        positions = {}
+        for position in chosen.index:
+            positions.setdefault(float(ids.at[position, against["condition"]]), []).append(position)
+        return positions, list(keys)
+    machines = ids["record_id"].map(machine_of)
+    is_reference = (ids["health_state"] == against["healthy_state"]) & (ids["segment"] >= int(against["segments_per_sample"]))
+    positions = {}
+    for position in np.flatnonzero(is_reference.to_numpy()):
+        positions.setdefault(machines.iat[position], []).append(position)
+    return positions, list(machines)
+
+
+def patterns_table(references: dict, condition: str, shafts, channels) -> pd.DataFrame:
+    """The measured references as a table to write and package: one row per condition, shaft and
+    channel, the pattern (one revolution) as a list."""
+    rows = [{condition: key, "shaft": name, "channel": channel, "pattern": reference[k][c].tolist()}
+            for key, reference in references.items() for k, (name, _, _) in enumerate(shafts)
+            for c, channel in enumerate(channels)]
+    return pd.DataFrame(rows)
+
+
+def patterns_from_table(table, shafts, channels) -> tuple[str, dict]:
+    """(condition column, {condition value: [per shaft (n_channels, P)]}) of `patterns_table`."""
+    table = pd.DataFrame(table)
+    condition = next(c for c in table.columns if c not in ("shaft", "channel", "pattern"))
+    references = {}
+    for value, rows in table.groupby(condition):
+        indexed = rows.set_index(["shaft", "channel"])["pattern"]
+        references[float(value)] = [np.array([np.asarray(indexed[(name, channel)], float) for channel in channels])
+                                    for name, _, _ in shafts]
+    return condition, references
+
+
+def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -> pd.DataFrame:
+    """Wide features table of one signal table: every segment's residual signatures against its
+    machine's healthy reference (module docstring). `params`: the config's `features.residual`
+    with the rig's `shafts`, the `damaged_shafts` whose features it gives (default: every
+    shaft; the gear system's faults damage the pinion and its shaft) and either `against` (the features job's healthy-reference spec:
+    measured segments against the calibration set per condition, simulated ones against their
+    healthy twins) or `reference_patterns` (a packaged model's measured references). With
+    `against` measured, the references go in `attrs["references"]` to be written and packaged."""
+    params = dict(params)
+    shafts = [(str(n), float(r), int(t)) for n, r, t in params.pop("shafts")]
+    damaged = [str(name) for name in params.pop("damaged_shafts", None) or [name for name, _, _ in shafts]]
+    against, packaged = params.pop("against", None), params.pop("reference_patterns", None)
+    if not set(damaged) <= {name for name, _, _ in shafts}:
+        raise FeatureTableError(f"{KEY}: damaged shafts {damaged} are not all among the rig's {[n for n, _, _ in shafts]}")
+    unknown = sorted(set(params) - set(RESIDUAL_PARAMS))
+    if unknown:
+        raise FeatureTableError(f"{KEY}: unknown parameter(s) {unknown}; allowed: {list(RESIDUAL_PARAMS)}")
+    if against is None and packaged is None:
+        raise FeatureTableError(f"{KEY}: residual signatures take each machine against its healthy reference; "
+                                "switch features.healthy_reference on")
+    P, bands_per_mesh = int(params["samples_per_revolution"]), int(params["bands_per_mesh"])
+    mesh_harmonics, shaft_orders = int(params["mesh_harmonics"]), int(params["shaft_orders"])
+    n_bands = bands_per_mesh * mesh_harmonics
+    fs_hz = single_sampling_rate(signal_frame)
+    ids, arrays = to_arrays(signal_frame, list(channels))
+    ids = ids.reset_index(drop=True)
+    patterns = []
+    for segment, speed in zip(arrays, ids["speed_rpm"].to_numpy(float)):
+        check_resolution(fs_hz, float(speed), shafts, P, mesh_harmonics)
+        found, _ = segment_patterns(segment, fs_hz, speed, shafts, P, int(params["phase_harmonic"]),
+                                    float(params["phase_band_orders"]), float(params["phase_min_snr"]))
+        patterns.append(found)
+    if packaged is not None:
+        condition, references = patterns_from_table(packaged, shafts, list(channels))
+        known = np.array(sorted(references))
+        keys = [float(known[np.argmin(np.abs(known - v))]) for v in ids[condition].astype(float)]
+    else:
+        positions, keys = reference_rows(ids, against)
+        references = {key: [reference_pattern([patterns[i][k] for i in rows], teeth)
+                            for k, (_, _, teeth) in enumerate(shafts)] for key, rows in positions.items()}
+        missing = sorted({str(k) for k in keys} - {str(k) for k in references})
+        if against["source"] == "measured" and missing:
+            raise FeatureTableError(f"{KEY}: no calibration records at {against['condition']} {missing}")
+    # features of the shafts whose gears the modelled faults damage; every shaft's pattern is
+    # still estimated, to keep the others out of theirs
+    chosen = [(k, shaft) for k, shaft in enumerate(shafts) if shaft[0] in damaged]
+    names = feature_names(channels, [shaft for _, shaft in chosen], n_bands)
+    values = np.full((len(ids), len(names)), np.nan)
+    for i, key in enumerate(keys):
+        if key not in references:  # a simulated sample whose healthy twin failed: left out later
+            continue
+        found = [residual_features(patterns[i][k], references[key][k], teeth, teeth / bands_per_mesh, n_bands,
+                                   shaft_orders, mesh_harmonics) for k, (_, _, teeth) in chosen]
+        # (shaft, feature, channel) -> the names' order: channel, shaft, feature
+        block = np.array([[shaft[feature] for feature in band_names(n_bands) + list(FEATURES)] for shaft in found])
+        values[i] = np.log10(block.transpose(2, 0, 1).ravel() + TINY)
+    frame = pd.concat([ids, pd.DataFrame(values.astype(np.float32), columns=names)], axis=1)
+    frame.attrs["referenced_columns"] = names
+    if against is not None and against["source"] == "measured":
+        frame.attrs["references"] = patterns_table(references, against["condition"], shafts, list(channels))
+    return frame
+
+
+# the features job hands it the healthy-reference spec (`against`) and reads every record at once
+# for it (a simulated sample's healthy twin lies in another file)
+residual_feature_table.takes_reference = True
+
+
+def check_resolution(fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int,
+                     mesh_harmonics: int) -> None:
+    """Refuse an angular grid that folds content into the orders kept. `resample_at` has no
+    anti-alias filter: on a grid coarser than the samples (P x shaft frequency < fs) content up
+    to fs / 2 folds down to P - fs / (2 x shaft frequency) orders, which must lie above every
+    order the features keep (the mesh harmonics and their sideband)."""
+    for name, ratio, teeth in shafts:
+        shaft_hz = float(ratio) * speed_rpm / 60.0
+        lowest_folded = samples_per_revolution - fs_hz / (2 * shaft_hz)
+        top = mesh_harmonics * int(teeth) + 1
+        if lowest_folded < top:
+            raise FeatureTableError(
+                f"{KEY}.samples_per_revolution: {samples_per_revolution} per revolution of the {name} at "
+                f"{speed_rpm:g} rpm folds {fs_hz:g} Hz content down to order {lowest_folded:.0f}, below its "
+                f"order {top}; raise it to at least {int(np.ceil(top + fs_hz / (2 * shaft_hz)))}")
