@@ -14,7 +14,7 @@ import pytest
 from condmon.classifiers import make_classifier
 from condmon.features import compute_feature_table
 from condmon.predict import main
-from condmon.model_store import training_range
+from condmon.hybrid import training_range
 from condmon.signal_model import (REQUIRED_COLUMNS, SignalModel, UnsupportedRecords, health_summary,
                                   log_pyfunc, record_predictions)
 from condmon.signals import make_rows, write_signal_table

@@ -358,3 +358,17 @@ def read_split_table(path) -> pd.DataFrame:
         raise SplitError(f"{path}: no such split table") from None
     validate_splits(splits, str(path))
     return typed_splits(splits)
+
+
+def training_range(simulated: pd.DataFrame, measured: pd.DataFrame, split: pd.DataFrame,
+                   names) -> dict:
+    """The range (minimum, maximum) of every feature of `names` over a fit's training segments:
+    the simulated ones the split does not hold out for validation and the measured ones it
+    trains on (`SignalModel.training_range`; the joined method's support). Here beside the split
+    table's readers, so a job that needs it imports no MLflow (the model store does)."""
+    names = list(names)
+    simulated = simulated[~simulated["record_id"].astype(str).isin(simulated_validation_ids(split))]
+    trained = measured[segment_roles(measured_rows(split), measured) == "train"]
+    rows = pd.concat([simulated[names], trained[names]], ignore_index=True)
+    return {"features": names, "low": rows.min().astype(float).tolist(),
+            "high": rows.max().astype(float).tolist()}

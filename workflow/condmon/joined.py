@@ -2,7 +2,7 @@
 system's training-free physics rule where it has none.
 
 A classifier trained on simulation extrapolates, with full confidence, on a measured segment
-whose features lie outside every training example (`model_store.training_range`: the range of
+whose features lie outside every training example (`hybrid.training_range`: the range of
 each feature the fit uses, its selection's or all, over its training segments; `condmon predict`
 flags such segments `outside_training`). The physics rule needs no training example: its
 threshold comes from the healthy calibration segments alone (`condmon.baselines`). So the joined
@@ -24,8 +24,7 @@ import logging
 import numpy as np
 import pandas as pd
 
-from condmon.hybrid import validate_splits
-from condmon.model_store import training_range
+from condmon.hybrid import training_range, validate_splits
 from condmon.train import PREDICTION_COLUMNS, metric_rows
 
 log = logging.getLogger(__name__)

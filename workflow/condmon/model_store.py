@@ -23,8 +23,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from condmon.atomic import staging_directory
-from condmon.hybrid import (measured_rows, read_split_table, segment_roles,
-                            simulated_validation_ids)
+from condmon.hybrid import measured_rows, read_split_table, training_range
 from condmon.labels import LEAKY_PROTOCOLS
 from condmon.signal_model import SPEED_TOLERANCE, SignalModel
 
@@ -49,19 +48,6 @@ def training_speeds(simulated_speeds, measured: pd.DataFrame, split: pd.DataFram
     train_ids = set(measured_rows(split).query("role == 'train'")["record_id"])
     measured_speeds = measured.loc[measured["record_id"].isin(train_ids), "speed_rpm"]
     return sorted({float(s) for s in [*simulated_speeds, *measured_speeds]})
-
-
-def training_range(simulated: pd.DataFrame, measured: pd.DataFrame, split: pd.DataFrame,
-                   names) -> dict:
-    """The range (minimum, maximum) of every feature of `names` over a fit's training segments:
-    the simulated ones the split does not hold out for validation and the measured ones it
-    trains on (`SignalModel.training_range`)."""
-    names = list(names)
-    simulated = simulated[~simulated["record_id"].astype(str).isin(simulated_validation_ids(split))]
-    trained = measured[segment_roles(measured_rows(split), measured) == "train"]
-    rows = pd.concat([simulated[names], trained[names]], ignore_index=True)
-    return {"features": names, "low": rows.min().astype(float).tolist(),
-            "high": rows.max().astype(float).tolist()}
 
 
 def build_store(directory, train_dirs, split_tables, measured_signals, simulated_features,

@@ -83,7 +83,7 @@ class SignalModel:
     ``system``: the system's `job_spec("measured")`, so a folder of the system's own records (its own
     file format) can be read by the system's reader. ``training_range``: {"features", "low",
     "high"}, the range of the training segments over the features the estimator uses
-    (`condmon.model_store.training_range`); a segment outside it rests on no training example,
+    (`condmon.hybrid.training_range`); a segment outside it rests on no training example,
     and the predictions say so (``outside_training``).
     """
 

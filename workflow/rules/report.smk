@@ -79,7 +79,8 @@ rule report:
         **{f"benchmarks_{rule}": files for rule, files in upstream_benchmarks().items()},
         # the classifiers' and the joined methods' (scored alike, beside their parts)
         metrics=train_outputs("metrics.csv") + joined_outputs("metrics.csv"),
-        predictions=train_outputs("predictions.parquet") + joined_outputs("predictions.parquet"),
+        predictions=train_outputs("predictions.parquet")
+        + joined_outputs("predictions.parquet"),
         # one calibration per variant (dict keys of the same order in each)
         simulation_reports=simulated_batches("json"),
         measured_only=train_outputs("measured_only.csv"),
