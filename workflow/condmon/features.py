@@ -234,11 +234,11 @@ def compute_feature_table_from_files(paths, channels, kind: str, family_params: 
     (`referenced_columns`, its references)."""
     system_families = system_families or {}
     families = feature_families(kind, tuple(system_families))  # an unknown family: before any read
+    if not paths:
+        raise FeatureTableError("no signal tables given")
     if any(getattr(system_families.get(family), "takes_reference", False) for family in families):
         log.info("%s features of %d signal tables at once", kind, len(paths))
         tables = [read_signal_table(path) for path in paths]
-        if not tables:
-            raise FeatureTableError("no signal tables given")
         frames = [family_table(pd.concat(tables, ignore_index=True), channels, kind, family_params,
                                defect_orders, system_families)]
     else:
@@ -247,8 +247,6 @@ def compute_feature_table_from_files(paths, channels, kind: str, family_params: 
             log.info("%s features of %s", kind, path)
             frames.append(family_table(read_signal_table(path), channels, kind, family_params,
                                        defect_orders, system_families))
-    if not frames:
-        raise FeatureTableError("no signal tables given")
     attrs = frames[0].attrs if len(frames) == 1 else {}
     frame = pd.concat([without_attrs(f) for f in frames], ignore_index=True)
     single_sampling_rate(frame, where="signal tables " + ", ".join(map(str, paths)))

@@ -29,7 +29,7 @@ for family in family_params:  # a family that takes every machine against its re
         family_params[family]["against"] = dict(against) if against else None
 frame = compute_feature_table_from_files(signal_paths, channels, kind,
                                          {"spectrum": spectrum, "statistical": statistical, **family_params},
-                                         system.defect_orders(), system.feature_families())
+                                         system.defect_orders(), own)
 names = feature_columns(frame)
 referenced = list(frame.attrs.get("referenced_columns", ()))  # a family that took its reference itself
 family_references = frame.attrs.get("references")  # ... and its measured references, to package

@@ -31,10 +31,11 @@ try:
                                      "table": pd.read_parquet(inputs.reference).to_dict("list")}
         if "family_references" in inputs.keys():  # a family's own references (waveforms), packaged in its params
             own = load_system(params.features_system).feature_families()
-            features["families"] = {family: dict(settings, **({"reference_patterns": pd.read_parquet(
-                                        inputs.family_references).to_dict("list")}
-                                        if getattr(own.get(family), "takes_reference", False) else {}))
-                                    for family, settings in (features.get("families") or {}).items()}
+            patterns = pd.read_parquet(inputs.family_references).to_dict("list")
+            features["families"] = {family: dict(settings) for family, settings in (features.get("families") or {}).items()}
+            for family, settings in features["families"].items():
+                if getattr(own.get(family), "takes_reference", False):
+                    settings["reference_patterns"] = patterns
         index = build_store(store, train_dirs, dict(zip(params.protocols, inputs.splits)),
                             inputs.measured_signals, inputs.features_simulated, inputs.features_measured,
                             features, params.healthy_state, dict(params.measured_system), params.config_hash)
