@@ -4,7 +4,7 @@ import pandas as pd
 import pytest
 
 from condmon.reference import (ReferenceError, measured_reference, nearest_reference, refer_measured,
-                               refer_simulated)
+                               reference_length_mismatches, refer_simulated)
 from condmon.features import compute_feature_table, feature_columns
 from condmon.signal_model import SignalModel, complete_signal_table
 from condmon.simulate import machine_of
@@ -27,6 +27,17 @@ def test_a_measured_segment_is_taken_against_the_calibration_set_at_its_speed():
     out = refer_measured(frame, NAMES, reference, "speed_rpm").set_index("record_id")
     assert out.loc["f1", NAMES].tolist() == [5.0, 0.0] and out.loc["f2", NAMES].tolist() == [4.0, 4.0]
     assert out.loc["h2", NAMES].tolist() == [0.5, 0.0]
+
+
+def test_a_simulated_reference_shorter_than_the_calibration_set_is_named_per_condition():
+    # 450 rpm: the calibration record h1 holds two segments; 900 rpm: h3 holds one
+    frame = segments([("h1", 0, "healthy", 450.0, 1.0, 10.0), ("h1", 1, "healthy", 450.0, 3.0, 12.0),
+                      ("h2", 0, "healthy", 450.0, 2.5, 11.0), ("h3", 0, "healthy", 900.0, 5.0, 0.0),
+                      ("h4", 0, "healthy", 900.0, 6.0, 1.0)])
+    one = reference_length_mismatches(frame, "healthy", "speed_rpm", {}, 1)
+    assert len(one) == 1 and "speed_rpm 450 holds 2 segment(s)" in one[0] and "simulated_segments to 2" in one[0]
+    two = reference_length_mismatches(frame, "healthy", "speed_rpm", {}, 2)
+    assert len(two) == 1 and "speed_rpm 900 holds 1 segment(s)" in two[0]
 
 
 def test_a_speed_without_calibration_records_is_refused_by_name():

@@ -46,6 +46,9 @@ if against:
         table = reference.measured_reference(frame, levels, against["healthy_state"], against["condition"],
                                              dict(against["reserve"]))
         frame = reference.refer_measured(frame, levels, table, against["condition"])
+        for message in reference.reference_length_mismatches(frame, against["healthy_state"], against["condition"],
+                                                             dict(against["reserve"]), int(against["reference_segments"])):
+            log.warning(message)
         if "family_references" in snakemake.output.keys():
             write_frame(family_references, snakemake.output.family_references)
         write_frame(reference.reference_table(table, against["condition"]), snakemake.output.reference)
