@@ -275,15 +275,18 @@ def train_dirs(paths: dict) -> list[Path]:
 
 
 def report_inputs(paths: dict, out: Path, **parts):
-    """`condmon.report_inputs.ReportInputs` of the fake train outputs (`build`): run "demo" on the
+    """`condmon.report.inputs.ReportInputs` of the fake train outputs (`build`): run "demo" on the
     virtual bench, healthy first, confusion matrices at 0 %, accuracy.csv, summary.json, plots/
     and the evaluation tables into `out`. `parts`: {group: {field: value}} replacing fields of a
-    group, e.g. evaluation={"measured_features": ...}, train={"measured_only": [...]}."""
+    group, e.g. evaluation={"measured_features": ...}, train={"measured_only": [...]}; `outputs`
+    takes tables by name beside summary and plots, e.g. outputs={"headline": out / "headline.csv"}."""
     from dataclasses import replace
 
-    from condmon.report_inputs import (CalibrationOutputs, EvaluationInputs, ReportInputs,
+    from condmon.report.inputs import (CalibrationOutputs, EvaluationInputs, ReportInputs,
                                        ReportOutputs, RunIdentity, TrainOutputs)
 
+    outputs = dict(parts.pop("outputs", {}))
+    files = {key: outputs.pop(key) for key in ("summary", "plots") if key in outputs}
     inputs = ReportInputs(
         run=RunIdentity(run_name="demo", data_source="virtual_bench", healthy_state="healthy"),
         train=TrainOutputs(metrics=paths["metrics"], predictions=paths["predictions"]),
@@ -291,15 +294,18 @@ def report_inputs(paths: dict, out: Path, **parts):
                                        spectra=paths["calibration_spectra"],
                                        history=paths["calibration_history"]),
         evaluation=EvaluationInputs(confusion_percent=[0]),
-        outputs=ReportOutputs(accuracy=out / "accuracy.csv", summary=out / "summary.json",
-                              plots=out / "plots", evaluation=out / "evaluation.csv",
-                              evaluation_summary=out / "evaluation_summary.csv"))
+        outputs=ReportOutputs(summary=files.get("summary", out / "summary.json"),
+                              plots=files.get("plots", out / "plots"),
+                              tables={"accuracy": out / "accuracy.csv",
+                                      "evaluation": out / "evaluation.csv",
+                                      "evaluation_summary": out / "evaluation_summary.csv",
+                                      **outputs}))
     return replace(inputs, **{group: replace(getattr(inputs, group), **fields)
                               for group, fields in parts.items()})
 
 
 def write_report(paths: dict, out: Path, **parts) -> dict:
-    """`condmon.report.write_report` on `report_inputs(paths, out, **parts)`."""
-    from condmon import report
+    """`condmon.report.write.write_report` on `report_inputs(paths, out, **parts)`."""
+    from condmon.report.write import write_report
 
-    return report.write_report(report_inputs(paths, out, **parts))
+    return write_report(report_inputs(paths, out, **parts))

@@ -135,7 +135,8 @@ def test_a_config_file_merges_over_its_base_as_several_configfiles_do(tmp_path):
         apply_base({"base": "config/none.yaml"}, tmp_path)
 
 
-@pytest.mark.parametrize("layer", [".test/config/smoke.yaml", ".test/config/cwru-smoke.yaml"])
+@pytest.mark.parametrize("layer", [".test/config/smoke.yaml", ".test/config/cwru-smoke.yaml",
+                                   ".test/config/cfrp-smoke.yaml"])
 def test_the_ci_configs_state_only_how_they_differ_from_their_base(layer):
     text = (ROOT / layer).read_text()
     own = yaml.safe_load(text)

@@ -1,6 +1,6 @@
 """A lint rule: no function or method of the workflow or the benchmarks takes more than
 MAX_PARAMETERS parameters (a long list of "skip if None" arguments wants an object: see
-condmon.report_inputs). The physics models (models/) lie outside the rule; the systems' code is
+condmon.report.inputs). The physics models (models/) lie outside the rule; the systems' code is
 inside it. Counted: every parameter a caller can pass (positional, keyword-only, *args and
 **kwargs one each), a method's self or cls not."""
 import ast
@@ -67,6 +67,6 @@ def test_no_function_takes_more_than_ten_parameters():
                 found[(relative, name)] = count
     unexpected = {key: count for key, count in found.items() if key not in EXEMPT}
     assert not unexpected, (f"more than {MAX_PARAMETERS} parameters (group them into an object, "
-                            f"as condmon.report_inputs does): {unexpected}")
+                            f"as condmon.report.inputs does): {unexpected}")
     stale = sorted(set(EXEMPT) - set(found))
     assert not stale, f"exempt but no longer over the limit, drop from EXEMPT: {stale}"

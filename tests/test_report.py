@@ -7,7 +7,13 @@ import pandas as pd
 import pytest
 
 import fake_train_outputs as fake
-from condmon import labels, report, train_tables
+from condmon import labels, train_tables
+from condmon.report.accuracy import labelled_accuracy
+from condmon.report.evaluation_tables import design_summary
+from condmon.report.headline import CEILING_MODEL, NO_EVALUATION_SPECIMEN, headline_table
+from condmon.report.loading import design_record_ids, load_fault_lines
+from condmon.report.prediction_shares import confusion_counts, record_sides
+from condmon.report.recall_per_record import fault_lines_summary, recall_per_record
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +64,7 @@ def test_confusion_sides_split_the_tested_records_by_specimen():
     predictions = pd.DataFrame({"record_id": ["d0", "e0", "d1", "e1", "e0"]})
 
     def sides_of(design_records):
-        return report.record_sides(predictions["record_id"].isin(design_records))
+        return record_sides(predictions["record_id"].isin(design_records))
 
     sides = {name: mask for name, mask, _ in sides_of(["d0", "d1", "unseen"])}
     assert list(predictions[sides["evaluation"]].record_id) == ["e0", "e1", "e0"]
@@ -131,7 +137,7 @@ def test_plots_exist_are_listed_and_are_real_images(built_report):
 @pytest.mark.slow
 def test_unknown_confusion_percent_names_the_available_ones(train_outputs, tmp_path):
     _, paths = train_outputs
-    with pytest.raises(report.ReportInputError, match=r"confusion_percent \[30\].*\[0, 50\]"):
+    with pytest.raises(train_tables.ReportInputError, match=r"confusion_percent \[30\].*\[0, 50\]"):
         fake.write_report(paths, tmp_path, evaluation={"confusion_percent": [30]})
     assert not (tmp_path / "accuracy.csv").exists() and not (tmp_path / "plots").exists()
 
@@ -168,7 +174,7 @@ def test_one_calibration_per_calibration_variant(train_outputs, tmp_path):
             "spectra_measured_vs_calibrated_potential_energy.png", "calibration_convergence_simple.png",
             "calibration_convergence_potential_energy.png"} <= set(summary["plots"])
     assert "calibration_convergence.png" not in summary["plots"]
-    with pytest.raises(report.ReportInputError, match="same calibration variants"):
+    with pytest.raises(train_tables.ReportInputError, match="same calibration variants"):
         fake.write_report(paths, tmp_path, calibration={
             "params": {m: f / "params.json" for m, f in files.items()},
             "spectra": {"simple": files["simple"] / "spectra.parquet"},
@@ -261,7 +267,7 @@ def test_accuracy_rows_carry_leaky_wilson_interval_and_small_test_flag():
 
     accuracy = pd.DataFrame({"protocol": ["record_split", "segment_share", "record_split"],
                              "accuracy": [0.9, 1.0, 0.5], "n_test": [100, 4, 0]})
-    out = report.labelled_accuracy(accuracy)
+    out = labelled_accuracy(accuracy)
     assert list(out["leaky"]) == [False, True, False]
     assert list(out["small_test_set"]) == [False, True, True]
     # Wilson 95 % for 90/100: 0.8256-0.9448; for 4/4: 0.5101-1
@@ -271,9 +277,9 @@ def test_accuracy_rows_carry_leaky_wilson_interval_and_small_test_flag():
 
 
 def test_confusion_counts_in_label_order_and_empty_when_nothing_was_predicted():
-    counts = report.confusion_counts(["a", "b", "b"], ["a", "a", "b"], ["b", "a", "c"])
+    counts = confusion_counts(["a", "b", "b"], ["a", "a", "b"], ["b", "a", "c"])
     assert counts.tolist() == [[1, 1, 0], [0, 1, 0], [0, 0, 0]]
-    assert report.confusion_counts([], [], ["a", "b"]).tolist() == [[0, 0], [0, 0]]
+    assert confusion_counts([], [], ["a", "b"]).tolist() == [[0, 0], [0, 0]]
 
 
 # -- honest evaluation: per-record, balanced, false alarms, baselines, conditions, design ------
@@ -434,7 +440,7 @@ def test_a_design_specimen_record_never_counts_in_the_evaluation_figures(tmp_pat
                      "outer_race 0.007 in at 3:00", "inner_race 0.014 in"],
         "status": ["kept", "kept", "kept", "kept", "left out"]})
     records.to_csv(tmp_path / "records.csv", index=False)
-    design, specimens = report.design_record_ids(
+    design, specimens = design_record_ids(
         ["n0"], ["inner_race 0.007 in", "ball 0.021 in"], tmp_path / "records.csv")
     assert design == ["ir7", "n0"] and specimens["ir14"] == "inner_race 0.014 in"
     assert "gone" not in specimens  # a left-out file is no tested record
@@ -485,7 +491,7 @@ def test_a_design_specimen_record_never_counts_in_the_evaluation_figures(tmp_pat
                              "measured_percent": [0], "repeat": [0], "speed_rpm": [np.nan],
                              "accuracy": [0.5], "macro_f1": [0.5], "n_test": [16]})
     alone_table = evaluation_table(alone, "normal", labels, conditions, "load", design)
-    headline = report.headline_table(accuracy, None, None, 1 / 3, table, physics_table,
+    headline = headline_table(accuracy, None, None, 1 / 3, table, physics_table,
                                      alone_table)
     column = "simulation only (0 % measured)"
     cells = headline.set_index(["records", "model"])[column]
@@ -496,7 +502,7 @@ def test_a_design_specimen_record_never_counts_in_the_evaluation_figures(tmp_pat
     assert cells[("evaluation specimens", "svm (simulated + measured)")] == "0.000"
     assert cells[("evaluation specimens", "baseline: physics rule envelope_rule (no training)")] == "1.000"
     assert cells[("design specimens", "svm (simulated + measured)")] == "1.000"
-    summary = report.design_summary(predictions, design, ["inner_race 0.007 in"], specimens)
+    summary = design_summary(predictions, design, ["inner_race 0.007 in"], specimens)
     assert summary["headline_records"] == "evaluation"
     assert summary["tested_evaluation_records"] == ["ir14", "or7"]
     assert summary["evaluation_specimens"] == ["inner_race 0.014 in", "outer_race 0.007 in at 3:00"]
@@ -505,18 +511,18 @@ def test_a_design_specimen_record_never_counts_in_the_evaluation_figures(tmp_pat
     everything = sorted(truth)
     table = evaluation_table(predictions, "normal", labels, conditions, "load", everything)
     assert "evaluation" not in set(table.records)
-    headline = report.headline_table(accuracy, None, None, 1 / 3, table)
+    headline = headline_table(accuracy, None, None, 1 / 3, table)
     assert headline.iloc[0]["records"] == "evaluation specimens"
-    assert headline.iloc[0]["model"] == report.NO_EVALUATION_SPECIMEN
+    assert headline.iloc[0]["model"] == NO_EVALUATION_SPECIMEN
     assert "no evaluation specimen in this data" in headline.iloc[0]["model"]
     assert set(headline.iloc[1:]["records"]) == {"design specimens"}
-    summary = report.design_summary(predictions, everything, [], specimens)
+    summary = design_summary(predictions, everything, [], specimens)
     assert summary["headline_records"] == "none"
     assert "no evaluation specimen in this data" in summary["note"]
     summarise(table, predictions, "normal", conditions, "load", everything)  # no evaluation rows: fine
-    with pytest.raises(report.ReportInputError, match="name no specimen"):
+    with pytest.raises(train_tables.ReportInputError, match="name no specimen"):
         records.drop(columns="specimen").to_csv(tmp_path / "bare.csv", index=False)
-        report.design_record_ids([], ["normal"], tmp_path / "bare.csv")
+        design_record_ids([], ["normal"], tmp_path / "bare.csv")
 
 
 @pytest.mark.slow
@@ -557,9 +563,9 @@ def test_a_record_of_another_bearing_never_reaches_the_headline(train_outputs, t
     without = written("without", dropped, {})
     # the ceiling row aside: the report without its predictions still has its features
     headline = pd.read_csv(marked / "headline.csv")
-    headline = headline[headline["model"] != report.CEILING_MODEL]
+    headline = headline[headline["model"] != CEILING_MODEL]
     other = pd.read_csv(without / "headline.csv")
-    pd.testing.assert_frame_equal(headline, other[other["model"] != report.CEILING_MODEL])
+    pd.testing.assert_frame_equal(headline, other[other["model"] != CEILING_MODEL])
     assert "evaluation specimens" in set(headline["records"])
     table = pd.read_csv(marked / "evaluation.csv")
     sides = {side: table[table["records"] == side].reset_index(drop=True)
@@ -588,23 +594,23 @@ def test_recall_beside_whether_each_fault_record_shows_its_line(tmp_path):
              "threshold": 3.0, "shows_line": True},
             {"record_id": "or2", "label": "outer_race", "line": "bpfo", "median_ratio": 1.2,
              "threshold": 3.0, "shows_line": False}]}}}))
-    lines, rule = report.load_fault_lines([info])
+    lines, rule = load_fault_lines([info])
     predictions = pd.DataFrame({
         "classifier": "svm", "protocol": "unseen_fault", "measured_percent": 0,
         "record_id": ["or1", "or1", "or2", "or2", "h"], "true_label": ["outer_race"] * 4 + ["normal"],
         "predicted_label": ["outer_race", "outer_race", "normal", "outer_race", "normal"]})
-    per_record = report.recall_per_record(predictions, lines).set_index("record_id")
+    per_record = recall_per_record(predictions, lines).set_index("record_id")
     assert per_record.loc["or1", "shows_line"] is True and per_record.loc["or2", "shows_line"] is False
     assert pd.isna(per_record.loc["h", "shows_line"])
     # the rule's own reading of each record stands beside the classifiers'
     rule_reads = predictions.assign(classifier="envelope_rule", predicted_label="inner_race")
-    both = report.recall_per_record(predictions, lines, rule_reads)
+    both = recall_per_record(predictions, lines, rule_reads)
     read = both[both["classifier"] == "envelope_rule"].set_index("record_id")
     assert list(read["most_predicted"]) == ["inner_race"] * 3 and read.loc["or1", "recall"] == 0.0
-    assert both[both["classifier"] == "svm"].reset_index(drop=True).equals(report.recall_per_record(predictions, lines))
-    summary = report.fault_lines_summary(predictions, lines, rule)
+    assert both[both["classifier"] == "svm"].reset_index(drop=True).equals(recall_per_record(predictions, lines))
+    summary = fault_lines_summary(predictions, lines, rule)
     (row,) = summary["recall"]
     assert (row["recall_shows_line"], row["records_shows_line"]) == (1.0, 1)
     assert (row["recall_no_line"], row["records_no_line"]) == (0.5, 1)
     assert summary["rule"] == "envelope_rule" and len(summary["records"]) == 2
-    assert report.load_fault_lines([]) == (None, {})
+    assert load_fault_lines([]) == (None, {})

@@ -8,9 +8,11 @@ import pandas as pd
 import pytest
 
 import fake_train_outputs as fake
-from condmon import labels, plots, report
+from condmon import labels, plots
 from condmon.features import read_feature_table, write_feature_table
-from condmon.report_pages import write_pages
+from condmon.report.headline import CEILING_MODEL
+from condmon.report.pages import write_pages
+from condmon.train_tables import ReportInputError
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +77,7 @@ def test_the_headline_gives_the_accuracy_at_both_ends_beside_the_baselines(train
         assert float(cell.split()[0]) == pytest.approx(mean, abs=5e-4), (classifier, protocol, percent)
     # last, the ceiling: the measured records alone, each left out (summary.json's figure)
     ceiling = headline.iloc[-1]
-    assert ceiling.model == report.CEILING_MODEL and ceiling[columns[0]] == "-"
+    assert ceiling.model == CEILING_MODEL and ceiling[columns[0]] == "-"
     separability = json.loads((out / "summary.json").read_text())["measured_separability"]["all"]
     assert float(ceiling[columns[1]]) == pytest.approx(separability["balanced_accuracy"], abs=5e-4)
     for protocol in headline.protocol.unique()[:-1]:
@@ -161,7 +163,7 @@ def test_a_tested_record_without_a_condition_is_named(train_outputs, tmp_path):
     features = features[features["record_id"] != dropped]
     features_path = tmp_path / "measured.parquet"
     features.to_parquet(features_path)
-    with pytest.raises(report.ReportInputError, match=f"no 'load'.*{dropped}"):
+    with pytest.raises(ReportInputError, match=f"no 'load'.*{dropped}"):
         write(paths, tmp_path / "report", evaluation={"measured_features": features_path, "condition": "load"})
 
 

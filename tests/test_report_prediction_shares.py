@@ -7,7 +7,9 @@ import pandas as pd
 import pytest
 
 import fake_train_outputs as fake
-from condmon import plots, report, train_tables
+from condmon import plots, train_tables
+from condmon.report.loading import load_simulated_validation
+from condmon.report.prediction_shares import prediction_shares, share_rows
 from condmon.labels import label_order
 from condmon.hybrid import SIMULATED_VALIDATION
 
@@ -26,7 +28,7 @@ def hand_built_predictions():
 
 def test_hand_built_predictions_give_known_shares():
     labels = label_order(["fault", "healthy"], healthy_state="healthy")
-    shares = report.prediction_shares(hand_built_predictions(), labels)
+    shares = prediction_shares(hand_built_predictions(), labels)
     assert list(shares.columns) == ["classifier", "protocol", "measured_percent", "speed_rpm",
                                     "true_label", "predicted_label", "share", "n"]
     got = {(r.speed_rpm, r.true_label, r.predicted_label): (r.share, r.n)
@@ -42,7 +44,7 @@ def test_hand_built_predictions_give_known_shares():
 
 def test_share_rows_of_one_matrix():
     counts = np.array([[3, 1, 0], [0, 0, 0], [2, 0, 2]])
-    rows = report.share_rows(("k",), counts, ["a", "b", "c"])
+    rows = share_rows(("k",), counts, ["a", "b", "c"])
     assert rows == [("k", "a", "a", 0.75, 4), ("k", "a", "b", 0.25, 4), ("k", "a", "c", 0.0, 4),
                     ("k", "c", "a", 0.5, 4), ("k", "c", "b", 0.0, 4), ("k", "c", "c", 0.5, 4)]
 
@@ -132,11 +134,11 @@ def test_simulated_validation_file_with_another_source_is_refused(fake_outputs, 
     _, _, validation_paths = fake_outputs
     bad = tmp_path / "simulated_validation.csv"
     pd.read_csv(validation_paths[0]).assign(test_source="measured").to_csv(bad, index=False)
-    with pytest.raises(report.ReportInputError, match="test_source"):
-        report.load_simulated_validation([bad])
+    with pytest.raises(train_tables.ReportInputError, match="test_source"):
+        load_simulated_validation([bad])
     empty = tmp_path / "empty.csv"
     pd.read_csv(validation_paths[0]).iloc[:0].to_csv(empty, index=False)
-    assert report.load_simulated_validation([empty]) is None
+    assert load_simulated_validation([empty]) is None
 
 
 def test_plot_with_an_untested_class_and_many_labels():
@@ -145,7 +147,7 @@ def test_plot_with_an_untested_class_and_many_labels():
         "classifier": "svm", "protocol": "segment_share", "measured_percent": [0] * 6 + [50] * 3,
         "speed_rpm": 1797.0, "true_label": labels + labels[:3],
         "predicted_label": labels[1:] + labels[:1] + labels[:3]})
-    shares = report.prediction_shares(predictions, labels)
+    shares = prediction_shares(predictions, labels)
     fig = plots.prediction_shares(shares, labels, "svm", "segment_share", [0, 50], "note")
     titles = [ax.get_title() for ax in fig.axes if ax.get_visible()]
     assert any("class_5" in t and "50 %" in t for t in titles)  # shown, marked "not tested"

@@ -7,7 +7,6 @@ import pandas as pd
 import pytest
 
 import fake_train_outputs as fake
-from condmon import report
 from condmon.features import read_feature_table, write_feature_table
 from condmon.signature import fault_signatures, outside_simulation, signature_table
 from condmon.train_tables import ReportInputError
@@ -108,6 +107,6 @@ def test_simulated_features_of_other_names_are_refused_with_the_file_named(train
     simulated, names = read_feature_table(paths["features_simulated"])
     other = tmp_path / "simulated.parquet"
     write_feature_table(simulated.drop(columns=names[-1]), names[:-1], other)
-    measured, names = read_feature_table(paths["features_measured"])
     with pytest.raises(ReportInputError, match="simulated.parquet: its features differ"):
-        report.signature_report({}, measured, names, other, "healthy", "speed_rpm", "note", tmp_path)
+        fake.write_report(paths, tmp_path / "report", evaluation={"measured_features": paths["features_measured"],
+                                                              "simulated_features": other})

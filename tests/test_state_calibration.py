@@ -12,7 +12,7 @@ from condmon.calibrate import calibrate_state, change_fit
 from condmon.hybrid import SplitError, calibration_frame, measured_layout
 from condmon.protocols import make_splits
 from condmon.plots import state_fit_label
-from condmon.report import plot_note
+from condmon.report.context import plot_note
 from condmon.signals import make_rows
 from condmon.systems.gear.parameters import state_model_fields
 
@@ -170,16 +170,15 @@ def test_every_plot_says_which_fault_models_their_own_records_tuned():
 
 
 def test_the_report_draws_each_tuned_states_convergence(tmp_path):
-    from condmon.report import state_convergence_plots
-    from condmon.report_inputs import RunIdentity
+    from condmon.report.calibration import state_convergence_plots
 
     history = pd.DataFrame({"generation": [0, 0, 1, 1], "evaluation": [0, 1, 2, 3],
                             "model_variant": ["pitting", "pitting", "pitting", "pitting"],
                             "cost": [0.2, 0.08, 0.06, 0.1], "seconds": 1.0, "error": ""})
     history.to_parquet(tmp_path / "history.parquet")
-    run = RunIdentity(run_name="run", data_source="virtual_bench", state_models=("surface_fault",))
+    note = plot_note("run", "virtual_bench", state_models=("surface_fault",))
     fit = {"no_change_cost": 0.07, "explained_share": -0.2, "change_correlation": -0.1, "identified": False}
     names = state_convergence_plots({"surface_fault": {"model_variant": "pitting", **fit}},
-                                    {"surface_fault": tmp_path / "history.parquet"}, tmp_path, run)
+                                    {"surface_fault": tmp_path / "history.parquet"}, tmp_path, note)
     assert names == ["calibration_convergence_state_surface_fault.png"]
     assert (tmp_path / "calibration_convergence_state_surface_fault.png").stat().st_size > 10_000

@@ -574,7 +574,7 @@ def test_the_library_has_no_import_cycle():
     assert graph["condmon.systems"] >= {"condmon.systems.bearing", "condmon.systems.gear"}
     assert "condmon.models.bearing.rig" in graph["condmon.systems.bearing"]
     # tracking reads the train tables and labels as the report does, never through the report
-    assert not graph["condmon.labels"] and "condmon.report" not in graph["condmon.tracking"]
+    assert not graph["condmon.labels"] and not any(m.split(".")[:2] == ["condmon", "report"] for m in graph["condmon.tracking"])
     for name, imported in graph.items():
         if name.startswith("condmon.models"):
             assert all(m.startswith("condmon.models") for m in imported), (name, imported)

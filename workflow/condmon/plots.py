@@ -312,7 +312,7 @@ def prediction_shares(shares, labels, classifier: str, protocol: str, percents, 
     percentage of that class's test segments predicted as each class (text: shares of 8 % and
     more; tick: the condition's value and test segments).
 
-    ``shares``: rows of report.prediction_shares (classifier, protocol, measured_percent,
+    ``shares``: rows of prediction_shares.csv (classifier, protocol, measured_percent,
     `condition`, true_label, predicted_label, share, n) of this classifier and protocol.
     """
     true_labels = [label for label in labels if label in set(shares["true_label"])]

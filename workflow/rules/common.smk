@@ -351,15 +351,13 @@ def upstream_benchmarks():
     }
 
 
-# The report stage's CSV tables that report_pages also shows as HTML tables.
-REPORT_TABLES = [
-    "accuracy",
-    "evaluation_summary",
-    "physics_baselines",
-    "prediction_shares",
-    "recall_per_record",
-    "job_timings",
-]
+# The report stage's CSV tables, {name: file under report/}, from its sections' registry
+# (condmon/report/registry.py: a new table is a section module and a line there), and those
+# report_pages also shows as HTML tables.
+from condmon.report.registry import tables as _report_tables
+
+REPORT_TABLES = {table.name: table.file for table in _report_tables()}
+REPORT_PAGES = [table.name for table in _report_tables() if table.page]
 
 
 def plot_category(wildcards):

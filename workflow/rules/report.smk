@@ -102,15 +102,10 @@ rule report:
         # the benchmark files of every job before this one, named benchmarks_<rule>
     # report_pages presents these files (HTML tables, the plots) in `snakemake --report`
     output:
-        accuracy=f"{RESULTS}/report/accuracy.csv",
-        prediction_shares=f"{RESULTS}/report/prediction_shares.csv",
+        # the registered sections' tables (condmon/report/registry.py): accuracy.csv,
+        # headline.csv (the front page's table), evaluation.csv, ...
+        **{name: f"{RESULTS}/report/{file}" for name, file in REPORT_TABLES.items()},
         summary=f"{RESULTS}/report/summary.json",
-        recall_per_record=f"{RESULTS}/report/recall_per_record.csv",
-        evaluation=f"{RESULTS}/report/evaluation.csv",
-        evaluation_summary=f"{RESULTS}/report/evaluation_summary.csv",
-        physics_baselines=f"{RESULTS}/report/physics_baselines.csv",
-        headline=f"{RESULTS}/report/headline.csv",  # the front page's table
-        job_timings=f"{RESULTS}/report/job_timings.csv",
         plots=directory(f"{RESULTS}/report/plots"),
     params:
         run_name=config["run_name"],
@@ -165,7 +160,7 @@ rule report_pages:
             f"calibration_params_{m}": p
             for m, p in calibration_outputs("params.json").items()
         },
-        **{name: rules.report.output[name] for name in REPORT_TABLES},
+        **{name: rules.report.output[name] for name in REPORT_PAGES},
         headline=rules.report.output.headline,
         summary=rules.report.output.summary,  # what each protocol tests
         plots=rules.report.output.plots,

@@ -1,12 +1,13 @@
-"""Snakemake script: train metrics/predictions + calibration -> report/accuracy.csv,
-summary.json and plots/. The logic lives in condmon.report; this script only gathers its inputs
-(condmon.report_inputs) from the rule's input, params and output.
+"""Snakemake script: train metrics/predictions + calibration -> report/summary.json, plots/ and
+the registered sections' tables (accuracy.csv, headline.csv, ...: condmon.report.registry, the
+rule's outputs but summary and plots). The logic lives in condmon.report; this script only gathers
+its inputs (condmon.report.inputs) from the rule's input, params and output.
 
 `snakemake` is injected by Snakemake's script directive.
 """
-from condmon.report import write_report
-from condmon.report_inputs import (CalibrationOutputs, EvaluationInputs, ReportInputs,
+from condmon.report.inputs import (CalibrationOutputs, EvaluationInputs, ReportInputs,
                                    ReportOutputs, RunIdentity, StageRecords, TrainOutputs)
+from condmon.report.write import write_report
 from condmon.runlog import setup_logging
 
 log = setup_logging(snakemake)  # to snakemake.log[0]
@@ -45,12 +46,9 @@ summary = write_report(ReportInputs(
                           measured_records=inputs.measured_records,
                           benchmarks={rule: tuple(inputs[f"benchmarks_{rule}"])
                                       for rule in params.benchmarked_rules}),
-    outputs=ReportOutputs(accuracy=output.accuracy, summary=output.summary, plots=output.plots,
-                          prediction_shares=output.get("prediction_shares"),
-                          recall_per_record=output.recall_per_record,
-                          job_timings=output.get("job_timings"), evaluation=output.evaluation,
-                          evaluation_summary=output.evaluation_summary,
-                          physics_baselines=output.physics_baselines, headline=output.headline),
+    outputs=ReportOutputs(summary=output.summary, plots=output.plots,
+                          tables={name: output[name] for name in output.keys()
+                                  if name not in ("summary", "plots")}),
 ))
 log.info("report of run %s: %d result rows, %d plots", summary["run_name"],
          len(summary["results"]), len(summary["plots"]))

@@ -1,13 +1,13 @@
 """Snakemake script: the report stage's tables, plots, headline and the run's config ->
 report/pages/ (HTML tables, what `snakemake --report` shows). The logic lives in
-condmon.report_pages.
+condmon.report.pages.
 
 `snakemake` is injected by Snakemake's script directive.
 """
 import json
 from pathlib import Path
 
-from condmon.report_pages import write_pages
+from condmon.report.pages import write_pages
 from condmon.runlog import setup_logging
 
 log = setup_logging(snakemake)  # to snakemake.log[0]

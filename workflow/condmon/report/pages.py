@@ -1,6 +1,6 @@
 """The report's pages: what `snakemake --report` shows, from the report stage's files.
 
-The report stage (condmon.report) computes; this module presents. It writes, under one folder
+The report stage (condmon.report.write) computes; this module presents. It writes, under one folder
 (``report/pages/``), every table the report stage wrote as CSV also as an HTML table (the
 Snakemake report offers a CSV only as a download, an HTML file it shows in place), each
 calibration's parameters as a table, the plots, the headline table the front page
@@ -20,6 +20,7 @@ from pathlib import Path
 import pandas as pd
 
 from condmon.atomic import staging_directory
+from condmon.report import registry
 
 STYLE = """<style>
 body { font-family: sans-serif; font-size: 14px; margin: 1em; }
@@ -32,24 +33,11 @@ p.note { color: #555; max-width: 60em; }
 </style>"""
 
 
-# Each table's heading and what it holds (the captions, workflow/report/tables.rst, say more).
-TITLES = {
-    "headline": "Headline: accuracy on held-out measured records",
-    "accuracy": "Accuracy per evaluation (accuracy.csv)",
-    "evaluation_summary": "Evaluation over repeats (evaluation_summary.csv)",
-    "physics_baselines": "Physics baselines (physics_baselines.csv)",
-    "prediction_shares": "Prediction shares (prediction_shares.csv)",
-    "recall_per_record": "Recall per record (recall_per_record.csv)",
-    "job_timings": "Job timings per rule (job_timings.csv)",
-}
+# Each table's heading and what it holds (the captions, workflow/report/tables.rst, say more):
+# the registered sections' tables (condmon.report.registry), then the pages' own.
+TITLES = {table.name: table.title for table in registry.tables() if table.title}
 NOTES = {
-    "headline": ("Mean over repeats (min-max over repeats where they differ) of the accuracy on "
-                 "measured records never seen in training, at the smallest and the largest "
-                 "share of measured data in training, per test protocol; the baselines on the "
-                 "same test sets below each protocol's classifiers. `records`: all test records, "
-                 "or the evaluation specimens' (the headline) and the design specimens' apart. "
-                 "The last row, where the measured records allow it: a classifier on the measured "
-                 "records alone, each left out in turn, the ceiling for one trained on simulation."),
+    **{table.name: table.note for table in registry.tables() if table.note},
     "calibration": "The calibrated parameters, then the rest of the calibration's params.json.",
     "protocols": "What each test protocol holds out; every number of the report carries its protocol.",
     "bench_differences": ("Every way the virtual bench differs from the model, and what the pipeline does "

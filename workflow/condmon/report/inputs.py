@@ -125,18 +125,12 @@ class StageRecords(_Frozen):
 
 @dataclass(frozen=True)
 class ReportOutputs:
-    """Where the report writes; an optional output left None is not written."""
-    accuracy: Path_                          # accuracy.csv
-    summary: Path_                           # summary.json
-    plots: Path_                             # plots/ (written whole, atomically)
-    prediction_shares: Path_ | None = None   # prediction_shares.csv
-    recall_per_record: Path_ | None = None   # recall_per_record.csv
-    job_timings: Path_ | None = None         # job_timings.csv (with StageRecords.benchmarks)
-    # with EvaluationInputs.measured_features:
-    evaluation: Path_ | None = None          # evaluation.csv: per evaluation
-    evaluation_summary: Path_ | None = None  # evaluation_summary.csv: over repeats
-    physics_baselines: Path_ | None = None   # physics_baselines.csv (a header alone without any)
-    headline: Path_ | None = None            # headline.csv: the front page's table
+    """Where the report writes: summary.json, plots/ (written whole, atomically) and the tables by
+    their names in the registry (condmon.report.registry: accuracy, evaluation, headline, ...);
+    a table not named is not written."""
+    summary: Path_
+    plots: Path_
+    tables: Mapping[str, Path_] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
