@@ -39,11 +39,13 @@ from condmon.evaluation import SMALL_TEST_SET, wilson_interval
 from condmon.features import read_feature_table
 from condmon.atomic import staging_directory, write_text
 from condmon.hybrid import SIMULATED_VALIDATION
+from condmon.joined import joined_name
 from condmon.labels import (LEAKY_PROTOCOLS, data_source_label, format_speed, is_synthetic,
                             label_order, protocol_label, protocol_title)
 from condmon.report_inputs import CalibrationOutputs, ReportInputs, RunIdentity
 from condmon.separability import SHOWN_RECALL, measured_separability
-from condmon.signature import fault_signatures, outside_simulation, signature_table
+from condmon.signature import (fault_signatures, outside_simulation, pooled_coverage,
+                               signature_table, simulation_coverage)
 from condmon.train_tables import ReportInputError, load_metrics, load_predictions, read_table
 
 log = logging.getLogger(__name__)
@@ -219,7 +221,8 @@ def recall_per_class(predictions: pd.DataFrame) -> pd.DataFrame:
 
 def recall_per_record(predictions: pd.DataFrame, fault_lines: pd.DataFrame | None = None,
                       physics: pd.DataFrame | None = None,
-                      outside: pd.DataFrame | None = None) -> pd.DataFrame:
+                      outside: pd.DataFrame | None = None,
+                      coverage: pd.DataFrame | None = None) -> pd.DataFrame:
     """Share of every measured record's test segments predicted right, per (classifier,
     protocol, percent), pooled over repeats and holdouts: shows which records a class's recall
     loses (a class's near-healthy records, say). With `fault_lines` (`load_fault_lines`) a column
@@ -229,7 +232,10 @@ def recall_per_record(predictions: pd.DataFrame, fault_lines: pd.DataFrame | Non
     record the same other class, the record has that class's envelope line within the rule's
     tolerance (a fault record with another location's line, say): look at its envelope spectrum.
     With `outside` (`condmon.signature.outside_simulation`) its two columns: the share of the
-    record's segments whose features leave the simulated range, and which features do."""
+    record's segments whose features leave the simulated range, and which features do. With
+    `coverage` (the joined jobs' coverage.csv) `outside_training`: the share of the record's
+    segments outside its classifier's training range on the fit's own features, on the rows of
+    that classifier and of its joined method (empty on others)."""
     if physics is not None:
         predictions = pd.concat([predictions, physics], ignore_index=True)
     hit = predictions["true_label"] == predictions["predicted_label"]
@@ -245,6 +251,12 @@ def recall_per_record(predictions: pd.DataFrame, fault_lines: pd.DataFrame | Non
         by_record = outside.set_index("record_id")
         for column in ("outside_simulation", "features_outside_simulation"):
             table[column] = table["record_id"].astype(str).map(by_record[column])
+    if coverage is not None:
+        pooled = pooled_coverage(coverage)
+        pooled = pd.concat([pooled, pooled.assign(classifier=pooled["classifier"].map(joined_name))])
+        keys = ["classifier", "protocol", "measured_percent", "record_id"]
+        table = table.merge(pooled[keys + ["outside_training"]].astype({"measured_percent": table[
+            "measured_percent"].dtype}), on=keys, how="left")
     return table
 
 
@@ -1018,6 +1030,8 @@ def write_report(inputs: ReportInputs) -> dict:
                          if len(pd.read_parquet(p, columns=["record_id"]))]
     physics = load_predictions(physics_with_rows) if physics_with_rows else None
     fault_lines, fault_line_rule = load_fault_lines(train.physics_info)
+    coverage = (pd.concat([pd.read_csv(p, dtype={"record_id": str, "holdout": str})
+                           for p in train.coverage], ignore_index=True) if train.coverage else None)
     alone_with_rows = [p for p in train.measured_only_predictions
                        if len(pd.read_parquet(p, columns=["record_id"]))]
     baseline_predictions = load_predictions(alone_with_rows) if alone_with_rows else None
@@ -1131,12 +1145,14 @@ def write_report(inputs: ReportInputs) -> dict:
                                                    table, physics_table, baseline_table), separability)
             write_text(headline.to_csv(index=False), out.headline)
         if out.recall_per_record is not None:
-            per_record = recall_per_record(predictions, fault_lines, physics, outside)
+            per_record = recall_per_record(predictions, fault_lines, physics, outside, coverage)
             # why a record is reported apart (empty for every modelled record)
             per_record["unmodelled"] = [apart.get(r, "") for r in per_record["record_id"].astype(str)]
             write_text(per_record.to_csv(index=False), out.recall_per_record)
         if fault_lines is not None:
             summary["fault_lines"] = fault_lines_summary(predictions, fault_lines, fault_line_rule)
+        if coverage is not None and len(coverage):
+            summary["simulation_coverage"] = simulation_coverage(coverage, design_records)
         if out.prediction_shares is not None:
             write_text(shares.to_csv(index=False), out.prediction_shares)
         write_text(json.dumps(summary, indent=2) + "\n", out.summary)
