@@ -118,7 +118,7 @@ def signature_table(signatures: dict) -> pd.DataFrame:
 
 # A design record is covered by the simulation when at most this share of its segments leaves the
 # range the classifier was trained on, on the classifier's own features: one segment in twenty (a
-# CWRU record's 29 segments may have one out; a finite simulated sample has tails of its own).
+# record of 29 segments may have one out; a finite simulated sample has tails of its own).
 COVERAGE_TOLERANCE = 0.05
 
 
