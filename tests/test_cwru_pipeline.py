@@ -70,6 +70,28 @@ def test_cwru_run_writes_every_protocol_labelled_with_gain_and_recall(cwru_run):
     info = json.loads((results / "joined" / "joined_svm" / "unseen_fault" / "info.json").read_text())
     assert info["parts"] == ["svm", "envelope_rule"] and 0 <= info["outside_training_share"] <= 1
     assert "confusion_joined_svm_unseen_fault_all.png" in summary["plots"]
+    # simulation covers the machine (issue 49 item 2): each design record judged on the features
+    # the SVM's fits use, at 0 % (the simulated range), from the joined job's coverage.csv
+    coverage = pd.read_csv(results / "joined" / "joined_svm" / "unseen_fault" / "coverage.csv",
+                           dtype={"record_id": str, "holdout": str})
+    fits = json.loads((results / "train" / "svm" / "unseen_fault" / "info.json").read_text())["models"]
+    (entry,) = [e for e in summary["simulation_coverage"]["results"]
+                if (e["classifier"], e["protocol"]) == ("svm", "unseen_fault")]
+    assert entry["measured_percent"] == 0 and entry["design_records"] == len(SLICE)
+    assert entry["features"] == sorted({f for m in fits if m["measured_percent"] == 0
+                                        for f in m["selected_features"]})
+    at_zero = coverage[coverage["measured_percent"] == 0]
+    out = at_zero.groupby("record_id").apply(
+        lambda r: (r["outside_training"] * r["n_segments"]).sum() / r["n_segments"].sum())
+    assert set(entry["design_records_outside"]) == set(out[out > 0.05].index)
+    assert entry["covers_design_records"] == bool((out <= 0.05).all())
+    per_record = pd.read_csv(results / "report" / "recall_per_record.csv", dtype={"record_id": str})
+    mine = per_record[(per_record["protocol"] == "unseen_fault") & (per_record["measured_percent"] == 0)
+                      & per_record["classifier"].isin(["svm", "joined_svm"])].set_index("record_id")
+    for classifier in ("svm", "joined_svm"):
+        got = mine[mine["classifier"] == classifier]["outside_training"]
+        assert got.to_dict() == pytest.approx(out.reindex(got.index).to_dict())
+    assert per_record.loc[per_record["classifier"] == "knn", "outside_training"].isna().all()
 
 
 def test_cwru_hybrid_splits_follow_their_protocols(cwru_run):

@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from condmon.joined import joined_metrics, joined_predictions, prediction_frame
+from condmon.joined import COVERAGE_COLUMNS, joined_metrics, joined_predictions, prediction_frame
 from condmon.train import METRIC_COLUMNS, PREDICTION_COLUMNS
 
 NAMES = ["kurtosis", "spread", "ratio"]
@@ -52,8 +52,8 @@ def _case():
 def test_the_rule_calls_the_segments_outside_the_fits_own_training_range():
     simulated, measured, splits, predictions, models, calls = _case()
     rule = pd.concat([calls(0, "ball", "envelope_rule"), calls(50, "ball", "envelope_rule")])
-    joined, info = joined_predictions("svm", predictions, rule, models, simulated, measured,
-                                      splits, NAMES)
+    joined, info, coverage = joined_predictions("svm", predictions, rule, models, simulated,
+                                                measured, splits, NAMES)
     at = {p: joined[joined["measured_percent"] == p].set_index(["record_id", "segment"])
           for p in (0, 50)}
     # 0 %: the fit used kurtosis and spread: a1 (spread 3) is outside, b0 (ratio 9) is not
@@ -81,9 +81,28 @@ def test_the_rule_calls_the_segments_outside_the_fits_own_training_range():
 def test_without_the_rules_predictions_the_classifier_keeps_its_calls():
     simulated, measured, splits, predictions, models, calls = _case()
     rule = calls(0, "ball", "envelope_rule")  # none at 50 %
-    joined, info = joined_predictions("svm", predictions, rule, models, simulated, measured,
-                                      splits, NAMES)
+    joined, info, _ = joined_predictions("svm", predictions, rule, models, simulated, measured,
+                                         splits, NAMES)
     assert (joined.loc[joined["measured_percent"] == 50, "predicted_label"] == "inner_race").all()
     assert info["splits_without_rule"] == [[50, 0, ""]]
     with pytest.raises(ValueError, match="no model listed"):
         joined_predictions("svm", predictions, rule, models[:1], simulated, measured, splits, NAMES)
+
+
+def test_coverage_gives_each_records_share_outside_the_fits_own_range():
+    """coverage.csv: per split and tested record, the share of its segments outside the training
+    range on the fit's own features (the classifier's name: the range is its fit's), and which."""
+    simulated, measured, splits, predictions, models, calls = _case()
+    rule = pd.concat([calls(0, "ball", "envelope_rule"), calls(50, "ball", "envelope_rule")])
+    _, _, coverage = joined_predictions("svm", predictions, rule, models, simulated, measured,
+                                        splits, NAMES)
+    assert list(coverage.columns) == COVERAGE_COLUMNS and set(coverage["classifier"]) == {"svm"}
+    rows = coverage.set_index(["measured_percent", "record_id"])
+    # 0 %: kurtosis and spread only: a1 out on spread, b0's ratio 9 is no feature of the fit
+    assert rows.loc[(0, "a"), ["n_segments", "outside_training"]].tolist() == [2, 0.5]
+    assert rows.loc[(0, "a"), "features_outside_training"] == "spread"
+    assert rows.loc[(0, "b"), "outside_training"] == 0.0
+    assert rows.loc[(0, "a"), "features"] == "kurtosis, spread"
+    # 50 %: all features, t widens spread: b0 out on ratio
+    assert rows.loc[(50, "a"), "outside_training"] == 0.0
+    assert rows.loc[(50, "b"), ["outside_training", "features_outside_training"]].tolist() == [1.0, "ratio"]

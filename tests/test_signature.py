@@ -8,7 +8,8 @@ import pytest
 
 import fake_train_outputs as fake
 from condmon.features import read_feature_table, write_feature_table
-from condmon.signature import fault_signatures, outside_simulation, signature_table
+from condmon.signature import (COVERAGE_TOLERANCE, fault_signatures, outside_simulation,
+                               pooled_coverage, signature_table, simulation_coverage)
 from condmon.train_tables import ReportInputError
 
 NAMES = [f"f{i}" for i in range(8)]
@@ -74,6 +75,44 @@ def test_outside_simulation_marks_the_segments_no_simulated_example_covers():
     measured = pd.DataFrame({"record_id": "r", "a": [5.0, 5.0], "b": [15.0, 40.0]})
     (row,) = outside_simulation(measured, simulated, ["b", "a"], listed=1).itertuples()
     assert row.features_outside_simulation == "a (+1 more)" and row.outside_simulation == 1.0
+
+
+def _coverage(rows):
+    return pd.DataFrame([dict(zip(["classifier", "protocol", "measured_percent", "repeat", "holdout",
+                                   "record_id", "n_segments", "outside_training",
+                                   "features_outside_training", "features"], row)) for row in rows])
+
+
+def test_simulation_coverage_judges_the_design_records_at_the_lowest_share():
+    """Item 2 of issue 49: the design records inside the range of the features the classifier
+    uses; a record pooled over its splits, weighted by their segments; evaluation records listed
+    apart, never judged; a higher measured share (measured training data widen the range) never
+    counts."""
+    rows = [
+        # design d1: 1 of 40 segments out over two repeats (0.025: covered)
+        ("svm", "unseen_fault", 0, 0, "", "d1", 20, 0.05, "b", "a, b"),
+        ("svm", "unseen_fault", 0, 1, "", "d1", 20, 0.0, "", "a, b"),
+        # design d2 inside; evaluation e1 far out
+        ("svm", "unseen_fault", 0, 0, "", "d2", 20, 0.0, "", "a, b"),
+        ("svm", "unseen_fault", 0, 0, "", "e1", 10, 0.8, "a", "a, b"),
+        # at 50 % d2 is out: not the simulation's range
+        ("svm", "unseen_fault", 50, 0, "", "d2", 20, 1.0, "a", "a, b"),
+    ]
+    pooled = pooled_coverage(_coverage(rows)).set_index(["measured_percent", "record_id"])
+    assert pooled.loc[(0, "d1"), ["n_segments", "outside_training"]].tolist() == [40, 0.025]
+    (entry,) = simulation_coverage(_coverage(rows), ["d1", "d2"])["results"]
+    assert entry["measured_percent"] == 0 and entry["features"] == ["a", "b"]
+    assert entry["covers_design_records"] and entry["design_records"] == 2
+    assert entry["design_segments_outside"] == pytest.approx(1 / 60)
+    assert entry["other_records_outside"] == {"e1": 0.8} and entry["design_records_outside"] == {}
+    # d1 with 3 of 20 segments out (0.15 > the tolerance): not covered, and which feature
+    rows[0] = ("svm", "unseen_fault", 0, 0, "", "d1", 20, 0.3, "b", "a, b")
+    (entry,) = simulation_coverage(_coverage(rows), ["d1", "d2"])["results"]
+    assert 0.15 > COVERAGE_TOLERANCE and not entry["covers_design_records"]
+    assert entry["design_records_outside"] == {"d1": {"share": 0.15, "features": "b"}}
+    # no design record tested: nothing is covered
+    (entry,) = simulation_coverage(_coverage(rows), ["x"])["results"]
+    assert not entry["covers_design_records"] and entry["design_segments_outside"] is None
 
 
 @pytest.fixture(scope="module")

@@ -31,33 +31,56 @@ log = logging.getLogger(__name__)
 
 PREFIX = "joined_"  # joined_<classifier>: its name in every table and plot
 SEGMENT_KEYS = ["measured_percent", "repeat", "holdout", "record_id", "segment"]
+# coverage.csv: per split and tested record, how much of it lies outside the fit's training range
+COVERAGE_COLUMNS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "record_id",
+                    "n_segments", "outside_training", "features_outside_training", "features"]
 
 
 def joined_name(classifier: str) -> str:
     return f"{PREFIX}{classifier}"
 
 
-def outside_range(rows: pd.DataFrame, span: dict) -> np.ndarray:
-    """Per row: whether any feature of `span` (training_range's) lies outside its range."""
-    values = rows[span["features"]].to_numpy(float)
-    return ((values < np.asarray(span["low"])) | (values > np.asarray(span["high"]))).any(axis=1)
+def outside_features(rows: pd.DataFrame, span: dict) -> pd.DataFrame:
+    """Per row and feature of `span` (training_range's): whether it lies outside its range."""
+    values = rows[span["features"]]
+    return values.lt(np.asarray(span["low"], float)) | values.gt(np.asarray(span["high"], float))
+
+
+def coverage_rows(split_key: dict, tested: pd.DataFrame, outside: pd.DataFrame) -> pd.DataFrame:
+    """COVERAGE_COLUMNS of one split: per tested record, the share of its segments with a feature
+    (of the fit's own) outside the fit's training range, and those features (most often out
+    first)."""
+    record = tested["record_id"].astype(str).to_numpy()
+    per_feature = outside.set_axis(record).groupby(level=0).mean()
+    share = outside.any(axis=1).set_axis(record).groupby(level=0).mean()
+    leaving = [", ".join(row[row > 0].sort_values(ascending=False, kind="stable").index)
+               for _, row in per_feature.iterrows()]
+    return pd.DataFrame({**split_key, "record_id": share.index, "n_segments":
+                         pd.Series(record).value_counts().reindex(share.index).to_numpy(),
+                         "outside_training": share.to_numpy(float),
+                         "features_outside_training": leaving,
+                         "features": ", ".join(outside.columns)})
 
 
 def joined_predictions(classifier: str, predictions: pd.DataFrame, rule: pd.DataFrame,
                        models: list[dict], simulated: pd.DataFrame, measured: pd.DataFrame,
-                       splits: pd.DataFrame, names) -> tuple[pd.DataFrame, dict]:
-    """(predictions, info) of the joined method on every split the classifier was tested on.
+                       splits: pd.DataFrame, names) -> tuple[pd.DataFrame, dict, pd.DataFrame]:
+    """(predictions, info, coverage) of the joined method on every split the classifier was
+    tested on.
 
     `predictions`: the classifier's (train's PREDICTION_COLUMNS); `rule`: the physics rule's on the
     same splits (`classifier` its name; empty: none); `models`: the train job's info.json
     `models` (each fit's split and `selected_features`); `names`: the feature candidates (a fit
-    without a selection used them all). The predictions carry `outside_training` per segment."""
+    without a selection used them all). The predictions carry `outside_training` per segment;
+    coverage (COVERAGE_COLUMNS, `classifier` the classifier's own name: the range is its fit's)
+    the share of each tested record's segments outside it (issue 49's "simulation covers the
+    machine", asked of the features the classifier uses)."""
     validate_splits(splits)
     rules = sorted(set(rule["classifier"])) if len(rule) else []
     if len(rules) > 1:
         raise ValueError(f"joined {classifier}: one physics rule to join, got {rules}")
     by_fit = {(int(m["measured_percent"]), int(m["repeat"]), m["holdout"] or ""): m for m in models}
-    frames, without_rule = [], []
+    frames, coverage, without_rule = [], [], []
     keys = ["measured_percent", "repeat", "holdout"]
     for (percent, repeat, holdout), tested in predictions.groupby(keys, sort=True):
         model = by_fit.get((int(percent), int(repeat), holdout))
@@ -69,7 +92,12 @@ def joined_predictions(classifier: str, predictions: pd.DataFrame, rule: pd.Data
         span = training_range(simulated, measured, split, model.get("selected_features") or names)
         features = tested[["record_id", "segment"]].merge(
             measured.astype({"record_id": str}), on=["record_id", "segment"], how="left")
-        outside = outside_range(features, span)
+        out_by_feature = outside_features(features, span)
+        outside = out_by_feature.any(axis=1).to_numpy()
+        coverage.append(coverage_rows(
+            {"classifier": classifier, "protocol": str(tested["protocol"].iloc[0]),
+             "measured_percent": int(percent), "repeat": int(repeat), "holdout": holdout},
+            tested, out_by_feature))
         calls = tested.merge(rule[SEGMENT_KEYS + ["predicted_label"]].rename(
             columns={"predicted_label": "_rule"}), on=SEGMENT_KEYS, how="left")
         if calls["_rule"].isna().all():
@@ -90,7 +118,7 @@ def joined_predictions(classifier: str, predictions: pd.DataFrame, rule: pd.Data
                        "outside it"),
             "outside_training_share": float(joined["outside_training"].mean()),
             "splits_without_rule": [list(k) for k in without_rule]}
-    return joined, info
+    return joined, info, pd.concat(coverage, ignore_index=True)[COVERAGE_COLUMNS]
 
 
 def joined_metrics(classifier: str, joined: pd.DataFrame,

@@ -56,9 +56,7 @@ def reference_length_mismatches(frame: pd.DataFrame, healthy_state: str, conditi
     """One message per condition whose calibration set holds another number of segments than a
     simulated twin's reference (`simulated_segments`). A reference averages its segments, so its
     own scatter falls with their number: measured and simulated segments taken against
-    references of other lengths lie over other healthy floors (on the gear bench, a twin's one
-    1.5 s segment against the bench's 3 s calibration record cost up to 0.19 of balanced accuracy
-    at 450 rpm, where a segment holds 11 revolutions)."""
+    references of other lengths lie over other healthy floors (ARCHITECTURE.md, "Simulation")."""
     counts = calibration_frame(frame, healthy_state, condition, reserve).groupby(condition).size()
     return [f"{KEY}: the calibration set at {condition} {value:g} holds {int(n)} segment(s), a simulated "
             f"twin's reference {simulated_segments}: set features.healthy_reference.simulated_segments to "

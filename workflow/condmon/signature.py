@@ -114,3 +114,68 @@ def signature_table(signatures: dict) -> pd.DataFrame:
             for state, figures in entry["classes"].items()]
     return pd.DataFrame(rows, columns=["condition", "health_state", "measured_shift", "simulated_shift",
                                        "direction_correlation", "features", "measured_records"])
+
+
+# A design record is covered by the simulation when at most this share of its segments leaves the
+# range the classifier was trained on, on the classifier's own features: one segment in twenty (a
+# record of 29 segments may have one out; a finite simulated sample has tails of its own).
+COVERAGE_TOLERANCE = 0.05
+
+
+def pooled_coverage(coverage: pd.DataFrame) -> pd.DataFrame:
+    """coverage.csv's rows (condmon.joined.COVERAGE_COLUMNS) pooled over repeats and holdouts per
+    (classifier, protocol, measured_percent, record_id): `outside_training` weighted by each
+    split's segments, `features_outside_training` the union."""
+    keys = ["classifier", "protocol", "measured_percent", "record_id"]
+    rows = coverage.assign(record_id=coverage["record_id"].astype(str),
+                           _out=coverage["outside_training"] * coverage["n_segments"])
+
+    def union(values) -> str:
+        names = [n.strip() for v in values if isinstance(v, str) for n in v.split(",") if n.strip()]
+        return ", ".join(dict.fromkeys(names))
+
+    pooled = rows.groupby(keys, as_index=False).agg(
+        n_segments=("n_segments", "sum"), _out=("_out", "sum"),
+        features_outside_training=("features_outside_training", union),
+        features=("features", union))
+    pooled["outside_training"] = pooled.pop("_out") / pooled["n_segments"]
+    return pooled
+
+
+def simulation_coverage(coverage: pd.DataFrame, design_records,
+                        tolerance: float = COVERAGE_TOLERANCE) -> dict:
+    """summary.json `simulation_coverage`: does the simulation cover the design records on the
+    features each classifier uses? Per classifier and protocol, at its lowest measured share (0 %:
+    trained on simulation alone, so its training range is the simulated one), the design records'
+    share of segments outside the training range (`pooled_coverage`), the records above
+    `tolerance` and `covers_design_records` (none above it; false without a tested design
+    record). Evaluation records are listed beside, never judged."""
+    design = set(map(str, design_records))
+    entries = []
+    for (classifier, protocol), rows in pooled_coverage(coverage).groupby(
+            ["classifier", "protocol"], sort=True):
+        lowest = int(rows["measured_percent"].min())
+        at = rows[rows["measured_percent"] == lowest].set_index("record_id")
+        mine = at[at.index.isin(design)]
+        out = mine[mine["outside_training"] > tolerance]
+        others = at[~at.index.isin(design)]
+        entries.append({
+            "classifier": classifier, "protocol": protocol, "measured_percent": lowest,
+            "features": sorted({n.strip() for f in at["features"] for n in f.split(",") if n.strip()}),
+            "design_records": int(len(mine)),
+            "design_segments_outside": (float((mine["outside_training"] * mine["n_segments"]).sum()
+                                              / mine["n_segments"].sum()) if len(mine) else None),
+            "design_records_outside": {r: {"share": round(float(row["outside_training"]), 4),
+                                           "features": row["features_outside_training"]}
+                                       for r, row in out.iterrows()},
+            "covers_design_records": bool(len(mine) and out.empty),
+            "other_records_outside": {r: round(float(row["outside_training"]), 4)
+                                      for r, row in others.iterrows()
+                                      if row["outside_training"] > tolerance}})
+    return {"tolerance": tolerance,
+            "method": ("per classifier and protocol at its lowest measured share: each tested "
+                       "record's share of segments with a feature (of the fit's own) outside the "
+                       "fit's training range (coverage.csv of the joined job), pooled over "
+                       "repeats and holdouts; a design record is covered at or below the "
+                       "tolerance"),
+            "results": entries}

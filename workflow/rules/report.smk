@@ -89,6 +89,8 @@ rule report:
         physics_baselines=physics_baseline_outputs("predictions.parquet"),
         # + whether each fault record shows its defect line (the envelope rule's fault_lines)
         physics_baseline_info=physics_baseline_outputs("info.json"),
+        # each tested record's share outside its classifier's training range (the joined jobs')
+        coverage=joined_outputs("coverage.csv"),
         measured_records=rules.measured.output.records,
         measured_features=rules.features_measured.output.features,  # each record's condition
         # beside it: how each simulated fault moves the features against the measured one

@@ -78,6 +78,8 @@ rule joined:
         predictions=f"{RESULTS}/joined/joined_{{classifier}}/{{protocol}}/predictions.parquet",
         metrics=f"{RESULTS}/joined/joined_{{classifier}}/{{protocol}}/metrics.csv",
         info=f"{RESULTS}/joined/joined_{{classifier}}/{{protocol}}/info.json",
+        # per tested record: its share of segments outside the fit's training range
+        coverage=f"{RESULTS}/joined/joined_{{classifier}}/{{protocol}}/coverage.csv",
     params:
         classifier=lambda wc: wc.classifier,
     conda:

@@ -1,5 +1,6 @@
 """Snakemake script: a classifier's and the physics rule's predictions + the features and split
-table -> the joined method's predictions, metrics and info (condmon.joined).
+table -> the joined method's predictions, metrics, info and coverage (per tested record, its
+share of segments outside the fit's training range; condmon.joined).
 
 `snakemake` is injected by Snakemake's script directive.
 """
@@ -7,7 +8,7 @@ import json
 
 import pandas as pd
 
-from condmon.atomic import write_json
+from condmon.atomic import write_json, write_text
 from condmon.features import read_feature_table
 from condmon.hybrid import read_split_table
 from condmon.joined import joined_metrics, joined_name, joined_predictions, prediction_frame
@@ -20,12 +21,13 @@ simulated, simulated_names = read_feature_table(inputs.simulated)
 measured, measured_names = read_feature_table(inputs.measured)
 names = matching_feature_names(simulated_names, measured_names)
 info = json.loads(open(inputs.info).read())
-joined, summary = joined_predictions(
+joined, summary, coverage = joined_predictions(
     classifier, pd.read_parquet(inputs.predictions), pd.read_parquet(inputs.rule), info["models"],
     simulated, measured, read_split_table(inputs.splits), names)
 write_predictions(prediction_frame(joined), snakemake.output.predictions)
 write_metrics(joined_metrics(classifier, joined, pd.read_csv(inputs.metrics, dtype={"holdout": str})),
               snakemake.output.metrics)
+write_text(coverage.to_csv(index=False), snakemake.output.coverage)
 write_json({**summary, "protocol": info["protocol"]}, snakemake.output.info)
 log.info("%s: %d predictions, %.3f of them outside the training range (the rule's call there)",
          joined_name(classifier), len(joined), summary["outside_training_share"])

@@ -182,6 +182,14 @@ class Report:
                 and self.run.healthy_state is not None)
 
     @cached_property
+    def coverage(self) -> pd.DataFrame | None:
+        """The joined jobs' coverage.csv pooled (condmon.joined.COVERAGE_COLUMNS): each tested
+        record's share of segments outside its classifier's training range; None without them."""
+        paths = self.inputs.train.coverage
+        return (pd.concat([pd.read_csv(p, dtype={"record_id": str, "holdout": str}) for p in paths],
+                          ignore_index=True) if paths else None)
+
+    @cached_property
     def outside(self) -> pd.DataFrame | None:
         """Each measured record's share of segments outside the simulated range, and which
         features leave it (condmon.signature.outside_simulation); None without the comparison."""

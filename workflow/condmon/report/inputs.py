@@ -60,8 +60,12 @@ class TrainOutputs(_Frozen):
     # measured_only_predictions.parquet (files without rows skipped): the measured-only
     # baseline on design and evaluation records apart
     measured_only_predictions: tuple[Path_, ...] = ()
+    # the joined jobs' coverage.csv (condmon.joined.COVERAGE_COLUMNS): each tested record's share
+    # of segments outside its classifier's training range; recall_per_record.csv's
+    # `outside_training`, summary.json's `simulation_coverage` (the design records' verdict)
+    coverage: tuple[Path_, ...] = ()
     _sequences = ("metrics", "predictions", "measured_only", "physics", "physics_info",
-                  "simulated_validation", "measured_only_predictions")
+                  "simulated_validation", "measured_only_predictions", "coverage")
 
 
 @dataclass(frozen=True)
