@@ -1,17 +1,16 @@
 """The report as sections: write_report runs exactly the registered sections (condmon.report.registry),
 each declaring its inputs, tables and summary.json keys; a new table is one module and one line."""
 import json
-from pathlib import Path
 
 import pandas as pd
 import pytest
 
 import fake_train_outputs as fake
+from conftest import ROOT
 from condmon.report import registry
 from condmon.report.section import Section, Table
 from condmon.train_tables import ReportInputError
 
-ROOT = Path(__file__).resolve().parents[1]
 REPORT = ROOT / "workflow" / "condmon" / "report"
 
 
