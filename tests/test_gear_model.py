@@ -497,3 +497,18 @@ def test_the_compiled_mesh_force_is_the_python_one():
     mesh = MeshForce(meshes["helical"], damping=300.0)
     assert mesh.steady_force(0.1, -2.0e-4, 0.0) == -1.0
     assert mesh(0.1, -2.0e-4, 0.0) < 0.0
+
+
+@pytest.mark.parametrize("exponent", [1.0, 1.3, 1.5])
+def test_the_stiffness_for_a_deflection_carries_the_load_there(exponent):
+    """stiffness_for_deflection inverts operating_deflection: the mesh it gives deflects by the
+    asked amount under the rig's load, whatever the exponent; a lighter load deflects it less."""
+    from condmon.models.gear.mesh_force import operating_deflection, stiffness_for_deflection
+
+    p = GearDrivetrainParameters()
+    stiffness = stiffness_for_deflection(p, 0.6e-6, exponent)
+    assert operating_deflection(p.replace(mesh_stiffness=stiffness, contact_exponent=exponent)) == pytest.approx(0.6e-6)
+    assert operating_deflection(p.replace(mesh_stiffness=stiffness, contact_exponent=exponent,
+                                          load_torque=p.load_torque / 2)) < 0.6e-6
+    with pytest.raises(ValueError, match="must be positive"):
+        stiffness_for_deflection(p, 0.0, exponent)

@@ -12,10 +12,14 @@ CALIBRATED = {"contact_law": "flores", "sensor_noise": 0.01,
               "parameters": {"mesh_stiffness": 4e8, "contact_exponent": 1.4, "bushing_stiffness": 2e8}}
 
 
+SHORT = {"rig": {"segment_seconds": 0.1}, "numerics": {"settle_time": 0.02},
+         "features": {"spectrum": {"resolution_hz": 10.0}}}
+
+
 @pytest.fixture(scope="module")
 def gear():
-    return system_of(".test/config/smoke.yaml", {"rig": {"segment_seconds": 0.1}, "numerics": {"settle_time": 0.02},
-                                           "features": {"spectrum": {"resolution_hz": 10.0}}})
+    """The smoke config's gear system at short segments, its mesh the calibrated one (CALIBRATED)."""
+    return system_of(".test/config/smoke.yaml", {**SHORT, "model": {"mesh_compliance": None}})
 
 
 def batch(system, seed=1, calibrated=CALIBRATED, samples=2, max_failed_share=0.0, background=None):
@@ -100,3 +104,44 @@ def test_with_a_healthy_reference_every_health_state_draws_the_same_machines(gea
     assert not np.array_equal(signals_of(first), signals_of(damaged))
     apart = [r["params"] for r in run("surface_fault", 0)]
     assert apart != [r["params"] for r in run("healthy", 0) if r["segment"] == 0]
+
+
+def test_a_drawn_mesh_compliance_sets_each_machine_deflection_within_its_range(gear):
+    """model.mesh_compliance: every sample's mesh carries the rig's load at a static deflection
+    inside the range, with an exponent inside its range; twins (one machine, healthy and damaged)
+    share it; without the key the calibrated mesh stands, perturbed by a few per cent."""
+    import json
+
+    from condmon.models.gear.mesh_force import operating_deflection
+
+    compliance = {"deflection": [4.0e-7, 1.2e-6], "contact_exponent": [1.0, 1.5]}
+    drawn = system_of(".test/config/smoke.yaml", {**SHORT, "model": {"mesh_compliance": compliance}})
+
+    def machines(system, state):
+        rows = simulate_batch(system, CALIBRATED, state, 775.0, 0, samples=3,
+                              simulation={"segments_per_sample": 1, "seed": 1, "max_failed_share": 0.0},
+                              reference_segments=1)[0]
+        return {r["record_id"].split("-", 2)[2]: json.loads(r["params"]) for r in rows if r["segment"] == 0}
+
+    healthy, damaged = machines(drawn, "healthy"), machines(drawn, "missing_tooth")
+    assert healthy == damaged
+    deflections = [operating_deflection(drawn.parameters(mesh_stiffness=p["mesh_stiffness"],
+                                                         contact_exponent=p["contact_exponent"]))
+                   for p in healthy.values()]
+    assert all(4.0e-7 <= d <= 1.2e-6 for d in deflections) and len(set(deflections)) == 3
+    assert all(1.0 <= p["contact_exponent"] <= 1.5 for p in healthy.values())
+    nominal = machines(gear, "healthy")
+    assert all(abs(p["mesh_stiffness"] / 4e8 - 1) < 0.13 and abs(p["contact_exponent"] / 1.4 - 1) < 0.13
+               for p in nominal.values())
+
+
+def test_a_mesh_both_calibrated_and_drawn_or_a_reversed_range_is_refused_by_name():
+    from condmon.config import ConfigError
+
+    with pytest.raises(ConfigError, match=r"calibration.parameters: \['mesh_stiffness'\] are drawn per sample by "
+                                          r"model.mesh_compliance"):
+        system_of(".test/config/smoke.yaml", {"calibration": {"parameters": {
+            "mesh_stiffness": {"low": 1e8, "high": 1e9, "log": True}}}})
+    with pytest.raises(ConfigError, match=r"model.mesh_compliance.deflection: \[low, high\] with low above high"):
+        system_of(".test/config/smoke.yaml", {"model": {"mesh_compliance": {"deflection": [1e-6, 4e-7],
+                                                                            "contact_exponent": [1.0, 1.5]}}})

@@ -438,6 +438,16 @@ def operating_deflection(p) -> float:
     return DEFLECTION_REF * (p.load_torque / g.base_radius(g.teeth_gear) / force_ref) ** (1.0 / p.contact_exponent)
 
 
+def stiffness_for_deflection(p, deflection: float, exponent: float) -> float:
+    """The `mesh_stiffness` (N/m at 1 um) whose mean mesh of contact exponent `exponent` carries the
+    static load of `p` at `deflection` (m): the inverse of `operating_deflection`."""
+    if not (deflection > 0.0 and exponent > 0.0):
+        raise ValueError(f"deflection {deflection} m and exponent {exponent}: both must be positive")
+    g = p.geometry
+    force = p.load_torque / g.base_radius(g.teeth_gear)
+    return force / DEFLECTION_REF / (deflection / DEFLECTION_REF) ** exponent
+
+
 def operating_stiffness(p) -> float:
     """dF/d(delta) of the mean mesh at the deflection that carries the static load of `p`: the
     stiffness the vibration sees. K and n trade off against each other at one load; this does not."""

@@ -21,8 +21,8 @@ from condmon.models.gear.drivetrain import (Drivetrain, SimulationSettings, oper
                                             simulate)
 from condmon.models.gear.shaft_damage import SHAFT_HEALTH_STATES
 from condmon.systems.base import System
-from condmon.systems.gear.parameters import (CALIBRATABLE, STATE_SEVERITY, build_parameters,
-                                             measured_fluctuation_fields, perturb, sample_effects,
+from condmon.systems.gear.parameters import (CALIBRATABLE, COMPLIANCE_PARAMETERS, STATE_SEVERITY, build_parameters,
+                                             draw_mesh_compliance, measured_fluctuation_fields, perturb, sample_effects,
                                              state_model_fields, state_variants)
 
 # numerics the virtual bench sets for itself (virtual_bench.<key>): it stands for a real machine, so
@@ -122,8 +122,10 @@ class GearSystem(System):
         config = super().job_config(stage, variant)
         if stage != "simulate" and "model" in config:
             # the per-sample perturbation of the calibrated values concerns the simulation only
+            # and so does the drawn mesh compliance (the calibration runs the nominal mesh)
             variability = {k: v for k, v in config["model"].get("variability", {}).items() if k != "perturbation_sigma"}
-            config["model"] = dict(config["model"], variability=variability)
+            config["model"] = {k: v for k, v in dict(config["model"], variability=variability).items()
+                               if k != "mesh_compliance"}
         if stage != "bench":
             config.pop("virtual_bench", None)  # the hidden truth reaches the bench jobs only
         if stage == "bench":
@@ -163,6 +165,14 @@ class GearSystem(System):
             problems.append("virtual_bench.record_seconds: shorter than rig.segment_seconds")
         if config["calibration"]["sim_seconds"] < rig["segment_seconds"]:
             problems.append("calibration.sim_seconds: shorter than rig.segment_seconds")
+        compliance = config["model"].get("mesh_compliance")
+        if compliance:
+            problems += [f"model.mesh_compliance.{key}: [low, high] with low above high: {value}"
+                         for key, value in compliance.items() if value[0] > value[1]]
+            both = sorted(set(COMPLIANCE_PARAMETERS) & set(config["calibration"]["parameters"]))
+            if both:
+                problems.append(f"calibration.parameters: {both} are drawn per sample by model.mesh_compliance; "
+                                "calibrate them or draw them, not both")
         if "condition_holdout" in config["hybrid"]["protocols"] and len(rig["speeds_rpm"]) < 2:
             problems.append("hybrid.protocols: condition_holdout needs at least two rig.speeds_rpm")
         problems += unlisted_measured_speeds(config["measured_table"], rig["speeds_rpm"])
@@ -282,6 +292,9 @@ class GearSystem(System):
     def sample_parameters(self, calibrated, health_state, rng, simulation) -> dict:
         values = perturb(calibrated["parameters"], list(calibrated["parameters"]),
                          self.config["model"]["variability"]["perturbation_sigma"], rng)
+        compliance = self.config["model"].get("mesh_compliance")
+        if compliance:  # drawn from the job's stream, so twins share it (healthy reference)
+            values.update(draw_mesh_compliance(compliance, self.parameters(**values), rng))
         # per-state calibration: the state's tuned severities (drawn in simulate_sample, no draw here)
         state_model = (calibrated.get("state_models") or {}).get(health_state)
         measured = calibrated.get("speed_fluctuation")

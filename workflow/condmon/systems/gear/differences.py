@@ -19,8 +19,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from condmon.models.gear.mesh_force import operating_deflection
 from condmon.models.gear.virtual_bench import BenchForm
 from condmon.systems.gear.bench import bench_form
+from condmon.systems.gear.parameters import COMPLIANCE_PARAMETERS, build_parameters
 
 CALIBRATED, RANDOMISED, NEITHER, SAME = "calibrated", "randomised", "neither", "same"
 
@@ -57,6 +59,10 @@ def _parameter_rows(model: dict, bench: dict, calibration: dict) -> list[dict]:
     rows = []
     searched = calibration["parameters"]
     truth = {**bench.get("model_overrides", {}), **bench["true_parameters"]}
+    compliance = model.get("mesh_compliance")
+    if compliance and any(_differs(truth.get(name, model[name]), model[name]) for name in COMPLIANCE_PARAMETERS):
+        rows.append(_compliance_row(model, truth, compliance))
+        truth = {name: value for name, value in truth.items() if name not in COMPLIANCE_PARAMETERS}
     for name, value in truth.items():
         nominal = model.get(name)
         if not _differs(value, nominal):
@@ -76,6 +82,19 @@ def _parameter_rows(model: dict, bench: dict, calibration: dict) -> list[dict]:
         else:
             rows.append(row(text, NEITHER, "not a calibrated parameter: the model keeps its value"))
     return rows
+
+
+def _compliance_row(model: dict, truth: dict, compliance: dict) -> dict:
+    """The bench's mesh against the drawn mesh compliance: its static deflection under the load."""
+    mesh = {name: truth.get(name, model[name]) for name in COMPLIANCE_PARAMETERS}
+    deflection = operating_deflection(build_parameters(model, **mesh))
+    low, high = compliance["deflection"]
+    exponents = compliance["contact_exponent"]
+    inside = low <= deflection <= high and exponents[0] <= mesh["contact_exponent"] <= exponents[1]
+    return row(f"mesh_stiffness {mesh['mesh_stiffness']:g} at contact_exponent {mesh['contact_exponent']:g}: a static "
+               f"deflection of {deflection * 1e6:.2f} um", RANDOMISED,
+               f"model.mesh_compliance, drawn per sample: deflection [{low * 1e6:g}, {high * 1e6:g}] um, "
+               f"contact_exponent {_number_or_range(exponents)}", bool(inside))
 
 
 def _background_rows(form: BenchForm, calibration: dict) -> list[dict]:
