@@ -150,6 +150,16 @@ def test_the_family_takes_simulated_twins_and_packaged_references():
                                          dict(params, reference_patterns=written.attrs["references"].to_dict("list")))
     names = rf.feature_names(["A1_x"], SHAFTS, 12)
     np.testing.assert_allclose(packaged[names].to_numpy(), written[names].to_numpy(), atol=1e-5)
+    # without magnitudes: no feature that grows with the fault's size, the bands as their shape
+    # (zero mean per channel and shaft), every feature the fault's size leaves unchanged as it was
+    shape = rf.residual_feature_table(frame, ["A1_x"], dict(params, against=against, magnitudes=False))
+    sized = [n for n in rf.feature_names(["A1_x"], SHAFTS, 12) if n.endswith(rf.SIZED_FEATURES)]
+    assert shape.attrs["referenced_columns"] == [n for n in rf.feature_names(["A1_x"], SHAFTS, 12) if n not in sized]
+    bands = [f"res_A1_x_pinion_b{k:02d}" for k in range(12)]
+    np.testing.assert_allclose(shape[bands].to_numpy().mean(axis=1), 0.0, atol=1e-5)
+    np.testing.assert_allclose(shape[bands].to_numpy(), (table[bands].to_numpy() - table[bands].to_numpy().mean(
+        axis=1, keepdims=True)), atol=1e-5)
+    assert np.allclose(shape["res_A1_x_pinion_tooth_peak1"], table["res_A1_x_pinion_tooth_peak1"])
 
 
 def test_a_grid_that_folds_into_the_kept_orders_is_refused():

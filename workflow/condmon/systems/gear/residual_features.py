@@ -45,6 +45,9 @@ from condmon.systems.gear.order_features import (difference_signal, residual_sig
 SEPARATION_ITERATIONS = 40
 TINY = 1e-12
 FEATURES = ("rms_ratio", "FM4", "NA4", "tooth_peak1", "tooth_peak3")
+# the features that grow with the fault's size (and the machine's mesh compliance, which healthy
+# records do not identify); `magnitudes: false` leaves them out and gives the bands as a shape
+SIZED_FEATURES = ("rms_ratio", "NA4")
 
 
 # -- synchronous patterns ----------------------------------------------------------------------
@@ -240,15 +243,26 @@ def segment_patterns(segment: np.ndarray, fs_hz: float, speed_rpm: float, shafts
 
 # -- the feature family --------------------------------------------------------------------------
 RESIDUAL_PARAMS = ("samples_per_revolution", "bands_per_mesh", "mesh_harmonics", "shaft_orders",
-                   "phase_harmonic", "phase_band_orders", "phase_min_snr")
+                   "phase_harmonic", "phase_band_orders", "phase_min_snr", "magnitudes")
 KEY = "features.residual"
 
 
-def feature_names(channels, shafts, n_bands: int) -> list[str]:
-    """`res_<channel>_<shaft>_<feature>`: per channel and shaft its bands, then FEATURES (each
-    channel and shaft a block of bands, as the CNN reads band spectra)."""
+def kept_features(magnitudes: bool = True) -> list[str]:
+    """FEATURES, less SIZED_FEATURES without `magnitudes`."""
+    return [f for f in FEATURES if magnitudes or f not in SIZED_FEATURES]
+
+
+def feature_names(channels, shafts, n_bands: int, magnitudes: bool = True) -> list[str]:
+    """`res_<channel>_<shaft>_<feature>`: per channel and shaft its bands, then the kept FEATURES
+    (each channel and shaft a block of bands, as the CNN reads band spectra)."""
     return [f"res_{channel}_{shaft}_{feature}" for channel in channels for shaft, _, _ in shafts
-            for feature in band_names(n_bands) + list(FEATURES)]
+            for feature in band_names(n_bands) + kept_features(magnitudes)]
+
+
+def band_shape(log_levels: np.ndarray) -> np.ndarray:
+    """Log band levels (..., n_bands) less their mean over the bands: the residual spectrum's shape,
+    whatever its size (the fault's size and the mesh's compliance scale every band alike)."""
+    return log_levels - log_levels.mean(axis=-1, keepdims=True)
 
 
 def reference_rows(ids: pd.DataFrame, against: dict) -> dict:
@@ -312,6 +326,7 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
         raise FeatureTableError(f"{KEY}: residual signatures take each machine against its healthy reference; "
                                 "switch features.healthy_reference on")
     P, bands_per_mesh = int(params["samples_per_revolution"]), int(params["bands_per_mesh"])
+    magnitudes = bool(params.get("magnitudes", True))
     mesh_harmonics, shaft_orders = int(params["mesh_harmonics"]), int(params["shaft_orders"])
     n_bands = bands_per_mesh * mesh_harmonics
     fs_hz = single_sampling_rate(signal_frame)
@@ -337,7 +352,8 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
     # features of the shafts whose gears the modelled faults damage; every shaft's pattern is
     # still estimated, to keep the others out of theirs
     chosen = [(k, shaft) for k, shaft in enumerate(shafts) if shaft[0] in damaged]
-    names = feature_names(channels, [shaft for _, shaft in chosen], n_bands)
+    names = feature_names(channels, [shaft for _, shaft in chosen], n_bands, magnitudes)
+    kept = band_names(n_bands) + kept_features(magnitudes)
     values = np.full((len(ids), len(names)), np.nan)
     for i, key in enumerate(keys):
         if key not in references:  # a simulated sample whose healthy twin failed: left out later
@@ -345,8 +361,10 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
         found = [residual_features(patterns[i][k], references[key][k], teeth, teeth / bands_per_mesh, n_bands,
                                    shaft_orders, mesh_harmonics) for k, (_, _, teeth) in chosen]
         # (shaft, feature, channel) -> the names' order: channel, shaft, feature
-        block = np.array([[shaft[feature] for feature in band_names(n_bands) + list(FEATURES)] for shaft in found])
-        values[i] = np.log10(block.transpose(2, 0, 1).ravel() + TINY)
+        block = np.log10(np.array([[shaft[feature] for feature in kept] for shaft in found]) + TINY)
+        if not magnitudes:  # (shaft, feature, channel): the bands as their shape per shaft and channel
+            block[:, :n_bands] = band_shape(block[:, :n_bands].transpose(0, 2, 1)).transpose(0, 2, 1)
+        values[i] = block.transpose(2, 0, 1).ravel()
     frame = pd.concat([ids, pd.DataFrame(values.astype(np.float32), columns=names)], axis=1)
     frame.attrs["referenced_columns"] = names
     if against is not None and against["source"] == "measured":
