@@ -17,7 +17,10 @@ Candidates (each from the run's own predictions and features, repeat 0):
 - lines_svm / lines_knn: a classifier on the rule's three line ratios (BPFO, BPFI, 2 x BSF) as
   its only inputs, trained on the run's simulated features as the pipeline trains (scaling + SVM
   C 1.2 gamma scale / KNN 5);
-- all_svm: the SVM on every candidate feature, no selection.
+- all_svm: the SVM on every candidate feature, no selection;
+- line_over_k: the rule's call where the line it names stands at least k times above its healthy
+  threshold (the envelope rule's `threshold`, from the calibration segments), the joined call
+  elsewhere: trusting a clear defect line over the classifier (k 1, 2, 3, 5).
 """
 from __future__ import annotations
 
@@ -79,6 +82,10 @@ def main(argv=None) -> None:
     for state, rows in simulated.groupby("health_state"):
         low, high = rows[own].min(), rows[own].max()
         out_class |= (svm == state) & (frame[own].lt(low) | frame[own].gt(high)).any(axis=1).to_numpy()
+    threshold = json.loads((run / "baselines" / args.protocol / "info.json").read_text())[
+        "baselines"]["envelope_rule"]["threshold"]
+    strongest = np.exp(frame[lines].to_numpy(float)).max(axis=1) if all("_log_" in c for c in lines) \
+        else frame[lines].to_numpy(float).max(axis=1)
     candidates = {"joined (the run's)": joined,
                   "class_range": np.where(out_class, rule, joined),
                   "vote": np.where((knn == rule) & (knn != joined), knn, joined)}
@@ -89,6 +96,8 @@ def main(argv=None) -> None:
         model = Pipeline([("scale", StandardScaler()), ("model", make())])
         model.fit(simulated[columns], simulated["health_state"])
         candidates[label] = model.predict(frame[columns])
+    for k in (1, 2, 3, 5):
+        candidates[f"line_over_{k}"] = np.where(strongest > k * threshold, rule, joined)  # k >= 1: a fault call
     candidates.update({"svm": svm, "knn": knn, "rule": rule})
     groups = {"design, loads 0-1": frame["record_id"].map(load).le(1).to_numpy(),
               "design, loads 2-3": frame["record_id"].map(load).gt(1).to_numpy()}
