@@ -27,7 +27,10 @@ common to both shafts, the mesh harmonics, go to the first). Then per shaft agai
 - `tooth_peak1`, `tooth_peak3`: the largest energy of R's residual signal over one (three) tooth
   pitch(es), sliding round the revolution, over the median: a localised fault stands out on its
   own teeth, wear of every tooth does not.
-All features are log10. Names `res_<channel>_<shaft>_<feature>`.
+All features are log10. Names `res_<channel>_<shaft>_<feature>`. With `magnitudes: false` the two
+that grow with the fault's size (`rms_ratio`, `NA4`) are left out and the bands are given as their
+shape (less their mean over the bands): that size follows the mesh's compliance, which healthy
+records do not identify.
 """
 from __future__ import annotations
 
