@@ -429,13 +429,17 @@ def mesh_equivalent_mass(geometry, pinion_polar_inertia: float, gear_polar_inert
     return 1.0 / (rb1 ** 2 / pinion_polar_inertia + rb2 ** 2 / gear_polar_inertia)
 
 
-def operating_deflection(p) -> float:
-    """Deflection (m) of the mean mesh that carries the static load of `p` (> 0)."""
+def static_mesh_force(p) -> float:
+    """The mesh force (N, along the line of action) that carries the static load of `p` (> 0)."""
     if not p.load_torque > 0.0:
         raise ValueError(f"load_torque {p.load_torque} N m: the mesh's operating point needs a load (> 0)")
-    g = p.geometry
+    return p.load_torque / p.geometry.base_radius(p.geometry.teeth_gear)
+
+
+def operating_deflection(p) -> float:
+    """Deflection (m) of the mean mesh that carries the static load of `p` (> 0)."""
     force_ref = p.mesh_stiffness * DEFLECTION_REF
-    return DEFLECTION_REF * (p.load_torque / g.base_radius(g.teeth_gear) / force_ref) ** (1.0 / p.contact_exponent)
+    return DEFLECTION_REF * (static_mesh_force(p) / force_ref) ** (1.0 / p.contact_exponent)
 
 
 def stiffness_for_deflection(p, deflection: float, exponent: float) -> float:
@@ -443,9 +447,7 @@ def stiffness_for_deflection(p, deflection: float, exponent: float) -> float:
     static load of `p` at `deflection` (m): the inverse of `operating_deflection`."""
     if not (deflection > 0.0 and exponent > 0.0):
         raise ValueError(f"deflection {deflection} m and exponent {exponent}: both must be positive")
-    g = p.geometry
-    force = p.load_torque / g.base_radius(g.teeth_gear)
-    return force / DEFLECTION_REF / (deflection / DEFLECTION_REF) ** exponent
+    return static_mesh_force(p) / DEFLECTION_REF / (deflection / DEFLECTION_REF) ** exponent
 
 
 def operating_stiffness(p) -> float:
