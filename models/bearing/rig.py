@@ -4,7 +4,8 @@ housing accelerometer.
 
 Pure: parameters in, signals out. Knows nothing of Snakemake, MLflow or the config.
 
-Mechanics (exudyn, plane x horizontal / y vertical, 8 DOF, RK44):
+Mechanics (exudyn, plane x horizontal / y vertical, 8 DOF plus 2 a mode, the central difference
+by default, or RK44: `RigSettings.integrator`):
 - rotor (shaft and motor rotor) as two point masses at the drive-end (DE) and fan-end (FE)
   journals, joined by the shaft's bending stiffness (linear spring-damper); gravity, a radial load
   on the DE journal and a rotating unbalance force act on them;
@@ -50,7 +51,9 @@ bearing force (a defect at 3:00) reaches the 12 o'clock accelerometer through th
 as through a real end shield, where the vertical housing motion alone would never show it. The
 rough running of a damaged contact (`defect_roughness`) is a random force on the DE housing and journal inside the model
 too, so it reaches the sensor along the same paths as the impacts. The integration step resolves
-the modes (RK44 at 48 kHz, omega h <= 0.7 up to 5 kHz: numerical damping under 1e-3 of critical).
+the modes: the central difference at 96 kHz (omega h <= 0.33 up to 5 kHz: frequency error
+(omega h)^2 / 24 under 0.5 %, no numerical damping), or RK44 at 48 kHz (omega h <= 0.7: numerical
+damping under 1e-3 of critical).
 Then the FIR low-pass and decimation to the output rate (no aliasing), the sensor gain, and
 broadband background (white noise plus random band-limited components, `background`) that
 stands in for everything else on a real motor (electromagnetic, fan, coupling, base).
@@ -67,6 +70,21 @@ oversampling 8 (h/2), an outer-race run agrees within 0.4 % in RMS and 0.3 % in 
 ball-defect run with rough running within 0.7 % in RMS, kurtosis and the 2 x BSF envelope-line
 ratio (the outer race's BPFO line ratio, over a floor of a few bins, moves by 20 %; it moved by
 40 % with the modes as filters) (`SPEED_NOTE`).
+
+Speed at solver depth (issue 51; exudyn's timers and counters, healthy benchmark sample of 0.78 s,
+axial preload drawn, so every DE ball is summed): RK44 has no Newton iterations nor Jacobians;
+at h = 20.8 us it took 37568 steps of 5 force calls (4 stages and the end-of-step accelerations the
+sensors read), 83 % of the time in ODE2RHS, of which about 70 % the two bearings' symbolic ball
+sums (linear connectors in their place: 0.35 against 1.17 s per simulated second), and 14 % in
+writing sensors: a sensor on the DE connector (force, displacement) evaluated its force function
+again per sample, so the displacement now comes from the two nodes' positions (bitwise the same)
+and the force only for diagnostics. RK44 at 20.8 us is far finer than the features need (0.001 dB
+against h/4), so the default is the central difference (`central_difference_mass`), one force
+call a step: at h = 10.4 us, 2.4 calls per sensor sample against 5 (measured 1.24 -> 0.52 s per
+simulated second, step check 0.027 dB against h/4; the defect runs' kurtosis and envelope line
+ratios as close to RK44 at h/4 as RK44 at 20.8 us's: within 0.04 and 0.23 in log, against 0.04
+and 0.21). At 20.8 us it runs 2.9x faster than RK44 (step check 0.11 dB) but its defect runs' line
+ratios move up to 0.45 in log, twice RK44's.
 """
 from __future__ import annotations
 
@@ -80,9 +98,9 @@ from scipy.signal import bilinear, lfilter, resample_poly
 
 from condmon.models.numerics import SimulationError, decimation_filter, exudyn_system, solve_rk44
 
-SPEED_NOTE = ("1.3-1.6 s of CPU per simulated second on one core (defaults, oversampling 4, "
-              "h = 20.8 us, load-zone ball sums, modes and rough running in the model); wall time the same on an idle "
-              "core, up to 2x when the 2 cores are shared")
+SPEED_NOTE = ("0.5 s of wall time per simulated second on one core of an idle 2-core machine (defaults: "
+              "central difference, oversampling 4, h = 10.4 us, axial preload, modes and rough running in the "
+              "model; RK44 at 20.8 us: 1.1-1.2), up to 2x when the 2 cores are shared")
 DEFECT_KINDS = ("none", "outer_race", "inner_race", "ball")
 CHANNELS = ("DE",)
 INCH = 0.0254
@@ -200,8 +218,11 @@ class BearingRigParameters:
 class RigSettings:
     """Numerical settings of one run."""
     output_rate_hz: float = 12000.0
-    oversampling: int = 4             # sensor rate = oversampling x output rate; RK44 step = 1/sensor rate
-    steps_per_sensor_sample: int = 1
+    oversampling: int = 4             # sensor rate = oversampling x output rate
+    # step = 1 / (sensor rate x this); 2 with the central difference: 10.4 us, one force call a
+    # step (2.4 a sensor sample against RK44's 5 at 20.8 us), its defect features as close to
+    # RK44 at h/4 as RK44 at 20.8 us's are
+    steps_per_sensor_sample: int = 2
     settle_time: float = 0.1          # simulated then discarded, s
     duration: float = 1.0             # recorded seconds
     max_penetration: float = 2.0e-4   # |journal - housing| beyond clearance + this is divergence, m
@@ -209,7 +230,7 @@ class RigSettings:
     # "rk44" (four force calls a step, a fifth for the sensed accelerations) or
     # "central_difference" (one a step, accelerations included: exudyn's velocity Verlet with the
     # damping correction of `central_difference_mass`, second order)
-    integrator: str = "rk44"
+    integrator: str = "central_difference"
 
 
 def clock_angle(hours: float) -> float:
@@ -368,15 +389,18 @@ def _check(p: BearingRigParameters, s: RigSettings) -> None:
         raise ValueError(f"axial_preload must be >= 0 N, got {p.axial_preload}")
     if not 0 <= p.defect_clock <= 12:
         raise ValueError(f"defect_clock must lie in [0, 12] hours, got {p.defect_clock}")
-    # the RK44 step must resolve every mode: omega h <= 1 keeps its numerical damping small
+    # the step must resolve every mode: RK44 at omega h <= 1 keeps its numerical damping small
+    # (under 1/144 of an amplitude a step), the central difference at omega h <= 0.5 its
+    # frequency error ((omega h)^2 / 24, no numerical damping) about 1 %
     step_hz = s.output_rate_hz * s.oversampling * s.steps_per_sensor_sample
     for mode in p.resonances:
         if len(mode) not in (3, 4):
             raise ValueError(f"resonance {mode}: need (frequency Hz, damping ratio, gain[, tilt deg])")
         f, zeta = mode[0], mode[1]
-        if not (0 < f <= step_hz / (2 * math.pi) and 0 < zeta < 1):
-            raise ValueError(f"resonance ({f}, {zeta}): need 0 < f <= {step_hz / (2 * math.pi):.0f} Hz "
-                             "(omega h <= 1 at this step) and 0 < zeta < 1")
+        limit = MODE_STEP_LIMIT.get(s.integrator, 1.0)
+        if not (0 < f <= limit * step_hz / (2 * math.pi) and 0 < zeta < 1):
+            raise ValueError(f"resonance ({f}, {zeta}): need 0 < f <= {limit * step_hz / (2 * math.pi):.0f} Hz "
+                             f"(omega h <= {limit} for {s.integrator} at this step) and 0 < zeta < 1")
         if len(mode) == 4 and not -90 <= mode[3] <= 90:
             raise ValueError(f"resonance {mode}: the tilt must lie in [-90, 90] degrees from vertical")
     if p.resonances and not 0 < p.modal_mass_share <= 0.2:
@@ -628,6 +652,7 @@ def _resonance_filter(freq, zeta, gain, fs):
 
 # -- the run ----------------------------------------------------------------------------------
 INTEGRATORS = ("rk44", "central_difference")
+MODE_STEP_LIMIT = {"rk44": 1.0, "central_difference": 0.5}  # largest omega h of a mode (`_check`)
 
 
 def central_difference_mass(nodes: list, dampers: list, step: float) -> np.ndarray:
