@@ -40,7 +40,7 @@ def exudyn_system():
 
 
 def solve_rk44(mbs, sensor_rate: float, steps_per_sensor_sample: int, end_time: float,
-               sparse: bool = False, sensed_accelerations: bool = True) -> None:
+               sparse: bool = False, sensed_accelerations: bool = True, solver: str = "RK44") -> None:
     """Integrate the assembled system `mbs` with RK44 at h = 1 / (sensor_rate x
     steps_per_sensor_sample) up to `end_time` (rounded to whole steps).
 
@@ -50,6 +50,12 @@ def solve_rk44(mbs, sensor_rate: float, steps_per_sensor_sample: int, end_time: 
     containers (factorised with Eigen's sparse LU). sensed_accelerations: sensors record
     accelerations, which then cost a fifth right-hand-side evaluation per step at its end; a model
     that records velocities passes False and runs 20 % fewer force calls, with the same results.
+    solver: "RK44", or "VelocityVerlet" (one force call per step, accelerations at step ends
+    included; exudyn evaluates velocity-dependent forces at the half-step velocity, so the model
+    must add h/2 x its damping matrix to its mass matrix to make it the central difference
+    method, second order: `bearing.rig.central_difference_mass`). exudyn 1.13.6 prints "WARNING:
+    VelocityVerlet: still under development" once per process (SuppressWarnings does not stop it);
+    the bearing tests check the scheme's convergence.
     """
     import exudyn as exu  # imported here so the models' pure helpers work without exudyn
 
@@ -63,4 +69,4 @@ def solve_rk44(mbs, sensor_rate: float, steps_per_sensor_sample: int, end_time: 
     sim.timeIntegration.explicit.computeEndOfStepAccelerations = sensed_accelerations
     if sparse:
         sim.linearSolver.solverType = exu.LinearSolverType.EigenSparse
-    mbs.SolveDynamic(sim, solverType=exu.DynamicSolverType.RK44)
+    mbs.SolveDynamic(sim, solverType=getattr(exu.DynamicSolverType, solver))

@@ -4,7 +4,8 @@ housing accelerometer.
 
 Pure: parameters in, signals out. Knows nothing of Snakemake, MLflow or the config.
 
-Mechanics (exudyn, plane x horizontal / y vertical, 8 DOF, RK44):
+Mechanics (exudyn, plane x horizontal / y vertical, 8 DOF plus 2 a mode, the central difference
+by default, or RK44: `RigSettings.integrator`):
 - rotor (shaft and motor rotor) as two point masses at the drive-end (DE) and fan-end (FE)
   journals, joined by the shaft's bending stiffness (linear spring-damper); gravity, a radial load
   on the DE journal and a rotating unbalance force act on them;
@@ -50,7 +51,9 @@ bearing force (a defect at 3:00) reaches the 12 o'clock accelerometer through th
 as through a real end shield, where the vertical housing motion alone would never show it. The
 rough running of a damaged contact (`defect_roughness`) is a random force on the DE housing and journal inside the model
 too, so it reaches the sensor along the same paths as the impacts. The integration step resolves
-the modes (RK44 at 48 kHz, omega h <= 0.7 up to 5 kHz: numerical damping under 1e-3 of critical).
+the modes: the central difference at 96 kHz (omega h <= 0.33 up to 5 kHz: frequency error
+(omega h)^2 / 24 under 0.5 %, no numerical damping), or RK44 at 48 kHz (omega h <= 0.7: numerical
+damping under 1e-3 of critical).
 Then the FIR low-pass and decimation to the output rate (no aliasing), the sensor gain, and
 broadband background (white noise plus random band-limited components, `background`) that
 stands in for everything else on a real motor (electromagnetic, fan, coupling, base).
@@ -67,6 +70,21 @@ oversampling 8 (h/2), an outer-race run agrees within 0.4 % in RMS and 0.3 % in 
 ball-defect run with rough running within 0.7 % in RMS, kurtosis and the 2 x BSF envelope-line
 ratio (the outer race's BPFO line ratio, over a floor of a few bins, moves by 20 %; it moved by
 40 % with the modes as filters) (`SPEED_NOTE`).
+
+Speed at solver depth (issue 51; exudyn's timers and counters, healthy benchmark sample of 0.78 s,
+axial preload drawn, so every DE ball is summed): RK44 has no Newton iterations nor Jacobians;
+at h = 20.8 us it took 37568 steps of 5 force calls (4 stages and the end-of-step accelerations the
+sensors read), 83 % of the time in ODE2RHS, of which about 70 % the two bearings' symbolic ball
+sums (linear connectors in their place: 0.35 against 1.17 s per simulated second), and 14 % in
+writing sensors: a sensor on the DE connector (force, displacement) evaluated its force function
+again per sample, so the displacement now comes from the two nodes' positions (bitwise the same)
+and the force only for diagnostics. RK44 at 20.8 us is far finer than the features need (0.001 dB
+against h/4), so the default is the central difference (`central_difference_mass`), one force
+call a step: at h = 10.4 us, 2.4 calls per sensor sample against 5 (measured 1.24 -> 0.52 s per
+simulated second, step check 0.027 dB against h/4; the defect runs' kurtosis and envelope line
+ratios as close to RK44 at h/4 as RK44 at 20.8 us's: within 0.04 and 0.23 in log, against 0.04
+and 0.21). At 20.8 us it runs 2.9x faster than RK44 (step check 0.11 dB) but its defect runs' line
+ratios move up to 0.45 in log, twice RK44's.
 """
 from __future__ import annotations
 
@@ -80,9 +98,9 @@ from scipy.signal import bilinear, lfilter, resample_poly
 
 from condmon.models.numerics import SimulationError, decimation_filter, exudyn_system, solve_rk44
 
-SPEED_NOTE = ("1.3-1.6 s of CPU per simulated second on one core (defaults, oversampling 4, "
-              "h = 20.8 us, load-zone ball sums, modes and rough running in the model); wall time the same on an idle "
-              "core, up to 2x when the 2 cores are shared")
+SPEED_NOTE = ("0.5 s of wall time per simulated second on one core of an idle 2-core machine (defaults: "
+              "central difference, oversampling 4, h = 10.4 us, axial preload, modes and rough running in the "
+              "model; RK44 at 20.8 us: 1.1-1.2), up to 2x when the 2 cores are shared")
 DEFECT_KINDS = ("none", "outer_race", "inner_race", "ball")
 CHANNELS = ("DE",)
 INCH = 0.0254
@@ -200,12 +218,19 @@ class BearingRigParameters:
 class RigSettings:
     """Numerical settings of one run."""
     output_rate_hz: float = 12000.0
-    oversampling: int = 4             # sensor rate = oversampling x output rate; RK44 step = 1/sensor rate
-    steps_per_sensor_sample: int = 1
+    oversampling: int = 4             # sensor rate = oversampling x output rate
+    # step = 1 / (sensor rate x this); 2 with the central difference: 10.4 us, one force call a
+    # step (2.4 a sensor sample against RK44's 5 at 20.8 us), its defect features as close to
+    # RK44 at h/4 as RK44 at 20.8 us's are
+    steps_per_sensor_sample: int = 2
     settle_time: float = 0.1          # simulated then discarded, s
     duration: float = 1.0             # recorded seconds
     max_penetration: float = 2.0e-4   # |journal - housing| beyond clearance + this is divergence, m
     load_zone_only: bool = True       # sum only the balls near the bottom (checked; else rerun with all)
+    # "rk44" (four force calls a step, a fifth for the sensed accelerations) or
+    # "central_difference" (one a step, accelerations included: exudyn's velocity Verlet with the
+    # damping correction of `central_difference_mass`, second order)
+    integrator: str = "central_difference"
 
 
 def clock_angle(hours: float) -> float:
@@ -364,15 +389,18 @@ def _check(p: BearingRigParameters, s: RigSettings) -> None:
         raise ValueError(f"axial_preload must be >= 0 N, got {p.axial_preload}")
     if not 0 <= p.defect_clock <= 12:
         raise ValueError(f"defect_clock must lie in [0, 12] hours, got {p.defect_clock}")
-    # the RK44 step must resolve every mode: omega h <= 1 keeps its numerical damping small
+    # the step must resolve every mode: RK44 at omega h <= 1 keeps its numerical damping small
+    # (under 1/144 of an amplitude a step), the central difference at omega h <= 0.5 its
+    # frequency error ((omega h)^2 / 24, no numerical damping) about 1 %
     step_hz = s.output_rate_hz * s.oversampling * s.steps_per_sensor_sample
     for mode in p.resonances:
         if len(mode) not in (3, 4):
             raise ValueError(f"resonance {mode}: need (frequency Hz, damping ratio, gain[, tilt deg])")
         f, zeta = mode[0], mode[1]
-        if not (0 < f <= step_hz / (2 * math.pi) and 0 < zeta < 1):
-            raise ValueError(f"resonance ({f}, {zeta}): need 0 < f <= {step_hz / (2 * math.pi):.0f} Hz "
-                             "(omega h <= 1 at this step) and 0 < zeta < 1")
+        limit = MODE_STEP_LIMIT.get(s.integrator, 1.0)
+        if not (0 < f <= limit * step_hz / (2 * math.pi) and 0 < zeta < 1):
+            raise ValueError(f"resonance ({f}, {zeta}): need 0 < f <= {limit * step_hz / (2 * math.pi):.0f} Hz "
+                             f"(omega h <= {limit} for {s.integrator} at this step) and 0 < zeta < 1")
         if len(mode) == 4 and not -90 <= mode[3] <= 90:
             raise ValueError(f"resonance {mode}: the tilt must lie in [-90, 90] degrees from vertical")
     if p.resonances and not 0 < p.modal_mass_share <= 0.2:
@@ -381,6 +409,8 @@ def _check(p: BearingRigParameters, s: RigSettings) -> None:
         if not (0 < f < s.output_rate_hz / 2 and 0 < zeta < 1 and level >= 0):
             raise ValueError(f"background band ({f}, {zeta}, {level}): need 0 < f < output Nyquist, "
                              "0 < zeta < 1, rms >= 0")
+    if s.integrator not in INTEGRATORS:
+        raise ValueError(f"integrator {s.integrator!r}; choose one of {list(INTEGRATORS)}")
     if s.oversampling < 2 or s.steps_per_sensor_sample < 1:
         raise ValueError("oversampling must be >= 2 and steps_per_sensor_sample >= 1")
 
@@ -621,12 +651,38 @@ def _resonance_filter(freq, zeta, gain, fs):
 
 
 # -- the run ----------------------------------------------------------------------------------
+INTEGRATORS = ("rk44", "central_difference")
+MODE_STEP_LIMIT = {"rk44": 1.0, "central_difference": 0.5}  # largest omega h of a mode (`_check`)
+
+
+def central_difference_mass(nodes: list, dampers: list, step: float) -> np.ndarray:
+    """The mass matrix (over the 2D point nodes `nodes`, x and y each) that turns exudyn's
+    velocity Verlet into the central difference method (Newmark beta 0, gamma 1/2): h/2 x the
+    damping matrix of the linear `dampers` ((node, node or None for the ground, N s/m) each).
+    exudyn evaluates the damping forces at the half-step velocity v_{n+1/2} = v_{n+1} - h/2
+    a_{n+1}, so with M + h/2 C its step solves (M + h/2 C) a_{n+1} = F - K x - C v_{n+1/2}, which
+    is M a + C v + K x = F at the step's end: second order (without, first order in the
+    damping: measured on a damped oscillator, the error halves with the step)."""
+    index = {node: i for i, node in enumerate(nodes)}
+    matrix = np.zeros((2 * len(nodes), 2 * len(nodes)))
+    for a, b, c in dampers:
+        for axis in (0, 1):
+            ia = 2 * index[a] + axis
+            matrix[ia, ia] += c
+            if b is not None:
+                ib = 2 * index[b] + axis
+                matrix[ib, ib] += c
+                matrix[ia, ib] -= c
+                matrix[ib, ia] -= c
+    return 0.5 * step * matrix
+
+
 def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, unbalance_phase: float,
-                   rough_seed: float, zone_only: tuple[bool, bool], where: str):
+                   rough_seed: float, zone_only: tuple[bool, bool], where: str, record_force: bool = False):
     """The exudyn part: returns (housing acceleration, DE bearing force, DE bearing displacement)
     sensor arrays (time in column 0) and the modes' accelerations (shape (samples, modes, 2): x
     and y) at the sensor rate, settling included. zone_only: whether the DE and the FE bearing
-    sum only their load-zone balls."""
+    sum only their load-zone balls. record_force: record the DE bearing force (else None)."""
     import exudyn as exu
     from exudyn.utilities import CreateSymbolicUserFunction
 
@@ -656,9 +712,13 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
             return node, marker
 
         hde_node, hde = point(p.housing_mass, h_de, -p.housing_mass * g)
-        _, hfe = point(p.housing_mass, h_fe, -p.housing_mass * g)
-        _, rde = point(m_de, h_de + sag_de, -m_de * g - p.radial_load)
-        _, rfe = point(m_fe, h_fe + sag_fe, -m_fe * g)
+        hfe_node, hfe = point(p.housing_mass, h_fe, -p.housing_mass * g)
+        rde_node, rde = point(m_de, h_de + sag_de, -m_de * g - p.radial_load)
+        rfe_node, rfe = point(m_fe, h_fe + sag_fe, -m_fe * g)
+        # every linear damper (node, node or None for the ground, N s/m in x and y), for the
+        # central difference's mass correction
+        dampers = [(hde_node, None, c_h), (hfe_node, None, c_h), (rde_node, rfe_node, c_shaft),
+                   (hde_node, rde_node, p.bearing_damping), (hfe_node, rfe_node, p.bearing_damping)]
         ground = mbs.AddObject(eii.ObjectGround())
         ground_marker = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=ground, localPosition=[0.0, 0.0, 0.0]))
         for marker in (hde, hfe):
@@ -693,6 +753,7 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
                 markerNumbers=[hde, mode], stiffness=[modal_mass * omega ** 2] * 2 + [0.0],
                 damping=[2 * zeta * omega * modal_mass] * 2 + [0.0]))
             mode_nodes.append(node)
+            dampers.append((hde_node, node, 2 * zeta * omega * modal_mass))
         defect = _DefectProfile(p, hash_seed) if p.defect_kind != "none" else None
         if defect is not None and p.defect_roughness > 0:
             # rough running: a random force between the DE housing and journal, evaluated once a
@@ -717,27 +778,44 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
             keep.append(fn)
             bearings.append(item)
 
-        sensors = [mbs.AddSensor(eii.SensorNode(nodeNumber=hde_node, storeInternal=True, writeToFile=False,
-                                                outputVariableType=exu.OutputVariableType.Acceleration))]
-        for variable in (exu.OutputVariableType.Force, exu.OutputVariableType.Displacement):
+        def node_sensor(node, variable):
+            return mbs.AddSensor(eii.SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
+                                                outputVariableType=variable))
+
+        # the DE bearing's displacement from its two nodes' positions (a sensor on the connector
+        # evaluates its force function once more per sample); its force only for diagnostics
+        sensors = [node_sensor(hde_node, exu.OutputVariableType.Acceleration),
+                   node_sensor(rde_node, exu.OutputVariableType.Position),
+                   node_sensor(hde_node, exu.OutputVariableType.Position)]
+        if record_force:
             sensors.append(mbs.AddSensor(eii.SensorObject(objectNumber=bearings[0], storeInternal=True,
-                                                          writeToFile=False, outputVariableType=variable)))
+                                                          writeToFile=False,
+                                                          outputVariableType=exu.OutputVariableType.Force)))
         mode_sensors = [mbs.AddSensor(eii.SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
                                                      outputVariableType=exu.OutputVariableType.Acceleration))
                         for node in mode_nodes]
+        sensor_rate = s.output_rate_hz * s.oversampling
+        if s.integrator == "central_difference":
+            nodes = [hde_node, hfe_node, rde_node, rfe_node, *mode_nodes]
+            step = 1.0 / (sensor_rate * s.steps_per_sensor_sample)
+            # no stiffness or damping: the correction's mass alone, added to the point masses'
+            mbs.AddObject(eii.ObjectGenericODE2(nodeNumbers=nodes,
+                                                massMatrix=central_difference_mass(nodes, dampers, step)))
         mbs.Assemble()
 
         try:
-            solve_rk44(mbs, s.output_rate_hz * s.oversampling, s.steps_per_sensor_sample,
-                       s.settle_time + s.duration)
+            solve_rk44(mbs, sensor_rate, s.steps_per_sensor_sample, s.settle_time + s.duration,
+                       solver="VelocityVerlet" if s.integrator == "central_difference" else "RK44")
         except Exception as exc:
             raise SimulationError(f"exudyn solver failed ({where}): {exc}") from exc
-        acc, force, disp = (mbs.GetSensorStoredData(sensor) for sensor in sensors)
+        acc, journal, housing, *force = (mbs.GetSensorStoredData(sensor) for sensor in sensors)
+        disp = np.column_stack([journal[:, 0], journal[:, 1:] - housing[:, 1:]])
+        force = force[0] if force else None
         modes = (np.stack([mbs.GetSensorStoredData(sensor)[:, 1:3] for sensor in mode_sensors], axis=1)
                  if mode_sensors else np.empty((len(acc), 0, 2)))
     del keep
-    if not (np.isfinite(acc).all() and np.isfinite(force).all() and np.isfinite(disp).all()
-            and np.isfinite(modes).all()):
+    if not (np.isfinite(acc).all() and np.isfinite(disp).all() and np.isfinite(modes).all()
+            and (force is None or np.isfinite(force).all())):
         raise SimulationError(f"simulation diverged ({where}): non-finite states")
     radial = np.hypot(disp[:, 1], disp[:, 2])
     if radial.max() > max(clearance_de, 0.0) + s.max_penetration:
@@ -772,12 +850,13 @@ def simulate_rig(params: BearingRigParameters, settings: RigSettings | None = No
     # its clearance in the model)
     clearance_de = de_clearance(p)
     zone_only = s.load_zone_only and clearance_de > 0
+    record_force = diagnostics is not None
     acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed,
-                                             (zone_only, s.load_zone_only), where)
+                                             (zone_only, s.load_zone_only), where, record_force)
     if zone_only and not _load_zone_ok(disp[:, 1:3], clearance_de):
         zone_only = False  # a ball outside the zone would have touched: run again with all balls
         acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed, (False, False),
-                                                 where)
+                                                 where, record_force)
     if diagnostics is not None:
         diagnostics.update(time=acc[:, 0], de_force=force[:, 1:3], de_force_y=force[:, 2],
                            de_displacement=disp[:, 1:3],
