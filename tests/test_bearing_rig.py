@@ -343,6 +343,7 @@ def test_a_mode_the_step_cannot_resolve_is_rejected():
         simulate_rig(BearingRigParameters(modal_mass_share=0.5), RigSettings(duration=0.01))
 
 
+@pytest.mark.slow  # four runs of 0.25 s, two of them RK44 at four steps a sample
 def test_central_difference_matches_rk44_at_a_quarter_step():
     """The default integrator (exudyn's velocity Verlet with the damping mass correction: the
     central difference, one force call a step at h = 10.4 us) against RK44 at 5.2 us, on a

@@ -144,9 +144,13 @@ def test_a_wrong_python_is_named(monkeypatch):
     assert "needs Python 3.98, 3.99" in condmon.python_version_error()
 
 
-@pytest.mark.parametrize("configfile", ["config/config.yaml", ".test/config/smoke.yaml"])
-def test_every_rule_has_an_environment_and_the_linter_is_content(configfile):
+def test_every_rule_has_an_environment():
     assert {env for env, _ in rule_scripts().values()} == {p.stem for p in ENVS.glob("*.yaml")}
+
+
+@pytest.mark.slow  # Snakemake parses the whole workflow: 5-7 s a config
+@pytest.mark.parametrize("configfile", ["config/config.yaml", ".test/config/smoke.yaml"])
+def test_the_linter_is_content(configfile):
     result = subprocess.run([sys.executable, "-m", "snakemake", "--lint", "--configfile", configfile],
                             cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]

@@ -499,6 +499,26 @@ def test_the_compiled_mesh_force_is_the_python_one():
     assert mesh(0.1, -2.0e-4, 0.0) < 0.0
 
 
+@pytest.mark.parametrize("model", ["potential_energy", SIMPLE])
+def test_the_callbacks_gate_follows_the_impacts_python_tracks(model):
+    """The exudyn callback's compiled gate (mesh_kernel's state vector) hands every call to the
+    Python path while the mesh is out of contact or an impact is tracked: a run of calls through
+    the callback that loses contact, hits again and settles gives, call by call, the force and the
+    impact state of a twin mesh that takes every call in Python (to rounding)."""
+    p = GearDrivetrainParameters(mesh_stiffness_model=model, speed_rpm=775.0, contact_law="flores", restitution=0.7)
+    callback, python = MeshForce(p, damping=300.0), MeshForce(p, damping=300.0)
+    t = np.linspace(0.0, 0.02, 4000)
+    deflection = 2e-6 * np.cos(2 * np.pi * 150.0 * t) + 1e-6  # in and out of contact
+    rate = np.gradient(deflection, t)
+    tracked = 0
+    for time, d, d_t in zip(t, deflection, rate):
+        tracked += bool(callback.impacts) or callback.separated
+        force = callback.spring_force(None, time, 0, d, d_t, 0.0, 0.0, 0.0)
+        assert force == pytest.approx(python.tracked_force(time, d, d_t), rel=1e-12, abs=1e-9), time
+        assert callback.impacts.keys() == python.impacts.keys() and callback.separated == python.separated
+    assert tracked > 100 and tracked < len(t) - 100  # both paths taken
+
+
 @pytest.mark.parametrize("exponent", [1.0, 1.3, 1.5])
 def test_the_stiffness_for_a_deflection_carries_the_load_there(exponent):
     """stiffness_for_deflection inverts operating_deflection: the mesh it gives deflects by the

@@ -36,6 +36,7 @@ def test_the_slurm_plugin_is_pinned_at_the_installed_version(package):
     assert pins.get(package) == version(package), f"environment.txt pins {package} at {pins.get(package)}"
 
 
+@pytest.mark.slow  # a Snakemake dry run of the smoke pipeline: 5 s
 def test_the_slurm_profile_gives_each_rule_its_resources(tmp_path):
     # --forceall: every job is planned whatever results/ holds; per-state calibration on, so that
     # its rule is planned too

@@ -60,7 +60,8 @@ def test_a_section_that_adds_what_it_does_not_declare_is_refused(train_outputs, 
         report.summary["surprise"] = 1
         return {}
 
-    monkeypatch.setattr(registry, "SECTIONS", [*registry.SECTIONS, Section("sloppy", sloppy)])
+    # first, so that the refusal comes before the other sections' plots
+    monkeypatch.setattr(registry, "SECTIONS", [Section("sloppy", sloppy), *registry.SECTIONS])
     with pytest.raises(ValueError, match=r"'sloppy' added summary keys \['surprise'\]"):
         fake.write_report(paths, tmp_path / "report")
 

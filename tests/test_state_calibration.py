@@ -88,6 +88,7 @@ def test_the_twins_stay_twins_a_state_model_draws_from_no_shared_stream():
     assert draws["healthy"][2] is None and draws["missing_tooth"][2]["parameters"] == {"missing_share": 0.7}
 
 
+@pytest.mark.slow  # a CMA-ES calibration: 14 gear simulations
 def test_per_state_calibration_finds_the_broken_share_of_a_tooth():
     """"Measured" records of the model itself (another seed: other gear errors) with 0.6 of a
     tooth's profile broken off; CMA-ES over the share in [0.3, 1.0] on their change of the

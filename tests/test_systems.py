@@ -102,6 +102,7 @@ def _resident_mb() -> float:
         return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2 ** 20
 
 
+@pytest.mark.slow  # seven runs of a segment each
 @pytest.mark.skipif(not os.path.exists("/proc/self/statm"), reason="needs Linux /proc to read the resident memory")
 def test_repeated_runs_do_not_keep_memory(system_and_config):
     # a batch job or a calibration worker runs hundreds of samples in one process: exudyn keeps a

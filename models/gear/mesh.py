@@ -44,6 +44,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from condmon.models.gear.errors import FlankPoints
+
 # Fillet-foundation coefficients of Sainsot, Velex & Duverger (2004), "Contribution of gear body to
 # tooth deflections - a new bidimensional analytical formula", J. Mech. Design 126(4): 748-752,
 # Table 1: X* = A/theta_f^2 + B h_f^2 + C h_f/theta_f + D/theta_f + E h_f + F for X = L, M, P, Q.
@@ -436,17 +438,17 @@ class GearMesh:
         flanks = self.flank_maps or (None,) * g.teeth_pinion
         damages = self.damage_maps or (None,) * g.teeth_pinion
         roll = g.roll_fraction(self.s_slice)
-        face = np.broadcast_to(self.z[None, :] / g.face_width, roll.shape)
+        points = FlankPoints(roll, np.broadcast_to(self.z[None, :] / g.face_width, roll.shape))
         cache, groups = {}, []
         for tooth, (flank, damage) in enumerate(zip(flanks, damages)):
             damaged = self._is_damaged(tooth)
             key = (flank, damage, damaged)
             if key not in cache:
-                extra = None if flank is None else flank.at(roll, face)
+                extra = None if flank is None else points.values(flank)
                 if damage is not None:
                     if damaged:
                         raise ValueError(f"pinion tooth {tooth}: a damage map and a {self.damage.kind} at once")
-                    cache[key] = self._damage_groups(extra, damage.at(roll, face))
+                    cache[key] = self._damage_groups(extra, points.values(damage))
                 else:
                     cache[key] = (self._damaged_groups(extra) if damaged
                                   else self._groups_from(self.slice_stiffness, extra))

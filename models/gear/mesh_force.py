@@ -48,9 +48,10 @@ from condmon.models.gear.errors import (add_flank_maps, broken_tooth_flank_map, 
                                         pitted_flank_map, wear_flank_map)
 from condmon.models.gear.mesh import GearMesh, ProfileDeviation, ToothDamage
 # DEFLECTION_REF: K = mesh stiffness at this deflection keeps K's unit N/m for any n
-from condmon.models.gear.mesh_kernel import (BACK_FLANK, DEFLECTION_REF, TOO_MANY_CONTACTS, entry_point,
-                                             mesh_excitation, simple_contacts, simple_steady_force, tvms_contacts,
-                                             tvms_steady_force)
+from condmon.models.gear.mesh_kernel import (BACK_FLANK, DEFLECTION_REF, SEPARATED, TOO_MANY_CONTACTS, TRACKING,
+                                             ArrayBlock, entry_point, mesh_excitation, simple_contacts,
+                                             simple_gated_force, simple_steady_force, tvms_contacts,
+                                             tvms_gated_force, tvms_steady_force)
 from condmon.models.numerics import SimulationError
 
 MESH_HEALTH_STATES = ("healthy", "surface_fault", "wear", "missing_tooth", "spall", "chipped_tooth", "root_crack")
@@ -216,6 +217,8 @@ class MeshForce:
         self.pair_pitch_error = [pinion[j % g.teeth_pinion] + gear[j % g.teeth_gear]
                                  for j in range(self.pitch_period)]
         self.stiffness_factor = contact_stiffness_factors(p)
+        # the callback's gate, shared with the compiled kernel (mesh_kernel.SEPARATED, TRACKING)
+        self._state = np.zeros(2)
         self.impacts = {}       # contact key -> approach speed d'(-) of an impact still in contact
         self.separated = False  # the whole mesh was out of contact at the last call
 
@@ -240,16 +243,37 @@ class MeshForce:
         constants = np.array([self.backlash, self.contact_ratio, self.base_pitch, self.tip_radius,
                               self.pair_force_ref, self.exponent, self.damping_per_stiffness,
                               self.inverse_damping_onset, self.te_amplitude], dtype=float)
-        self._bind(simple_contacts, simple_steady_force, constants, np.array(self.stiffness_factor, dtype=float),
-                   np.array(self.pair_pitch_error, dtype=float))
+        self._bind(simple_contacts, simple_steady_force, simple_gated_force, constants,
+                   np.array(self.stiffness_factor, dtype=float), np.array(self.pair_pitch_error, dtype=float))
 
-    def _bind(self, contacts, steady_force, *tables):
+    def _bind(self, contacts, steady_force, gated_force, *tables):
         """Bind the compiled contact enumerator and steady force to this mesh's tables and its
-        contacts' scratch space (mesh_kernel: tables first, then the call's t, deflection, rate)."""
+        contacts' scratch space (mesh_kernel: tables first, then the call's t, deflection, rate),
+        and make `spring_force`, the callback, on the gated kernel."""
         self.contacts = np.zeros((MAX_CONTACTS, 4))
         self.find_contacts = functools.partial(entry_point(contacts), self.excitation_constants, self.runout, *tables)
         self.steady_force = functools.partial(entry_point(steady_force), self.excitation_constants, self.runout,
                                               *tables, self.contacts)
+        self.kernel_arrays = ArrayBlock(self._state, self.excitation_constants, self.runout, *tables, self.contacts)
+        gated, address, tracked = entry_point(gated_force), self.kernel_arrays.address, self.tracked_force
+
+        def spring_force(mbs, t, item, deflection, rate, stiffness, damping, offset):
+            """The force as exudyn's springForceUserFunction takes it (the connector's own
+            stiffness, damping and offset unused). The hot path, four calls per RK44 step: in
+            steady contact one compiled call; the impacts' state in Python (`tracked_force`)."""
+            total = gated(address, t, deflection, rate)
+            return total if total >= 0.0 else tracked(t, deflection, rate)
+
+        self.spring_force = spring_force
+
+    @property
+    def separated(self) -> bool:
+        """Whether the whole mesh was out of contact at the last call."""
+        return self._state[SEPARATED] != 0.0
+
+    @separated.setter
+    def separated(self, value: bool):
+        self._state[SEPARATED] = 1.0 if value else 0.0
 
     # -- excitation --------------------------------------------------------------------------
     def excitation(self, t):
@@ -294,20 +318,11 @@ class MeshForce:
             for key in [k for k in self.impacts if k not in touching]:
                 del self.impacts[key]
         self.separated = not touched
+        self._state[TRACKING] = 1.0 if self.impacts else 0.0
 
     def __call__(self, t, deflection, rate):
         """The mesh force (N) at time t, mesh deflection (m) and its rate (m/s)."""
         return self.spring_force(None, t, None, deflection, rate, None, None, None)
-
-    def spring_force(self, mbs, t, item, deflection, rate, stiffness, damping, offset):
-        """The force as exudyn's springForceUserFunction takes it (the connector's own stiffness,
-        damping and offset unused). The hot path: in steady contact, the compiled sum."""
-        if not (self.impacts or self.separated):
-            total = self.steady_force(t, deflection, rate)
-            if total >= 0.0:  # else the back flank touches, or (TVMS) the run diverges
-                self.separated = not total > 0.0
-                return total
-        return self.tracked_force(t, deflection, rate)
 
     def tracked_force(self, t, deflection, rate):
         """The force with the impacts' state (Python): the back flank, a contact that closes after
@@ -416,7 +431,7 @@ class TVMSMeshForce(MeshForce):
         constants = np.array([self.backlash, self.window, self.points_per_pitch, self.base_pitch, self.tip_radius,
                               self.exponent, self.damping_per_stiffness, self.inverse_damping_onset,
                               self.edge_excess, float(self.extended), MAX_DEFLECTION], dtype=float)
-        self._bind(tvms_contacts, tvms_steady_force, constants, tables, edges, group_of_tooth,
+        self._bind(tvms_contacts, tvms_steady_force, tvms_gated_force, constants, tables, edges, group_of_tooth,
                    np.array(self.pair_pitch_error, dtype=float))
 
     def static_deflection(self, force):
