@@ -125,6 +125,8 @@ rule report:
         # {specimen: reason} of specimens the model does not describe: reported apart, never in
         # the headline
         unmodelled=SYSTEM.unmodelled_specimens(),
+        # the calibration set the measured features were taken against (None: not referenced)
+        reference_set=healthy_reference_params("measured").get("healthy_reference"),
     conda:
         "../envs/report.yaml"
     benchmark:

@@ -17,6 +17,7 @@ import pandas as pd
 
 from condmon import evaluation, plots
 from condmon.features import read_feature_table
+from condmon.hybrid import calibration_frame
 from condmon.labels import data_source_label, label_order
 from condmon.report.inputs import ReportInputs
 from condmon.report.loading import (design_record_ids, load_calibrations, load_fault_lines,
@@ -161,8 +162,9 @@ class Report:
         if self.features is None:
             return None
         frame, names = self.measured
-        separability = measured_separability(
-            frame[~frame["record_id"].astype(str).isin(self.apart)], names, self.condition)
+        left_out = set(map(str, self.apart)) | self.reference_records
+        separability = measured_separability(frame[~frame["record_id"].astype(str).isin(left_out)],
+                                             names, self.condition)
         log.info("measured records alone, leave one record out: %s over all, %s per %s",
                  separability["all"]["balanced_accuracy"],
                  {k: v["balanced_accuracy"] for k, v in separability["per_condition"].items()},
@@ -173,6 +175,18 @@ class Report:
                             "time (exempt from the simulation-trained figures)", self.condition, value,
                             entry["not_shown"], 100 * SHOWN_RECALL)
         return separability
+
+    @cached_property
+    def reference_records(self) -> set[str]:
+        """The measured records the features were taken against (the healthy reference's
+        calibration set): against themselves their features are near zero, so they are no test of
+        what the records show."""
+        spec = self.inputs.evaluation.reference_set
+        if not spec or self.features is None:
+            return set()
+        frame, _ = self.measured
+        chosen = calibration_frame(frame, spec["healthy_state"], spec["condition"], dict(spec["reserve"]))
+        return set(chosen["record_id"].astype(str))
 
     @property
     def compares_signatures(self) -> bool:
