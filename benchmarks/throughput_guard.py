@@ -1,4 +1,4 @@
-"""Regression guard on simulation cost (issue 51, item 3): each system's wall time per simulated
+"""Regression guard on simulation cost (issue 51, item 3): each system's CPU time per simulated
 second divided by a fixed reference workload timed in the same process, so machines of other
 speeds compare; tests/test_throughput_guard.py fails when a system's ratio grows more than
 GROWTH_LIMIT over the baseline stored in benchmarks/throughput_baseline.json.
@@ -6,7 +6,10 @@ GROWTH_LIMIT over the baseline stored in benchmarks/throughput_baseline.json.
 Short runs (settling plus DURATION s of output, the healthy state at the middle speed, the
 config's own numerics); each figure is the minimum over REPEATS runs after a warm-up, and the
 reference is timed again beside every system (minima: a shared core slows a run, never speeds
-it up).
+it up). Times are the process's CPU seconds, not wall seconds: in CI the guard shares the two
+cores with the other test worker and the pipeline tests' jobs, and wall time then counts the
+time slices given to them (at 0cae326 it doubled the CFRP rig's figure while the 40 ms reference
+runs still caught idle moments).
 
     python3 benchmarks/throughput_guard.py            # print the ratios against the baseline
     python3 benchmarks/throughput_guard.py --write    # measure and store a new baseline
@@ -21,6 +24,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
@@ -30,11 +34,12 @@ BASELINE = ROOT / "benchmarks" / "throughput_baseline.json"
 GROWTH_LIMIT = 1.5   # a ratio this many times the baseline's fails
 DURATION = 0.25      # s of output per run (plus the system's settling)
 REPEATS = 3
+BASELINE_PASSES = 3  # --write stores the median of this many measurements
 SYSTEMS = ["config/config.yaml", "config/config.yaml:flexible", "config/cfrp.yaml", "config/cwru.yaml"]
 
 
 def reference_workload() -> float:
-    """Wall seconds of a fixed exudyn run with what the models' hot paths hold: a chain of 8
+    """CPU seconds of a fixed exudyn run with what the models' hot paths hold: a chain of 8
     point masses on Cartesian spring-dampers, RK44, 4000 steps, one spring with a symbolic
     force function (compiled expression tree, as the bearing's) and one with a Python user
     function (as the gear's mesh)."""
@@ -74,9 +79,9 @@ def reference_workload() -> float:
         sim.timeIntegration.endTime = 4000 * 1e-5
         sim.timeIntegration.verboseMode = 0
         sim.solution.file.write = False
-        start = time.perf_counter()
+        start = time.process_time()
         mbs.SolveDynamic(sim, solverType=exu.DynamicSolverType.RK44)
-        seconds = time.perf_counter() - start
+        seconds = time.process_time() - start
         del keep
         return seconds
     finally:
@@ -84,9 +89,16 @@ def reference_workload() -> float:
 
 
 def system_cost(spec: str, duration: float = DURATION, repeats: int = REPEATS) -> dict:
-    """The system's wall seconds per simulated second (minimum over `repeats` runs after a
+    """The system's CPU seconds per simulated second (minimum over `repeats` runs after a
     warm-up), the reference workload's seconds (minimum, timed between the runs) and their
     ratio."""
+    # One BLAS thread, as the pipeline's jobs: under pytest numpy is loaded before
+    # throughput.py sets OPENBLAS_NUM_THREADS, and an idle second thread spins on CPU time.
+    with threadpool_limits(limits=1):
+        return _system_cost(spec, duration, repeats)
+
+
+def _system_cost(spec: str, duration: float, repeats: int) -> dict:
     system, config = throughput.load_system(spec)
     values = system.sample_parameters(system.nominal_calibration(), system.healthy_state,
                                       np.random.default_rng(0), config["simulation"])
@@ -97,9 +109,9 @@ def system_cost(spec: str, duration: float = DURATION, repeats: int = REPEATS) -
     runs, references = [], []
     for i in range(repeats):
         references.extend(reference_workload() for _ in range(3))  # 40 ms each: more minima, little time
-        start = time.perf_counter()
+        start = time.process_time()
         system.simulate_sample(values, system.healthy_state, speed, duration, 1)
-        runs.append((time.perf_counter() - start) / simulated)
+        runs.append((time.process_time() - start) / simulated)
     return {"seconds_per_simulated_second": round(min(runs), 4), "reference_seconds": round(min(references), 5),
             "ratio": round(min(runs) / min(references), 3), "simulated_seconds": round(simulated, 4)}
 
@@ -137,10 +149,13 @@ def main(argv=None) -> None:
                                     capture_output=True, text=True).stdout.strip())
         systems = {}
         for spec in args.systems or SYSTEMS:
-            systems[spec] = system_cost(spec)
+            # the median of BASELINE_PASSES measurements: one lucky minimum would leave a later,
+            # ordinary run looking grown (the CFRP rig's ratio ranged 59-76 on one quiet machine)
+            passes = sorted((system_cost(spec) for _ in range(BASELINE_PASSES)), key=lambda entry: entry["ratio"])
+            systems[spec] = passes[len(passes) // 2] | {"ratios_measured": [entry["ratio"] for entry in passes]}
             print(spec, systems[spec], flush=True)
         baseline = {"commit": commit + (" (uncommitted changes)" if dirty else ""), "machine": throughput.machine(),
-                    "duration": DURATION, "repeats": REPEATS, "growth_limit": GROWTH_LIMIT, "systems": systems}
+                    "duration": DURATION, "repeats": REPEATS, "passes": BASELINE_PASSES, "growth_limit": GROWTH_LIMIT, "systems": systems}
         args.baseline.write_text(json.dumps(baseline, indent=2) + "\n")
         print(f"wrote {args.baseline}")
         return
