@@ -55,6 +55,40 @@ def test_a_record_against_itself_shifted_by_whole_teeth_leaves_no_residual():
     assert np.sqrt(np.mean((np.roll(pattern, 17, axis=-1) - pattern) ** 2)) > 0.5 * pattern.std()
 
 
+
+def test_bands_without_mesh_lines_follow_the_path_not_the_mesh_lines_size():
+    """reference_level without_mesh_lines: the same residual over a reference whose mesh lines are
+    four times stronger (a stiffer or more loaded mesh, the same path) keeps its bands; over
+    the whole level (the default) the bands holding a mesh line fall. A path twice as strong
+    scales residual and reference alike: the bands stay in both."""
+    rng = np.random.default_rng(5)
+    reference = pitch_pattern(PINION, rng)[None, :]
+    angle = np.arange(P) / P
+    mesh = sum(np.cos(2 * np.pi * h * PINION * angle) / h for h in (1, 2, 3))[None, :]
+    pitted = reference + tooth_bump(PINION, 4, 0.05)
+
+    def bands(pattern, ref, level):
+        found = rf.residual_features(pattern, ref, PINION, PINION / 4, 12, reference_level=level)
+        return np.array([found[name][0] for name in rf.band_names(12)])
+
+    for level in rf.REFERENCE_LEVELS:
+        doubled = bands(2 * pitted, 2 * reference, level)
+        assert np.allclose(doubled, bands(pitted, reference, level), rtol=1e-6), level
+    stronger_mesh = reference + 3 * mesh
+    kept = bands(pitted + 3 * mesh, stronger_mesh, "without_mesh_lines")
+    # (within the alignment's refinement, which the stronger lines move slightly)
+    assert np.allclose(kept, bands(pitted, reference, "without_mesh_lines"), rtol=0.03)
+    whole = bands(pitted + 3 * mesh, stronger_mesh, "whole") / bands(pitted, reference, "whole")
+    assert np.all(whole[[3, 7, 11]] < 0.5)  # the bands holding mesh orders 29, 58, 87
+
+
+def test_an_unknown_reference_level_names_the_key():
+    with pytest.raises(FeatureTableError, match="reference_level"):
+        rf.residual_feature_table(pd.DataFrame(), ["A1_x"], dict(
+            shafts=SHAFTS, against={"source": "measured"}, samples_per_revolution=P, bands_per_mesh=4,
+            mesh_harmonics=3, shaft_orders=2, phase_harmonic=1, phase_band_orders=0.3, phase_min_snr=5.0,
+            reference_level="median"))
+
 def test_a_pit_on_one_tooth_shows_in_that_teeths_residual_energy():
     rng = np.random.default_rng(2)
     healthy = pitch_pattern(PINION, rng)[None, :]

@@ -19,7 +19,11 @@ TSA of the signal less the other shafts' patterns, `SEPARATION_ITERATIONS` times
 common to both shafts, the mesh harmonics, go to the first). Then per shaft against the reference
 (`residual_features`): the residual R = aligned TSA - reference TSA and from it
 - `b<k>`: R's order spectrum in bands (orders of that shaft), over the reference's own level in
-  the band (a ratio, so the transfer path from mesh to sensor, which scales both, cancels);
+  the band (a ratio, so the transfer path from mesh to sensor, which scales both, cancels); with
+  `reference_level: without_mesh_lines` the reference's level leaves its mesh harmonics out:
+  a band's RMS is then the level of its sidebands and pitch-error orders, which the path scales,
+  not of the one mesh line, whose size is the mesh's transmission error (its compliance and
+  load), which healthy records do not identify;
 - `rms_ratio`: R's RMS over the reference's;
 - `FM4`, `NA4`: kurtosis of R's difference signal (R less shaft orders, mesh harmonics and their
   sidebands) and of its residual signal over the reference's residual variance (NA4 as defined,
@@ -183,12 +187,16 @@ def reference_pattern(patterns, teeth: int) -> np.ndarray:
 
 
 # -- features of a residual ----------------------------------------------------------------------
-def band_levels(pattern: np.ndarray, band_orders: float, n_bands: int) -> np.ndarray:
+def band_levels(pattern: np.ndarray, band_orders: float, n_bands: int, without_multiples_of: int = 0) -> np.ndarray:
     """RMS order amplitude of a one-revolution pattern (n_channels, P) in bands `band_orders` wide
-    from order 0.5: (n_channels, n_bands). Bin m of its DFT is shaft order m exactly."""
+    from order 0.5: (n_channels, n_bands). Bin m of its DFT is shaft order m exactly. With
+    `without_multiples_of` (a tooth count) the orders at its multiples, the mesh harmonics, are
+    left out of every band."""
     amplitudes = 2.0 * np.abs(np.fft.rfft(pattern, axis=-1)) / pattern.shape[-1]
     orders = np.arange(amplitudes.shape[-1])
     band = np.floor((orders - 0.5) / band_orders).astype(int)
+    if without_multiples_of:
+        band[orders % int(without_multiples_of) == 0] = -1
     out = np.zeros((pattern.shape[0], n_bands))
     for k in range(n_bands):
         inside = band == k
@@ -209,12 +217,14 @@ def tooth_peak(signal: np.ndarray, teeth: int, pitches: int) -> np.ndarray:
 
 
 def residual_features(pattern: np.ndarray, reference: np.ndarray, teeth: int, band_orders: float, n_bands: int,
-                      shaft_orders: int = 2, mesh_harmonics: int = 3) -> dict:
+                      shaft_orders: int = 2, mesh_harmonics: int = 3, reference_level: str = "whole") -> dict:
     """The residual features of one shaft's pattern against its healthy reference (both
-    (n_channels, P)): {feature: (n_channels,)}, linear (the caller takes logs). Module docstring."""
+    (n_channels, P)): {feature: (n_channels,)}, linear (the caller takes logs). `reference_level`
+    (REFERENCE_LEVELS): what the bands are taken over. Module docstring."""
     residual = aligned(pattern, reference, teeth) - reference
     levels = band_levels(residual, band_orders, n_bands)
-    reference_levels = band_levels(reference, band_orders, n_bands)
+    reference_levels = band_levels(reference, band_orders, n_bands,
+                                   teeth if reference_level == "without_mesh_lines" else 0)
     reference_rms = np.sqrt(np.mean((reference - reference.mean(axis=-1, keepdims=True)) ** 2, axis=-1))
     local = residual_signal(residual, teeth, shaft_orders, mesh_harmonics)
     reference_local = residual_signal(reference, teeth, shaft_orders, mesh_harmonics)
@@ -246,7 +256,10 @@ def segment_patterns(segment: np.ndarray, fs_hz: float, speed_rpm: float, shafts
 
 # -- the feature family --------------------------------------------------------------------------
 RESIDUAL_PARAMS = ("samples_per_revolution", "bands_per_mesh", "mesh_harmonics", "shaft_orders",
-                   "phase_harmonic", "phase_band_orders", "phase_min_snr", "magnitudes")
+                   "phase_harmonic", "phase_band_orders", "phase_min_snr", "magnitudes", "reference_level")
+# the reference's level in a band the bands are taken over: all its orders, or all but the mesh
+# harmonics (`residual_features`)
+REFERENCE_LEVELS = ("whole", "without_mesh_lines")
 KEY = "features.residual"
 
 
@@ -330,6 +343,9 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
                                 "switch features.healthy_reference on")
     P, bands_per_mesh = int(params["samples_per_revolution"]), int(params["bands_per_mesh"])
     magnitudes = bool(params.get("magnitudes", True))
+    reference_level = str(params.get("reference_level", "whole"))
+    if reference_level not in REFERENCE_LEVELS:
+        raise FeatureTableError(f"{KEY}.reference_level: {reference_level!r} is none of {list(REFERENCE_LEVELS)}")
     mesh_harmonics, shaft_orders = int(params["mesh_harmonics"]), int(params["shaft_orders"])
     n_bands = bands_per_mesh * mesh_harmonics
     fs_hz = single_sampling_rate(signal_frame)
@@ -362,7 +378,7 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
         if key not in references:  # a simulated sample whose healthy twin failed: left out later
             continue
         found = [residual_features(patterns[i][k], references[key][k], teeth, teeth / bands_per_mesh, n_bands,
-                                   shaft_orders, mesh_harmonics) for k, (_, _, teeth) in chosen]
+                                   shaft_orders, mesh_harmonics, reference_level) for k, (_, _, teeth) in chosen]
         # (shaft, feature, channel) -> the names' order: channel, shaft, feature
         block = np.log10(np.array([[shaft[feature] for feature in kept] for shaft in found]) + TINY)
         if not magnitudes:  # (shaft, feature, channel): the bands as their shape per shaft and channel
