@@ -55,7 +55,6 @@ def test_a_record_against_itself_shifted_by_whole_teeth_leaves_no_residual():
     assert np.sqrt(np.mean((np.roll(pattern, 17, axis=-1) - pattern) ** 2)) > 0.5 * pattern.std()
 
 
-
 def test_bands_without_mesh_lines_follow_the_path_not_the_mesh_lines_size():
     """reference_level without_mesh_lines: the same residual over a reference whose mesh lines are
     four times stronger (a stiffer or more loaded mesh, the same path) keeps its bands; over
@@ -88,6 +87,7 @@ def test_an_unknown_reference_level_names_the_key():
             shafts=SHAFTS, against={"source": "measured"}, samples_per_revolution=P, bands_per_mesh=4,
             mesh_harmonics=3, shaft_orders=2, phase_harmonic=1, phase_band_orders=0.3, phase_min_snr=5.0,
             reference_level="median"))
+
 
 def test_a_pit_on_one_tooth_shows_in_that_teeths_residual_energy():
     rng = np.random.default_rng(2)
