@@ -55,6 +55,32 @@ def test_a_record_against_itself_shifted_by_whole_teeth_leaves_no_residual():
     assert np.sqrt(np.mean((np.roll(pattern, 17, axis=-1) - pattern) ** 2)) > 0.5 * pattern.std()
 
 
+def noise_above(order: int, rms: float, rng) -> np.ndarray:
+    """One revolution of random content at the orders above `order` only."""
+    spectrum = np.zeros(P // 2 + 1, complex)
+    spectrum[order + 1:] = rng.normal(size=P // 2 - order) + 1j * rng.normal(size=P // 2 - order)
+    x = np.fft.irfft(spectrum, n=P)
+    return rms * x / x.std()
+
+
+def test_the_alignment_reads_the_orders_the_bands_hold():
+    """A short record at a low speed: above the bands' orders more noise than pattern. On every
+    order the correlation picks a wrong whole-tooth shift; on the bands' orders the right one."""
+    top = rf.top_band_order(PINION / 4, 12)
+    assert top == 87  # bands of 7.25 orders from order 0.5: 12 of them end at 87.5
+    true_shift = 7 * P // PINION + 3
+    wrong_on_every_order = 0
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        pattern = pitch_pattern(PINION, rng)[None, :]
+        record = np.roll(pattern, true_shift, axis=-1) + noise_above(top, 2 * pattern.std(), rng)
+        reference = pattern + noise_above(top, 2 * pattern.std(), rng)
+        found = rf.alignment_shift(record, reference, PINION, top) % P
+        assert abs(found - true_shift) < 1, seed
+        wrong_on_every_order += abs(rf.alignment_shift(record, reference, PINION) % P - true_shift) > P / PINION / 2
+    assert wrong_on_every_order >= 4
+
+
 def test_bands_without_mesh_lines_follow_the_path_not_the_mesh_lines_size():
     """reference_level without_mesh_lines: the same residual over a reference whose mesh lines are
     four times stronger (a stiffer or more loaded mesh, the same path) keeps its bands; over
@@ -171,6 +197,9 @@ def test_the_family_takes_simulated_twins_and_packaged_references():
     peak = table.set_index(["record_id", "segment"])["res_A1_x_pinion_tooth_peak1"]
     assert peak[("sim-surface_fault-1100rpm-b000-s000", 0)] > peak[("sim-healthy-1100rpm-b000-s000", 0)] + 0.5
     assert table.attrs["referenced_columns"] == rf.feature_names(["A1_x"], SHAFTS, 12)
+    # the segments spread over worker processes: the same table
+    spread = rf.residual_feature_table(frame, ["A1_x"], dict(params, against=against, processes=2))
+    pd.testing.assert_frame_equal(spread, table)
     with pytest.raises(FeatureTableError, match="healthy_reference"):
         rf.residual_feature_table(frame, ["A1_x"], params)
     # measured: the calibration set (the first healthy record) is the reference, written out ...

@@ -21,8 +21,9 @@ rule calibrate:
         spectrum=config["features"]["spectrum"],
         data_source=data_source(),
         condition=CONDITION,  # calibration.reserve: a lone healthy record per condition
-    # every core of the run; none are given to `snakemake --report` or `--lint` (workflow.cores would stop them)
-    threads: workflow.resource_settings.cores or 1
+    # the run's cores shared by the calibrations, which run side by side (one alone would leave
+    # the others waiting for every core); none are given to `snakemake --report` or `--lint`
+    threads: max(1, (workflow.resource_settings.cores or 1) // len(CALIBRATIONS))
     conda:
         "../envs/simulation.yaml"
     benchmark:

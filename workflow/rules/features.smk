@@ -17,6 +17,8 @@ rule features_measured:
         statistical=statistical_feature_params(),
         families=system_family_params(),
         system=SYSTEM.job_spec("features"),
+    # a system family may spread its segments over the cores (the residual signatures do)
+    threads: workflow.resource_settings.cores or 1
     conda:
         "../envs/learning.yaml"
     benchmark:
@@ -40,6 +42,8 @@ rule features_simulated:
         statistical=statistical_feature_params(),
         families=system_family_params(),
         system=SYSTEM.job_spec("features"),
+    # a system family may spread its segments over the cores (the residual signatures do)
+    threads: workflow.resource_settings.cores or 1
     conda:
         "../envs/learning.yaml"
     benchmark:

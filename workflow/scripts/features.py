@@ -27,6 +27,8 @@ own = system.feature_families()
 for family in family_params:  # a family that takes every machine against its reference itself
     if getattr(own.get(family), "takes_reference", False):
         family_params[family]["against"] = dict(against) if against else None
+    if getattr(own.get(family), "takes_processes", False):  # ... or spreads its work over the job's cores
+        family_params[family]["processes"] = snakemake.threads
 frame = compute_feature_table_from_files(signal_paths, channels, kind,
                                          {"spectrum": spectrum, "statistical": statistical, **family_params},
                                          system.defect_orders(), own)

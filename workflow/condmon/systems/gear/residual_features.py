@@ -7,8 +7,8 @@ order bands, and how they move them depends on the pair. Their change of the *wa
 damaged teeth is the same on every pair. Condition monitoring compares a machine with itself:
 take each shaft's time-synchronous average (TSA), align it to the machine's healthy TSA (a record
 starts at any shaft angle; the pitch pattern is the fingerprint the circular cross-correlation
-finds) and subtract it. What remains is the change since the machine was healthy (McFadden 1987;
-Randall 2011, ch. 5-6; ../shared/notes/gear-residuals.md).
+finds, on the orders the features read) and subtract it. What remains is the change since the
+machine was healthy (McFadden 1987; Randall 2011, ch. 5-6; ../shared/notes/gear-residuals.md).
 
 Per segment (`shaft_patterns`): the input shaft's angle by tacholess tracking of the mesh phase
 (`order_features.segment_angle`), then every shaft's synchronous pattern, the shafts kept apart:
@@ -37,6 +37,9 @@ shape (less their mean over the bands): that size follows the mesh's compliance,
 records do not identify.
 """
 from __future__ import annotations
+
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pandas as pd
@@ -141,17 +144,22 @@ def fold(on_grid: np.ndarray, samples_per_revolution: int) -> np.ndarray:
 
 
 # -- alignment -----------------------------------------------------------------------------------
-def alignment_shift(tsa: np.ndarray, reference: np.ndarray, teeth: int) -> float:
+def alignment_shift(tsa: np.ndarray, reference: np.ndarray, teeth: int, top_order: int | None = None) -> float:
     """The shift s (samples, fractional) that best aligns `tsa` to `reference` (both (n_channels,
     P)): tsa(i + s) ~ reference(i). Circular cross-correlation summed over the channels, of both
     less their mesh harmonics (periodic with the tooth pitch, they would make every whole-tooth
     shift look alike; what is left, the pitch pattern and eccentricity, is the fingerprint): its
     peak, then refined on the correlation of the whole patterns as a continuous function of the
     shift (Newton steps on its DFT form), since a residue of the strong mesh harmonics would
-    otherwise remain."""
+    otherwise remain. With `top_order` only the orders up to it take part: above the orders the
+    features read, a short record at a low speed holds more noise than pattern (the pattern's
+    acceleration falls with the speed squared, the sensor's noise does not), and their
+    correlation could pick a wrong whole-tooth shift."""
     a = np.fft.rfft(np.atleast_2d(tsa), axis=-1)
     b = np.fft.rfft(np.atleast_2d(reference), axis=-1)
     p = np.atleast_2d(tsa).shape[-1]
+    if top_order is not None:
+        a[..., int(top_order) + 1:] = 0.0
     fingerprint = (a * np.conj(b)).sum(axis=0)
     fingerprint[::teeth] = 0.0
     shift = float(np.argmax(np.fft.irfft(fingerprint, n=p)))
@@ -174,16 +182,23 @@ def shifted(pattern: np.ndarray, shift: float) -> np.ndarray:
     return np.fft.irfft(spectrum, n=p, axis=-1)
 
 
-def aligned(tsa: np.ndarray, reference: np.ndarray, teeth: int) -> np.ndarray:
+def aligned(tsa: np.ndarray, reference: np.ndarray, teeth: int, top_order: int | None = None) -> np.ndarray:
     """`tsa` shifted onto `reference` (`alignment_shift`)."""
-    return shifted(tsa, alignment_shift(tsa, reference, teeth))
+    return shifted(tsa, alignment_shift(tsa, reference, teeth, top_order))
 
 
-def reference_pattern(patterns, teeth: int) -> np.ndarray:
+def reference_pattern(patterns, teeth: int, top_order: int | None = None) -> np.ndarray:
     """The healthy reference of one shaft from several segments' patterns (each (n_channels, P)):
-    each aligned to the first, then their mean."""
+    each aligned to the first (on the orders up to `top_order`), then their mean."""
     first = np.asarray(patterns[0], dtype=np.float64)
-    return np.mean([first] + [aligned(np.asarray(p, dtype=np.float64), first, teeth) for p in patterns[1:]], axis=0)
+    return np.mean([first] + [aligned(np.asarray(p, dtype=np.float64), first, teeth, top_order)
+                              for p in patterns[1:]], axis=0)
+
+
+def top_band_order(band_orders: float, n_bands: int) -> int:
+    """The highest shaft order `band_levels`' bands hold (band k: orders from 0.5 + k x
+    `band_orders`): the orders the alignment reads."""
+    return int(np.ceil(0.5 + n_bands * band_orders)) - 1
 
 
 # -- features of a residual ----------------------------------------------------------------------
@@ -221,7 +236,7 @@ def residual_features(pattern: np.ndarray, reference: np.ndarray, teeth: int, ba
     """The residual features of one shaft's pattern against its healthy reference (both
     (n_channels, P)): {feature: (n_channels,)}, linear (the caller takes logs). `reference_level`
     (REFERENCE_LEVELS): what the bands are taken over. Module docstring."""
-    residual = aligned(pattern, reference, teeth) - reference
+    residual = aligned(pattern, reference, teeth, top_band_order(band_orders, n_bands)) - reference
     levels = band_levels(residual, band_orders, n_bands)
     reference_levels = band_levels(reference, band_orders, n_bands,
                                    teeth if reference_level == "without_mesh_lines" else 0)
@@ -252,6 +267,24 @@ def segment_patterns(segment: np.ndarray, fs_hz: float, speed_rpm: float, shafts
     angle, method, _ = segment_angle(segment, fs_hz, shaft_hz, phase_harmonic * teeth * ratio,
                                      phase_band_orders, phase_min_snr)
     return shaft_patterns(segment, angle, shafts, samples_per_revolution), method
+
+
+def _patterns_of(task):
+    segment, fs_hz, speed, shafts, samples_per_revolution, phase = task
+    return segment_patterns(segment, fs_hz, speed, shafts, samples_per_revolution, *phase)[0]
+
+
+def every_segments_patterns(arrays, speeds, fs_hz: float, shafts, samples_per_revolution: int, phase: tuple,
+                            processes: int = 1) -> list:
+    """`segment_patterns` of every segment (arrays (n_segments, n_channels, n_samples)) at its
+    speed, in `processes` worker processes: the costly part of the family, and each segment's
+    patterns depend on that segment alone, so the split changes no number."""
+    tasks = [(segment, fs_hz, float(speed), shafts, samples_per_revolution, phase)
+             for segment, speed in zip(arrays, speeds)]
+    if processes <= 1 or len(tasks) < 2:
+        return [_patterns_of(task) for task in tasks]
+    with ProcessPoolExecutor(min(processes, len(tasks)), mp_context=multiprocessing.get_context("fork")) as pool:
+        return list(pool.map(_patterns_of, tasks, chunksize=max(1, len(tasks) // (4 * processes))))
 
 
 # -- the feature family --------------------------------------------------------------------------
@@ -323,7 +356,8 @@ def patterns_from_table(table, shafts, channels) -> tuple[str, dict]:
 
 def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -> pd.DataFrame:
     """Wide features table of one signal table: every segment's residual signatures against its
-    machine's healthy reference (module docstring). `params`: the config's `features.residual`
+    machine's healthy reference (module docstring), the segments' patterns in `processes` worker
+    processes (default 1). `params`: the config's `features.residual`
     with the rig's `shafts`, the `damaged_shafts` whose features it gives (default: every
     shaft; the gear system's faults damage the pinion and its shaft) and either `against` (the features job's healthy-reference spec:
     measured segments against the calibration set per condition, simulated ones against their
@@ -333,6 +367,7 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
     shafts = [(str(n), float(r), int(t)) for n, r, t in params.pop("shafts")]
     damaged = [str(name) for name in params.pop("damaged_shafts", None) or [name for name, _, _ in shafts]]
     against, packaged = params.pop("against", None), params.pop("reference_patterns", None)
+    processes = int(params.pop("processes", 1))  # the job's cores, not a feature setting
     if not set(damaged) <= {name for name, _, _ in shafts}:
         raise FeatureTableError(f"{KEY}: damaged shafts {damaged} are not all among the rig's {[n for n, _, _ in shafts]}")
     unknown = sorted(set(params) - set(RESIDUAL_PARAMS))
@@ -351,19 +386,19 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
     fs_hz = single_sampling_rate(signal_frame)
     ids, arrays = to_arrays(signal_frame, list(channels))
     ids = ids.reset_index(drop=True)
-    patterns = []
-    for segment, speed in zip(arrays, ids["speed_rpm"].to_numpy(float)):
+    speeds = ids["speed_rpm"].to_numpy(float)
+    for speed in np.unique(speeds):
         check_resolution(fs_hz, float(speed), shafts, P, mesh_harmonics)
-        found, _ = segment_patterns(segment, fs_hz, speed, shafts, P, int(params["phase_harmonic"]),
-                                    float(params["phase_band_orders"]), float(params["phase_min_snr"]))
-        patterns.append(found)
+    phase = (int(params["phase_harmonic"]), float(params["phase_band_orders"]), float(params["phase_min_snr"]))
+    patterns = every_segments_patterns(arrays, speeds, fs_hz, shafts, P, phase, processes)
     if packaged is not None:
         condition, references = patterns_from_table(packaged, shafts, list(channels))
         known = np.array(sorted(references))
         keys = [float(known[np.argmin(np.abs(known - v))]) for v in ids[condition].astype(float)]
     else:
         positions, keys = reference_rows(ids, against)
-        references = {key: [reference_pattern([patterns[i][k] for i in rows], teeth)
+        references = {key: [reference_pattern([patterns[i][k] for i in rows], teeth,
+                                              top_band_order(teeth / bands_per_mesh, n_bands))
                             for k, (_, _, teeth) in enumerate(shafts)] for key, rows in positions.items()}
         missing = sorted({str(k) for k in keys} - {str(k) for k in references})
         if against["source"] == "measured" and missing:
@@ -394,6 +429,8 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
 # the features job hands it the healthy-reference spec (`against`) and reads every record at once
 # for it (a simulated sample's healthy twin lies in another file)
 residual_feature_table.takes_reference = True
+# ... and spreads its segments over the job's cores (`processes`)
+residual_feature_table.takes_processes = True
 
 
 def check_resolution(fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int,
