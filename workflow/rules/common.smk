@@ -198,6 +198,17 @@ def statistical_feature_params():
     return dict(config["features"]["statistical"])
 
 
+def feature_threads():
+    """The features jobs' threads: every core of the run where a chosen family of the system's
+    spreads its segments over them (`takes_processes`: the gear's residual signatures), else one,
+    so a family that cannot use them never holds the other jobs back."""
+    own = SYSTEM.feature_families()
+    chosen = [own[family] for family in FEATURE_FAMILIES if family in own]
+    if any(getattr(table, "takes_processes", False) for table in chosen):
+        return workflow.resource_settings.cores or 1
+    return 1
+
+
 def system_family_params():
     """{family: features.<family> plus what the system adds} of the system's own feature families
     in features.kind; None without any, so a system edit never

@@ -17,8 +17,8 @@ rule features_measured:
         statistical=statistical_feature_params(),
         families=system_family_params(),
         system=SYSTEM.job_spec("features"),
-    # a system family may spread its segments over the cores (the residual signatures do)
-    threads: workflow.resource_settings.cores or 1
+    # every core where a family spreads its segments over them (the residual signatures do)
+    threads: feature_threads()
     conda:
         "../envs/learning.yaml"
     benchmark:
@@ -42,8 +42,8 @@ rule features_simulated:
         statistical=statistical_feature_params(),
         families=system_family_params(),
         system=SYSTEM.job_spec("features"),
-    # a system family may spread its segments over the cores (the residual signatures do)
-    threads: workflow.resource_settings.cores or 1
+    # every core where a family spreads its segments over them (the residual signatures do)
+    threads: feature_threads()
     conda:
         "../envs/learning.yaml"
     benchmark:
