@@ -200,7 +200,7 @@ def statistical_feature_params():
 
 def feature_threads():
     """The features jobs' threads: every core of the run where a chosen family of the system's
-    spreads its segments over them (`takes_processes`: the gear's residual signatures), else one,
+    spreads its segments over them (`takes_processes`), else one,
     so a family that cannot use them never holds the other jobs back."""
     own = SYSTEM.feature_families()
     chosen = [own[family] for family in FEATURE_FAMILIES if family in own]
