@@ -288,6 +288,17 @@ def test_of_several_healthy_records_per_condition_the_first_calibrates():
     assert set(layout.fixed_role[layout.record_id == "normal-1"]) == {""}
 
 
+def test_healthy_records_calibrate_per_condition_and_leave_one_to_test():
+    """`reserve.healthy_records` of several healthy records per condition calibrate, never all."""
+    segments = bearing_segments()
+    copies = [segments[segments.record_id == "normal-0"].assign(record_id=f"normal-0{c}") for c in "bc"]
+    table = pd.concat([segments] + copies)
+    for wanted, expected in ((2, {"normal-0", "normal-0b"}), (5, {"normal-0", "normal-0b"})):
+        layout = measured_layout(table, "normal", "load", dict(RESERVE, healthy_records=wanted))
+        assert set(layout.record_id[layout.fixed_role == "calibration"]) == expected  # normal-0c tests
+        assert set(layout.fixed_role[layout.record_id == "normal-0c"]) == {""}
+
+
 def test_with_one_healthy_record_per_load_one_calibrates_and_the_others_test():
     """CWRU's full set has one healthy record per load: the calibration takes one whole, the
     others are whole split units, so every healthy test segment is of a record the calibration

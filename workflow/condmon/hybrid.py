@@ -107,8 +107,8 @@ def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition
     calibration set: never trained on, never tested), "unused" (a guard gap) or "" (the
     protocol decides, per unit). `reserve` is calibration.reserve:
     - `records` listed: those healthy records, whole, are the calibration set;
-    - none listed, several healthy records: per condition the first (by id) of several
-      calibrates, whole; where no condition has several (CWRU's full set: one per load), the
+    - none listed, several healthy records: per condition the first `healthy_records` (by id;
+      default 1, at most all but one) of several calibrate, whole; where no condition has several (CWRU's full set: one per load), the
       first overall does; every other healthy record is a whole split unit, so healthy test
       data come from records the calibration never saw;
     - one healthy record: it is split in time: its first `calibration_segments` segments
@@ -150,10 +150,13 @@ def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition
         raise SplitError(f"{RESERVE_KEY} needs the healthy state")
     healthy = frame[frame["health_state"] == healthy_state]
     ids = sorted(healthy["record_id"].unique())
-    # the first of several healthy records of a condition calibrates (the gear bench: one per
-    # speed); with one healthy record per condition (CWRU: one per load), the first overall
-    calibrating = [sorted(group.unique())[0] for _, group in
-                   healthy.groupby("condition", sort=True)["record_id"] if group.nunique() > 1]
+    # the first `healthy_records` of several healthy records of a condition calibrate (the gear
+    # bench: one or two per speed), at least one left to test; with one healthy record per
+    # condition (CWRU: one per load), the first overall
+    per_condition = int(reserve.get("healthy_records", 1))
+    calibrating = [record for _, group in healthy.groupby("condition", sort=True)["record_id"]
+                   if group.nunique() > 1
+                   for record in sorted(group.unique())[:min(per_condition, group.nunique() - 1)]]
     if not calibrating and len(ids) > 1:
         calibrating = ids[:1]
     if calibrating:  # calibrate on whole records, test healthy data on the others
