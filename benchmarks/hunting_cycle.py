@@ -1,0 +1,99 @@
+"""The healthy floor of the residual signatures against the record length (issue 48): how far a
+healthy bench record's pinion pattern lies from another healthy record's, after alignment.
+
+Each pinion tooth meets other gear teeth in turn; only over the pair's hunting cycle (29/44 teeth:
+44 pinion revolutions, 5.87 s at 450 rpm) does it meet them all. A shorter record covers part of
+the cycle, from a random start, so its synchronous pattern depends on which part: two healthy
+records then differ by more than their noise. This draws `--records` healthy records of the
+config's virtual bench (its seed, gears, noise, tones) at one speed for each `--seconds`, takes
+every record's pinion pattern as the residual family does (`segment_patterns`), aligns each to
+every other (`aligned`, on the bands' orders) and prints the residual's rms over the reference's:
+median and range over the ordered pairs. With `--contiguous` also the two halves of records twice
+as long (a simulated sample against its healthy twin's next segment).
+
+    python3 benchmarks/hunting_cycle.py [--configfile config/config.yaml] [--seed 9] [--speed 450]
+        [--records 5] [--seconds 3.0 5.8667] [--contiguous]
+"""
+from __future__ import annotations
+
+import argparse
+import itertools
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))  # config_of: a project config file, merged and validated
+
+from conftest import config_of  # noqa: E402
+from condmon.models.gear.virtual_bench import bench_gears, bench_record  # noqa: E402
+from condmon.seeds import job_rng  # noqa: E402
+from condmon.systems import get_system  # noqa: E402
+from condmon.systems.gear.bench import bench_form  # noqa: E402
+from condmon.systems.gear.parameters import simulation_settings  # noqa: E402
+from condmon.systems.gear.residual_features import aligned, segment_patterns, top_band_order  # noqa: E402
+
+
+def pinion_patterns(system, bench: dict, speed: float, seconds: float, records: int, pieces: int = 1) -> list:
+    """[records][pieces] pinion patterns (n_channels, P) of healthy bench records of `pieces` x
+    `seconds`, each piece a segment of its own."""
+    truth = dict(bench.get("model_overrides", {}), **bench["true_parameters"])
+    form = bench_form(bench)
+    gears = bench_gears(form, system.parameters(**truth).geometry, bench["seed"])
+    params = system.parameters(speed_rpm=speed, health_state="healthy", **truth)
+    numerics = dict(system.numerics, **{k: bench[k] for k in ("oversampling", "modal_cutoff_hz") if k in bench})
+    settings = simulation_settings(numerics, duration=pieces * seconds)
+    rng = job_rng(bench["seed"], "hunting cycle", speed, seconds, pieces)
+    channels = list(system.config["features"]["channels"])
+    length = int(round(seconds * settings.output_rate))
+    patterns = []
+    for _ in range(records):
+        signals = bench_record(params, form, settings, rng, gears, ())
+        x = np.stack([signals[c] for c in channels])
+        patterns.append([segment_patterns(x[:, k * length:(k + 1) * length], settings.output_rate, speed,
+                                          system.shafts(), 1024)[0][0] for k in range(pieces)])
+    return patterns
+
+
+def residual_share(pattern, reference, teeth: int, top: int) -> float:
+    """rms of `pattern` aligned to `reference`, less it, over the reference's rms."""
+    residual = aligned(pattern, reference, teeth, top) - reference
+    return float(np.sqrt(np.mean(residual ** 2)) / np.sqrt(np.mean(reference ** 2)))
+
+
+def summary(shares) -> str:
+    return f"median {np.median(shares):.3f} (range {min(shares):.3f}-{max(shares):.3f}, {len(shares)} pairs)"
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--configfile", default="config/config.yaml")
+    parser.add_argument("--seed", type=int, default=None, help="virtual_bench.seed (default: the config's)")
+    parser.add_argument("--speed", type=float, default=450.0)
+    parser.add_argument("--records", type=int, default=5)
+    parser.add_argument("--seconds", type=float, nargs="+", default=[3.0, 5.8667])
+    parser.add_argument("--contiguous", action="store_true")
+    args = parser.parse_args(argv)
+    changes = {} if args.seed is None else {"virtual_bench": {"seed": args.seed}}
+    system = get_system(config_of(args.configfile, changes))
+    bench = dict(system.config["virtual_bench"])
+    _, _, teeth = system.shafts()[0]
+    residual = system.config["features"]["residual"]
+    top = top_band_order(teeth / residual["bands_per_mesh"], residual["bands_per_mesh"] * residual["mesh_harmonics"])
+    hunting = np.lcm(*[t for _, _, t in system.shafts()]) / teeth / (args.speed / 60.0)
+    print(f"bench seed {bench['seed']}, {args.speed:g} rpm: the hunting cycle is {hunting:.2f} s")
+    for seconds in args.seconds:
+        patterns = [p[0] for p in pinion_patterns(system, bench, args.speed, seconds, args.records)]
+        shares = [residual_share(patterns[i], patterns[j], teeth, top)
+                  for i, j in itertools.permutations(range(len(patterns)), 2)]
+        print(f"{seconds:.2f} s records, random starts: {summary(shares)}", flush=True)
+        if args.contiguous:
+            halves = pinion_patterns(system, bench, args.speed, seconds, args.records, pieces=2)
+            shares = [residual_share(a, b, teeth, top) for first, second in halves
+                      for a, b in ((first, second), (second, first))]
+            print(f"{seconds:.2f} s, the two halves of one record: {summary(shares)}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
