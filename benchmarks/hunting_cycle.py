@@ -22,38 +22,32 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # config_of: a project config file, merged and validated
 
 from conftest import config_of  # noqa: E402
-from condmon.models.gear.virtual_bench import bench_gears, bench_record  # noqa: E402
-from condmon.seeds import job_rng  # noqa: E402
+from condmon.signals import to_arrays  # noqa: E402
 from condmon.systems import get_system  # noqa: E402
-from condmon.systems.gear.bench import bench_form  # noqa: E402
-from condmon.systems.gear.parameters import simulation_settings  # noqa: E402
+from condmon.systems.gear import BENCH_NUMERICS  # noqa: E402
+from condmon.systems.gear.bench import virtual_bench_rows  # noqa: E402
 from condmon.systems.gear.residual_features import aligned, segment_patterns, top_band_order  # noqa: E402
 
 
 def pinion_patterns(system, bench: dict, speed: float, seconds: float, records: int, pieces: int = 1) -> list:
     """[records][pieces] pinion patterns (n_channels, P) of healthy bench records of `pieces` x
-    `seconds`, each piece a segment of its own."""
-    truth = dict(bench.get("model_overrides", {}), **bench["true_parameters"])
-    form = bench_form(bench)
-    gears = bench_gears(form, system.parameters(**truth).geometry, bench["seed"])
-    params = system.parameters(speed_rpm=speed, health_state="healthy", **truth)
-    numerics = dict(system.numerics, **{k: bench[k] for k in ("oversampling", "modal_cutoff_hz") if k in bench})
-    settings = simulation_settings(numerics, duration=pieces * seconds)
-    rng = job_rng(bench["seed"], "hunting cycle", speed, seconds, pieces)
-    channels = list(system.config["features"]["channels"])
-    length = int(round(seconds * settings.output_rate))
-    patterns = []
-    for _ in range(records):
-        signals = bench_record(params, form, settings, rng, gears, ())
-        x = np.stack([signals[c] for c in channels])
-        patterns.append([segment_patterns(x[:, k * length:(k + 1) * length], settings.output_rate, speed,
-                                          system.shafts(), 1024)[0][0] for k in range(pieces)])
-    return patterns
+    `seconds`, each piece a segment of its own: the bench's own records (`virtual_bench_rows`)."""
+    # a sample more than the pieces, so rounding to whole samples never drops the last one
+    bench = dict(bench, records_per_state=records, record_seconds=pieces * seconds + 1.0 / system.output_rate_hz)
+    numerics = dict(system.numerics, **{k: bench[k] for k in BENCH_NUMERICS})
+    rows = virtual_bench_rows(system.parameters, bench, ["healthy"], [speed], numerics, seconds)
+    ids, arrays = to_arrays(pd.DataFrame(rows), list(system.config["features"]["channels"]))
+    fs_hz = float(rows[0]["fs_hz"])
+    patterns = {}
+    for (record, _), segment in zip(ids[["record_id", "segment"]].itertuples(index=False), arrays):
+        patterns.setdefault(record, []).append(segment_patterns(segment, fs_hz, speed, system.shafts(), 1024)[0][0])
+    return list(patterns.values())
 
 
 def residual_share(pattern, reference, teeth: int, top: int) -> float:

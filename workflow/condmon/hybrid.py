@@ -108,9 +108,10 @@ def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition
     protocol decides, per unit). `reserve` is calibration.reserve:
     - `records` listed: those healthy records, whole, are the calibration set;
     - none listed, several healthy records: per condition the first `healthy_records` (by id;
-      default 1, at most all but one) of several calibrate, whole; where no condition has several (CWRU's full set: one per load), the
-      first overall does; every other healthy record is a whole split unit, so healthy test
-      data come from records the calibration never saw;
+      default 1, at most all but one) of several calibrate, whole; where no condition has
+      several (CWRU's full set: one per load), the first overall does; every other healthy
+      record is a whole split unit, so healthy test data come from records the calibration
+      never saw;
     - one healthy record: it is split in time: its first `calibration_segments` segments
       calibrate, then `blocks` blocks of equal length follow, each after a guard gap of
       `guard_segments`; every block is a split unit (a record to the protocols), so healthy
@@ -154,9 +155,10 @@ def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition
     # bench: one or two per speed), at least one left to test; with one healthy record per
     # condition (CWRU: one per load), the first overall
     per_condition = int(reserve.get("healthy_records", 1))
-    calibrating = [record for _, group in healthy.groupby("condition", sort=True)["record_id"]
-                   if group.nunique() > 1
-                   for record in sorted(group.unique())[:min(per_condition, group.nunique() - 1)]]
+    calibrating = []
+    for _, group in healthy.groupby("condition", sort=True)["record_id"]:
+        records = sorted(group.unique())
+        calibrating += records[:min(per_condition, len(records) - 1)]
     if not calibrating and len(ids) > 1:
         calibrating = ids[:1]
     if calibrating:  # calibrate on whole records, test healthy data on the others
