@@ -9,10 +9,13 @@ config's virtual bench (its seed, gears, noise, tones) at one speed for each `--
 every record's pinion pattern as the residual family does (`segment_patterns`), aligns each to
 every other (`aligned`, on the bands' orders) and prints the residual's rms over the reference's:
 median and range over the ordered pairs. With `--contiguous` also the two halves of records twice
-as long (a simulated sample against its healthy twin's next segment).
+as long (a simulated sample against its healthy twin's next segment). With `--cycle S` also
+what the residual family does where the reference covers the hunting cycle: every record's first
+segment against another record's average over the cycle (records of S seconds, `hunting_cycle`,
+`cycle_residual`), the pinion's residual pattern over the cycle's pinion pattern.
 
     python3 benchmarks/hunting_cycle.py [--configfile config/config.yaml] [--seed 9] [--speed 450]
-        [--records 5] [--seconds 3.0 5.8667] [--contiguous]
+        [--records 5] [--seconds 3.0 5.8667] [--contiguous] [--cycle 6.0]
 """
 from __future__ import annotations
 
@@ -32,18 +35,26 @@ from condmon.signals import to_arrays  # noqa: E402
 from condmon.systems import get_system  # noqa: E402
 from condmon.systems.gear import BENCH_NUMERICS  # noqa: E402
 from condmon.systems.gear.bench import virtual_bench_rows  # noqa: E402
-from condmon.systems.gear.residual_features import aligned, segment_patterns, top_band_order  # noqa: E402
+from condmon.systems.gear.residual_features import (aligned, cycle_shaft_patterns, hunting_cycle,  # noqa: E402
+                                                    hunting_revolutions, input_angle, segment_patterns,
+                                                    top_band_order)
 
 
-def pinion_patterns(system, bench: dict, speed: float, seconds: float, records: int, pieces: int = 1) -> list:
-    """[records][pieces] pinion patterns (n_channels, P) of healthy bench records of `pieces` x
-    `seconds`, each piece a segment of its own: the bench's own records (`virtual_bench_rows`)."""
+def bench_records(system, bench: dict, speed: float, seconds: float, records: int, pieces: int = 1):
+    """(ids, arrays, fs_hz) of `records` healthy bench records of `pieces` x `seconds`, each piece
+    a segment of its own: the bench's own records (`virtual_bench_rows`)."""
     # a sample more than the pieces, so rounding to whole samples never drops the last one
     bench = dict(bench, records_per_state=records, record_seconds=pieces * seconds + 1.0 / system.output_rate_hz)
     numerics = dict(system.numerics, **{k: bench[k] for k in BENCH_NUMERICS})
     rows = virtual_bench_rows(system.parameters, bench, ["healthy"], [speed], numerics, seconds)
     ids, arrays = to_arrays(pd.DataFrame(rows), list(system.config["features"]["channels"]))
-    fs_hz = float(rows[0]["fs_hz"])
+    return ids.reset_index(drop=True), arrays, float(rows[0]["fs_hz"])
+
+
+def pinion_patterns(system, bench: dict, speed: float, seconds: float, records: int, pieces: int = 1) -> list:
+    """[records][pieces] pinion patterns (n_channels, P) of healthy bench records of `pieces` x
+    `seconds` (`bench_records`)."""
+    ids, arrays, fs_hz = bench_records(system, bench, speed, seconds, records, pieces)
     patterns = {}
     for (record, _), segment in zip(ids[["record_id", "segment"]].itertuples(index=False), arrays):
         patterns.setdefault(record, []).append(segment_patterns(segment, fs_hz, speed, system.shafts(), 1024)[0][0])
@@ -54,6 +65,29 @@ def residual_share(pattern, reference, teeth: int, top: int) -> float:
     """rms of `pattern` aligned to `reference`, less it, over the reference's rms."""
     residual = aligned(pattern, reference, teeth, top) - reference
     return float(np.sqrt(np.mean(residual ** 2)) / np.sqrt(np.mean(reference ** 2)))
+
+
+def cycle_shares(system, bench: dict, speed: float, seconds: float, records: int, top: int) -> list:
+    """Each record's first segment (the config's segment length) against every other record's
+    hunting-cycle average: the pinion residual's rms over the cycle's pinion pattern's."""
+    segment_seconds = system.segment_length / system.output_rate_hz
+    ids, arrays, fs_hz = bench_records(system, bench, speed, segment_seconds, records,
+                                       int(round(seconds / segment_seconds)))
+    shafts, phase = system.shafts(), (1, 0.3, 5.0)
+    revolutions, teeth = hunting_revolutions(shafts), shafts[0][2]
+    records_in_order = [group.sort_values("segment").index for _, group in ids.groupby("record_id")]
+    joined = [np.concatenate(list(arrays[rows]), axis=-1) for rows in records_in_order]
+    firsts = [arrays[rows[0]] for rows in records_in_order]
+    cycles = [hunting_cycle(record, input_angle(record, fs_hz, speed, shafts, phase)[0], revolutions, 1024)
+              for record in joined]
+    if any(cycle is None for cycle in cycles):
+        raise SystemExit(f"--cycle {seconds}: a record covers less than the hunting cycle")
+    shares = []
+    for i, j in itertools.permutations(range(len(joined)), 2):
+        residual = segment_patterns(firsts[i], fs_hz, speed, shafts, 1024, *phase, cycle=cycles[j], top_order=top)[0][0]
+        reference = cycle_shaft_patterns(cycles[j], shafts, revolutions, 1024)[0]
+        shares.append(float(np.sqrt(np.mean(residual ** 2)) / np.sqrt(np.mean(reference ** 2))))
+    return shares
 
 
 def summary(shares) -> str:
@@ -68,6 +102,7 @@ def main(argv=None) -> None:
     parser.add_argument("--records", type=int, default=5)
     parser.add_argument("--seconds", type=float, nargs="+", default=[3.0, 5.8667])
     parser.add_argument("--contiguous", action="store_true")
+    parser.add_argument("--cycle", type=float, default=None, help="record seconds for the hunting-cycle reference")
     args = parser.parse_args(argv)
     changes = {} if args.seed is None else {"virtual_bench": {"seed": args.seed}}
     system = get_system(config_of(args.configfile, changes))
@@ -87,6 +122,10 @@ def main(argv=None) -> None:
             shares = [residual_share(a, b, teeth, top) for first, second in halves
                       for a, b in ((first, second), (second, first))]
             print(f"{seconds:.2f} s, the two halves of one record: {summary(shares)}", flush=True)
+    if args.cycle:
+        shares = cycle_shares(system, bench, args.speed, args.cycle, args.records, top)
+        print(f"{system.segment_length / system.output_rate_hz:.2f} s segments against another {args.cycle:g} s "
+              f"record's hunting cycle: {summary(shares)}", flush=True)
 
 
 if __name__ == "__main__":

@@ -170,6 +170,101 @@ def test_a_healthy_twin_pair_lies_within_noise_and_a_pitted_twin_does_not():
     assert damaged["tooth_peak3"][0] > 2 * max(t["tooth_peak3"][0] for t in twins)
 
 
+def band_limited_pattern(pattern: np.ndarray, top_order: int) -> np.ndarray:
+    """A pattern without its orders above `top_order`: what an anti-aliased sensor records."""
+    spectrum = np.fft.rfft(pattern)
+    spectrum[top_order + 1:] = 0.0
+    return np.fft.irfft(spectrum, n=pattern.size)
+
+
+def pair_record(pinion, gear, tooth_gain, fs_hz, speed_rpm, seconds, start, noise, rng):
+    """A one-channel record of one gear pair from `start` pinion revolutions into its hunting
+    cycle: the pinion's pattern, its mesh pulses scaled by the gear tooth they meet (`tooth_gain`:
+    load sharing is each tooth pair's own, so the record is no sum of two shaft patterns), the
+    gear's pattern, white noise. (1, n), the input-shaft angle from 0."""
+    t = np.arange(int(seconds * fs_hz)) / fs_hz
+    angle = speed_rpm / 60.0 * t + start
+    gear_angle = angle * PINION / GEAR + 0.37
+    x = (rf.pattern_at(pinion[None], angle)[0] * (1.0 + 0.1 * rf.pattern_at(tooth_gain[None], gear_angle)[0])
+         + rf.pattern_at(gear[None], gear_angle)[0] + rng.normal(0.0, noise, t.size))
+    return x[None], angle - start
+
+
+def test_against_the_hunting_cycle_a_healthy_segment_leaves_neither_gears_pattern():
+    """A healthy record covering the hunting cycle (44 pinion revolutions, 2.4 s at 1100 rpm) and
+    segments of half a cycle from elsewhere in it: a segment less the cycle's average where it
+    lies in the cycle is the noise, whichever part it covers; against the shafts' separately
+    estimated patterns the pairs' own mesh leaves twice that. A pit on one tooth stands out."""
+    rng = np.random.default_rng(8)
+    pinion = band_limited_pattern(pitch_pattern(PINION, rng), 120)
+    gear = band_limited_pattern(rf.without_orders(pitch_pattern(GEAR, rng, 2.0, 0.4)[None, :], GEAR)[0], 180)
+    tooth_gain = band_limited_pattern(np.repeat(rng.normal(0.0, 1.0, GEAR), P // GEAR + 1)[:P], 60)
+    fs, speed, noise = 5120.0, 1100.0, 0.01
+    assert rf.hunting_revolutions(SHAFTS) == GEAR
+
+    def record(pinion_pattern, seconds, start):
+        return pair_record(pinion_pattern, gear, tooth_gain, fs, speed, seconds, start, noise, rng)
+
+    x, angle = record(pinion, 2.45, 0.0)
+    cycle = rf.hunting_cycle(x, angle, GEAR, P)
+    assert cycle.shape == (1, GEAR * P)
+    assert rf.hunting_cycle(x[:, :int(2.3 * fs)], angle[:int(2.3 * fs)], GEAR, P) is None  # less than a cycle
+    top = rf.top_band_order(PINION / 4, 12)
+    from_cycle = rf.cycle_shaft_patterns(cycle, SHAFTS, GEAR, P)
+    truth = (pinion - pinion.mean())[None, :]  # the cycle starts half a revolution in: aligned to it
+    assert np.std(rf.aligned(from_cycle[0], truth, PINION) - truth) < 0.01 * pinion.std()
+    separated = rf.shaft_patterns(x, angle, SHAFTS, P)
+    for start in (11.3, 25.0, 37.6):  # pinion revolutions into the cycle
+        segment, segment_angle = record(pinion, 1.2, start)
+        residual = rf.cycle_residual(segment, segment_angle, cycle, P, PINION, top)
+        assert residual.std() < 1.2 * np.sqrt(2) * noise, start  # the segment's noise and the cycle's
+        against_cycle = rf.shaft_patterns(residual, segment_angle, SHAFTS, P)[0]
+        against_shafts = rf.aligned(rf.shaft_patterns(segment, segment_angle, SHAFTS, P)[0], separated[0],
+                                    PINION, top) - separated[0]
+        assert against_cycle.std() < 0.5 * against_shafts.std(), start
+    found = {}
+    for name, pattern, start in (("pitted", pinion + tooth_bump(PINION, 5, 0.1), 30.2), ("healthy", pinion, 17.9)):
+        segment, segment_angle = record(pattern, 1.2, start)
+        residual = rf.cycle_residual(segment, segment_angle, cycle, P, PINION, top)
+        found[name] = rf.residual_signatures(rf.shaft_patterns(residual, segment_angle, SHAFTS, P)[0],
+                                             from_cycle[0], PINION, PINION / 4, 12)
+    assert found["pitted"]["tooth_peak1"][0] > 3 * found["healthy"]["tooth_peak1"][0]
+    assert found["pitted"]["rms_ratio"][0] > 3 * found["healthy"]["rms_ratio"][0]
+
+
+def test_the_family_takes_references_covering_the_hunting_cycle_against_it():
+    """A calibration record covering the cycle (two segments that follow one another) makes its
+    condition's reference the cycle's average: packaged with the model, it gives a new record the
+    same features; a healthy test record lies near zero, a pitted one does not."""
+    rng = np.random.default_rng(9)
+    pinion, gear = pitch_pattern(PINION, rng), rf.without_orders(pitch_pattern(GEAR, rng)[None, :], GEAR)[0]
+    fs, speed, ratio = 5120.0, 1100.0, PINION / GEAR
+    rows = []
+    x, _ = in_time([pinion, gear], fs, speed, 2.6, start=(0.0, 0.2), noise=0.01, rng=rng)
+    half = x.shape[-1] // 2
+    for segment in range(2):
+        rows += signal_rows("vb-healthy-1100rpm-r00", "healthy", speed, segment, x[0, segment * half:(segment + 1) * half], fs)
+    for record_id, health, pattern, start in (("vb-healthy-1100rpm-r01", "healthy", pinion, 20.3),
+                                              ("vb-surface_fault-1100rpm-r00", "surface_fault",
+                                               pinion + tooth_bump(PINION, 3, 0.3), 31.7)):
+        x, _ = in_time([pattern, gear], fs, speed, 1.3, start=(start, 0.2 + start * ratio), noise=0.01, rng=rng)
+        rows += signal_rows(record_id, health, speed, 0, x[0, :half], fs)
+    frame = pd.DataFrame(rows).assign(source="virtual_bench")
+    params = {"shafts": [list(s) for s in SHAFTS], "samples_per_revolution": P, "bands_per_mesh": 4,
+              "mesh_harmonics": 3, "shaft_orders": 2, "phase_harmonic": 1, "phase_band_orders": 0.3,
+              "phase_min_snr": 5.0}
+    spec = {"source": "measured", "healthy_state": "healthy", "condition": "speed_rpm", "reserve": {}}
+    written = rf.residual_feature_table(frame, ["A1_x"], dict(params, against=spec))
+    references = written.attrs["references"]
+    assert (references["shaft"] == rf.CYCLE_ROW).sum() == 1
+    assert len(references.loc[references["shaft"] == rf.CYCLE_ROW, "pattern"].iloc[0]) == GEAR * P
+    rms = written.set_index("record_id")["res_A1_x_pinion_tooth_peak1"]
+    assert rms["vb-surface_fault-1100rpm-r00"] > rms["vb-healthy-1100rpm-r01"] + 0.3
+    packaged = rf.residual_feature_table(frame, ["A1_x"], dict(params, reference_patterns=references.to_dict("list")))
+    names = rf.feature_names(["A1_x"], SHAFTS, 12)
+    np.testing.assert_allclose(packaged[names].to_numpy(), written[names].to_numpy(), atol=1e-5)
+
+
 def signal_rows(record_id, health, speed, segment, x, fs):
     return [{"record_id": record_id, "segment": segment, "source": "simulated", "health_state": health,
              "speed_rpm": speed, "load": 10.0, "fs_hz": fs, "channel": "A1_x",

@@ -26,8 +26,8 @@ from condmon.systems.gear.parameters import (CALIBRATABLE, COMPLIANCE_PARAMETERS
                                              state_model_fields, state_variants)
 
 # numerics the virtual bench sets for itself (virtual_bench.<key>): it stands for a real machine, so
-# its records never move with the model's step or modal reduction
-BENCH_NUMERICS = ("oversampling", "modal_cutoff_hz")
+# its records never move with the model's step, modal reduction or start-up discarded
+BENCH_NUMERICS = ("oversampling", "modal_cutoff_hz", "settle_time")
 
 log = logging.getLogger(__name__)
 
@@ -130,7 +130,7 @@ class GearSystem(System):
             config.pop("virtual_bench", None)  # the hidden truth reaches the bench jobs only
         if stage == "bench":
             # the bench's mesh is virtual_bench.true_parameters.mesh_stiffness_model, not the model's,
-            # and its sensor rate and modal reduction are virtual_bench's own
+            # and its sensor rate, modal reduction and start-up are virtual_bench's own
             config["model"] = {k: v for k, v in config["model"].items() if k != "mesh_stiffness_model"}
             config["numerics"] = {k: v for k, v in config["numerics"].items() if k not in BENCH_NUMERICS}
         elif stage == "calibrate":

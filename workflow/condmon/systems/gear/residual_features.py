@@ -10,14 +10,21 @@ starts at any shaft angle; the pitch pattern is the fingerprint the circular cro
 finds, on the orders the features read) and subtract it. What remains is the change since the
 machine was healthy (McFadden 1987; Randall 2011, ch. 5-6; ../shared/notes/gear-residuals.md).
 
-Per segment (`shaft_patterns`): the input shaft's angle by tacholess tracking of the mesh phase
-(`order_features.segment_angle`), then every shaft's synchronous pattern, the shafts kept apart:
-a record shorter than the pair's hunting cycle (29/44 teeth: 44 pinion revolutions, 5.9 s at 450
-rpm; a rig records seconds, not minutes, per operating point) leaves the mating gear's pattern in
-a shaft's plain TSA, so the patterns are estimated jointly (alternating projections: each shaft's
-TSA of the signal less the other shafts' patterns, `SEPARATION_ITERATIONS` times; the orders
-common to both shafts, the mesh harmonics, go to the first). Then per shaft against the reference
-(`residual_features`): the residual R = aligned TSA - reference TSA and from it
+Per segment: the input shaft's angle by tacholess tracking of the mesh phase
+(`order_features.segment_angle`), then each shaft's residual pattern R, the shafts kept apart.
+Each pinion tooth meets every gear tooth only over the pair's hunting cycle (29/44 teeth: 44
+pinion revolutions, 5.9 s at 450 rpm), and load sharing is each tooth pair's own, so a record
+is no sum of two shaft patterns.
+- Where the machine's healthy reference records cover the cycle: the reference is their average
+  over the cycle (`hunting_cycle`), the segment less that average where it lies in the cycle
+  (`cycle_residual`) is split into the shafts' residual patterns (`shaft_patterns`), and each
+  shaft's reference pattern is the cycle's own orders of that shaft (`cycle_shaft_patterns`).
+- Where they are shorter, the mating gear's pattern stays in a shaft's plain TSA, so the
+  patterns are estimated jointly (alternating projections: each shaft's TSA of the signal less
+  the other shafts' patterns, `SEPARATION_ITERATIONS` times; the orders common to both shafts,
+  the mesh harmonics, go to the first), each aligned to its reference and subtracted: R =
+  aligned TSA - reference TSA (`residual_features`).
+From R (`residual_signatures`):
 - `b<k>`: R's order spectrum in bands (orders of that shaft), over the reference's own level in
   the band (a ratio, so the transfer path from mesh to sensor, which scales both, cancels); with
   `reference_level: without_mesh_lines` the reference's level leaves its mesh harmonics out:
@@ -38,12 +45,15 @@ records do not identify.
 """
 from __future__ import annotations
 
+import logging
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
+from fractions import Fraction
 
 import numpy as np
 import pandas as pd
 from scipy.interpolate import CubicSpline
+from scipy.signal import resample_poly
 
 from condmon.features import FeatureTableError, single_sampling_rate
 from condmon.hybrid import calibration_frame
@@ -52,7 +62,10 @@ from condmon.simulate import machine_of
 from condmon.systems.gear.order_features import (difference_signal, residual_signal,
                                                  segment_angle)
 
+log = logging.getLogger(__name__)
+
 SEPARATION_ITERATIONS = 40
+CYCLE_UPSAMPLING = 4
 TINY = 1e-12
 FEATURES = ("rms_ratio", "FM4", "NA4", "tooth_peak1", "tooth_peak3")
 # the features that grow with the fault's size (and the machine's mesh compliance, which healthy
@@ -61,12 +74,17 @@ SIZED_FEATURES = ("rms_ratio", "NA4")
 
 
 # -- synchronous patterns ----------------------------------------------------------------------
-def resample_at(x: np.ndarray, angle: np.ndarray, samples_per_revolution: int) -> np.ndarray:
+def resample_at(x: np.ndarray, angle: np.ndarray, samples_per_revolution: int, upsampling: int = 1) -> np.ndarray:
     """Channels x (n_channels, n_samples) at the angles 0, 1/P, 2/P, ... of a shaft whose angle
     (revolutions, increasing from 0) is `angle` at every sample: cubic spline in time, every whole
     grid step within the segment. No anti-alias filter: on a grid coarser than the samples,
     content above its Nyquist order folds, and `check_resolution` keeps that above every order
-    the features use."""
+    the features use. With `upsampling` the samples are first interpolated that many times finer
+    (polyphase, `scipy.signal.resample_poly`): a spline through three samples a period (the third
+    mesh harmonic at 1100 rpm) errs by a few per cent between them, through twelve it does not."""
+    if upsampling > 1:
+        x = resample_poly(x, int(upsampling), 1, axis=-1)
+        angle = np.interp(np.arange(x.shape[-1]) / upsampling, np.arange(len(angle)), angle)
     n = x.shape[-1]
     steps = int(np.floor((angle[-1] - angle[0]) * samples_per_revolution + 1e-9)) + 1
     grid = angle[0] + np.arange(steps) / samples_per_revolution
@@ -201,6 +219,114 @@ def top_band_order(band_orders: float, n_bands: int) -> int:
     return int(np.ceil(0.5 + n_bands * band_orders)) - 1
 
 
+# -- the hunting cycle ---------------------------------------------------------------------------
+def hunting_revolutions(shafts) -> int:
+    """Revolutions of the input shaft after which every shaft is back at its starting angle: the
+    pair's hunting cycle (29/44 teeth: 44), over which each tooth has met every mating tooth."""
+    return int(np.lcm.reduce([Fraction(float(ratio)).limit_denominator(100000).denominator
+                              for _, ratio, _ in shafts]))
+
+
+def hunting_cycle(record: np.ndarray, angle: np.ndarray, revolutions: int, samples_per_revolution: int):
+    """The synchronous average of a record (n_channels, n_samples) over the hunting cycle
+    (`revolutions` of the input shaft, whose angle is `angle`): (n_channels, revolutions x P),
+    every point of the cycle the mean over the cycles the record's middle covers there (its
+    ends, where the tracked angle settles, left out as far as the record is longer than a
+    cycle); None where the record covers less than one cycle."""
+    x = np.asarray(record, dtype=np.float64)
+    # the cycle's values come back at other instants of other records (`cycle_residual`), so
+    # between samples they must be the signal's, not the spline's
+    on_grid = resample_at(x - x.mean(axis=-1, keepdims=True), angle, samples_per_revolution, CYCLE_UPSAMPLING)
+    length = int(revolutions) * samples_per_revolution
+    if on_grid.shape[-1] < length:
+        return None
+    # the record's middle: up to half a revolution left out at either end, where the tracked
+    # angle settles (its phase filter's edges), so the cycle's two ends do not mix them in
+    edge = min((on_grid.shape[-1] - length) // 2, samples_per_revolution // 2)
+    on_grid = on_grid[..., edge:on_grid.shape[-1] - edge]
+    position = np.arange(on_grid.shape[-1]) % length
+    counts = np.bincount(position, minlength=length)
+    return np.stack([np.bincount(position, weights=channel, minlength=length) for channel in on_grid]) / counts
+
+
+def cycle_shaft_patterns(cycle: np.ndarray, shafts, revolutions: int, samples_per_revolution: int) -> list:
+    """Each shaft's synchronous pattern (n_channels, P) from a hunting-cycle average: the cycle's
+    orders at multiples of the shaft's turns per cycle, exact, since over a whole cycle every other
+    shaft's pattern averages out. The mesh harmonics stay with the first shaft, as in
+    `shaft_patterns`."""
+    P = samples_per_revolution
+    spectrum = np.fft.rfft(cycle, axis=-1)
+    patterns = []
+    for k, (_, ratio, teeth) in enumerate(shafts):
+        own = spectrum[..., ::int(round(revolutions * float(ratio)))][..., :P // 2 + 1]
+        orders = np.zeros((cycle.shape[0], P // 2 + 1), complex)
+        orders[..., :own.shape[-1]] = own
+        pattern = np.fft.irfft(orders, n=P, axis=-1) * P / cycle.shape[-1]
+        patterns.append(without_orders(pattern, int(teeth)) if k > 0 else pattern - pattern.mean(axis=-1, keepdims=True))
+    return patterns
+
+
+def band_limited(x: np.ndarray, turns: int, top_order: int, without_multiples_of: int = 0) -> np.ndarray:
+    """`x` (n_channels, n: `turns` revolutions of the input shaft on its grid) without its orders
+    above `top_order` and, with `without_multiples_of` (a tooth count), without the mesh
+    harmonics."""
+    spectrum = np.fft.rfft(x, axis=-1)
+    bins = np.arange(spectrum.shape[-1])
+    spectrum[..., bins > top_order * turns] = 0.0
+    if without_multiples_of:
+        spectrum[..., bins % (int(without_multiples_of) * turns) == 0] = 0.0
+    return np.fft.irfft(spectrum, n=x.shape[-1], axis=-1)
+
+
+def cycle_offset(on_grid: np.ndarray, cycle: np.ndarray, samples_per_revolution: int, teeth: int,
+                 top_order: int) -> float:
+    """Where in the hunting cycle (n_channels, L) a record lies (n_channels, n: whole input
+    revolutions on the same grid): the offset o (grid samples, fractional) with on_grid(i) ~
+    cycle(i + o). First the peak of the fingerprint's correlation (the orders up to `top_order`
+    less the mesh harmonics, which repeat every tooth): it tells which teeth of both gears meet.
+    Then the whole band-limited correlation's maximum within half a tooth of it, refined by a
+    parabola through its neighbours: the mesh harmonics fix the angle within the tooth."""
+    P, length, n = samples_per_revolution, cycle.shape[-1], on_grid.shape[-1]
+    turns, cycle_turns = n // P, length // P
+
+    def correlation(without_mesh: int) -> np.ndarray:
+        # the record wrapped onto the cycle (a record longer than a cycle adds on itself)
+        limited = band_limited(on_grid, turns, top_order, without_mesh)
+        padded = np.zeros((on_grid.shape[0], -(-n // length) * length))
+        padded[..., :n] = limited
+        record = padded.reshape(on_grid.shape[0], -1, length).sum(axis=1)
+        reference = band_limited(cycle, cycle_turns, top_order, without_mesh)
+        # c(o) = sum_i record(i) cycle(i + o), summed over the channels
+        return np.fft.irfft((np.conj(np.fft.rfft(record, axis=-1)) * np.fft.rfft(reference, axis=-1)).sum(axis=0),
+                            n=length)
+
+    coarse = int(np.argmax(correlation(teeth)))
+    whole = correlation(0)
+    half_tooth = max(1, P // (2 * int(teeth)))
+    near = (coarse + np.arange(-half_tooth, half_tooth + 1)) % length
+    peak = int(near[np.argmax(whole[near])])
+    left, centre, right = whole[(peak - 1) % length], whole[peak], whole[(peak + 1) % length]
+    curvature = left - 2 * centre + right
+    return float(peak + (0.5 * (left - right) / curvature if curvature < 0 else 0.0))
+
+
+def cycle_residual(segment: np.ndarray, angle: np.ndarray, cycle: np.ndarray, samples_per_revolution: int,
+                   teeth: int, top_order: int) -> np.ndarray:
+    """A segment (n_channels, n_samples; input-shaft angle `angle`) less its machine's healthy
+    hunting-cycle average where it lies in the cycle (`cycle_offset`), in time: what is left is
+    the change since the machine was healthy, with neither gear's pattern in it, whichever part
+    of the cycle the segment covers."""
+    x = np.asarray(segment, dtype=np.float64)
+    x = x - x.mean(axis=-1, keepdims=True)
+    P = samples_per_revolution
+    on_grid = resample_at(x, angle, P)
+    whole = (on_grid.shape[-1] // P) * P
+    if whole < P:
+        raise ValueError("less than one revolution of a shaft to average")
+    offset = cycle_offset(on_grid[..., :whole], cycle, P, teeth, top_order)
+    return x - pattern_at(cycle, ((angle - angle[0]) * P + offset) / cycle.shape[-1])
+
+
 # -- features of a residual ----------------------------------------------------------------------
 def band_levels(pattern: np.ndarray, band_orders: float, n_bands: int, without_multiples_of: int = 0) -> np.ndarray:
     """RMS order amplitude of a one-revolution pattern (n_channels, P) in bands `band_orders` wide
@@ -237,6 +363,14 @@ def residual_features(pattern: np.ndarray, reference: np.ndarray, teeth: int, ba
     (n_channels, P)): {feature: (n_channels,)}, linear (the caller takes logs). `reference_level`
     (REFERENCE_LEVELS): what the bands are taken over. Module docstring."""
     residual = aligned(pattern, reference, teeth, top_band_order(band_orders, n_bands)) - reference
+    return residual_signatures(residual, reference, teeth, band_orders, n_bands, shaft_orders, mesh_harmonics,
+                               reference_level)
+
+
+def residual_signatures(residual: np.ndarray, reference: np.ndarray, teeth: int, band_orders: float, n_bands: int,
+                        shaft_orders: int = 2, mesh_harmonics: int = 3, reference_level: str = "whole") -> dict:
+    """`residual_features` of a shaft's residual pattern R (already taken against its healthy
+    reference, both (n_channels, P)); the reference gives the levels the features are taken over."""
     levels = band_levels(residual, band_orders, n_bands)
     reference_levels = band_levels(reference, band_orders, n_bands,
                                    teeth if reference_level == "without_mesh_lines" else 0)
@@ -258,33 +392,88 @@ def band_names(n_bands: int) -> list[str]:
     return [f"b{k:02d}" for k in range(n_bands)]
 
 
-def segment_patterns(segment: np.ndarray, fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int,
-                     phase_harmonic: int = 1, phase_band_orders: float = 0.3, phase_min_snr: float = 5.0):
-    """(patterns per shaft, phase method) of one segment (n_channels, n_samples): the angle from
-    the first shaft's mesh phase (`order_features.segment_angle`), then `shaft_patterns`."""
-    shaft_hz = speed_rpm / 60.0
+def input_angle(segment: np.ndarray, fs_hz: float, speed_rpm: float, shafts, phase: tuple):
+    """(input-shaft angle, phase method) of a segment (n_channels, n_samples): tacholess tracking
+    of the first shaft's mesh phase (`order_features.segment_angle`); `phase`: (harmonic, band
+    orders, minimum SNR)."""
+    phase_harmonic, phase_band_orders, phase_min_snr = phase
     _, ratio, teeth = shafts[0]
-    angle, method, _ = segment_angle(segment, fs_hz, shaft_hz, phase_harmonic * teeth * ratio,
+    angle, method, _ = segment_angle(segment, fs_hz, speed_rpm / 60.0, phase_harmonic * teeth * ratio,
                                      phase_band_orders, phase_min_snr)
+    return angle, method
+
+
+def segment_patterns(segment: np.ndarray, fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int,
+                     phase_harmonic: int = 1, phase_band_orders: float = 0.3, phase_min_snr: float = 5.0,
+                     cycle: np.ndarray | None = None, top_order: int | None = None):
+    """(patterns per shaft, phase method) of one segment (n_channels, n_samples): its angle
+    (`input_angle`), then `shaft_patterns`. With its machine's healthy hunting-cycle average
+    (`cycle`), the patterns of its residual against it (`cycle_residual`, on the orders up to
+    `top_order`): the shafts' residual patterns."""
+    angle, method = input_angle(segment, fs_hz, speed_rpm, shafts, (phase_harmonic, phase_band_orders, phase_min_snr))
+    if cycle is not None:
+        residual = cycle_residual(segment, angle, cycle, samples_per_revolution, shafts[0][2], top_order)
+        # a revolution of the input shaft left out at either end: there the tracked angle settles
+        # (its phase filter's edges), and against a cycle that holds no such error, the residual
+        # would show it
+        edge = int(np.ceil(np.searchsorted(angle, angle[0] + 1.0)))
+        if angle[-1] - angle[0] > 2.0 + 1.0:
+            residual, angle = residual[..., edge:residual.shape[-1] - edge], angle[edge:len(angle) - edge]
+        segment = residual
     return shaft_patterns(segment, angle, shafts, samples_per_revolution), method
 
 
+# the hunting-cycle averages of the machines, {key: (n_channels, L)}, for the worker processes:
+# set before they fork, so no task carries one
+_CYCLES: dict = {}
+
+
 def _patterns_of(task):
-    segment, fs_hz, speed, shafts, samples_per_revolution, phase = task
-    return segment_patterns(segment, fs_hz, speed, shafts, samples_per_revolution, *phase)[0]
+    segment, fs_hz, speed, shafts, samples_per_revolution, phase, key, top_order = task
+    return segment_patterns(segment, fs_hz, speed, shafts, samples_per_revolution, *phase,
+                            cycle=_CYCLES.get(key), top_order=top_order)[0]
 
 
 def every_segments_patterns(arrays, speeds, fs_hz: float, shafts, samples_per_revolution: int, phase: tuple,
-                            processes: int = 1) -> list:
+                            processes: int = 1, keys=None, cycles: dict | None = None,
+                            top_order: int | None = None) -> list:
     """`segment_patterns` of every segment (arrays (n_segments, n_channels, n_samples)) at its
-    speed, in `processes` worker processes: the costly part of the family, and each segment's
-    patterns depend on that segment alone, so the split changes no number."""
-    tasks = [(segment, fs_hz, float(speed), shafts, samples_per_revolution, phase)
-             for segment, speed in zip(arrays, speeds)]
-    if processes <= 1 or len(tasks) < 2:
-        return [_patterns_of(task) for task in tasks]
-    with ProcessPoolExecutor(min(processes, len(tasks)), mp_context=multiprocessing.get_context("fork")) as pool:
-        return list(pool.map(_patterns_of, tasks, chunksize=max(1, len(tasks) // (4 * processes))))
+    speed, against its key's hunting cycle where `cycles` holds one, in `processes` worker
+    processes: the costly part of the family, and each segment's patterns depend on that segment
+    alone, so the split changes no number."""
+    keys = [None] * len(arrays) if keys is None else list(keys)
+    tasks = [(segment, fs_hz, float(speed), shafts, samples_per_revolution, phase, key, top_order)
+             for segment, speed, key in zip(arrays, speeds, keys)]
+    _CYCLES.clear()
+    _CYCLES.update(cycles or {})
+    try:
+        if processes <= 1 or len(tasks) < 2:
+            return [_patterns_of(task) for task in tasks]
+        with ProcessPoolExecutor(min(processes, len(tasks)), mp_context=multiprocessing.get_context("fork")) as pool:
+            return list(pool.map(_patterns_of, tasks, chunksize=max(1, len(tasks) // (4 * processes))))
+    finally:
+        _CYCLES.clear()
+
+
+def record_cycles(ids: pd.DataFrame, arrays, rows, fs_hz: float, shafts, samples_per_revolution: int,
+                  phase: tuple, top_order: int):
+    """The healthy hunting-cycle average of one machine from its reference segments (`rows`, of
+    one or more records): each record's segments joined in order (a record's segments follow one
+    another), its average over the cycle (`hunting_cycle`), the records' averages aligned to the
+    first on the cycle and averaged. None when a record covers less than one cycle: that machine
+    then falls back on the shafts' separated patterns."""
+    revolutions, P, teeth = hunting_revolutions(shafts), samples_per_revolution, shafts[0][2]
+    cycles = []
+    chosen = ids.loc[list(rows)].sort_values(["record_id", "segment"])
+    for _, record in chosen.groupby("record_id", sort=True):
+        joined = np.concatenate([arrays[i] for i in record.index], axis=-1)
+        angle, _ = input_angle(joined, fs_hz, float(record["speed_rpm"].iloc[0]), shafts, phase)
+        cycle = hunting_cycle(joined, angle, revolutions, P)
+        if cycle is None:
+            return None
+        cycles.append(cycle if not cycles else
+                      aligned(cycle, cycles[0], teeth * revolutions, top_order * revolutions))
+    return np.mean(cycles, axis=0)
 
 
 # -- the feature family --------------------------------------------------------------------------
@@ -333,25 +522,35 @@ def reference_rows(ids: pd.DataFrame, against: dict) -> dict:
     return positions, list(machines)
 
 
-def patterns_table(references: dict, condition: str, shafts, channels) -> pd.DataFrame:
+# the `shaft` of a references table's rows that hold a condition's hunting-cycle average
+CYCLE_ROW = "hunting_cycle"
+
+
+def patterns_table(references: dict, condition: str, shafts, channels, cycles: dict | None = None) -> pd.DataFrame:
     """The measured references as a table to write and package: one row per condition, shaft and
-    channel, the pattern (one revolution) as a list."""
+    channel, the pattern (one revolution) as a list; and where a condition has a hunting-cycle
+    average (`cycles`), one row per channel with shaft `CYCLE_ROW`, the cycle as a list."""
     rows = [{condition: key, "shaft": name, "channel": channel, "pattern": reference[k][c].tolist()}
             for key, reference in references.items() for k, (name, _, _) in enumerate(shafts)
             for c, channel in enumerate(channels)]
+    rows += [{condition: key, "shaft": CYCLE_ROW, "channel": channel, "pattern": cycle[c].tolist()}
+             for key, cycle in (cycles or {}).items() for c, channel in enumerate(channels)]
     return pd.DataFrame(rows)
 
 
-def patterns_from_table(table, shafts, channels) -> tuple[str, dict]:
-    """(condition column, {condition value: [per shaft (n_channels, P)]}) of `patterns_table`."""
+def patterns_from_table(table, shafts, channels) -> tuple[str, dict, dict]:
+    """(condition column, {condition value: [per shaft (n_channels, P)]}, {condition value:
+    hunting-cycle average (n_channels, L)}) of `patterns_table`."""
     table = pd.DataFrame(table)
     condition = next(c for c in table.columns if c not in ("shaft", "channel", "pattern"))
-    references = {}
+    references, cycles = {}, {}
     for value, rows in table.groupby(condition):
         indexed = rows.set_index(["shaft", "channel"])["pattern"]
         references[float(value)] = [np.array([np.asarray(indexed[(name, channel)], float) for channel in channels])
                                     for name, _, _ in shafts]
-    return condition, references
+        if (CYCLE_ROW, channels[0]) in indexed.index:
+            cycles[float(value)] = np.array([np.asarray(indexed[(CYCLE_ROW, channel)], float) for channel in channels])
+    return condition, references, cycles
 
 
 def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -> pd.DataFrame:
@@ -390,16 +589,30 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
     for speed in np.unique(speeds):
         check_resolution(fs_hz, float(speed), shafts, P, mesh_harmonics)
     phase = (int(params["phase_harmonic"]), float(params["phase_band_orders"]), float(params["phase_min_snr"]))
-    patterns = every_segments_patterns(arrays, speeds, fs_hz, shafts, P, phase, processes)
+    revolutions = hunting_revolutions(shafts)
+    top = top_band_order(shafts[0][2] / bands_per_mesh, n_bands)
     if packaged is not None:
-        condition, references = patterns_from_table(packaged, shafts, list(channels))
+        condition, references, cycles = patterns_from_table(packaged, shafts, list(channels))
         known = np.array(sorted(references))
         keys = [float(known[np.argmin(np.abs(known - v))]) for v in ids[condition].astype(float)]
     else:
         positions, keys = reference_rows(ids, against)
-        references = {key: [reference_pattern([patterns[i][k] for i in rows], teeth,
-                                              top_band_order(teeth / bands_per_mesh, n_bands))
-                            for k, (_, _, teeth) in enumerate(shafts)] for key, rows in positions.items()}
+        # a machine whose reference records cover the hunting cycle is taken against its average
+        # over the cycle; one whose records are shorter, against its shafts' separated patterns
+        cycles = {key: record_cycles(ids, arrays, rows, fs_hz, shafts, P, phase, top) for key, rows in positions.items()}
+        cycles = {key: cycle for key, cycle in cycles.items() if cycle is not None}
+        shorter = sorted(str(key) for key in set(positions) - set(cycles))
+        if shorter:
+            log.info("%d of %d healthy references cover less than the hunting cycle (%d input revolutions): "
+                     "their shafts' patterns are separated instead (%s)", len(shorter), len(positions),
+                     revolutions, ", ".join(shorter[:5]) + (" ..." if len(shorter) > 5 else ""))
+    patterns = every_segments_patterns(arrays, speeds, fs_hz, shafts, P, phase, processes, keys, cycles, top)
+    if packaged is None:
+        references = {key: (cycle_shaft_patterns(cycles[key], shafts, revolutions, P) if key in cycles else
+                            [reference_pattern([patterns[i][k] for i in rows], teeth,
+                                               top_band_order(teeth / bands_per_mesh, n_bands))
+                             for k, (_, _, teeth) in enumerate(shafts)])
+                      for key, rows in positions.items()}
         missing = sorted({str(k) for k in keys} - {str(k) for k in references})
         if against["source"] == "measured" and missing:
             raise FeatureTableError(f"{KEY}: no calibration records at {against['condition']} {missing}")
@@ -412,8 +625,13 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
     for i, key in enumerate(keys):
         if key not in references:  # a simulated sample whose healthy twin failed: left out later
             continue
-        found = [residual_features(patterns[i][k], references[key][k], teeth, teeth / bands_per_mesh, n_bands,
-                                   shaft_orders, mesh_harmonics, reference_level) for k, (_, _, teeth) in chosen]
+        # against the hunting cycle the patterns are already residuals; else aligned and subtracted
+        residuals = [patterns[i][k] if key in cycles else
+                     aligned(patterns[i][k], references[key][k], teeth, top_band_order(teeth / bands_per_mesh, n_bands))
+                     - references[key][k] for k, (_, _, teeth) in chosen]
+        found = [residual_signatures(residual, references[key][k], teeth, teeth / bands_per_mesh, n_bands,
+                                     shaft_orders, mesh_harmonics, reference_level)
+                 for residual, (k, (_, _, teeth)) in zip(residuals, chosen)]
         # (shaft, feature, channel) -> the names' order: channel, shaft, feature
         block = np.log10(np.array([[shaft[feature] for feature in kept] for shaft in found]) + TINY)
         if not magnitudes:  # (shaft, feature, channel): the bands as their shape per shaft and channel
@@ -422,7 +640,7 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
     frame = pd.concat([ids, pd.DataFrame(values.astype(np.float32), columns=names)], axis=1)
     frame.attrs["referenced_columns"] = names
     if against is not None and against["source"] == "measured":
-        frame.attrs["references"] = patterns_table(references, against["condition"], shafts, list(channels))
+        frame.attrs["references"] = patterns_table(references, against["condition"], shafts, list(channels), cycles)
     return frame
 
 
