@@ -282,13 +282,15 @@ def test_a_systems_own_simulation_knob_reruns_its_simulations_only_and_never_ano
 
 def test_the_benchs_records_never_move_with_the_models_numerics():
     """The virtual bench stands for a real machine: it samples at virtual_bench.oversampling with
-    its own modal reduction, so the model's numerics.oversampling and modal_cutoff_hz reach
+    its own integrator, steps and modal reduction, so the model's numerics of those names reach
     neither its job's params nor its records."""
     short = {"virtual_bench": {"records_per_state": 1, "record_seconds": 0.3}}
     records = []
-    for numerics in ({"oversampling": 6}, {"oversampling": 10, "modal_cutoff_hz": 3000.0}):
+    for numerics in ({"oversampling": 6}, {"oversampling": 10, "modal_cutoff_hz": 3000.0, "integrator": "rk44",
+                                           "steps_per_sensor_sample": 1}):
         system = get_system(config_of(".test/config/smoke.yaml", {**short, "numerics": numerics}))
-        assert not {"oversampling", "modal_cutoff_hz"} & set(system.job_spec("bench")["config"]["numerics"])
+        assert not {"oversampling", "integrator", "steps_per_sensor_sample", "modal_cutoff_hz"} & set(
+            system.job_spec("bench")["config"]["numerics"])
         records.append(pd.DataFrame(system.measured_part_rows("healthy_450rpm")))
     coarse, fine = records
     pd.testing.assert_frame_equal(coarse.drop(columns="signal"), fine.drop(columns="signal"))

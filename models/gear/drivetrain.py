@@ -447,7 +447,7 @@ class SimulationSettings:
     settle_time: float = 0.15        # simulated then discarded, s
     output_rate: float = 5120.0      # Hz of the returned signals
     oversampling: int = 10           # sensors record at output_rate * oversampling
-    steps_per_sensor_sample: int = 1  # RK44 steps per sensor sample at least (h = 19.5 us at the defaults)
+    steps_per_sensor_sample: int = 1  # integrator steps per sensor sample at least (h = 19.5 us at the defaults)
     max_deflection: float = 1.0e-3   # |mesh deflection| beyond this is divergence, m
     # Craig-Bampton reduction: keep the structure's fixed-interface modes up to this frequency
     # (None: every coordinate). Flexible shafts' axial and torsion modes of short elements reach
@@ -456,10 +456,14 @@ class SimulationSettings:
     # a step this many times smaller than the run would otherwise take (convergence checks, the
     # retry of a failed sample): it divides the chosen step, whatever set it
     step_refinement: int = 1
+    # rk44 (four force calls a step) or central_difference (exudyn's velocity Verlet with h/2 x
+    # the damping matrix in the mass matrix: one force call a step, stable to omega h = 2)
+    integrator: str = "rk44"
 
 
-# RK44 is stable for omega h up to 2.78; keep a margin for the mesh stiffness peaks.
-STABLE_OMEGA_STEP = 2.0
+# RK44 is stable for omega h up to 2.78, the central difference up to 2 (undamped); keep a
+# margin for the mesh stiffness peaks.
+STABLE_OMEGA_STEP = {"rk44": 2.0, "central_difference": 1.6}
 MAX_STEPS_PER_SENSOR_SAMPLE = 16  # beyond this a parameter is out of any physical range
 
 
@@ -585,16 +589,19 @@ def _craig_bampton(drivetrain: Drivetrain, load_dofs, cutoff_hz: float, damage_r
 
 def steps_per_sensor_sample(drivetrain: Drivetrain, settings: SimulationSettings,
                             matrices: ModelMatrices | None = None) -> int:
-    """RK44 steps per sensor sample: the setting, or more where the highest mode (with the
+    """Integrator steps per sensor sample: the setting, or more where the highest mode (with the
     mesh at twice its operating stiffness, the peaks of the TVMS; with `matrices`, the damped
     system's fastest eigenvalue) needs a smaller step; times `step_refinement`."""
     mesh_stiffness = 2 * operating_stiffness(drivetrain.p)
     omega_max = (2 * math.pi * drivetrain.natural_frequencies(mesh_stiffness)[-1] if matrices is None
                  else matrices.highest_rate(mesh_stiffness))
-    needed = math.ceil(omega_max / (settings.output_rate * settings.oversampling) / STABLE_OMEGA_STEP)
+    if settings.integrator not in STABLE_OMEGA_STEP:
+        raise ValueError(f"integrator {settings.integrator!r}: choose one of {list(STABLE_OMEGA_STEP)}")
+    needed = math.ceil(omega_max / (settings.output_rate * settings.oversampling)
+                       / STABLE_OMEGA_STEP[settings.integrator])
     if needed > MAX_STEPS_PER_SENSOR_SAMPLE:
         raise SimulationError(
-            f"the fastest mode ({omega_max / 2 / math.pi:.3g} Hz) needs {needed} RK44 steps per sensor sample "
+            f"the fastest mode ({omega_max / 2 / math.pi:.3g} Hz) needs {needed} {settings.integrator} steps per sensor sample "
             f"(at most {MAX_STEPS_PER_SENSOR_SAMPLE}): a stiffness is out of range "
             f"(mesh_stiffness {drivetrain.p.mesh_stiffness:.3g} N/m)")
     return max(int(settings.steps_per_sensor_sample), needed) * int(settings.step_refinement)
@@ -650,7 +657,12 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
                                                  initialCoordinates_t=[0.0] * size, numberOfODE2Coordinates=size))
                  for first, size in ((0, n - n_damage), (n - n_damage, n_damage)) if size]
         node = nodes[0]
-        mbs.AddObject(eii.ObjectGenericODE2(nodeNumbers=nodes, massMatrix=_sparse(matrices.mass),
+        mass = matrices.mass
+        if settings.integrator == "central_difference":
+            # exudyn's velocity Verlet takes the damping forces at the half-step velocity: with
+            # h/2 C in the mass matrix its step is the central difference (second order)
+            mass = mass + 0.5 / (settings.output_rate * settings.oversampling * steps) * matrices.damping
+        mbs.AddObject(eii.ObjectGenericODE2(nodeNumbers=nodes, massMatrix=_sparse(mass),
                                             stiffnessMatrix=_sparse(stiffness), dampingMatrix=_sparse(matrices.damping)))
         if n_damage:
             damage = ShaftDamageForce([element for *_, element in drivetrain.damaged_elements])
@@ -698,7 +710,8 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
 
         try:
             solve_rk44(mbs, settings.output_rate * settings.oversampling, steps,
-                       settings.settle_time + settings.duration, sparse=True, sensed_accelerations=False)
+                       settings.settle_time + settings.duration, sparse=True, sensed_accelerations=False,
+                       solver="VelocityVerlet" if settings.integrator == "central_difference" else "RK44")
         except Exception as exc:
             message = " ".join(str(exc).split())  # one line: exudyn appends the Python traceback
             raise SimulationError(

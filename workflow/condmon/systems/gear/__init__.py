@@ -27,7 +27,7 @@ from condmon.systems.gear.parameters import (CALIBRATABLE, COMPLIANCE_PARAMETERS
 
 # numerics the virtual bench sets for itself (virtual_bench.<key>): it stands for a real machine, so
 # its records never move with the model's step, modal reduction or start-up discarded
-BENCH_NUMERICS = ("oversampling", "modal_cutoff_hz", "settle_time")
+BENCH_NUMERICS = ("oversampling", "integrator", "steps_per_sensor_sample", "modal_cutoff_hz", "settle_time")
 
 log = logging.getLogger(__name__)
 
