@@ -15,18 +15,13 @@ from condmon.report.pages import write_pages
 from condmon.train_tables import ReportInputError
 
 
-@pytest.fixture(scope="module")
-def train_outputs(tmp_path_factory):
-    root = tmp_path_factory.mktemp("results") / "demo"
-    return root, fake.build(root)
-
-
 ONE_CLASSIFIER = {"knn": {"n_neighbors": 3}}
 
 
 @pytest.fixture(scope="module")
 def one_classifier_outputs(tmp_path_factory):
-    """For a test whose claim is per classifier: the report's plots (most of its time) of one."""
+    """One classifier: every claim here holds per classifier, and the report's plots (most of a
+    test's time) are drawn per classifier."""
     root = tmp_path_factory.mktemp("results") / "demo"
     return root, fake.build(root, classifiers=ONE_CLASSIFIER)
 
@@ -46,8 +41,8 @@ def expected_means(accuracy_csv) -> dict:
     return per_repeat.groupby(level=[0, 1, 2]).mean().to_dict()
 
 
-def test_the_headline_gives_the_accuracy_at_both_ends_beside_the_baselines(train_outputs, tmp_path):
-    _, paths = train_outputs
+def test_the_headline_gives_the_accuracy_at_both_ends_beside_the_baselines(one_classifier_outputs, tmp_path):
+    _, paths = one_classifier_outputs
     # a measured-only baseline 0.25 below the knn's accuracy; a physics rule that is always right
     baselines, physics = [], []
     for path in paths["metrics"]:
@@ -166,8 +161,8 @@ def test_a_cwru_like_condition_groups_the_figures_by_load_not_by_each_files_rpm(
     assert firsts.to_dict() == counts.to_dict()
 
 
-def test_a_tested_record_without_a_condition_is_named(train_outputs, tmp_path):
-    _, paths = train_outputs
+def test_a_tested_record_without_a_condition_is_named(one_classifier_outputs, tmp_path):
+    _, paths = one_classifier_outputs
     features = pd.read_parquet(paths["features_measured"])
     dropped = sorted(features["record_id"].unique())[0]
     features = features[features["record_id"] != dropped]
