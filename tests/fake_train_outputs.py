@@ -309,3 +309,30 @@ def write_report(paths: dict, out: Path, **parts) -> dict:
     from condmon.report.write import write_report
 
     return write_report(report_inputs(paths, out, **parts))
+
+
+def write_sections(paths: dict, out: Path, sections, **parts) -> dict:
+    """Only the report `sections` (registry names, run in the registry's order) on
+    `report_inputs(paths, out, **parts)`: the tables the outputs name written, summary.json, the
+    sections' plots in out / plots. A test of one claim draws that section's plots, not the ~20
+    of the whole report (most of a report's time). Returns the summary dict."""
+    import json
+
+    from condmon.report import registry
+    from condmon.report.context import Report
+    from condmon.report.write import run_section
+
+    inputs = report_inputs(paths, out, **parts)
+    chosen = [section for section in registry.SECTIONS if section.name in set(sections)]
+    unknown = sorted(set(sections) - {section.name for section in chosen})
+    assert not unknown, f"no report sections {unknown}"
+    inputs.outputs.plots.mkdir(parents=True, exist_ok=True)
+    report = Report(inputs, inputs.outputs.plots)
+    for section in chosen:
+        if section.applies(inputs):
+            for name, frame in run_section(section, report).items():
+                if name in inputs.outputs.tables:
+                    frame.to_csv(inputs.outputs.tables[name], index=False)
+    report.summary.setdefault("plots", report.plots)
+    Path(inputs.outputs.summary).write_text(json.dumps(report.summary, indent=2) + "\n")
+    return report.summary

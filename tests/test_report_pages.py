@@ -26,10 +26,11 @@ def one_classifier_outputs(tmp_path_factory):
     return root, fake.build(root, classifiers=ONE_CLASSIFIER)
 
 
-def write(paths, out, outputs=(), **parts):
-    """The report with the headline table (fake.report_inputs: `outputs`, `parts`)."""
-    return fake.write_report(paths, out, outputs={"headline": out / "headline.csv", **dict(outputs)},
-                             **parts)
+def write(paths, out, sections, outputs=(), **parts):
+    """The report's `sections` with the headline table among the outputs (fake.write_sections:
+    `outputs`, `parts`): a claim's own sections, not the whole report's ~20 plots."""
+    return fake.write_sections(paths, out, sections, outputs={"headline": out / "headline.csv", **dict(outputs)},
+                               **parts)
 
 
 def expected_means(accuracy_csv) -> dict:
@@ -64,7 +65,8 @@ def test_the_headline_gives_the_accuracy_at_both_ends_beside_the_baselines(one_c
             frame.to_parquet(target)
             physics.append(target)
     out = tmp_path / "report"
-    write(paths, out, train={"measured_only": baselines, "physics": physics},
+    write(paths, out, ["accuracy", "evaluation", "ceiling", "headline"],
+          train={"measured_only": baselines, "physics": physics},
           evaluation={"measured_features": paths["features_measured"], "condition": "speed_rpm"})
     headline = pd.read_csv(out / "headline.csv", dtype=str)
     low, high = fake.PERCENTS[0], fake.PERCENTS[-1]
@@ -141,6 +143,7 @@ def test_a_cwru_like_condition_groups_the_figures_by_load_not_by_each_files_rpm(
         predictions.append(target)
     out = tmp_path / "report"
     summary = write(dict(paths, predictions=predictions), out,
+                    ["accuracy", "prediction_shares", "conditions", "fault_signatures"],
                     evaluation={"measured_features": features_path, "condition": "load"},
                     outputs={"prediction_shares": out / "prediction_shares.csv"})
     confusion = sorted(name for name in summary["plots"] if name.startswith("confusion_"))
@@ -169,7 +172,8 @@ def test_a_tested_record_without_a_condition_is_named(one_classifier_outputs, tm
     features_path = tmp_path / "measured.parquet"
     features.to_parquet(features_path)
     with pytest.raises(ReportInputError, match=f"no 'load'.*{dropped}"):
-        write(paths, tmp_path / "report", evaluation={"measured_features": features_path, "condition": "load"})
+        write(paths, tmp_path / "report", ["prediction_shares"],
+              evaluation={"measured_features": features_path, "condition": "load"})
 
 
 def texts_outside(fig) -> list[str]:

@@ -126,9 +126,10 @@ def train_outputs(tmp_path_factory):
 def test_the_report_gives_the_signatures_and_their_plot(train_outputs, tmp_path):
     _, paths = train_outputs
     out = tmp_path / "report"
-    summary = fake.write_report(paths, out, evaluation={"measured_features": paths["features_measured"],
-                                                        "simulated_features": paths["features_simulated"]},
-                                outputs={"recall_per_record": out / "recall_per_record.csv"})
+    summary = fake.write_sections(paths, out, ["fault_signatures", "recall_per_record"],
+                                  evaluation={"measured_features": paths["features_measured"],
+                                              "simulated_features": paths["features_simulated"]},
+                                  outputs={"recall_per_record": out / "recall_per_record.csv"})
     signatures = json.loads((out / "summary.json").read_text())["fault_signatures"]
     assert signatures == summary["fault_signatures"] and signatures["condition"] == "speed_rpm"
     measured, names = read_feature_table(paths["features_measured"])
@@ -149,5 +150,5 @@ def test_simulated_features_of_other_names_are_refused_with_the_file_named(train
     other = tmp_path / "simulated.parquet"
     write_feature_table(simulated.drop(columns=names[-1]), names[:-1], other)
     with pytest.raises(ReportInputError, match="simulated.parquet: its features differ"):
-        fake.write_report(paths, tmp_path / "report", evaluation={"measured_features": paths["features_measured"],
-                                                              "simulated_features": other})
+        fake.write_sections(paths, tmp_path / "report", ["fault_signatures"],
+                            evaluation={"measured_features": paths["features_measured"], "simulated_features": other})

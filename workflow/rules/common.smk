@@ -311,6 +311,18 @@ def measured_reference_output():
     return outputs
 
 
+def measured_family_references_input():
+    """The simulated features job's input of the measured family references (the residual
+    signatures' fixed tones, which every simulated segment loses as the measured ones do).
+    """
+    output = measured_reference_output()
+    return (
+        {"family_references": output["family_references"]}
+        if "family_references" in output
+        else {}
+    )
+
+
 # hybrid.simulated_validation_share > 0: the split table also lists the simulated records held out
 # as the simulated validation set, so the hybrid jobs read the simulated record list and the train
 # jobs score them. At 0 (default) neither gets that input, param or output: the jobs are those of

@@ -31,6 +31,8 @@ rule features_measured:
 
 rule features_simulated:
     input:
+        # a family's measured references, where it shares something with the simulated runs
+        **measured_family_references_input(),
         signals=simulated_batches(),
     output:
         features=f"{RESULTS}/features/simulated.parquet",

@@ -3,6 +3,8 @@ system's own families, or several of these side by side).
 
 `snakemake` is injected by Snakemake's script directive.
 """
+import pandas as pd
+
 from condmon.atomic import write_frame
 from condmon.features import compute_feature_table_from_files, feature_columns, write_feature_table
 from condmon import reference
@@ -24,9 +26,14 @@ system = load_system(snakemake.params.system)
 against = getattr(snakemake.params, "healthy_reference", None)
 family_params = {family: dict(params) for family, params in families.items()}
 own = system.feature_families()
+# the measured records' own references (a simulated run's families read what they share, e.g. fixed tones)
+measured_references = getattr(snakemake.input, "family_references", None)
+measured_references = pd.read_parquet(measured_references) if measured_references else None
 for family in family_params:  # a family that takes every machine against its reference itself
     if getattr(own.get(family), "takes_reference", False):
         family_params[family]["against"] = dict(against) if against else None
+        if measured_references is not None:
+            family_params[family]["measured_references"] = measured_references
     if getattr(own.get(family), "takes_processes", False):  # ... or spreads its work over the job's cores
         family_params[family]["processes"] = snakemake.threads
 frame = compute_feature_table_from_files(signal_paths, channels, kind,

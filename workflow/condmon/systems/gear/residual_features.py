@@ -38,6 +38,9 @@ From R (`residual_signatures`):
 - `tooth_peak1`, `tooth_peak3`: the largest energy of R's residual signal over one (three) tooth
   pitch(es), sliding round the revolution, over the median: a localised fault stands out on its
   own teeth, wear of every tooth does not.
+Before any of this every segment loses the machine's fixed tones where its average would keep
+them (`fixed_tones`: lines its healthy records show at one frequency at every speed, e.g. a
+motor's ripple, found on the measured calibration records and packaged with the references).
 All features are log10. Names `res_<channel>_<shaft>_<feature>`. With `magnitudes: false` the two
 that grow with the fault's size (`rms_ratio`, `NA4`) are left out and the bands are given as their
 shape (less their mean over the bands): that size follows the mesh's compliance, which healthy
@@ -59,6 +62,7 @@ from condmon.features import FeatureTableError, single_sampling_rate
 from condmon.hybrid import calibration_frame
 from condmon.signals import to_arrays
 from condmon.simulate import machine_of
+from condmon.systems.gear.fixed_tones import fixed_tones, remove_fixed_tones
 from condmon.systems.gear.order_features import (difference_signal, residual_signal,
                                                  segment_angle)
 
@@ -526,21 +530,29 @@ def reference_rows(ids: pd.DataFrame, against: dict) -> dict:
 CYCLE_ROW = "hunting_cycle"
 
 
-def patterns_table(references: dict, condition: str, shafts, channels, cycles: dict | None = None) -> pd.DataFrame:
+# ... and the row (one per condition, first channel) that lists the machine's fixed tones in Hz
+TONES_ROW = "fixed_tones"
+
+
+def patterns_table(references: dict, condition: str, shafts, channels, cycles: dict | None = None,
+                   tones=()) -> pd.DataFrame:
     """The measured references as a table to write and package: one row per condition, shaft and
-    channel, the pattern (one revolution) as a list; and where a condition has a hunting-cycle
-    average (`cycles`), one row per channel with shaft `CYCLE_ROW`, the cycle as a list."""
+    channel, the pattern (one revolution) as a list; where a condition has a hunting-cycle
+    average (`cycles`), one row per channel with shaft `CYCLE_ROW`, the cycle as a list; and per
+    condition one row with shaft `TONES_ROW`, the fixed tones (Hz) as a list."""
     rows = [{condition: key, "shaft": name, "channel": channel, "pattern": reference[k][c].tolist()}
             for key, reference in references.items() for k, (name, _, _) in enumerate(shafts)
             for c, channel in enumerate(channels)]
     rows += [{condition: key, "shaft": CYCLE_ROW, "channel": channel, "pattern": cycle[c].tolist()}
              for key, cycle in (cycles or {}).items() for c, channel in enumerate(channels)]
+    rows += [{condition: key, "shaft": TONES_ROW, "channel": channels[0], "pattern": [float(f) for f in tones]}
+             for key in references]
     return pd.DataFrame(rows)
 
 
-def patterns_from_table(table, shafts, channels) -> tuple[str, dict, dict]:
+def patterns_from_table(table, shafts, channels) -> tuple[str, dict, dict, list]:
     """(condition column, {condition value: [per shaft (n_channels, P)]}, {condition value:
-    hunting-cycle average (n_channels, L)}) of `patterns_table`."""
+    hunting-cycle average (n_channels, L)}, fixed tones in Hz) of `patterns_table`."""
     table = pd.DataFrame(table)
     condition = next(c for c in table.columns if c not in ("shaft", "channel", "pattern"))
     references, cycles = {}, {}
@@ -550,7 +562,29 @@ def patterns_from_table(table, shafts, channels) -> tuple[str, dict, dict]:
                                     for name, _, _ in shafts]
         if (CYCLE_ROW, channels[0]) in indexed.index:
             cycles[float(value)] = np.array([np.asarray(indexed[(CYCLE_ROW, channel)], float) for channel in channels])
-    return condition, references, cycles
+    return condition, references, cycles, tones_from_table(table)
+
+
+def tones_from_table(table) -> list[float]:
+    """The fixed tones (Hz) a `patterns_table` lists (none in a table written before they were)."""
+    table = pd.DataFrame(table)
+    rows = table.loc[table["shaft"] == TONES_ROW, "pattern"]
+    return [float(f) for f in rows.iloc[0]] if len(rows) else []
+
+
+def without_fixed_tones(ids: pd.DataFrame, arrays: np.ndarray, fs_hz: float, shafts, tones) -> np.ndarray:
+    """Every segment less the fixed tones its synchronous average would keep
+    (`fixed_tones.remove_fixed_tones`), logged per speed."""
+    if not len(tones):
+        return arrays
+    cleaned, removed = np.array(arrays, dtype=float), {}
+    for i, speed in enumerate(ids["speed_rpm"].astype(float)):
+        cleaned[i], kept = remove_fixed_tones(arrays[i], fs_hz, speed, shafts, tones)
+        if kept:
+            removed.setdefault(speed, set()).update(round(f, 2) for f in kept)
+    log.info("fixed tones %s Hz; removed where on a shaft order: %s", [round(f, 2) for f in tones],
+             {f"{speed:g} rpm": sorted(found) for speed, found in removed.items()} or "nowhere")
+    return cleaned
 
 
 def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -> pd.DataFrame:
@@ -561,11 +595,14 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
     shaft; the gear system's faults damage the pinion and its shaft) and either `against` (the features job's healthy-reference spec:
     measured segments against the calibration set per condition, simulated ones against their
     healthy twins) or `reference_patterns` (a packaged model's measured references). With
-    `against` measured, the references go in `attrs["references"]` to be written and packaged."""
+    `against` measured, the references go in `attrs["references"]` to be written and packaged;
+    with `against` simulated, `measured_references` (that table) gives the fixed tones every
+    segment loses as the measured ones do (`fixed_tones`)."""
     params = dict(params)
     shafts = [(str(n), float(r), int(t)) for n, r, t in params.pop("shafts")]
     damaged = [str(name) for name in params.pop("damaged_shafts", None) or [name for name, _, _ in shafts]]
     against, packaged = params.pop("against", None), params.pop("reference_patterns", None)
+    measured_references = params.pop("measured_references", None)  # a simulated run's: its fixed tones
     processes = int(params.pop("processes", 1))  # the job's cores, not a feature setting
     if not set(damaged) <= {name for name, _, _ in shafts}:
         raise FeatureTableError(f"{KEY}: damaged shafts {damaged} are not all among the rig's {[n for n, _, _ in shafts]}")
@@ -592,11 +629,19 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
     revolutions = hunting_revolutions(shafts)
     top = top_band_order(shafts[0][2] / bands_per_mesh, n_bands)
     if packaged is not None:
-        condition, references, cycles = patterns_from_table(packaged, shafts, list(channels))
+        condition, references, cycles, tones = patterns_from_table(packaged, shafts, list(channels))
         known = np.array(sorted(references))
         keys = [float(known[np.argmin(np.abs(known - v))]) for v in ids[condition].astype(float)]
+        arrays = without_fixed_tones(ids, arrays, fs_hz, shafts, tones)
     else:
         positions, keys = reference_rows(ids, against)
+        if against["source"] == "measured":  # the calibration records' lines at one frequency at every speed
+            chosen = sorted(i for rows in positions.values() for i in rows)
+            by_speed = ids.loc[chosen].groupby("speed_rpm").groups
+            tones = fixed_tones({speed: arrays[list(rows)] for speed, rows in by_speed.items()}, fs_hz)
+        else:  # a simulated machine has none, but loses the same orders as the measured records
+            tones = tones_from_table(measured_references) if measured_references is not None else []
+        arrays = without_fixed_tones(ids, arrays, fs_hz, shafts, tones)
         # a machine whose reference records cover the hunting cycle is taken against its average
         # over the cycle; one whose records are shorter, against its shafts' separated patterns
         cycles = {key: record_cycles(ids, arrays, rows, fs_hz, shafts, P, phase, top) for key, rows in positions.items()}
@@ -640,7 +685,8 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
     frame = pd.concat([ids, pd.DataFrame(values.astype(np.float32), columns=names)], axis=1)
     frame.attrs["referenced_columns"] = names
     if against is not None and against["source"] == "measured":
-        frame.attrs["references"] = patterns_table(references, against["condition"], shafts, list(channels), cycles)
+        frame.attrs["references"] = patterns_table(references, against["condition"], shafts, list(channels), cycles,
+                                                   tones)
     return frame
 
 
