@@ -66,6 +66,7 @@ PARAMS = {"shafts": [list(s) for s in SHAFTS], "samples_per_revolution": 1024, "
 CHANNELS = ["A1_x", "A1_y"]
 # the residual's RMS over the reference's (log10): 120 Hz at 450 rpm is order 16 of the pinion
 BAND = "res_A1_x_pinion_rms_ratio"
+SECONDS = 1.5  # a segment: 11 pinion revolutions at 450 rpm
 
 
 def bench(speeds, rng):
@@ -74,8 +75,8 @@ def bench(speeds, rng):
     rows = []
     for speed in speeds:
         for segment in range(2):
-            rows += signal_rows(f"vb-healthy-{speed:g}rpm-r00", "healthy", speed, segment, record(speed, 3.0, rng, phase=0.3))
-        rows += signal_rows(f"vb-healthy-{speed:g}rpm-r01", "healthy", speed, 0, record(speed, 3.0, rng, phase=2.9))
+            rows += signal_rows(f"vb-healthy-{speed:g}rpm-r00", "healthy", speed, segment, record(speed, SECONDS, rng, phase=0.3))
+        rows += signal_rows(f"vb-healthy-{speed:g}rpm-r01", "healthy", speed, 0, record(speed, SECONDS, rng, phase=2.9))
     return pd.DataFrame(rows)
 
 
@@ -102,9 +103,9 @@ def test_a_healthy_record_whose_tone_has_another_phase_stays_healthy_and_the_ton
     # a simulated healthy sample (segment 0) against its twin (segments 1, 2), its tone at another phase
     rng = np.random.default_rng(3)
     machine = "sim-healthy-450rpm-b000-s000"
-    rows = signal_rows(machine, "healthy", 450.0, 0, record(450.0, 3.0, rng, phase=2.9), "simulated")
+    rows = signal_rows(machine, "healthy", 450.0, 0, record(450.0, SECONDS, rng, phase=2.9), "simulated")
     for segment in (1, 2):
-        rows += signal_rows(machine, "healthy", 450.0, segment, record(450.0, 3.0, rng, phase=0.3), "simulated")
+        rows += signal_rows(machine, "healthy", 450.0, segment, record(450.0, SECONDS, rng, phase=0.3), "simulated")
     twins = {"source": "simulated", "healthy_state": "healthy", "segments_per_sample": 1}
     simulated = pd.DataFrame(rows)
     removed = rf.residual_feature_table(simulated, CHANNELS, dict(PARAMS, against=twins, measured_references=references))
