@@ -378,14 +378,14 @@ def test_the_features_read_the_residual_on_the_bands_orders_only():
     residual's RMS there) leaves every feature as it was, a pit on one tooth within them does not."""
     rng = np.random.default_rng(4)
     reference = pitch_pattern(PINION, rng)[None, :]
-    residual = rf.up_to_order(0.01 * rng.normal(size=(1, P)), 87)
+    residual = rf.band_limited(0.01 * rng.normal(size=(1, P)), 1, 87)
     angle = np.arange(P) / P
     burst = -0.5 * tooth_bump(PINION, 5, 1.0)[None, :] * np.cos(2 * np.pi * 200 * angle)
-    burst = burst - rf.up_to_order(burst, 87)  # nothing left on the bands' orders
+    burst = burst - rf.band_limited(burst, 1, 87)  # nothing left on the bands' orders
     plain = rf.residual_signatures(residual, reference, PINION, PINION / 4, 12)
     with_burst = rf.residual_signatures(residual + burst, reference, PINION, PINION / 4, 12)
     for name, value in plain.items():
         np.testing.assert_allclose(with_burst[name], value, rtol=1e-9, err_msg=name)
-    pitted = rf.residual_signatures(residual + rf.up_to_order(tooth_bump(PINION, 5, 0.3)[None, :], 87), reference,
+    pitted = rf.residual_signatures(residual + rf.band_limited(tooth_bump(PINION, 5, 0.3)[None, :], 1, 87), reference,
                                     PINION, PINION / 4, 12)
     assert pitted["tooth_peak1"][0] > 3 * plain["tooth_peak1"][0]

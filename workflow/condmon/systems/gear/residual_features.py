@@ -371,13 +371,6 @@ def residual_features(pattern: np.ndarray, reference: np.ndarray, teeth: int, ba
                                reference_level)
 
 
-def up_to_order(pattern: np.ndarray, top_order: int) -> np.ndarray:
-    """A one-revolution pattern (n_channels, P) on its orders up to `top_order` only."""
-    spectrum = np.fft.rfft(pattern, axis=-1)
-    spectrum[..., int(top_order) + 1:] = 0.0
-    return np.fft.irfft(spectrum, n=pattern.shape[-1], axis=-1)
-
-
 def residual_signatures(residual: np.ndarray, reference: np.ndarray, teeth: int, band_orders: float, n_bands: int,
                         shaft_orders: int = 2, mesh_harmonics: int = 3, reference_level: str = "whole") -> dict:
     """`residual_features` of a shaft's residual pattern R (already taken against its healthy
@@ -390,7 +383,7 @@ def residual_signatures(residual: np.ndarray, reference: np.ndarray, teeth: int,
     teeth 20-60 times its median (bench seed 8 and the heavier-housings bench, 450 rpm: 2 of 8
     healthy segments called faulty, 1 of 8 on the bands' orders)."""
     top = top_band_order(band_orders, n_bands)
-    residual, reference = up_to_order(residual, top), up_to_order(reference, top)
+    residual, reference = band_limited(residual, 1, top), band_limited(reference, 1, top)
     levels = band_levels(residual, band_orders, n_bands)
     reference_levels = band_levels(reference, band_orders, n_bands,
                                    teeth if reference_level == "without_mesh_lines" else 0)
@@ -593,10 +586,13 @@ def without_fixed_tones(ids: pd.DataFrame, arrays: np.ndarray, fs_hz: float, sha
     (`fixed_tones.remove_fixed_tones`), logged per speed."""
     if not len(tones):
         return arrays
-    cleaned, removed = np.array(arrays, dtype=float), {}
+    cleaned, removed = arrays, {}
     for i, speed in enumerate(ids["speed_rpm"].astype(float)):
-        cleaned[i], kept = remove_fixed_tones(arrays[i], fs_hz, speed, shafts, tones)
-        if kept:
+        segment, kept = remove_fixed_tones(arrays[i], fs_hz, speed, shafts, tones)
+        if kept:  # a copy only where a tone goes
+            if cleaned is arrays:
+                cleaned = np.array(arrays, dtype=float)
+            cleaned[i] = segment
             removed.setdefault(speed, set()).update(round(f, 2) for f in kept)
     log.info("fixed tones %s Hz; removed where on a shaft order: %s", [round(f, 2) for f in tones],
              {f"{speed:g} rpm": sorted(found) for speed, found in removed.items()} or "nowhere")
