@@ -29,7 +29,10 @@ def fake_report(folder, recall: dict, ceiling: dict, correlation: dict):
               for p in (0, 100) for true in CLASSES
               for predicted in (true, next(c for c in CLASSES if c != true))]
     pd.DataFrame(shares).to_csv(folder / "prediction_shares.csv", index=False)
-    summary = {"measured_separability": {"per_condition": {"450": {"recall_per_class": ceiling}}},
+    chance = {"mean": 1 / 3, "upper": 0.5, "permutations": 50}
+    summary = {"measured_separability": {"per_condition": {"450": {
+                   "recall_per_class": ceiling, "chance": chance,
+                   "not_shown": sorted(c for c, r in ceiling.items() if r < 0.8)}}},
                "fault_signatures": {"per_condition": {"450": {"classes": {
                    c: {"direction_correlation": r} for c, r in correlation.items()}}}}}
     (folder / "summary.json").write_text(json.dumps(summary))

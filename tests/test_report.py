@@ -616,19 +616,20 @@ def test_recall_beside_whether_each_fault_record_shows_its_line(tmp_path):
     assert load_fault_lines([]) == (None, {})
 
 
-def test_the_measured_ceiling_leaves_out_the_records_the_features_were_taken_against(train_outputs, tmp_path):
-    # the healthy reference's calibration set is its own reference: its residual features are
-    # near zero, so the measured-only classifier must not count it among the healthy records
+def test_the_measured_ceiling_leaves_out_the_calibration_set(train_outputs, tmp_path):
+    # the calibration saw its records, and a healthy reference's features are near zero against
+    # themselves: the measured-only classifier must not count them among the healthy records
     from condmon.report.context import Report
 
     _, paths = train_outputs
     evaluation = {"measured_features": paths["features_measured"], "condition": "speed_rpm"}
     plain = Report(fake.report_inputs(paths, tmp_path / "a", evaluation=evaluation), tmp_path / "a")
-    spec = {"healthy_state": "healthy", "condition": "speed_rpm", "reserve": {}}
-    referenced = Report(fake.report_inputs(paths, tmp_path / "b", evaluation={**evaluation, "reference_set": spec}),
+    spec = {"healthy_state": "healthy", "condition": "speed_rpm", "reserve": {}, "states": ["healthy"]}
+    calibrated = Report(fake.report_inputs(paths, tmp_path / "b", evaluation={**evaluation, "calibration_set": spec}),
                         tmp_path / "b")
-    left_out = referenced.reference_records
+    frame, _ = calibrated.measured
+    left_out = set(frame.loc[calibrated.calibration_rows, "record_id"].astype(str))
     assert left_out and all("healthy" in record for record in left_out)
-    assert plain.reference_records == set()
-    before, after = plain.separability["all"]["records"], referenced.separability["all"]["records"]
+    assert plain.calibration_rows.empty
+    before, after = plain.separability["all"]["records"], calibrated.separability["all"]["records"]
     assert after == before - len(left_out)

@@ -1,17 +1,30 @@
 """Can the measured records show their classes at all?
 
-A measured-only classifier, each measured record left out in turn: the ceiling a classifier
+A measured-only classifier, every measured record held out once: the ceiling a classifier
 trained on simulation can approach on these records. No simulation takes part. A class the
 measured records cannot show (on a real rig: a fault no engineer could see in its own data) is
 no failure of the simulation; the report gives this figure beside every run (summary.json
 `measured_separability`).
+
+The ceiling must be right before it can excuse anything:
+- its classes weigh alike (`class_weight="balanced"`) and every record is held out once, one
+  record of every class at a time (`record_folds`): left out alone, a record's class is one
+  record short in training, and that alone put it below the others (on pure-noise features with
+  two healthy records, healthy recall 0 in every draw);
+- a class needs `MIN_RECORDS` records in a condition, else the condition gets no figure and says
+  why;
+- beside every figure its chance level, the same classifier on the same records with the
+  records' classes permuted (`PERMUTATIONS` draws): a class is `not_shown` (exempt from what a
+  simulation-trained classifier is asked) only where the ceiling and the other classes' mean
+  recall stand above the permutation band (its `CHANCE_QUANTILE`), so that the ceiling
+  measurably reads.
 """
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 from sklearn.metrics import balanced_accuracy_score, recall_score
-from sklearn.model_selection import LeaveOneGroupOut, cross_val_predict
+from sklearn.model_selection import cross_val_predict
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
@@ -19,47 +32,121 @@ from sklearn.svm import SVC
 # A class the measured records' own classifier finds less often than this, left out in turn, is one
 # the records cannot show: exempt from what a simulation-trained classifier is asked (issue 48).
 SHOWN_RECALL = 0.80
-METHOD = ("SVM-RBF (standardised features, C 1.2, gamma scale) on the measured records alone, all "
-          "features, each record left out in turn; balanced accuracy per segment")
+# fewer records of a class in a condition: left out, it is learnt from one or two records, too few
+# for its figure to say anything (the condition gets none)
+MIN_RECORDS = 3
+# label permutations for the chance level, and the quantile of their scores that bounds it
+PERMUTATIONS = 50
+CHANCE_QUANTILE = 0.95
+SEED = 0
+METHOD = ("SVM-RBF (standardised features, C 1.2, gamma scale, balanced class weights) on the measured "
+          "records alone, all features, every record held out once, one record of every class at a time; "
+          "balanced accuracy per segment; chance: "
+          f"the same with the records' classes permuted ({PERMUTATIONS} draws, mean and "
+          f"{100 * CHANCE_QUANTILE:.0f}th percentile)")
+
+
+def too_few_records(frame: pd.DataFrame) -> str | None:
+    """Why `frame`'s records cannot be left out in turn (None where they can): one class only, or
+    a class with fewer than MIN_RECORDS records."""
+    per_class = frame.groupby("health_state")["record_id"].nunique()
+    if len(per_class) < 2:
+        return f"one class only ({', '.join(map(str, per_class.index))})"
+    few = per_class[per_class < MIN_RECORDS]
+    if len(few):
+        return (f"fewer than {MIN_RECORDS} records of " +
+                ", ".join(f"{state} ({count})" for state, count in few.items()))
+    return None
+
+
+def record_folds(labels: np.ndarray, groups: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(train, test) row indices holding every record out once, one record of every class at a
+    time (fold k: each class's k-th record, in the order of their ids), so that every class is one
+    record short in training alike. Left out one at a time, a record's own class alone is short,
+    and on features that hold nothing that alone calls it another class (pure noise, six classes
+    of 4-5 records: 0.017 balanced against 1/6)."""
+    records = pd.DataFrame({"record": groups, "label": labels}).drop_duplicates("record").sort_values("record")
+    fold_of = dict(zip(records["record"], records.groupby("label").cumcount()))
+    fold = np.array([fold_of[g] for g in groups])
+    return [(np.flatnonzero(fold != k), np.flatnonzero(fold == k)) for k in range(int(fold.max()) + 1)]
+
+
+def _predict(features: np.ndarray, labels: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    model = make_pipeline(StandardScaler(), SVC(C=1.2, gamma="scale", class_weight="balanced"))
+    return cross_val_predict(model, features, labels, cv=record_folds(labels, groups))
 
 
 def left_out_predictions(frame: pd.DataFrame, names) -> np.ndarray | None:
     """METHOD's prediction of every segment of `frame` (one row per segment, `record_id`) by a
-    model that never saw its record; None where a class has fewer than two records (left out, it
-    could not be learnt) or only one class is there."""
-    records_per_class = frame.groupby("health_state")["record_id"].nunique()
-    if len(records_per_class) < 2 or records_per_class.min() < 2:
+    model that never saw its record; None where the records cannot be left out
+    (`too_few_records`)."""
+    if too_few_records(frame) is not None:
         return None
-    model = make_pipeline(StandardScaler(), SVC(C=1.2, gamma="scale"))
-    return cross_val_predict(model, frame[list(names)].to_numpy(float), frame["health_state"].to_numpy(),
-                             groups=frame["record_id"].to_numpy(), cv=LeaveOneGroupOut())
+    return _predict(frame[list(names)].to_numpy(float), frame["health_state"].to_numpy(),
+                    frame["record_id"].to_numpy())
 
 
-def leave_one_record_out(frame: pd.DataFrame, names) -> float | None:
+def held_out_accuracy(frame: pd.DataFrame, names) -> float | None:
     """Balanced accuracy of METHOD on `frame` (None: see left_out_predictions)."""
     predicted = left_out_predictions(frame, names)
     return None if predicted is None else float(balanced_accuracy_score(frame["health_state"], predicted))
 
 
-def measured_separability(frame: pd.DataFrame, names, condition: str) -> dict:
-    """METHOD per value of the operating `condition` (e.g. speed_rpm, load) and over all of them:
-    balanced accuracy and each class's recall, the classes the records cannot show (`not_shown`:
-    recall below SHOWN_RECALL), with the records and classes each figure rests on."""
-    def entry(part: pd.DataFrame) -> dict:
-        predicted = left_out_predictions(part, names)
-        truth = part["health_state"].to_numpy()
-        classes = sorted(set(truth))
-        recall = (None if predicted is None else
-                  dict(zip(map(str, classes), map(float, recall_score(truth, predicted, labels=classes,
-                                                                       average=None)))))
-        return {"balanced_accuracy": None if predicted is None else float(balanced_accuracy_score(truth, predicted)),
-                "recall_per_class": recall,
-                "not_shown": None if recall is None else sorted(c for c, r in recall.items() if r < SHOWN_RECALL),
-                "records": int(part["record_id"].nunique()),
-                "records_per_class": {str(k): int(v) for k, v in
-                                      part.groupby("health_state")["record_id"].nunique().items()}}
+def permuted_labels(frame: pd.DataFrame, rng: np.random.Generator) -> np.ndarray:
+    """Every segment's class after the records' classes are shuffled among the records (each
+    record keeps one class for all its segments, each class its count of records)."""
+    records = frame.groupby("record_id", sort=True)["health_state"].first()
+    shuffled = dict(zip(records.index, rng.permutation(records.to_numpy())))
+    return frame["record_id"].map(shuffled).to_numpy()
 
+
+def chance_level(frame: pd.DataFrame, names, permutations: int = PERMUTATIONS, seed: int = SEED) -> dict:
+    """METHOD's balanced accuracy on `frame` with its records' classes permuted, `permutations`
+    draws: their mean and CHANCE_QUANTILE-th quantile (what a classifier that reads nothing scores
+    on these records, with their counts of records and segments)."""
+    rng = np.random.default_rng(seed)
+    features, groups = frame[list(names)].to_numpy(float), frame["record_id"].to_numpy()
+    scores = []
+    for _ in range(permutations):
+        labels = permuted_labels(frame, rng)
+        scores.append(balanced_accuracy_score(labels, _predict(features, labels, groups)))
+    return {"mean": float(np.mean(scores)), "upper": float(np.quantile(scores, CHANCE_QUANTILE)),
+            "permutations": int(permutations)}
+
+
+def separability_entry(part: pd.DataFrame, names, permutations: int = PERMUTATIONS) -> dict:
+    """METHOD on one set of records: balanced accuracy, each class's recall, the chance level, the
+    classes the records cannot show (`not_shown`: recall below SHOWN_RECALL where the other
+    classes' mean recall stands above the chance band), with the records per class; where the
+    records cannot be left out, no figure and the reason (`refused`)."""
+    counts = {str(k): int(v) for k, v in part.groupby("health_state")["record_id"].nunique().items()}
+    entry = {"balanced_accuracy": None, "recall_per_class": None, "chance": None, "not_shown": None,
+             "reads_above_chance": None, "refused": too_few_records(part),
+             "records": int(part["record_id"].nunique()), "records_per_class": counts}
+    if entry["refused"] is not None:
+        return entry
+    predicted = left_out_predictions(part, names)
+    truth = part["health_state"].to_numpy()
+    classes = sorted(set(truth))
+    recall = dict(zip(map(str, classes), map(float, recall_score(truth, predicted, labels=classes, average=None))))
+    chance = chance_level(part, names, permutations)
+    balanced = float(balanced_accuracy_score(truth, predicted))
+
+    def others_read(state: str) -> bool:
+        return float(np.mean([r for c, r in recall.items() if c != state])) > chance["upper"]
+
+    reads = balanced > chance["upper"]
+    entry.update(balanced_accuracy=balanced, recall_per_class=recall, chance=chance, reads_above_chance=reads,
+                 not_shown=sorted(c for c, r in recall.items() if r < SHOWN_RECALL and reads and others_read(c)))
+    return entry
+
+
+def measured_separability(frame: pd.DataFrame, names, condition: str, permutations: int = PERMUTATIONS) -> dict:
+    """METHOD per value of the operating `condition` (e.g. speed_rpm, load) and over all of them
+    (`separability_entry`)."""
     with np.errstate(all="ignore"):
         return {"method": METHOD, "condition": condition, "features": len(names),
-                "all": entry(frame),
-                "per_condition": {f"{value:g}": entry(part) for value, part in frame.groupby(condition)}}
+                "min_records": MIN_RECORDS, "shown_recall": SHOWN_RECALL,
+                "all": separability_entry(frame, names, permutations),
+                "per_condition": {f"{value:g}": separability_entry(part, names, permutations)
+                                  for value, part in frame.groupby(condition)}}

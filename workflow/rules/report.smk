@@ -125,8 +125,14 @@ rule report:
         # {specimen: reason} of specimens the model does not describe: reported apart, never in
         # the headline
         unmodelled=SYSTEM.unmodelled_specimens(),
-        # the calibration set the measured features were taken against (None: not referenced)
-        reference_set=healthy_reference_params("measured").get("healthy_reference"),
+        # the calibration set (what the calibrate jobs saw, and the healthy reference where it is
+        # on): the measured-only ceiling leaves it out
+        calibration_set=dict(
+            healthy_state=SYSTEM.healthy_state,
+            condition=CONDITION,
+            reserve=config["calibration"]["reserve"],
+            states=[SYSTEM.healthy_state, *STATE_CALIBRATIONS],
+        ),
     conda:
         "../envs/report.yaml"
     benchmark:

@@ -42,7 +42,7 @@ summary = write_report(ReportInputs(
                                 condition=params.condition, design_records=params.design_records,
                                 design_specimens=params.design_specimens,
                                 unmodelled=params.get("unmodelled", {}),
-                                reference_set=params.get("reference_set"),
+                                calibration_set=params.get("calibration_set"),
                                 confusion_percent=params.get("confusion_percent", [0])),
     upstream=StageRecords(simulation_reports=inputs.simulation_reports,
                           measured_records=inputs.measured_records,

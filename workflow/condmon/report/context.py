@@ -162,9 +162,8 @@ class Report:
         if self.features is None:
             return None
         frame, names = self.measured
-        left_out = set(map(str, self.apart)) | self.reference_records
-        separability = measured_separability(frame[~frame["record_id"].astype(str).isin(left_out)],
-                                             names, self.condition)
+        kept = ~frame["record_id"].astype(str).isin(set(map(str, self.apart))) & ~frame.index.isin(self.calibration_rows)
+        separability = measured_separability(frame[kept], names, self.condition)
         log.info("measured records alone, leave one record out: %s over all, %s per %s",
                  separability["all"]["balanced_accuracy"],
                  {k: v["balanced_accuracy"] for k, v in separability["per_condition"].items()},
@@ -177,16 +176,16 @@ class Report:
         return separability
 
     @cached_property
-    def reference_records(self) -> set[str]:
-        """The measured records the features were taken against (the healthy reference's
-        calibration set): against themselves their features are near zero, so they are no test of
-        what the records show."""
-        spec = self.inputs.evaluation.reference_set
+    def calibration_rows(self) -> pd.Index:
+        """The measured features' rows in the calibration set: the calibrate jobs saw them, and
+        with the healthy reference on the features were taken against them (near zero against
+        themselves), so they are no test of what the records show."""
+        spec = self.inputs.evaluation.calibration_set
         if not spec or self.features is None:
-            return set()
+            return pd.Index([])
         frame, _ = self.measured
-        chosen = calibration_frame(frame, spec["healthy_state"], spec["condition"], dict(spec["reserve"]))
-        return set(chosen["record_id"].astype(str))
+        return calibration_frame(frame, spec["healthy_state"], spec["condition"], dict(spec["reserve"]),
+                                 list(spec.get("states") or [spec["healthy_state"]])).index
 
     @property
     def compares_signatures(self) -> bool:

@@ -116,21 +116,24 @@ def headline_table(accuracy: pd.DataFrame, baseline: pd.DataFrame | None,
 
 
 CEILING_PROTOCOL = "measured records alone"
-CEILING_MODEL = ("ceiling: a classifier on the measured records alone, each record left out "
-                 "(balanced accuracy; summary.json measured_separability)")
+CEILING_MODEL = ("ceiling: a classifier on the measured records alone, every record held out once "
+                 "(balanced accuracy, its permutation chance level in brackets; summary.json "
+                 "measured_separability)")
 
 
 def with_ceiling(headline: pd.DataFrame, separability: dict | None) -> pd.DataFrame:
     """The headline with a last row, in its largest share's column: how well the measured records
     separate their classes on their own (`measured_separability`'s balanced accuracy over all
-    records), the most a classifier trained elsewhere can be expected to reach on them; unchanged
-    without that figure (a class with a single record)."""
+    records, with its permutation chance level), the most a classifier trained elsewhere can be
+    expected to reach on them; unchanged without that figure (a class with too few records)."""
     ceiling = None if separability is None else separability["all"]["balanced_accuracy"]
     if ceiling is None:
         return headline
+    chance = separability["all"]["chance"]
     shares = list(headline.columns[3:])
     row = {"records": HEADLINE_RECORDS[evaluation.ALL], "protocol": CEILING_PROTOCOL, "model": CEILING_MODEL,
-           **{column: "-" for column in shares[:-1]}, shares[-1]: f"{ceiling:.3f}"}
+           **{column: "-" for column in shares[:-1]},
+           shares[-1]: f"{ceiling:.3f} (chance {chance['mean']:.3f}, to {chance['upper']:.3f})"}
     return pd.concat([headline, pd.DataFrame([row])], ignore_index=True)
 
 

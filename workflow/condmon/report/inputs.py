@@ -113,10 +113,10 @@ class EvaluationInputs(_Frozen):
     # their records are reported in rows of their own, never in the headline nor as evaluation
     # records
     unmodelled: Mapping[str, str] = field(default_factory=dict)
-    # the measured healthy reference the features were taken against (the features job's
-    # healthy_reference spec: healthy_state, condition, reserve), or None: the records of that
-    # calibration set are their own reference, so the measured-only ceiling leaves them out
-    reference_set: Mapping | None = None
+    # the calibration set (healthy_state, condition, reserve, states: as hybrid.calibration_frame
+    # takes them), or None: what the calibrate jobs saw (and, with the healthy reference on, what
+    # the features were taken against), so the measured-only ceiling leaves it out
+    calibration_set: Mapping | None = None
     confusion_percent: tuple[int, ...] = (0,)   # report.confusion_percent (+ the largest)
     _sequences = ("design_records", "design_specimens", "confusion_percent")
 
