@@ -389,3 +389,84 @@ def test_the_features_read_the_residual_on_the_bands_orders_only():
     pitted = rf.residual_signatures(residual + rf.band_limited(tooth_bump(PINION, 5, 0.3)[None, :], 1, 87), reference,
                                     PINION, PINION / 4, 12)
     assert pitted["tooth_peak1"][0] > 3 * plain["tooth_peak1"][0]
+
+
+# -- the window: where the bands reach ---------------------------------------------------------
+CFRP_SHAFTS = [("pinion", 1.0, 20), ("gear", 20 / 30, 30)]
+
+
+def orders_pattern(orders, rng, amplitude=1.0) -> np.ndarray:
+    """One revolution (1, P) of lines of equal amplitude at `orders`, random phases."""
+    angle = np.arange(P) / P
+    return sum(amplitude * np.cos(2 * np.pi * o * angle + rng.uniform(0, 2 * np.pi)) for o in orders)[None, :]
+
+
+def test_the_window_reaches_where_the_healthy_power_lies_within_the_passband():
+    """The bands reach the mesh harmonic at or above the order below which 95 % of the healthy
+    records' power lies at the lowest speed, bounded at the highest speed by the passband (0.45 x
+    the sampling rate): a 20-tooth pinion sampled at 5120 Hz up to 1100 rpm keeps 6 harmonics
+    (order 121 at 2218 Hz), a 29-tooth one 4 (order 117)."""
+    rng = np.random.default_rng(4)
+    fs = 5120.0
+    angle = 450.0 / 60.0 * np.arange(int(1.5 * fs)) / fs
+
+    def segments(top_order):
+        pattern = orders_pattern(range(20, top_order + 1, 20), rng)
+        return rf.pattern_at(pattern, angle)[None]  # (1 segment, 1 channel, n)
+
+    assert rf.window_harmonics({450.0: segments(100)}, fs, CFRP_SHAFTS)[0] == 5
+    assert rf.window_harmonics({450.0: segments(100), 1100.0: segments(100)}, fs, CFRP_SHAFTS)[0] == 5
+    # vibration up to order 300 at 450 rpm (2250 Hz): the passband at 1100 rpm bounds it
+    harmonics, order, limit = rf.window_harmonics({450.0: segments(300), 1100.0: segments(100)}, fs, CFRP_SHAFTS)
+    assert (harmonics, limit) == (6, 6) and order > 280
+    assert rf.passband_harmonics(fs, 1100.0, PINION) == 4
+    with pytest.raises(FeatureTableError, match="mesh harmonic"):
+        rf.window_harmonics({450.0: segments(100), 8000.0: segments(100)}, fs, CFRP_SHAFTS)
+
+
+def test_a_fault_whose_change_lies_above_the_old_window_is_inside_the_new_one():
+    """A rig whose vibration reaches its sixth mesh harmonic, a fault that changes only orders
+    65-115 (above the old fixed window of three harmonics, order 60): with the window from the
+    rig (`mesh_harmonics: auto`) the faulty record's residual stands far above a healthy one's,
+    the window packaged with the references; with three harmonics it is a healthy record's."""
+    rng = np.random.default_rng(8)
+    fs, speed = 5120.0, 450.0
+    pinion = orders_pattern(range(20, 121, 20), rng) + orders_pattern([1, 2, 3, 7, 11], rng, 0.3)
+    gear = rf.without_orders(orders_pattern([1, 2, 5], rng, 0.3), 30)
+    impulse = np.zeros((1, P))
+    impulse[0, int(6.5 * P / 20)] = 1.0  # at tooth 6, then only its orders 65-115
+    change = rf.band_limited(impulse, 1, 115) - rf.band_limited(impulse, 1, 64)
+    change *= 0.3 / change.std()
+    t = np.arange(int(1.5 * fs)) / fs
+
+    def record(pattern, start):
+        angle = speed / 60.0 * t + start
+        x = rf.pattern_at(pattern, angle)[0] + rf.pattern_at(gear, angle * 20 / 30 + 0.3)[0]
+        return x + rng.normal(0.0, 0.01, x.shape)
+
+    rows = []
+    for segment in range(2):  # the calibration record: two segments that follow one another
+        rows += signal_rows("vb-healthy-450rpm-r00", "healthy", speed, segment, record(pinion, 11.25 * segment), fs)
+    rows += signal_rows("vb-healthy-450rpm-r01", "healthy", speed, 0, record(pinion, 0.37), fs)
+    rows += signal_rows("vb-spall-450rpm-r00", "spall", speed, 0, record(pinion + change, 0.71), fs)
+    frame = pd.DataFrame(rows).assign(source="virtual_bench")
+    params = {"shafts": [list(s) for s in CFRP_SHAFTS], "samples_per_revolution": P, "bands_per_mesh": 4,
+              "shaft_orders": 2, "phase_harmonic": 1, "phase_band_orders": 0.3, "phase_min_snr": 5.0}
+    spec = {"source": "measured", "healthy_state": "healthy", "condition": "speed_rpm", "reserve": {}}
+
+    def rms_ratio(mesh_harmonics):
+        table = rf.residual_feature_table(frame, ["A1_x"], dict(params, against=spec, mesh_harmonics=mesh_harmonics))
+        return table.set_index("record_id")["res_A1_x_pinion_rms_ratio"], table
+
+    new, table = rms_ratio("auto")
+    assert rf.window_from_table(table.attrs["references"]) == 6
+    assert len([c for c in table.columns if c.startswith("res_A1_x_pinion_b")]) == 24
+    assert new["vb-spall-450rpm-r00"] > new["vb-healthy-450rpm-r01"] + 1.0  # ten times the healthy residual
+    old, _ = rms_ratio(3)
+    assert abs(old["vb-spall-450rpm-r00"] - old["vb-healthy-450rpm-r01"]) < 0.3
+    # the simulated job and a packaged model take the measured job's window
+    packaged = rf.residual_feature_table(frame, ["A1_x"], dict(
+        params, mesh_harmonics="auto", reference_patterns=table.attrs["references"].to_dict("list")))
+    assert list(packaged.columns) == list(table.columns)
+    with pytest.raises(FeatureTableError, match="auto"):
+        rf.resolved_window("auto", table.attrs["references"].query("shaft != @rf.WINDOW_ROW"), "the references")

@@ -363,6 +363,14 @@ class GearSystem(System):
             if not self.config["features"]["healthy_reference"]["enabled"]:
                 problems.append("features.kind residual: the residual signatures take every machine against "
                                 "its own healthy reference; set features.healthy_reference.enabled: true")
+            if order["mesh_harmonics"] == "auto":  # the rule's window, bounded by the passband (`window_harmonics`)
+                from condmon.systems.gear.residual_features import PASSBAND_SHARE, passband_harmonics
+
+                if min(passband_harmonics(self.output_rate_hz, max(self.speeds_rpm), teeth, ratio)
+                       for _, ratio, teeth in shafts) < 1:
+                    problems.append(f"features.residual.mesh_harmonics: auto finds no mesh harmonic within "
+                                    f"{PASSBAND_SHARE:g} x rig.output_rate_hz at {max(self.speeds_rpm):g} rpm")
+                return problems + self._order_problems("features.residual", shafts, 1)
             return problems + self._order_problems("features.residual", shafts, order["mesh_harmonics"])
         fastest, slowest = max(self.speeds_rpm) / 60, min(self.speeds_rpm) / 60
         seconds = (self.segment_length - 1) / self.output_rate_hz

@@ -489,6 +489,80 @@ def record_cycles(ids: pd.DataFrame, arrays, rows, fs_hz: float, shafts, samples
     return np.mean(cycles, axis=0)
 
 
+# -- the window: the orders the bands reach -------------------------------------------------------
+# the share of the sampling rate a measurement chain passes flat: a sigma-delta acquisition's
+# anti-alias filter is flat to 0.45 fs (an analogue one rolls off earlier still); above it a line's
+# level is the filter's, not the machine's
+PASSBAND_SHARE = 0.45
+# the share of a healthy record's power (at the rig's lowest speed) the bands reach up to
+WINDOW_ENERGY_SHARE = 0.95
+# the row of a references table that holds the window (mesh harmonics, then the energy's order
+# and the passband's, for the log) the measured job chose
+WINDOW_ROW = "window"
+
+
+def passband_harmonics(fs_hz: float, fastest_rpm: float, teeth: int, ratio: float = 1.0) -> int:
+    """The most mesh harmonics of a shaft (`teeth`, speed `ratio` to the input shaft) whose
+    highest harmonic and its first sideband lie in the measurement chain's flat passband
+    (PASSBAND_SHARE x `fs_hz`) at the highest speed: beyond it the bands of the fastest records
+    would read the anti-alias filter or nothing."""
+    top_order = PASSBAND_SHARE * fs_hz / (float(ratio) * fastest_rpm / 60.0)
+    return int(np.floor((top_order - 1.0) / int(teeth)))
+
+
+def energy_order(healthy: np.ndarray, fs_hz: float, speed_rpm: float, share: float = WINDOW_ENERGY_SHARE) -> float:
+    """The input-shaft order below which `share` of the healthy segments' power lies
+    (segments (n_segments, n_channels, n_samples) at `speed_rpm`; their power spectra summed over
+    segments and channels, each channel's mean removed): where the rig's vibration lives."""
+    x = np.asarray(healthy, dtype=np.float64)
+    x = x - x.mean(axis=-1, keepdims=True)
+    power = (np.abs(np.fft.rfft(x, axis=-1)) ** 2).reshape(-1, x.shape[-1] // 2 + 1).sum(axis=0)
+    frequencies = np.fft.rfftfreq(x.shape[-1], 1.0 / fs_hz)
+    cumulative = np.cumsum(power) / max(power.sum(), TINY)
+    return float(frequencies[min(np.searchsorted(cumulative, share), len(frequencies) - 1)] / (speed_rpm / 60.0))
+
+
+def window_harmonics(healthy_by_speed: dict, fs_hz: float, shafts) -> tuple[int, float, int]:
+    """The residual window from the rig's healthy records ({speed_rpm: segments (n_segments,
+    n_channels, n_samples)}, the calibration records): (mesh harmonics the bands reach, the order
+    where the energy rule puts them, the passband's limit). The bands reach the mesh harmonic at
+    or above the order below which WINDOW_ENERGY_SHARE of the power lies at the lowest speed
+    (the orders there are the highest the rig's vibration reaches: its housings' and shafts'
+    modes stay at their frequencies), bounded by the passband at the highest speed
+    (`passband_harmonics`, on every shaft)."""
+    slowest, fastest = min(healthy_by_speed), max(healthy_by_speed)
+    _, ratio, teeth = shafts[0]
+    order = energy_order(healthy_by_speed[slowest], fs_hz, slowest)
+    limit = min(passband_harmonics(fs_hz, fastest, t, r) for _, r, t in shafts)
+    if limit < 1:
+        raise FeatureTableError(f"{KEY}: the first mesh harmonic of the {shafts[0][0]} lies above "
+                                f"{PASSBAND_SHARE:g} x the sampling rate ({fs_hz:g} Hz) at {fastest:g} rpm")
+    return max(1, min(int(np.ceil(order / (int(teeth) * float(ratio)))), limit)), order, limit
+
+
+def window_from_table(table) -> int | None:
+    """The mesh harmonics a `patterns_table` holds (None in one written before it held them)."""
+    if table is None:
+        return None
+    table = pd.DataFrame(table)
+    rows = table.loc[table["shaft"] == WINDOW_ROW, "pattern"]
+    return int(rows.iloc[0][0]) if len(rows) else None
+
+
+def resolved_window(mesh_harmonics, table, source: str) -> int:
+    """The mesh harmonics the bands reach: the config's count, or with `auto` the one the measured
+    job chose and `table` (a references table) holds, so every features table has the measured
+    one's columns."""
+    if mesh_harmonics != "auto":
+        return int(mesh_harmonics)
+    chosen = window_from_table(table)
+    if chosen is None:
+        raise FeatureTableError(f"{KEY}.mesh_harmonics: auto takes the window the measured records' job chose, "
+                                f"and {source} hold none (written before the window rule? rerun the measured "
+                                "features job)")
+    return chosen
+
+
 # -- the feature family --------------------------------------------------------------------------
 RESIDUAL_PARAMS = ("samples_per_revolution", "bands_per_mesh", "mesh_harmonics", "shaft_orders",
                    "phase_harmonic", "phase_band_orders", "phase_min_snr", "magnitudes", "reference_level")
@@ -544,11 +618,13 @@ TONES_ROW = "fixed_tones"
 
 
 def patterns_table(references: dict, condition: str, shafts, channels, cycles: dict | None = None,
-                   tones=()) -> pd.DataFrame:
+                   tones=(), window=None) -> pd.DataFrame:
     """The measured references as a table to write and package: one row per condition, shaft and
     channel, the pattern (one revolution) as a list; where a condition has a hunting-cycle
-    average (`cycles`), one row per channel with shaft `CYCLE_ROW`, the cycle as a list; and per
-    condition one row with shaft `TONES_ROW`, the fixed tones (Hz) as a list."""
+    average (`cycles`), one row per channel with shaft `CYCLE_ROW`, the cycle as a list; per
+    condition one row with shaft `TONES_ROW`, the fixed tones (Hz) as a list; and with `window`
+    ((mesh harmonics, energy order, passband limit): `window_harmonics`) one row per condition
+    with shaft `WINDOW_ROW`, it as a list."""
     rows = [{condition: key, "shaft": name, "channel": channel, "pattern": reference[k][c].tolist()}
             for key, reference in references.items() for k, (name, _, _) in enumerate(shafts)
             for c, channel in enumerate(channels)]
@@ -556,6 +632,9 @@ def patterns_table(references: dict, condition: str, shafts, channels, cycles: d
              for key, cycle in (cycles or {}).items() for c, channel in enumerate(channels)]
     rows += [{condition: key, "shaft": TONES_ROW, "channel": channels[0], "pattern": [float(f) for f in tones]}
              for key in references]
+    if window is not None:
+        rows += [{condition: key, "shaft": WINDOW_ROW, "channel": channels[0], "pattern": [float(v) for v in window]}
+                 for key in references]
     return pd.DataFrame(rows)
 
 
@@ -629,31 +708,43 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
     reference_level = str(params.get("reference_level", "whole"))
     if reference_level not in REFERENCE_LEVELS:
         raise FeatureTableError(f"{KEY}.reference_level: {reference_level!r} is none of {list(REFERENCE_LEVELS)}")
-    mesh_harmonics, shaft_orders = int(params["mesh_harmonics"]), int(params["shaft_orders"])
-    n_bands = bands_per_mesh * mesh_harmonics
+    shaft_orders = int(params["shaft_orders"])
     fs_hz = single_sampling_rate(signal_frame)
     ids, arrays = to_arrays(signal_frame, list(channels))
     ids = ids.reset_index(drop=True)
     speeds = ids["speed_rpm"].to_numpy(float)
-    for speed in np.unique(speeds):
-        check_resolution(fs_hz, float(speed), shafts, P, mesh_harmonics)
     phase = (int(params["phase_harmonic"]), float(params["phase_band_orders"]), float(params["phase_min_snr"]))
     revolutions = hunting_revolutions(shafts)
-    top = top_band_order(shafts[0][2] / bands_per_mesh, n_bands)
+    window = None  # (mesh harmonics, energy order, passband limit) where the rule chose them here
     if packaged is not None:
         condition, references, cycles, tones = patterns_from_table(packaged, shafts, list(channels))
         known = np.array(sorted(references))
         keys = [float(known[np.argmin(np.abs(known - v))]) for v in ids[condition].astype(float)]
+        mesh_harmonics = resolved_window(params["mesh_harmonics"], packaged, "the packaged model's references")
         arrays = without_fixed_tones(ids, arrays, fs_hz, shafts, tones)
     else:
         positions, keys = reference_rows(ids, against)
         if against["source"] == "measured":  # the calibration records' lines at one frequency at every speed
             chosen = sorted(i for rows in positions.values() for i in rows)
-            by_speed = ids.loc[chosen].groupby("speed_rpm").groups
-            tones = fixed_tones({speed: arrays[list(rows)] for speed, rows in by_speed.items()}, fs_hz)
+            by_speed = {speed: arrays[list(rows)] for speed, rows in ids.loc[chosen].groupby("speed_rpm").groups.items()}
+            tones = fixed_tones(by_speed, fs_hz)
+            if params["mesh_harmonics"] == "auto":  # the window from the calibration records (`window_harmonics`)
+                window = window_harmonics(by_speed, fs_hz, shafts)
+                log.info("residual window: up to mesh harmonic %d (%d orders of the %s); the healthy records' "
+                         "%.0f %% energy order at %g rpm %.0f, the passband's limit %d harmonics", window[0],
+                         window[0] * shafts[0][2], shafts[0][0], 100 * WINDOW_ENERGY_SHARE, min(by_speed),
+                         window[1], window[2])
+            mesh_harmonics = window[0] if window else int(params["mesh_harmonics"])
         else:  # a simulated machine has none, but loses the same orders as the measured records
             tones = tones_from_table(measured_references) if measured_references is not None else []
+            mesh_harmonics = resolved_window(params["mesh_harmonics"], measured_references,
+                                             "the measured records' references")
         arrays = without_fixed_tones(ids, arrays, fs_hz, shafts, tones)
+    n_bands = bands_per_mesh * mesh_harmonics
+    for speed in np.unique(speeds):
+        check_resolution(fs_hz, float(speed), shafts, P, mesh_harmonics)
+    top = top_band_order(shafts[0][2] / bands_per_mesh, n_bands)
+    if packaged is None:
         # a machine whose reference records cover the hunting cycle is taken against its average
         # over the cycle; one whose records are shorter, against its shafts' separated patterns
         cycles = {key: record_cycles(ids, arrays, rows, fs_hz, shafts, P, phase, top) for key, rows in positions.items()}
@@ -698,7 +789,7 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
     frame.attrs["referenced_columns"] = names
     if against is not None and against["source"] == "measured":
         frame.attrs["references"] = patterns_table(references, against["condition"], shafts, list(channels), cycles,
-                                                   tones)
+                                                   tones, window or (mesh_harmonics, np.nan, np.nan))
     return frame
 
 
