@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from condmon.features import read_feature_table
+from condmon.records import run_configfiles, save_record
 from condmon.separability import measured_separability
 
 
@@ -32,6 +33,8 @@ def main(argv=None) -> dict:
     print(text)
     if args.out:
         Path(args.out).write_text(text + "\n")
+    save_record("bench_separability", Path(args.results).name, out, script=__file__, argv=argv,
+                configfiles=run_configfiles(Path(args.results)))
     return out
 
 

@@ -40,7 +40,7 @@ for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
-from condmon.records import make_record, write_record  # noqa: E402
+from condmon.records import save_record  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -256,8 +256,7 @@ def main(argv=None) -> None:
     (args.out / "throughput.json").write_text(json.dumps(results, indent=2) + "\n")
     plot(results, args.out / "throughput.png")
     configfiles = sorted({spec.partition(":")[0] for spec in args.configs} | set(args.dag))
-    write_record(make_record("throughput", args.name, results, script=__file__, argv=argv,
-                             configfiles=configfiles))
+    save_record("throughput", args.name, results, script=__file__, argv=argv, configfiles=configfiles)
     print(f"wrote {args.out / 'throughput.json'} and throughput.png")
 
 

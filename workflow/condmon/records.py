@@ -97,17 +97,30 @@ def record_path(record: dict, directory: Path = RECORDS_DIR) -> Path:
     return Path(directory) / f"{record['benchmark']}-{name}.json"
 
 
-def write_record(record: dict, directory: Path = RECORDS_DIR) -> Path:
-    """Write `record` (stable key order, so a rerun's diff shows what changed); its path."""
-    path = record_path(record, directory)
+def write_record(record: dict, directory: Path | None = None) -> Path:
+    """Write `record` to `directory` (default RECORDS_DIR) in a stable key order, so a rerun's
+    diff shows what changed; its path."""
+    path = record_path(record, directory or RECORDS_DIR)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(record, indent=1, sort_keys=True, default=float) + "\n")
     print(f"wrote the record {path}")
     return path
 
 
-def read_records(directory: Path = RECORDS_DIR) -> list[dict]:
-    """Every record in `directory`, oldest first (by date, then file name)."""
-    paths = sorted(Path(directory).glob("*.json"))
+def save_record(benchmark: str, name: str, figures, *, script: str, argv=None, configfiles=()) -> Path:
+    """Make and write a record (`make_record`, `write_record`): the call a benchmark ends with."""
+    return write_record(make_record(benchmark, name, figures, script=script, argv=argv, configfiles=configfiles))
+
+
+def run_configfiles(run: Path) -> list[str]:
+    """The config a finished run ran with (its report/config.yaml, defaults filled in), for the
+    record of a benchmark that reads the run's results; [] where the run has no report yet."""
+    path = Path(run) / "report" / "config.yaml"
+    return [str(path)] if path.exists() else []
+
+
+def read_records(directory: Path | None = None) -> list[dict]:
+    """Every record in `directory` (default RECORDS_DIR), oldest first (by date, then file name)."""
+    paths = sorted(Path(directory or RECORDS_DIR).glob("*.json"))
     records = [json.loads(p.read_text()) for p in paths]
     return sorted(records, key=lambda r: r["date"])
