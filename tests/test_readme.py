@@ -82,6 +82,20 @@ def test_every_readme_command_is_one_the_test_can_run():
             check_of(step)  # raises for a command no test runs
 
 
+def broken_links(page: Path) -> list[str]:
+    """Relative links of a Markdown page whose file does not exist (anchors are not checked)."""
+    targets = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", page.read_text())
+    return [t for t in targets if "://" not in t and not (page.parent / t).exists()]
+
+
+def test_the_pages_link_to_files_that_exist(tmp_path):
+    pages = [README, ROOT / "CHANGELOG.md", ROOT / "config" / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    assert {str(p.relative_to(ROOT)): broken_links(p) for p in pages if broken_links(p)} == {}
+    page = tmp_path / "a.md"
+    page.write_text("[here](b.md), [web](https://example.org), [there](a.md#top)")
+    assert broken_links(page) == ["b.md"]
+
+
 def fresh_copy(folder: Path) -> Path:
     """The project's files as a fresh clone has them (tracked, and new files not ignored), with the
     shared data beside it where this machine has them, and the user's own files made empty."""
