@@ -153,8 +153,25 @@ def other_section(records: list[dict]) -> list[str]:
                         "mesh_stiffness_cost.py).", ""]
     for record in records:
         lines += [f"### {record['benchmark']}: {record['name']} ({record['date']})", "", provenance(record), ""]
-        lines += table(["figure", "value"], [[k, v] for k, v in flatten(record["figures"])]) + [""]
+        rest = dict(record["figures"]) if isinstance(record["figures"], dict) else {"figures": record["figures"]}
+        for key, value in list(rest.items()):
+            columns = row_columns(value)
+            if columns:  # a dict of like rows: one table, a row per entry
+                lines += [f"`{key}`:", ""] + table(["", *columns], [[name, *[row.get(c) for c in columns]]
+                                                                    for name, row in value.items()]) + [""]
+                del rest[key]
+        if rest:
+            lines += table(["figure", "value"], [[k, v] for k, v in flatten(rest)]) + [""]
     return lines
+
+
+def row_columns(value) -> list[str]:
+    """The common keys of a dict of flat dicts (a table's columns); [] for anything else."""
+    if not isinstance(value, dict) or not value or not all(isinstance(v, dict) for v in value.values()):
+        return []
+    keys = [list(v) for v in value.values()]
+    flat = all(not isinstance(x, (dict, list)) for v in value.values() for x in v.values())
+    return keys[0] if flat and all(k == keys[0] for k in keys) else []
 
 
 def render_results(records: list[dict]) -> str:

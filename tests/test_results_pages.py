@@ -61,3 +61,14 @@ def test_without_records_the_pages_say_no_record_yet(tmp_path):
     for section in ("the default bench", "the CFRP rig", "the bench variants", "CWRU", "simulation throughput"):
         part = results.lower().split(f"## {section.lower()}")[1].split("\n## ")[0]
         assert "no record yet" in part, section
+
+
+def test_other_records_render_their_like_rows_as_a_table():
+    record = {"benchmark": "hunting_cycle", "name": "seed9", "command": "python3 benchmarks/hunting_cycle.py",
+              "commit": "0123456789abcdef", "configfiles": [], "config_hash": None, "date": "2026-12-06",
+              "machine": {"cpu_count": 2, "cpu": "test CPU", "python": "3.11.7"},
+              "figures": {"speed_rpm": 450.0, "cases": {"3 s": {"median": 0.5, "pairs": 20},
+                                                        "6 s": {"median": 0.1, "pairs": 20}}}}
+    page = render.render_results([record]).split("## Other benchmarks")[1]
+    assert "|  | median | pairs |" in page and "| 6 s | 0.100 | 20 |" in page
+    assert "| speed_rpm | 450.000 |" in page
