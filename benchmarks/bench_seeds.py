@@ -17,7 +17,8 @@ The config's own bench seed is the config's own run where it has finished.
 - the fault-signature correlation per class (summary.json `fault_signatures`).
 
 and the mean over the seeds per speed and class, to `results/benchmark/bench_seeds.json` (the
-default run; `bench_seeds_<name>.json` for another).
+default run; `bench_seeds_<name>.json` for another) and to its committed record
+`benchmarks/records/bench_seeds-<name>.json` (condmon.records; docs/results.md renders it).
 
     python3 benchmarks/bench_seeds.py [--configfile config/config.yaml ...] [--seeds 7 8 9 10 11]
         [--layer benchmarks/seeds.yaml] [--cores 2] [--classifier svm] [--collect-only] [--name default]
@@ -34,6 +35,7 @@ import sys
 import time
 from pathlib import Path
 
+from condmon.records import save_record
 from condmon.separability import SHOWN_RECALL
 
 import numpy as np
@@ -166,6 +168,7 @@ def main(argv=None) -> int:
               f"(lowest {row['lowest_balanced_accuracy']:.3f}), false alarms {row['false_alarm_rate']:.3f}, "
               f"recall {json.dumps({k: round(v, 2) for k, v in row['recall'].items()})}")
     print(f"wrote {out}")
+    save_record("bench_seeds", name, result, script=__file__, argv=argv, configfiles=configfiles)
     return 0
 
 

@@ -21,6 +21,7 @@ import yaml
 
 from condmon.features import read_feature_table
 from condmon.hybrid import calibration_frame
+from condmon.records import run_configfiles, save_record
 from condmon.separability import measured_separability
 from condmon.systems import get_system
 
@@ -43,6 +44,8 @@ def main(argv=None) -> dict:
     print(text)
     if args.out:
         Path(args.out).write_text(text + "\n")
+    save_record("bench_separability", Path(args.results).name, out, script=__file__, argv=argv,
+                configfiles=run_configfiles(Path(args.results)))
     return out
 
 

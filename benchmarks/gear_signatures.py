@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from condmon.records import run_configfiles, save_record
 from condmon.signals import read_signal_table
 
 
@@ -74,6 +75,8 @@ def main(argv=None):
     print(text)
     if args.out:
         args.out.write_text(text + "\n")
+    save_record("gear_signatures", args.results.name, result, script=__file__, argv=argv,
+                configfiles=run_configfiles(args.results))
 
 
 if __name__ == "__main__":

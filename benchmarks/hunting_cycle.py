@@ -31,6 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # config_of: a project config file, merged and validated
 
 from conftest import config_of  # noqa: E402
+from condmon.records import save_record  # noqa: E402
 from condmon.signals import to_arrays  # noqa: E402
 from condmon.systems import get_system  # noqa: E402
 from condmon.systems.gear import BENCH_NUMERICS  # noqa: E402
@@ -90,8 +91,15 @@ def cycle_shares(system, bench: dict, speed: float, seconds: float, records: int
     return shares
 
 
+def figures_of(shares) -> dict:
+    """The median, range and count of residual shares (the record's figures of one case)."""
+    return {"median": round(float(np.median(shares)), 3), "min": round(min(shares), 3),
+            "max": round(max(shares), 3), "pairs": len(shares)}
+
+
 def summary(shares) -> str:
-    return f"median {np.median(shares):.3f} (range {min(shares):.3f}-{max(shares):.3f}, {len(shares)} pairs)"
+    f = figures_of(shares)
+    return f"median {f['median']:.3f} (range {f['min']:.3f}-{f['max']:.3f}, {f['pairs']} pairs)"
 
 
 def main(argv=None) -> None:
@@ -112,20 +120,28 @@ def main(argv=None) -> None:
     top = top_band_order(teeth / residual["bands_per_mesh"], residual["bands_per_mesh"] * residual["mesh_harmonics"])
     hunting = np.lcm(*[t for _, _, t in system.shafts()]) / teeth / (args.speed / 60.0)
     print(f"bench seed {bench['seed']}, {args.speed:g} rpm: the hunting cycle is {hunting:.2f} s")
+    figures = {"bench_seed": bench["seed"], "speed_rpm": args.speed, "hunting_cycle_s": round(float(hunting), 3),
+               "cases": {}}
     for seconds in args.seconds:
         patterns = [p[0] for p in pinion_patterns(system, bench, args.speed, seconds, args.records)]
         shares = [residual_share(patterns[i], patterns[j], teeth, top)
                   for i, j in itertools.permutations(range(len(patterns)), 2)]
         print(f"{seconds:.2f} s records, random starts: {summary(shares)}", flush=True)
+        figures["cases"][f"{seconds:.2f} s records, random starts"] = figures_of(shares)
         if args.contiguous:
             halves = pinion_patterns(system, bench, args.speed, seconds, args.records, pieces=2)
             shares = [residual_share(a, b, teeth, top) for first, second in halves
                       for a, b in ((first, second), (second, first))]
             print(f"{seconds:.2f} s, the two halves of one record: {summary(shares)}", flush=True)
+            figures["cases"][f"{seconds:.2f} s, the two halves of one record"] = figures_of(shares)
     if args.cycle:
         shares = cycle_shares(system, bench, args.speed, args.cycle, args.records, top)
-        print(f"{system.segment_length / system.output_rate_hz:.2f} s segments against another {args.cycle:g} s "
-              f"record's hunting cycle: {summary(shares)}", flush=True)
+        case = f"{system.segment_length / system.output_rate_hz:.2f} s segments against another {args.cycle:g} s " \
+               "record's hunting cycle"
+        print(f"{case}: {summary(shares)}", flush=True)
+        figures["cases"][case] = figures_of(shares)
+    save_record("hunting_cycle", f"seed{bench['seed']}-{args.speed:g}rpm", figures, script=__file__, argv=argv,
+                configfiles=[args.configfile])
 
 
 if __name__ == "__main__":

@@ -35,6 +35,8 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
+from condmon.records import run_configfiles, save_record
+
 KEYS = ["measured_percent", "repeat", "holdout", "record_id", "segment"]
 
 
@@ -103,11 +105,15 @@ def main(argv=None) -> None:
               "design, loads 2-3": frame["record_id"].map(load).gt(1).to_numpy()}
     print(f"{run}: {args.protocol}, 0 % measured, design records only, per segment; the fit's "
           f"features: {', '.join(own)}\n")
+    figures = {}
     for name, called in candidates.items():
         scored = frame.assign(call=called)
-        cells = [f"{group} {balanced(scored[mask], 'call')[0]:.3f} {balanced(scored[mask], 'call')[1]}"
-                 for group, mask in groups.items() if mask.any()]
+        figures[name] = {group: dict(zip(("balanced", "recall"), balanced(scored[mask], "call")))
+                         for group, mask in groups.items() if mask.any()}
+        cells = [f"{group} {f['balanced']:.3f} {f['recall']}" for group, f in figures[name].items()]
         print(f"{name:20s}", " | ".join(cells))
+    save_record("join_candidates", f"{run.name}-{args.protocol}", {"protocol": args.protocol, "candidates": figures},
+                script=__file__, argv=argv, configfiles=run_configfiles(run))
 
 
 if __name__ == "__main__":

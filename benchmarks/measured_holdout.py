@@ -26,6 +26,7 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 
 from condmon.classifiers import make_classifier
+from condmon.records import run_configfiles, save_record
 
 
 def held_out_calls(frame: pd.DataFrame, names: list[str], unit: str, classifier: str,
@@ -54,6 +55,7 @@ def main(argv=None) -> None:
     names = [c for c in frame.columns if c.startswith("DE_")]
     print(f"{run}: measured design records only ({frame['record_id'].nunique()} records, "
           f"{len(frame)} segments), features {', '.join(names)}\n")
+    figures = {}
     for classifier in ("svm", "knn"):
         info = json.loads((run / "train" / classifier / "unseen_fault" / "info.json").read_text())
         for unit, label in (("record_id", "leave one record out"), ("specimen", "leave one specimen out")):
@@ -63,6 +65,10 @@ def main(argv=None) -> None:
             per_specimen = right.groupby(frame["specimen"]).mean().round(3)
             print(f"{classifier}, {label}: per class {per_class.to_dict()}")
             print(f"    per specimen {per_specimen.to_dict()}\n")
+            figures.setdefault(classifier, {})[unit] = {"per_class": per_class.to_dict(),
+                                                        "per_specimen": per_specimen.to_dict()}
+    save_record("measured_holdout", run.name, figures, script=__file__, argv=argv,
+                configfiles=run_configfiles(run))
 
 
 if __name__ == "__main__":

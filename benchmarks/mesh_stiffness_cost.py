@@ -33,6 +33,7 @@ import yaml  # noqa: E402
 from condmon.systems.gear.parameters import build_parameters, simulation_settings  # noqa: E402
 from condmon.models.gear.drivetrain import simulate  # noqa: E402
 from condmon.models.gear.mesh_force import MeshForce  # noqa: E402
+from condmon.records import save_record  # noqa: E402
 
 MODELS = ("simple", "potential_energy")
 
@@ -92,10 +93,12 @@ def main(argv=None):
             ratios.append(ratio)
             print(f"  {health:14s} {speed:6.0f} rpm: {ratio:.2f}")
     print(f"  mean {statistics.mean(ratios):.2f}, max {max(ratios):.2f}")
+    figures = dict(seconds=args.seconds, repeats=args.repeats, simulated_seconds_per_run=simulated, rows=rows,
+                   ratios=ratios)
     if args.out:
-        args.out.write_text(json.dumps(dict(method=__doc__, seconds=args.seconds, repeats=args.repeats,
-                                            simulated_seconds_per_run=simulated, rows=rows,
-                                            ratios=ratios), indent=2) + "\n")
+        args.out.write_text(json.dumps(dict(method=__doc__, **figures), indent=2) + "\n")
+    save_record("mesh_stiffness_cost", args.shaft_model, figures, script=__file__, argv=argv,
+                configfiles=["config/config.yaml"])
 
 
 if __name__ == "__main__":

@@ -9,7 +9,8 @@ its test segments called right, pooled over its records; then, per group of reco
 specimens; design specimens at the loads the shared folder has and at the others; another
 bearing), each method's accuracy, class recalls and balanced accuracy (their mean). Methods are
 the report's classifiers: the joined methods, the classifiers and the physics rules. Read only:
-it computes nothing the report did not, it groups it.
+it computes nothing the report did not, it groups it. Its record:
+benchmarks/records/specimen_table-<run>.json (condmon.records; docs/results.md renders it).
 """
 from __future__ import annotations
 
@@ -18,6 +19,8 @@ import json
 from pathlib import Path
 
 import pandas as pd
+
+from condmon.records import run_configfiles, save_record
 
 
 def load(run: Path, protocol: str, percent: int) -> pd.DataFrame:
@@ -64,6 +67,11 @@ def main(argv=None) -> None:
         print(f"{args.run}: {args.protocol}, {args.percent} % measured, per segment\n")
         print(specimen_table(rows).to_string(), "\n")
         print(group_table(rows).to_string())
+    figures = {"protocol": args.protocol, "measured_percent": args.percent,
+               "per_specimen": json.loads(specimen_table(rows).reset_index().to_json(orient="records")),
+               "per_group": json.loads(group_table(rows).reset_index().to_json(orient="records"))}
+    save_record("specimen_table", args.run.name, figures, script=__file__, argv=argv,
+                configfiles=run_configfiles(args.run))
 
 
 if __name__ == "__main__":

@@ -9,10 +9,12 @@ bands, every channel) at the configured step against a step four times smaller, 
 
 Writes <out>/throughput.json (seconds of wall time per simulated second: median, min, max;
 samples per hour per core; the speed-up on `--workers` cores; peak memory per worker; the
-convergence; the machine) and <out>/throughput.png.
+convergence; the machine) and <out>/throughput.png, and its record
+benchmarks/records/throughput-<name>.json (condmon.records).
 
     python3 benchmarks/throughput.py [--configs config/config.yaml config/cwru.yaml ...]
         [--repeats 3] [--workers 2] [--dag config/cfrp-study.yaml ...] [--out results/benchmark]
+        [--name default]
 """
 from __future__ import annotations
 
@@ -37,6 +39,8 @@ for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
+
+from condmon.records import save_record  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -229,6 +233,7 @@ def main(argv=None) -> None:
     parser.add_argument("--dag", nargs="*", default=[], help="configs whose DAG size to count")
     parser.add_argument("--no-convergence", action="store_true")
     parser.add_argument("--out", type=Path, default=ROOT / "results" / "benchmark")
+    parser.add_argument("--name", default="default", help="the record's name")
     args = parser.parse_args(argv)
     if args.repeats < 1 or args.workers < 1:
         parser.error("--repeats and --workers must be at least 1")
@@ -250,6 +255,8 @@ def main(argv=None) -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "throughput.json").write_text(json.dumps(results, indent=2) + "\n")
     plot(results, args.out / "throughput.png")
+    configfiles = sorted({spec.partition(":")[0] for spec in args.configs} | set(args.dag))
+    save_record("throughput", args.name, results, script=__file__, argv=argv, configfiles=configfiles)
     print(f"wrote {args.out / 'throughput.json'} and throughput.png")
 
 

@@ -27,6 +27,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "workflow")]
+from condmon.records import save_record  # noqa: E402
+
 TARGET_S = 15.0  # issue #15: the default run's track job
 
 
@@ -91,6 +93,8 @@ def main(argv=None) -> int:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=1) + "\n")
     print(json.dumps({k: v for k, v in result.items() if k != "runs"}))
+    save_record("track_logging", "default", {k: v for k, v in result.items() if k != "machine"},
+                script=__file__, argv=argv, configfiles=["config/config.yaml"])
     return 0
 
 

@@ -68,3 +68,23 @@ def test_a_seed_runs_under_its_own_name_unless_it_is_the_configs_finished_run(tm
     (tmp_path / "results" / "gears" / "report").mkdir(parents=True)
     (tmp_path / "results" / "gears" / "report" / "summary.json").write_text("{}")
     assert bench_seeds.run_name_of([config], 7) == ("gears", False)
+
+
+def test_the_benchmark_writes_its_record(tmp_path, monkeypatch):
+    """A collected seed table lands in benchmarks/records/ as bench_seeds-<name>.json, with the
+    command and config files that made it (here a finished run of the config's own seed)."""
+    from condmon import records
+
+    config = tmp_path / "c.yaml"
+    config.write_text("run_name: gears\nvirtual_bench: {seed: 7}\n")
+    fake_report(tmp_path / "results" / "gears" / "report", {"healthy": 1.0, "surface_fault": 0.9, "missing_tooth": 1.0},
+                {"healthy": 1.0, "surface_fault": 1.0, "missing_tooth": 1.0}, {"surface_fault": 0.8})
+    monkeypatch.setattr(bench_seeds, "ROOT", tmp_path)
+    monkeypatch.setattr(records, "RECORDS_DIR", tmp_path / "records")
+    argv = ["--configfile", str(config), "--seeds", "7", "--layer", "none", "--collect-only", "--name", "t"]
+    assert bench_seeds.main(argv) == 0
+    record = json.loads((tmp_path / "records" / "bench_seeds-t.json").read_text())
+    assert record["command"].startswith("python3 benchmarks/bench_seeds.py --configfile")
+    assert record["configfiles"] == [str(config)] and record["config_hash"]
+    assert record["figures"]["per_seed"][0]["seed"] == 7
+    assert record["figures"]["mean"][0]["balanced_accuracy"] == pytest.approx(0.9)

@@ -1,0 +1,258 @@
+"""Render docs/results.md and the README's table of the default run from the committed benchmark
+records (benchmarks/records/, condmon.records): every figure in them comes from a record, with
+the command, commit, config hash and machine that made it. tests/test_results_pages.py fails when
+either page differs from what the records render.
+
+    python3 benchmarks/render_results.py            # rewrite docs/results.md and README.md's table
+    python3 benchmarks/render_results.py --check    # exit 1, naming the page, where one is stale
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from condmon.records import read_records
+
+ROOT = Path(__file__).resolve().parents[1]
+README_BEGIN = "<!-- results: rendered by benchmarks/render_results.py from benchmarks/records/ -->"
+README_END = "<!-- /results -->"
+SEED_COMMAND = "python3 benchmarks/bench_seeds.py --configfile config/config.yaml --seeds 7 8 9 10 11 --name default"
+NO_RECORD = "No record yet: run `{command}` (it writes the record under `benchmarks/records/`)."
+
+
+def number(value, digits: int = 3) -> str:
+    """A figure as the tables print it: fixed decimals, `-` where there is none."""
+    if value is None or value != value:  # None or NaN
+        return "-"
+    return f"{value:.{digits}f}" if isinstance(value, float) else str(value)
+
+
+def table(header: list[str], rows: list[list]) -> list[str]:
+    """A Markdown table."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    return lines + ["| " + " | ".join(number(c) for c in row) + " |" for row in rows]
+
+
+def provenance(record: dict) -> str:
+    """Where a record's figures come from: command, commit, config hash and machine."""
+    machine = record["machine"]
+    config = f", config hash `{record['config_hash']}`" if record.get("config_hash") else ""
+    return (f"`{record['command']}` at commit `{record['commit'][:10]}`{config}; {machine['cpu_count']} cores "
+            f"({machine['cpu']}), Python {machine['python']}; `benchmarks/records/{record['benchmark']}-"
+            f"{record['name']}.json`.")
+
+
+def bench_of(record: dict) -> str:
+    """Which bench a seed record ran: a variant of config/benches/, else its first config's stem
+    (`config` is the default bench)."""
+    files = [Path(p) for p in record.get("configfiles", [])]
+    variants = [p.stem for p in files if p.parent.name == "benches"]
+    if variants:
+        return variants[0]
+    return "default" if not files or files[0].stem == "config" else files[0].stem
+
+
+def seed_rows(figures: dict) -> tuple[list[str], list[list]]:
+    """The seed table of a bench_seeds record: one row per seed, speed and measured share, then the
+    mean over the seeds, with each health state's recall."""
+    states = sorted({s for row in figures["per_seed"] + figures["mean"] for s in row["recall"]})
+    header = ["seed", "speed (rpm)", "measured", "classifier", "balanced accuracy", "false alarms",
+              *[f"recall {s}" for s in states], "exempt"]
+    classifier = figures["per_seed"][0]["classifier"] if figures["per_seed"] else "-"
+    rows = [[row["seed"], f"{row['speed_rpm']:g}", f"{row['measured_percent']} %", row["classifier"],
+             row["balanced_accuracy"], row["false_alarm_rate"], *[row["recall"].get(s) for s in states],
+             ", ".join(row["exempt"]) or "none"]
+            for row in sorted(figures["per_seed"], key=lambda r: (r["measured_percent"], r["seed"], r["speed_rpm"]))]
+    rows += [[f"**mean of {row['seeds']}**", f"{row['speed_rpm']:g}", f"{row['measured_percent']} %", classifier,
+              row["balanced_accuracy"], row["false_alarm_rate"], *[row["recall"].get(s) for s in states],
+              "; ".join(f"seed {k}: {', '.join(v)}" for k, v in row["exempt"].items()) or "none"]
+             for row in sorted(figures["mean"], key=lambda r: (r["measured_percent"], r["speed_rpm"]))]
+    return header, rows
+
+
+def seed_section(title: str, records: list[dict], command: str) -> list[str]:
+    """A section of seed tables, one per record, newest first."""
+    lines = [f"## {title}", ""]
+    if not records:
+        return lines + [NO_RECORD.format(command=command), ""]
+    for record in reversed(records):
+        lines += [f"### {record['name']} ({bench_of(record)} bench, {record['date']})", "", provenance(record), ""]
+        lines += table(*seed_rows(record["figures"])) + [""]
+    return lines
+
+
+def throughput_section(records: list[dict]) -> list[str]:
+    """The newest throughput record: cost per simulated second and throughput per system."""
+    lines = ["## Simulation throughput", ""]
+    if not records:
+        return lines + [NO_RECORD.format(command="python3 benchmarks/throughput.py"), ""]
+    record = records[-1]
+    figures = record["figures"]
+    workers = figures["workers"]
+    load = figures["machine"].get("load_average_at_start")
+    lines += [f"{record['date']}: " + provenance(record) + (f" Load average at the start: {load}." if load else ""),
+              "", "Wall seconds per simulated second on one core (median, min-max over the repeats after a "
+              "warm-up); samples per hour on one core and on all workers; the step check is the largest "
+              "difference of the noise-free spectrum bands within 40 dB of each channel's strongest against a "
+              "step four times smaller.", ""]
+    rows = []
+    for system, entry in figures["systems"].items():
+        cost = entry["wall_seconds_per_simulated_second"]
+        check = entry.get("convergence", {}).get("max_difference_db", {}).get("bands_within_40_db")
+        where = ", ".join(f"{p['function']} {100 * p['share']:.0f} %" for p in entry.get("profile", [])[:2])
+        rows.append([system, f"{cost['median']:.3f} ({cost['min']:.3f}-{cost['max']:.3f})",
+                     entry["samples_per_hour_one_core"], entry[f"samples_per_hour_{workers}_cores"],
+                     f"{entry['speedup']:.2f}", entry["peak_memory_mb_per_worker"],
+                     "-" if check is None else f"{check:.3f}", where])
+    lines += table(["system", "wall s per simulated s", "samples/h, 1 core", f"samples/h, {workers} cores",
+                    "speed-up", "peak MB per worker", "step check (dB)", "where the time goes"], rows)
+    jobs = figures.get("dag_jobs")
+    if jobs:
+        lines += ["", "Jobs in the whole DAG: " + ", ".join(f"`{c}` {n}" for c, n in jobs.items()) + "."]
+    return lines + [""]
+
+
+def specimen_section(records: list[dict]) -> list[str]:
+    """The CWRU runs' figures per group of records and per specimen (specimen_table records)."""
+    lines = ["## CWRU bearings per specimen", ""]
+    command = "python3 benchmarks/specimen_table.py results/<cwru run>"
+    if not records:
+        return lines + [NO_RECORD.format(command=command), ""]
+    for record in reversed(records):
+        figures = record["figures"]
+        lines += [f"### {record['name']}: {figures['protocol']}, {figures['measured_percent']} % measured "
+                  f"({record['date']})", "", provenance(record), ""]
+        groups = figures["per_group"]
+        labels = sorted({k for g in groups for k in g} - {"group", "classifier", "accuracy", "balanced"})
+        lines += table(["records", "method", "accuracy", "balanced", *labels],
+                       [[g["group"], g["classifier"], g["accuracy"], g["balanced"], *[g.get(k) for k in labels]]
+                        for g in groups]) + [""]
+        specimens = figures["per_specimen"]
+        methods = sorted({k for s in specimens for k in s} - {"group", "specimen"})
+        lines += table(["records", "specimen", *methods],
+                       [[s["group"], s["specimen"], *[s.get(m) for m in methods]] for s in specimens]) + [""]
+    return lines
+
+
+def flatten(value, prefix: str = "") -> list[tuple[str, object]]:
+    """(dotted key, leaf) pairs of nested figures, for records without a table of their own."""
+    if isinstance(value, dict):
+        return [pair for key, sub in value.items() for pair in flatten(sub, f"{prefix}{key}.")]
+    if isinstance(value, list) and any(isinstance(v, (dict, list)) for v in value):
+        return [pair for i, sub in enumerate(value) for pair in flatten(sub, f"{prefix}{i}.")]
+    return [(prefix.rstrip("."), value)]
+
+
+def other_section(records: list[dict]) -> list[str]:
+    """Every other benchmark's newest record per name, its figures as key-value rows."""
+    lines = ["## Other benchmarks", ""]
+    if not records:
+        return lines + ["No record yet of the other benchmarks (hunting_cycle.py, track_logging.py, "
+                        "join_candidates.py, measured_holdout.py, gear_signatures.py, bench_separability.py, "
+                        "mesh_stiffness_cost.py).", ""]
+    for record in records:
+        lines += [f"### {record['benchmark']}: {record['name']} ({record['date']})", "", provenance(record), ""]
+        rest = dict(record["figures"]) if isinstance(record["figures"], dict) else {"figures": record["figures"]}
+        for key, value in list(rest.items()):
+            columns = row_columns(value)
+            if columns:  # a dict of like rows: one table, a row per entry
+                lines += [f"`{key}`:", ""] + table(["", *columns], [[name, *[row.get(c) for c in columns]]
+                                                                    for name, row in value.items()]) + [""]
+                del rest[key]
+        if rest:
+            lines += table(["figure", "value"], [[k, v] for k, v in flatten(rest)]) + [""]
+    return lines
+
+
+def row_columns(value) -> list[str]:
+    """The common keys of a dict of flat dicts (a table's columns); [] for anything else."""
+    if not isinstance(value, dict) or not value or not all(isinstance(v, dict) for v in value.values()):
+        return []
+    keys = [list(v) for v in value.values()]
+    flat = all(not isinstance(x, (dict, list)) for v in value.values() for x in v.values())
+    return keys[0] if flat and all(k == keys[0] for k in keys) else []
+
+
+def render_results(records: list[dict]) -> str:
+    """docs/results.md from the records (oldest first, as condmon.records.read_records gives them)."""
+    seeds = [r for r in records if r["benchmark"] == "bench_seeds"]
+    default = [r for r in seeds if bench_of(r) == "default"]
+    cfrp = [r for r in seeds if bench_of(r).startswith("cfrp")]
+    variants = [r for r in seeds if r not in default and r not in cfrp]
+    tables = {"bench_seeds", "throughput", "specimen_table"}
+    lines = ["# Results", "",
+             "Rendered by `python3 benchmarks/render_results.py` from the records in `benchmarks/records/`; "
+             "do not edit by hand. Each benchmark writes its record when it runs; the history of how the "
+             "method came to these figures is in [experiments/](experiments/).", ""]
+    lines += seed_section("The default bench over seeds", default, SEED_COMMAND)
+    lines += seed_section("The CFRP rig over seeds", cfrp,
+                          "python3 benchmarks/bench_seeds.py --configfile config/cfrp.yaml --seeds 7 --name cfrp")
+    lines += seed_section("The bench variants (config/benches/)", variants,
+                          "python3 benchmarks/bench_seeds.py --configfile config/config.yaml "
+                          "config/benches/<bench>.yaml --seeds <its seed> --name variant-<bench>")
+    lines += specimen_section([r for r in records if r["benchmark"] == "specimen_table"])
+    lines += throughput_section([r for r in records if r["benchmark"] == "throughput"])
+    lines += other_section([r for r in records if r["benchmark"] not in tables])
+    return "\n".join(lines).rstrip("\n") + "\n"
+
+
+def render_readme_table(records: list[dict]) -> str:
+    """The README's one table: the newest default-bench seed record's means at 0 % and 100 %
+    measured data (no date: the README says what the run shows now)."""
+    default = [r for r in records if r["benchmark"] == "bench_seeds" and bench_of(r) == "default"]
+    if not default:
+        return ("No record yet of the default run's figures over bench seeds: "
+                f"`{SEED_COMMAND}` writes it ([docs/results.md](docs/results.md)).")
+    record = default[-1]
+    means = {(m["speed_rpm"], m["measured_percent"]): m for m in record["figures"]["mean"]}
+    speeds = sorted({speed for speed, _ in means})
+    rows = []
+    for speed in speeds:
+        zero, full = means.get((speed, 0), {}), means.get((speed, 100), {})
+        rows.append([f"{speed:g}", zero.get("balanced_accuracy"), zero.get("lowest_balanced_accuracy"),
+                     zero.get("false_alarm_rate"), full.get("balanced_accuracy")])
+    seeds = sorted({row["seed"] for row in record["figures"]["per_seed"]})
+    classifier = record["figures"]["per_seed"][0]["classifier"].upper()
+    lines = table(["speed (rpm)", "0 % measured: balanced accuracy", "lowest seed", "false alarms",
+                   "100 % measured"], rows)
+    return "\n".join(lines + ["", f"{classifier}, `record_split`, mean over bench seeds "
+                              f"{', '.join(map(str, seeds))}; from `{record['command']}` at commit "
+                              f"`{record['commit'][:10]}` (per seed and state: [docs/results.md](docs/results.md))."])
+
+
+def with_readme_table(readme: str, block: str) -> str:
+    """README text with the text between its result markers replaced by `block`."""
+    start, end = readme.index(README_BEGIN) + len(README_BEGIN), readme.index(README_END)
+    return readme[:start] + "\n" + block + "\n" + readme[end:]
+
+
+def pages(root: Path = ROOT, records: list[dict] | None = None) -> dict[Path, str]:
+    """{path: text} of the rendered pages."""
+    records = read_records(root / "benchmarks" / "records") if records is None else records
+    readme = (root / "README.md").read_text()
+    return {root / "docs" / "results.md": render_results(records),
+            root / "README.md": with_readme_table(readme, render_readme_table(records))}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--check", action="store_true", help="only say which page is stale")
+    args = parser.parse_args(argv)
+    stale = []
+    for path, text in pages().items():
+        if path.exists() and path.read_text() == text:
+            continue
+        stale.append(path)
+        if not args.check:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text)
+            print(f"wrote {path.relative_to(ROOT)}")
+    if args.check and stale:
+        print("stale (run python3 benchmarks/render_results.py): " + ", ".join(str(p.relative_to(ROOT)) for p in stale))
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

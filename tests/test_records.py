@@ -1,0 +1,62 @@
+"""condmon.records: a benchmark's record names its command, commit, config, machine and date
+beside its figures, is written under a stable name and read back in date order."""
+import json
+import subprocess
+
+import pytest
+
+from condmon import records
+from conftest import ROOT
+
+
+def test_a_record_names_what_made_its_figures(tmp_path):
+    config = tmp_path / "a.yaml"
+    config.write_text("x: 1\n")
+    record = records.make_record("bench", "seeds 7-11", {"accuracy": 0.9}, script=str(ROOT / "benchmarks" / "b.py"),
+                                 argv=["--seeds", "7", "8"], configfiles=[config], date="2026-12-06")
+    assert record["command"] == "python3 benchmarks/b.py --seeds 7 8"
+    assert record["figures"] == {"accuracy": 0.9} and record["date"] == "2026-12-06"
+    assert set(record["machine"]) == {"cpu_count", "cpu", "python"}
+    assert record["commit"] == records.COMMIT_AT_START and len(record["commit"].split("+")[0]) == 40
+    # the hash follows the config's text, and the order the files layer in
+    first = record["config_hash"]
+    config.write_text("x: 2\n")
+    assert records.config_hash([config]) != first
+    other = tmp_path / "b.yaml"
+    other.write_text("y: 1\n")
+    assert records.config_hash([config, other]) != records.config_hash([other, config])
+    assert records.config_hash([]) is None
+
+
+def test_records_are_written_under_a_stable_name_and_read_oldest_first(tmp_path):
+    newer = {"benchmark": "throughput", "name": "default", "date": "2026-12-06", "figures": {"b": 2}}
+    older = {"benchmark": "bench_seeds", "name": "cfrp/x y", "date": "2026-12-01", "figures": {"a": 1}}
+    assert records.write_record(newer, tmp_path).name == "throughput-default.json"
+    assert records.write_record(older, tmp_path).name == "bench_seeds-cfrp_x_y.json"
+    assert [r["figures"] for r in records.read_records(tmp_path)] == [{"a": 1}, {"b": 2}]
+    # a rerun replaces the file, keys in a stable order
+    records.write_record(dict(newer, figures={"b": 3}), tmp_path)
+    text = (tmp_path / "throughput-default.json").read_text()
+    assert json.loads(text)["figures"] == {"b": 3} and text.index('"benchmark"') < text.index('"figures"')
+
+
+def test_the_cpu_model_and_the_commit(tmp_path):
+    assert records.cpu_model("processor\t: 0\nmodel name\t: AMD EPYC 7B13\n") == "AMD EPYC 7B13"
+    assert records.git_commit(tmp_path) == "unknown"  # not a checkout
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t"]
+    subprocess.run([*git, "init", "-q"], cwd=tmp_path, check=True)
+    (tmp_path / "f").write_text("1")
+    subprocess.run([*git, "add", "f"], cwd=tmp_path, check=True)
+    subprocess.run([*git, "commit", "-qm", "one"], cwd=tmp_path, check=True)
+    clean = records.git_commit(tmp_path)
+    assert len(clean) == 40 and "+" not in clean
+    (tmp_path / "f").write_text("2")
+    assert records.git_commit(tmp_path) == clean + "+dirty"
+
+
+@pytest.mark.parametrize("script", sorted(p.name for p in (ROOT / "benchmarks").glob("*.py")
+                                          if p.name not in ("throughput_guard.py", "render_results.py")))
+def test_every_benchmark_writes_a_record(script):
+    """Each benchmark that reports figures ends with condmon.records.save_record (the guard keeps
+    its own baseline file; the renderer reads the records)."""
+    assert "save_record(" in (ROOT / "benchmarks" / script).read_text()
