@@ -368,8 +368,20 @@ def test_a_packaged_model_takes_a_new_record_against_its_reference_waveforms():
     ids, x = model.feature_matrix(new)
     expected = written.set_index("record_id").loc[ids["record_id"], names].to_numpy()
     np.testing.assert_allclose(x, expected, atol=1e-5)
-    assert model.predict_segments(new).set_index("record_id")["predicted_label"].to_dict() == \
-        {"new": "healthy", "new-pitted": "surface_fault"}
+    segments = model.predict_segments(new)
+    assert segments.set_index("record_id")["predicted_label"].to_dict() == {"new": "healthy", "new-pitted": "surface_fault"}
+    # and where the pit sits: the tooth the written table names for the same record, on the
+    # reference's tooth frame, in the record's health summary
+    from condmon.signal_model import health_summary, record_predictions
+
+    written_at = written.attrs["fault_locations"].set_index("record_id")
+    pitted = segments.set_index("record_id").loc["new-pitted"]
+    assert pitted["location_pinion"] == written_at.loc["new-pitted", "position"]
+    summary = health_summary(record_predictions(segments, model.classes, "healthy"), model.classes, "healthy")
+    summary = summary.set_index("record_id")
+    assert summary.loc["new-pitted", "location_pinion"] == pitted["location_pinion"]
+    assert summary.loc["new-pitted", "location_agreement_pinion"] == 1.0
+    assert np.isnan(summary.loc["new", "location_pinion"])  # called healthy: no location
 
 
 def test_the_features_read_the_residual_on_the_bands_orders_only():

@@ -341,6 +341,9 @@ class GearSystem(System):
         shafts = {"shafts": [list(shaft) for shaft in self.shafts()]}
         if family == "residual":  # the shafts whose gear or shaft the simulated faults damage
             shafts["damaged_shafts"] = self.damaged_shafts()
+            # how many pitches a tooth meshes over (transverse plus overlap ratio): where a
+            # located tooth's change may lie
+            shafts["contact_ratio"] = round(float(self.parameters().geometry.total_contact_ratio), 3)
         return shafts
 
     def damaged_shafts(self) -> list[str]:
