@@ -14,14 +14,20 @@ The config's own bench seed is the config's own run where it has finished.
   `measured_separability`): a class is *exempt* on that seed where the ceiling names it
   `not_shown` (its recall below `EXEMPT_BELOW` while the ceiling reads above chance: the bench
   cannot show it, so no method trained on simulation can be asked to);
-- the fault-signature correlation per class (summary.json `fault_signatures`).
+- the fault-signature correlation per class (summary.json `fault_signatures`);
+- the share of each localised fault's records whose damaged tooth is named right (summary.json
+  `fault_location`), where the bench's records carry the truth.
 
-and the mean over the seeds per speed and class, to `results/benchmark/bench_seeds.json` (the
+With `--benches` the shipped bench variants (config/benches/*.yaml: other gears, housings, grids,
+fault sizes and teeth, each with its own seed) run beside the seeds, layered over the config
+files, each under its own run name; with several `--classifier`s every classifier's rows. Then
+the mean over every bench per classifier, speed and class, to `results/benchmark/bench_seeds.json` (the
 default run; `bench_seeds_<name>.json` for another) and to its committed record
 `benchmarks/records/bench_seeds-<name>.json` (condmon.records; docs/results.md renders it).
 
     python3 benchmarks/bench_seeds.py [--configfile config/config.yaml ...] [--seeds 7 8 9 10 11]
-        [--layer benchmarks/seeds.yaml] [--cores 2] [--classifier svm] [--collect-only] [--name default]
+        [--benches config/benches/*.yaml] [--layer benchmarks/seeds.yaml] [--cores 2]
+        [--classifier svm knn cnn] [--collect-only] [--name default]
 
 `--layer` (default benchmarks/seeds.yaml; `--layer none` for the whole config) is layered over the
 config files: the SVM alone at 0 % and 100 %, whose figures are those of the full config.
@@ -45,8 +51,8 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 EXEMPT_BELOW = SHOWN_RECALL  # a class the bench's own records find less often than this is exempt there
 PROTOCOL = "record_split"
-COLUMNS = ("seed", "speed_rpm", "measured_percent", "classifier", "balanced_accuracy", "false_alarm_rate",
-           "recall", "bench_only_recall", "bench_only_chance", "exempt", "signature_correlation")
+COLUMNS = ("bench", "seed", "speed_rpm", "measured_percent", "classifier", "balanced_accuracy", "false_alarm_rate",
+           "recall", "bench_only_recall", "bench_only_chance", "exempt", "signature_correlation", "located")
 
 
 def config_value(configfiles, section: str, key: str, default):
@@ -69,10 +75,12 @@ def run_name_of(configfiles, seed: int) -> tuple[str, bool]:
     return f"{base}-seed{seed}", True
 
 
-def run_seed(configfiles, seed: int, run_name: str, cores: int) -> float:
-    """Run (or complete) the pipeline of one seed; its wall seconds."""
+def run_seed(configfiles, seed: int | None, run_name: str, cores: int) -> float:
+    """Run (or complete) the pipeline of one seed (None: the config files' own bench); its wall
+    seconds."""
+    bench = [f"virtual_bench={json.dumps({'seed': seed})}"] if seed is not None else []
     command = [sys.executable, "-m", "snakemake", "--cores", str(cores), "--configfile", *configfiles,
-               "--config", f"run_name={run_name}", f"virtual_bench={json.dumps({'seed': seed})}"]
+               "--config", f"run_name={run_name}", *bench]
     start = time.perf_counter()
     print(f"seed {seed}: {' '.join(command)}", flush=True)
     subprocess.run(command, cwd=ROOT, check=True)
@@ -84,9 +92,11 @@ def speed_of(condition: str) -> float | None:
     return float(condition.split("=", 1)[1]) if "=" in condition else None
 
 
-def seed_rows(report: Path, seed: int, classifier: str) -> list[dict]:
-    """One row per speed and measured percentage (0, 100) of one seed's report (module docstring)."""
+def seed_rows(report: Path, seed: int, classifier: str, bench: str | None = None) -> list[dict]:
+    """One row per speed and measured percentage (0, 100) of one bench's report (module
+    docstring); `bench` its name (default `seed<k>`)."""
     summary = json.loads((report / "summary.json").read_text())
+    located = (summary.get("fault_location") or {}).get("per_class") or {}
     evaluation = pd.read_csv(report / "evaluation_summary.csv")
     shares = pd.read_csv(report / "prediction_shares.csv")
     separability = summary.get("measured_separability", {}).get("per_condition", {})
@@ -106,12 +116,14 @@ def seed_rows(report: Path, seed: int, classifier: str) -> list[dict]:
             entry = separability.get(f"{speed:g}") or {}
             ceiling = entry.get("recall_per_class") or {}
             classes = (signatures.get(f"{speed:g}") or {}).get("classes", {})
-            rows.append({"seed": seed, "speed_rpm": speed, "measured_percent": percent, "classifier": classifier,
+            rows.append({"bench": bench or f"seed{seed}", "seed": seed, "speed_rpm": speed,
+                         "measured_percent": percent, "classifier": classifier,
                          "balanced_accuracy": float(row.balanced_accuracy_mean),
                          "false_alarm_rate": float(row.false_alarm_rate_mean),
                          "recall": recall, "bench_only_recall": ceiling, "bench_only_chance": entry.get("chance"),
                          "exempt": sorted(entry.get("not_shown") or []),
-                         "signature_correlation": {c: v.get("direction_correlation") for c, v in classes.items()}})
+                         "signature_correlation": {c: v.get("direction_correlation") for c, v in classes.items()},
+                         "located": located})
     return rows
 
 
@@ -121,20 +133,23 @@ def means(rows: list[dict]) -> list[dict]:
     exempt), the lowest seed's balanced accuracy and the highest false-alarm rate."""
     out = []
     frame = pd.DataFrame(rows)
-    for (speed, percent), part in frame.groupby(["speed_rpm", "measured_percent"]):
+    if "classifier" not in frame:  # rows of one classifier from before several were collected
+        frame["classifier"] = "svm"
+    for (classifier, speed, percent), part in frame.groupby(["classifier", "speed_rpm", "measured_percent"]):
         classes = sorted({c for r in part["recall"] for c in r})
         recall = {c: float(np.mean([r[c] for r, ex in zip(part["recall"], part["exempt"]) if c in r and c not in ex]
                                    or [np.nan])) for c in classes}
         correlation = {c: float(np.nanmean([s.get(c) if s.get(c) is not None else np.nan
                                             for s in part["signature_correlation"]] or [np.nan]))
                        for c in classes if any(c in s for s in part["signature_correlation"])}
-        out.append({"speed_rpm": float(speed), "measured_percent": int(percent), "seeds": int(len(part)),
+        out.append({"classifier": classifier, "speed_rpm": float(speed), "measured_percent": int(percent),
+                    "seeds": int(len(part)),
                     "balanced_accuracy": float(part["balanced_accuracy"].mean()),
                     "lowest_balanced_accuracy": float(part["balanced_accuracy"].min()),
                     "false_alarm_rate": float(part["false_alarm_rate"].mean()),
                     "highest_false_alarm_rate": float(part["false_alarm_rate"].max()),
                     "recall": recall, "signature_correlation": correlation,
-                    "exempt": {int(r.seed): r.exempt for r in part.itertuples() if r.exempt}})
+                    "exempt": {str(getattr(r, "bench", r.seed)): r.exempt for r in part.itertuples() if r.exempt}})
     return out
 
 
@@ -144,7 +159,8 @@ def main(argv=None) -> int:
     parser.add_argument("--seeds", nargs="+", type=int, default=[7, 8, 9, 10, 11])
     parser.add_argument("--layer", default="benchmarks/seeds.yaml", help="config layered last, or none")
     parser.add_argument("--cores", type=int, default=2)
-    parser.add_argument("--classifier", default="svm")
+    parser.add_argument("--classifier", nargs="+", default=["svm"])
+    parser.add_argument("--benches", nargs="*", default=[], help="bench variants (config/benches/*.yaml)")
     parser.add_argument("--collect-only", action="store_true", help="only collect finished runs")
     parser.add_argument("--name", default=None, help="output name (default: the config's run_name)")
     args = parser.parse_args(argv)
@@ -154,9 +170,19 @@ def main(argv=None) -> int:
     for seed in args.seeds:
         run_name, to_run = run_name_of(args.configfile, seed)
         if to_run and not args.collect_only:
-            seconds[seed] = run_seed(configfiles, seed, run_name, args.cores)
-        rows += seed_rows(ROOT / "results" / run_name / "report", seed, args.classifier)
-    result = {"configfiles": configfiles, "protocol": PROTOCOL, "exempt_below": EXEMPT_BELOW,
+            seconds[f"seed{seed}"] = run_seed(configfiles, seed, run_name, args.cores)
+        rows += [row for classifier in args.classifier
+                 for row in seed_rows(ROOT / "results" / run_name / "report", seed, classifier)]
+    for variant in args.benches:  # each its own bench: its run name and seed, layered over the config
+        files = list(args.configfile) + [variant] + configfiles[len(args.configfile):]
+        run_name, bench = config_value(files, None, "run_name", Path(variant).stem), Path(variant).stem
+        if not args.collect_only:
+            seconds[bench] = run_seed(files, None, run_name, args.cores)
+        rows += [row for classifier in args.classifier
+                 for row in seed_rows(ROOT / "results" / run_name / "report",
+                                      config_value(files, "virtual_bench", "seed", None), classifier, bench)]
+    result = {"configfiles": configfiles, "benches": list(args.benches), "protocol": PROTOCOL,
+              "exempt_below": EXEMPT_BELOW,
               "columns": list(COLUMNS), "per_seed": rows, "mean": means(rows),
               "wall_seconds": seconds}
     name = args.name or base
@@ -164,7 +190,8 @@ def main(argv=None) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1))
     for row in result["mean"]:
-        print(f"{row['speed_rpm']:g} rpm {row['measured_percent']:3d} %: balanced {row['balanced_accuracy']:.3f} "
+        print(f"{row['classifier']} {row['speed_rpm']:g} rpm {row['measured_percent']:3d} %: "
+              f"balanced {row['balanced_accuracy']:.3f} "
               f"(lowest {row['lowest_balanced_accuracy']:.3f}), false alarms {row['false_alarm_rate']:.3f}, "
               f"recall {json.dumps({k: round(v, 2) for k, v in row['recall'].items()})}")
     print(f"wrote {out}")

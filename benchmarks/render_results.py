@@ -57,17 +57,27 @@ def seed_rows(figures: dict) -> tuple[list[str], list[list]]:
     """The seed table of a bench_seeds record: one row per seed, speed and measured share, then the
     mean over the seeds, with each health state's recall."""
     states = sorted({s for row in figures["per_seed"] + figures["mean"] for s in row["recall"]})
-    header = ["seed", "speed (rpm)", "measured", "classifier", "balanced accuracy", "false alarms",
-              *[f"recall {s}" for s in states], "exempt"]
-    classifier = figures["per_seed"][0]["classifier"] if figures["per_seed"] else "-"
-    rows = [[row["seed"], f"{row['speed_rpm']:g}", f"{row['measured_percent']} %", row["classifier"],
+    header = ["bench", "speed (rpm)", "measured", "classifier", "balanced accuracy", "false alarms",
+              *[f"recall {s}" for s in states], "tooth named right", "exempt"]
+    default = figures["per_seed"][0]["classifier"] if figures["per_seed"] else "-"
+
+    def bench(row):  # records from before the variants ran beside the seeds name the seed only
+        return row.get("bench") or f"seed {row['seed']}"
+
+    def located(row):
+        return ", ".join(f"{s} {v:.2f}" for s, v in sorted((row.get("located") or {}).items())) or "-"
+
+    rows = [[bench(row), f"{row['speed_rpm']:g}", f"{row['measured_percent']} %", row["classifier"],
              row["balanced_accuracy"], row["false_alarm_rate"], *[row["recall"].get(s) for s in states],
-             ", ".join(row["exempt"]) or "none"]
-            for row in sorted(figures["per_seed"], key=lambda r: (r["measured_percent"], r["seed"], r["speed_rpm"]))]
-    rows += [[f"**mean of {row['seeds']}**", f"{row['speed_rpm']:g}", f"{row['measured_percent']} %", classifier,
-              row["balanced_accuracy"], row["false_alarm_rate"], *[row["recall"].get(s) for s in states],
-              "; ".join(f"seed {k}: {', '.join(v)}" for k, v in row["exempt"].items()) or "none"]
-             for row in sorted(figures["mean"], key=lambda r: (r["measured_percent"], r["speed_rpm"]))]
+             located(row), ", ".join(row["exempt"]) or "none"]
+            for row in sorted(figures["per_seed"], key=lambda r: (r["classifier"], r["measured_percent"], bench(r),
+                                                                  r["speed_rpm"]))]
+    rows += [[f"**mean of {row['seeds']}**", f"{row['speed_rpm']:g}", f"{row['measured_percent']} %",
+              row.get("classifier", default), row["balanced_accuracy"], row["false_alarm_rate"],
+              *[row["recall"].get(s) for s in states], "-",
+              "; ".join(f"{k}: {', '.join(v)}" for k, v in row["exempt"].items()) or "none"]
+             for row in sorted(figures["mean"], key=lambda r: (r.get("classifier", default), r["measured_percent"],
+                                                               r["speed_rpm"]))]
     return header, rows
 
 

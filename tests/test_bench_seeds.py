@@ -14,20 +14,20 @@ spec.loader.exec_module(bench_seeds)
 CLASSES = ("healthy", "surface_fault", "missing_tooth")
 
 
-def fake_report(folder, recall: dict, ceiling: dict, correlation: dict):
+def fake_report(folder, recall: dict, ceiling: dict, correlation: dict, classifiers=("svm",)):
     """The three report files the benchmark reads, as the report writes them, for one speed (450)."""
     folder.mkdir(parents=True)
-    rows = [{"classifier": "svm", "protocol": "record_split", "measured_percent": p, "condition": condition,
+    rows = [{"classifier": classifier, "protocol": "record_split", "measured_percent": p, "condition": condition,
              "records": "all", "balanced_accuracy_mean": 0.9 if p == 0 else 1.0,
              "false_alarm_rate_mean": 0.05 if p == 0 else 0.0}
-            for p in (0, 100) for condition in ("all", "speed_rpm=450")]
+            for p in (0, 100) for condition in ("all", "speed_rpm=450") for classifier in classifiers]
     pd.DataFrame(rows).to_csv(folder / "evaluation_summary.csv", index=False)
-    shares = [{"classifier": "svm", "protocol": "record_split", "measured_percent": p, "speed_rpm": 450.0,
+    shares = [{"classifier": classifier, "protocol": "record_split", "measured_percent": p, "speed_rpm": 450.0,
                "true_label": true, "predicted_label": predicted,
                "share": (recall[true] if predicted == true else 1 - recall[true]) if p == 0 else float(predicted == true),
                "n": 8}
               for p in (0, 100) for true in CLASSES
-              for predicted in (true, next(c for c in CLASSES if c != true))]
+              for predicted in (true, next(c for c in CLASSES if c != true)) for classifier in classifiers]
     pd.DataFrame(shares).to_csv(folder / "prediction_shares.csv", index=False)
     chance = {"mean": 1 / 3, "upper": 0.5, "permutations": 50}
     summary = {"measured_separability": {"per_condition": {"450": {
@@ -55,7 +55,7 @@ def test_the_seed_table_has_every_column_and_exempts_what_the_bench_cannot_show(
     assert mean["seeds"] == 2 and mean["balanced_accuracy"] == pytest.approx(0.9)
     # the exempt seed's recall is left out of the class's mean, and the table says which seed
     assert mean["recall"]["surface_fault"] == pytest.approx(0.9)
-    assert mean["exempt"] == {8: ["surface_fault"]}
+    assert mean["exempt"] == {"seed8": ["surface_fault"]}
     assert mean["signature_correlation"]["surface_fault"] == pytest.approx(0.5)
 
 
@@ -88,3 +88,30 @@ def test_the_benchmark_writes_its_record(tmp_path, monkeypatch):
     assert record["configfiles"] == [str(config)] and record["config_hash"]
     assert record["figures"]["per_seed"][0]["seed"] == 7
     assert record["figures"]["mean"][0]["balanced_accuracy"] == pytest.approx(0.9)
+
+
+def test_the_variants_run_beside_the_seeds_each_under_its_own_name(tmp_path, monkeypatch):
+    """--benches: a bench variant is collected from its own run (its run_name, its seed), beside the
+    seeds, for every classifier asked; the means pool every bench per classifier."""
+    from condmon import records
+
+    config, variant = tmp_path / "c.yaml", tmp_path / "benches" / "other.yaml"
+    variant.parent.mkdir()
+    config.write_text("run_name: gears\nvirtual_bench: {seed: 7}\n")
+    variant.write_text("run_name: bench-other\nvirtual_bench: {seed: 21}\n")
+    perfect = {"healthy": 1.0, "surface_fault": 1.0, "missing_tooth": 1.0}
+    both = ("svm", "knn")
+    fake_report(tmp_path / "results" / "gears" / "report", perfect, perfect, {"surface_fault": 0.8}, both)
+    fake_report(tmp_path / "results" / "bench-other" / "report", {"healthy": 1.0, "surface_fault": 0.5,
+                                                                  "missing_tooth": 1.0}, perfect, {"surface_fault": 0.6},
+                both)
+    monkeypatch.setattr(bench_seeds, "ROOT", tmp_path)
+    monkeypatch.setattr(records, "RECORDS_DIR", tmp_path / "records")
+    argv = ["--configfile", str(config), "--seeds", "7", "--benches", str(variant), "--layer", "none",
+            "--classifier", "svm", "knn", "--collect-only", "--name", "t"]
+    assert bench_seeds.main(argv) == 0
+    figures = json.loads((tmp_path / "records" / "bench_seeds-t.json").read_text())["figures"]
+    assert {(r["bench"], r["seed"], r["classifier"]) for r in figures["per_seed"]} == {
+        ("seed7", 7, "svm"), ("seed7", 7, "knn"), ("other", 21, "svm"), ("other", 21, "knn")}
+    mean = next(m for m in figures["mean"] if m["classifier"] == "knn" and m["measured_percent"] == 0)
+    assert mean["seeds"] == 2 and mean["recall"]["surface_fault"] == pytest.approx(0.75)

@@ -368,8 +368,20 @@ def test_a_packaged_model_takes_a_new_record_against_its_reference_waveforms():
     ids, x = model.feature_matrix(new)
     expected = written.set_index("record_id").loc[ids["record_id"], names].to_numpy()
     np.testing.assert_allclose(x, expected, atol=1e-5)
-    assert model.predict_segments(new).set_index("record_id")["predicted_label"].to_dict() == \
-        {"new": "healthy", "new-pitted": "surface_fault"}
+    segments = model.predict_segments(new)
+    assert segments.set_index("record_id")["predicted_label"].to_dict() == {"new": "healthy", "new-pitted": "surface_fault"}
+    # and where the pit sits: the tooth the written table names for the same record, on the
+    # reference's tooth frame, in the record's health summary
+    from condmon.signal_model import health_summary, record_predictions
+
+    written_at = written.attrs["fault_locations"].set_index("record_id")
+    pitted = segments.set_index("record_id").loc["new-pitted"]
+    assert pitted["location_pinion"] == written_at.loc["new-pitted", "position"]
+    summary = health_summary(record_predictions(segments, model.classes, "healthy"), model.classes, "healthy")
+    summary = summary.set_index("record_id")
+    assert summary.loc["new-pitted", "location_pinion"] == pitted["location_pinion"]
+    assert summary.loc["new-pitted", "location_agreement_pinion"] == 1.0
+    assert np.isnan(summary.loc["new", "location_pinion"])  # called healthy: no location
 
 
 def test_the_features_read_the_residual_on_the_bands_orders_only():
@@ -403,9 +415,9 @@ def orders_pattern(orders, rng, amplitude=1.0) -> np.ndarray:
 
 def test_the_window_reaches_where_the_healthy_power_lies_within_the_passband():
     """The bands reach the mesh harmonic at or above the order below which 95 % of the healthy
-    records' power lies at the lowest speed, bounded at the highest speed by the passband (0.45 x
-    the sampling rate): a 20-tooth pinion sampled at 5120 Hz up to 1100 rpm keeps 6 harmonics
-    (order 121 at 2218 Hz), a 29-tooth one 4 (order 117)."""
+    records' power lies at the lowest speed, bounded at the highest speed by an analyser's usable
+    band (the sampling rate / 2.56): a 20-tooth pinion sampled at 5120 Hz up to 1100 rpm keeps 5
+    harmonics (order 101 at 1852 Hz, below 2000 Hz), a 29-tooth one 3 (order 88)."""
     rng = np.random.default_rng(4)
     fs = 5120.0
     angle = 450.0 / 60.0 * np.arange(int(1.5 * fs)) / fs
@@ -418,8 +430,8 @@ def test_the_window_reaches_where_the_healthy_power_lies_within_the_passband():
     assert rf.window_harmonics({450.0: segments(100), 1100.0: segments(100)}, fs, CFRP_SHAFTS)[0] == 5
     # vibration up to order 300 at 450 rpm (2250 Hz): the passband at 1100 rpm bounds it
     harmonics, order, limit = rf.window_harmonics({450.0: segments(300), 1100.0: segments(100)}, fs, CFRP_SHAFTS)
-    assert (harmonics, limit) == (6, 6) and order > 280
-    assert rf.passband_harmonics(fs, 1100.0, PINION) == 4
+    assert (harmonics, limit) == (5, 5) and order > 280
+    assert rf.passband_harmonics(fs, 1100.0, PINION) == 3
     with pytest.raises(FeatureTableError, match="mesh harmonic"):
         rf.window_harmonics({450.0: segments(100), 8000.0: segments(100)}, fs, CFRP_SHAFTS)
 

@@ -166,6 +166,29 @@ def gear_mesh(p) -> GearMesh:
                     damage_maps=damage_maps(p))
 
 
+def excitation_tables(p) -> tuple[np.ndarray, np.ndarray]:
+    """(the mesh excitation's constants in mesh_kernel's layout (START_PHASE, MESH_FREQUENCY, ...),
+    the run-out of each shaft that has one: (amplitude, shaft angle per mesh period, phase))."""
+    g = p.geometry
+    mesh_frequency = p.speed_rpm / 60.0 * g.teeth_pinion
+    constants = np.array([
+        float(p.start_mesh_phase), mesh_frequency, p.speed_fluctuation, 2 * math.pi * p.speed_fluctuation_hz,
+        p.speed_fluctuation_phase, math.cos(p.speed_fluctuation_phase), 1.0 / g.base_pitch], dtype=float)
+    runout = np.array([(amplitude, 2 * math.pi / g.teeth_pinion * ratio, offset)
+                       for amplitude, ratio, offset in ((p.runout_pinion, 1.0, p.runout_phase_pinion),
+                                                        (p.runout_gear, g.teeth_pinion / g.teeth_gear,
+                                                         p.runout_phase_gear))
+                       if amplitude], dtype=float).reshape(-1, 3)
+    return constants, runout
+
+
+def mesh_phase_at(p, t: float) -> float:
+    """The mesh phase (mesh periods: pair j, pinion tooth j mod z1, enters mesh at phase j) the
+    model's excitation has at time `t` of a run of `p`: where the teeth stand at a record's first
+    sample (`t` the settling time)."""
+    return float(mesh_excitation(float(t), *excitation_tables(p))[0])
+
+
 class MeshForce:
     """The `simple` mesh: pair j nominally in contact while its phase is in [0, contact ratio),
     all pairs equally stiff, the extended contact (tip gap) outside the window; the chipped tooth
@@ -201,15 +224,7 @@ class MeshForce:
         self.inverse_damping_onset = 1.0 / operating_deflection(p) if damping else 0.0
         self.backlash = p.backlash
         self.te_amplitude = p.transmission_error
-        # the excitation's constants in mesh_kernel's layout (START_PHASE, MESH_FREQUENCY, ...)
-        self.excitation_constants = np.array([
-            float(p.start_mesh_phase), self.mesh_frequency, p.speed_fluctuation, 2 * math.pi * p.speed_fluctuation_hz,
-            p.speed_fluctuation_phase, math.cos(p.speed_fluctuation_phase), self.inverse_base_pitch], dtype=float)
-        # run-out of each shaft that has one: (amplitude, shaft angle per mesh period, phase)
-        self.runout = np.array([(amplitude, 2 * math.pi / g.teeth_pinion * ratio, offset)
-                                for amplitude, ratio, offset in ((p.runout_pinion, 1.0, p.runout_phase_pinion),
-                                                                 (p.runout_gear, self.gear_ratio, p.runout_phase_gear))
-                                if amplitude], dtype=float).reshape(-1, 3)
+        self.excitation_constants, self.runout = excitation_tables(p)
         pinion = _pitch_errors(p.pitch_errors_pinion, g.teeth_pinion, "pinion")
         gear = _pitch_errors(p.pitch_errors_gear, g.teeth_gear, "gear")
         # pair j meets pinion tooth j mod z1 and gear tooth j mod z2: periodic in lcm(z1, z2)

@@ -28,6 +28,7 @@ from scipy.signal import lfilter
 
 from condmon.models.gear.drivetrain import GearDrivetrainParameters, PeriodicLoad, SimulationSettings, simulate
 from condmon.models.gear.errors import FlankMap, draw_gear_errors
+from condmon.models.gear.mesh_force import mesh_phase_at
 
 
 @dataclass(frozen=True)
@@ -132,11 +133,12 @@ def bench_fault(health_state: str, faults: dict, teeth: int, faulty_tooth: int, 
 
 
 def bench_record(true_params: GearDrivetrainParameters, form: BenchForm, settings: SimulationSettings,
-                 rng: np.random.Generator, gears: dict, fault_maps: tuple = ()) -> dict[str, np.ndarray]:
+                 rng: np.random.Generator, gears: dict, fault_maps: tuple = ()) -> tuple[dict[str, np.ndarray], float]:
     """One acquisition of the bench at `true_params` (speed and health state the model runs
     included) with its own gears (`bench_gears`) and damage (`fault_maps`, `bench_fault`): random
     phases of the fluctuations and bearing tones, a random start angle of the shafts, then white
-    plus coloured sensor noise."""
+    plus coloured sensor noise. (signals, the mesh phase at the record's first sample: which teeth
+    stand where, the truth a located tooth is scored against)."""
     g = true_params.geometry
     shaft_hz = true_params.speed_rpm / 60.0
     shaft_frequencies = (shaft_hz, shaft_hz, shaft_hz * g.teeth_pinion / g.teeth_gear,
@@ -160,7 +162,8 @@ def bench_record(true_params: GearDrivetrainParameters, form: BenchForm, setting
         start_mesh_phase=float(rng.uniform(0, math.lcm(g.teeth_pinion, g.teeth_gear))),
         **dict(gears, damage_maps_pinion=tuple(fault_maps)))
     signals = simulate(params, settings, extra_loads=loads)
-    return {name: signal + sensor_noise(len(signal), form, rng) for name, signal in signals.items()}
+    return ({name: signal + sensor_noise(len(signal), form, rng) for name, signal in signals.items()},
+            mesh_phase_at(params, settings.settle_time))
 
 
 def sensor_noise(n: int, form: BenchForm, rng: np.random.Generator) -> np.ndarray:

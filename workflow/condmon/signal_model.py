@@ -158,7 +158,9 @@ class SignalModel:
 
     # -- features and predictions ----------------------------------------------------------
     def feature_matrix(self, frame: pd.DataFrame) -> tuple[pd.DataFrame, np.ndarray]:
-        """(ids, features) of a checked signal table, one row per (record, segment)."""
+        """(ids, features) of a checked signal table, one row per (record, segment); where a
+        feature family locates faults, `ids.attrs["fault_locations"]` holds where on the machine
+        each segment's change sits (`condmon.report.fault_location`)."""
         f = self.features
         own = {}  # the system's own families (System.feature_families), loaded only when used
         if any(family not in FEATURE_FAMILIES for family in str(f["kind"]).split("+")):
@@ -172,7 +174,9 @@ class SignalModel:
         if missing:  # a feature-code change since training: never classify other features
             raise ValueError(f"the features of this signal table lack {missing[:5]} that the model "
                              "was trained on; is condmon newer than the model?")
-        ids = table[["record_id", "segment", "health_state", "speed_rpm", "load"]]
+        ids = table[["record_id", "segment", "health_state", "speed_rpm", "load"]].copy()
+        if table.attrs.get("fault_locations") is not None:
+            ids.attrs["fault_locations"] = table.attrs["fault_locations"]
         x = table[f["feature_names"]].to_numpy(np.float64, copy=True)
         reference = self.reference()
         if reference is not None:  # the change since the machine was known healthy, as in training
@@ -203,6 +207,14 @@ class SignalModel:
         outside = self.outside_training(x)
         if outside is not None:
             out["outside_training"] = outside
+        located = ids.attrs.get("fault_locations")
+        if located is not None:  # per damaged part: where the change sits, and how sure
+            for part, rows in located.groupby("part", sort=False):
+                at = rows.set_index(["record_id", "segment"])
+                keys = pd.MultiIndex.from_frame(out[["record_id", "segment"]])
+                out[f"location_{part}"] = at["position"].reindex(keys).to_numpy()
+                out[f"location_share_{part}"] = at["share"].reindex(keys).to_numpy()
+        out.attrs = {}
         return out
 
     def outside_training(self, x: np.ndarray) -> np.ndarray | None:
@@ -255,6 +267,14 @@ def record_predictions(segments: pd.DataFrame, classes, healthy_state: str) -> p
                      **{f"vote_{c}": float(share[c]) for c in classes},
                      **{f"p_{c}": float(v) for c, v in zip(classes, p)}})
     records = pd.DataFrame(rows)
+    for column in [c for c in segments.columns if c.startswith("location_") and not c.startswith("location_share_")]:
+        part = column[len("location_"):]
+        named = segments.groupby("record_id")[column].agg(lambda v: v.mode().min() if v.notna().any() else np.nan)
+        agreement = segments.assign(named=segments["record_id"].map(named)).groupby("record_id").apply(
+            lambda g: float((g[column] == g["named"]).mean()), include_groups=False)
+        records[column] = records["record_id"].map(named)
+        records[f"location_agreement_{part}"] = records["record_id"].map(agreement)
+        records[f"location_share_{part}"] = records["record_id"].map(segments.groupby("record_id")[f"location_share_{part}"].mean())
     if "outside_training" in segments:
         records["outside_training"] = records["record_id"].map(
             segments.groupby("record_id")["outside_training"].mean())
@@ -263,9 +283,12 @@ def record_predictions(segments: pd.DataFrame, classes, healthy_state: str) -> p
 
 def health_summary(records: pd.DataFrame, classes, healthy_state: str) -> pd.DataFrame:
     """Per record: status (``healthy`` / ``fault``), the likeliest fault and its vote share,
-    the share of segments called healthy, whether the label agrees with a known truth, and (where
+    the share of segments called healthy, whether the label agrees with a known truth, (where
     the model keeps its training range) the share of segments outside it: a call that rests on
-    no training example."""
+    no training example, and (where a feature family locates faults) for a record called faulty
+    where on each damaged part the fault sits (``location_<part>``, in the machine's own frame:
+    the system's docs say what a position is), how many of its segments agree and how sure they
+    are."""
     faults = [c for c in classes if c != healthy_state]
     rows = []
     for row in records.to_dict("records"):
@@ -281,7 +304,10 @@ def health_summary(records: pd.DataFrame, classes, healthy_state: str) -> pd.Dat
                      "likeliest_fault_share": row[f"vote_{likeliest}"] if likeliest else np.nan,
                      "n_segments": row["n_segments"], "true_label": row["true_label"],
                      "correct": (row["predicted_label"] == row["true_label"]) if known else None,
-                     **({"outside_training": row["outside_training"]} if "outside_training" in row else {})})
+                     **({"outside_training": row["outside_training"]} if "outside_training" in row else {}),
+                     # where a located fault sits on the machine (a record called healthy: none)
+                     **{key: (value if row["predicted_label"] != healthy_state else np.nan)
+                        for key, value in row.items() if key.startswith("location_")}})
     return pd.DataFrame(rows)
 
 

@@ -308,7 +308,20 @@ def measured_reference_output():
         outputs["family_references"] = (
             f"{RESULTS}/features/measured_family_references.parquet"
         )
+        # ... and where on the machine each measured segment's change sits
+        outputs["fault_locations"] = f"{RESULTS}/features/measured_fault_locations.csv"
     return outputs
+
+
+def measured_fault_locations_input():
+    """The report's input of where on the machine each measured segment's change sits, where a
+    feature family locates faults."""
+    output = measured_reference_output()
+    return (
+        {"fault_locations": output["fault_locations"]}
+        if "fault_locations" in output
+        else {}
+    )
 
 
 def measured_family_references_input():

@@ -77,6 +77,8 @@ rule report:
             for state in STATE_CALIBRATIONS
         },
         **{f"benchmarks_{rule}": files for rule, files in upstream_benchmarks().items()},
+        # where on the machine each measured segment's change sits (a system family's)
+        **measured_fault_locations_input(),
         # the classifiers' and the joined methods' (scored alike, beside their parts)
         metrics=train_outputs("metrics.csv") + joined_outputs("metrics.csv"),
         predictions=train_outputs("predictions.parquet")

@@ -5,7 +5,7 @@ system's own families, or several of these side by side).
 """
 import pandas as pd
 
-from condmon.atomic import write_frame
+from condmon.atomic import write_frame, write_text
 from condmon.features import compute_feature_table_from_files, feature_columns, write_feature_table
 from condmon import reference
 from condmon.runlog import setup_logging
@@ -42,6 +42,7 @@ frame = compute_feature_table_from_files(signal_paths, channels, kind,
 names = feature_columns(frame)
 referenced = list(frame.attrs.get("referenced_columns", ()))  # a family that took its reference itself
 family_references = frame.attrs.get("references")  # ... and its measured references, to package
+fault_locations = frame.attrs.get("fault_locations")  # ... and where on the machine each segment's change sits
 frame.attrs = {}
 config = {"channels": channels, "spectrum": spectrum, "kind": kind, "statistical": statistical}
 config.update(families)  # only with a system family, so the other families' config hash stays as it was
@@ -60,6 +61,8 @@ if against:
             log.warning(message)
         if "family_references" in snakemake.output.keys():
             write_frame(family_references, snakemake.output.family_references)
+        if "fault_locations" in snakemake.output.keys():
+            write_text(fault_locations.to_csv(index=False), snakemake.output.fault_locations)
         write_frame(reference.reference_table(table, against["condition"]), snakemake.output.reference)
         log.info("measured segments taken against the calibration set's mean at %s %s", against["condition"],
                  sorted(table.index.tolist()))

@@ -43,6 +43,7 @@ summary = write_report(ReportInputs(
                                 design_specimens=params.design_specimens,
                                 unmodelled=params.get("unmodelled", {}),
                                 calibration_set=params.get("calibration_set"),
+                                fault_locations=inputs.get("fault_locations"),
                                 confusion_percent=params.get("confusion_percent", [0])),
     upstream=StageRecords(simulation_reports=inputs.simulation_reports,
                           measured_records=inputs.measured_records,

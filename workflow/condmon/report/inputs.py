@@ -117,6 +117,9 @@ class EvaluationInputs(_Frozen):
     # takes them), or None: what the calibrate jobs saw (and, with the healthy reference on, what
     # the features were taken against), so the measured-only ceiling leaves it out
     calibration_set: Mapping | None = None
+    # where on the machine each measured segment's change sits (measured_fault_locations.csv, a
+    # system family's), or None
+    fault_locations: Path_ | None = None
     confusion_percent: tuple[int, ...] = (0,)   # report.confusion_percent (+ the largest)
     _sequences = ("design_records", "design_specimens", "confusion_percent")
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from condmon.report import (accuracy, calibration, ceiling, conditions, evaluation_tables, gain,
                             headline, physics, prediction_shares, recall_per_record, signatures,
-                            stages, timings)
+                            stages, timings, fault_location)
 from condmon.report.section import Section, Table
 
 SECTIONS: list[Section] = [
@@ -23,6 +23,7 @@ SECTIONS: list[Section] = [
     conditions.SECTION,
     headline.SECTION,
     recall_per_record.SECTION,
+    fault_location.SECTION,
 ]
 
 

@@ -341,6 +341,9 @@ class GearSystem(System):
         shafts = {"shafts": [list(shaft) for shaft in self.shafts()]}
         if family == "residual":  # the shafts whose gear or shaft the simulated faults damage
             shafts["damaged_shafts"] = self.damaged_shafts()
+            # how many pitches a tooth meshes over (transverse plus overlap ratio): where a
+            # located tooth's change may lie
+            shafts["contact_ratio"] = round(float(self.parameters().geometry.total_contact_ratio), 3)
         return shafts
 
     def damaged_shafts(self) -> list[str]:
@@ -369,7 +372,8 @@ class GearSystem(System):
                 if min(passband_harmonics(self.output_rate_hz, max(self.speeds_rpm), teeth, ratio)
                        for _, ratio, teeth in shafts) < 1:
                     problems.append(f"features.residual.mesh_harmonics: auto finds no mesh harmonic within "
-                                    f"{PASSBAND_SHARE:g} x rig.output_rate_hz at {max(self.speeds_rpm):g} rpm")
+                                    f"rig.output_rate_hz / 2.56 ({self.output_rate_hz * PASSBAND_SHARE:g} Hz) at "
+                                    f"{max(self.speeds_rpm):g} rpm")
                 return problems + self._order_problems("features.residual", shafts, 1)
             return problems + self._order_problems("features.residual", shafts, order["mesh_harmonics"])
         fastest, slowest = max(self.speeds_rpm) / 60, min(self.speeds_rpm) / 60

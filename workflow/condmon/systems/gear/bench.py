@@ -40,10 +40,14 @@ def virtual_bench_rows(parameters, bench: dict, health_states, speeds_rpm, numer
             params = parameters(speed_rpm=float(speed), health_state=model_state, **truth)
             for k in range(bench["records_per_state"]):
                 start = time.perf_counter()
-                signals = bench_record(params, form, settings, rng, gears, fault_maps)
+                signals, mesh_phase = bench_record(params, form, settings, rng, gears, fault_maps)
                 log.info("virtual bench %s %s rpm record %d of %d: %.1f s", health_state, speed, k + 1,
                          bench["records_per_state"], time.perf_counter() - start)
+                # the truth a located tooth is scored against: where the teeth stood at the first
+                # sample, and which pinion teeth the bench damaged
+                truth_of_record = {"mesh_phase": mesh_phase,
+                                   "damaged_teeth": [t for t, m in enumerate(fault_maps) if m is not None]}
                 rows += make_rows(f"vb-{health_state}-{speed:g}rpm-r{k:02d}", "virtual_bench", health_state,
                                   speed, params.load_torque, settings.output_rate, signals,
-                                  segment_length=segment_length)
+                                  segment_length=segment_length, params=truth_of_record)
     return rows

@@ -1,0 +1,74 @@
+"""The fault location section: fault_location.csv, per measured fault record and damaged part the
+position its segments name (a system family's localisation, measured_fault_locations.csv, in a
+frame of the machine's own: the same position on every record of it; the system's docs say what a
+position is), how many of its segments agree and how sure they are (the share of the change at
+that position); where the records carry the truth (a virtual bench), whether it is named right:
+the position overlaps the `span` positions from where a damaged one begins. summary.json
+`fault_location`: the share of the scored records named right, per class."""
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+
+from condmon.report.section import Section, Table
+
+
+def positions_of(value) -> list[float]:
+    """A `true_positions` cell: a list, or its text in a CSV."""
+    return json.loads(value) if isinstance(value, str) else list(value)
+
+
+def named_right(position: int, true_positions, positions: int, span: float) -> bool:
+    """Whether position `position` ([position, position + 1)) overlaps what a damaged one reaches:
+    from any of `true_positions` for `span` positions, round a part of `positions` positions."""
+    return any(0 < (position + 1 - p) % positions < span + 1 for p in true_positions)
+
+
+def record_locations(located: pd.DataFrame) -> pd.DataFrame:
+    """Per record and part: the position most of its segments name, their agreement (share of its
+    segments naming it), the mean share of the change there (how sure), and the truth's positions
+    and whether it is named right (None where there is no truth)."""
+    rows = []
+    for (record, part), segments in located.groupby(["record_id", "part"], sort=True):
+        named = segments["position"].astype(int)
+        position = int(named.mode().min())
+        truth = positions_of(segments["true_positions"].iloc[0])
+        rows.append({"record_id": record, "health_state": segments["health_state"].iloc[0],
+                     "speed_rpm": float(segments["speed_rpm"].iloc[0]), "part": part, "position": position,
+                     "agreement": float((named == position).mean()),
+                     "share": float(segments.loc[named == position, "share"].mean()), "true_positions": truth,
+                     "named_right": (named_right(position, truth, int(segments["positions"].iloc[0]),
+                                                 float(segments["span"].iloc[0])) if truth else None)})
+    return pd.DataFrame(rows)
+
+
+COLUMNS = ["record_id", "health_state", "speed_rpm", "part", "position", "agreement", "share", "true_positions",
+           "named_right"]
+
+
+def write(report) -> dict:
+    """The table (empty where no feature family locates faults) and, with located fault records,
+    summary.json's `fault_location`."""
+    path = report.inputs.evaluation.fault_locations
+    located = pd.read_csv(path) if path is not None else pd.DataFrame(columns=["health_state"])
+    located = located[located["health_state"] != report.run.healthy_state]
+    if located.empty:
+        return {"fault_location": pd.DataFrame(columns=COLUMNS)}
+    table = record_locations(located)
+    scored = table.dropna(subset=["named_right"])
+    report.summary["fault_location"] = {
+        "records": int(len(table)), "scored": int(len(scored)),
+        "named_right": float(scored["named_right"].astype(bool).mean()) if len(scored) else None,
+        "per_class": {state: float(part["named_right"].astype(bool).mean())
+                      for state, part in scored.groupby("health_state")}}
+    return {"fault_location": table.assign(true_positions=table["true_positions"].map(json.dumps))}
+
+
+SECTION = Section(
+    "fault_location", write, inputs=("evaluation.fault_locations", "run.healthy_state"),
+    tables=(Table("fault_location", "fault_location.csv", "Where the fault sits (fault_location.csv)",
+                  "Per measured fault record and damaged part: the position its segments name (in "
+                  "the machine's own frame), their agreement and how sure; on a bench whether it is "
+                  "named right."),),
+    summary_keys=("fault_location",))
