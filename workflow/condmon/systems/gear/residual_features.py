@@ -686,13 +686,15 @@ def frame_origin_phase(signal_frame: pd.DataFrame, ids: pd.DataFrame, arrays, ro
     return float(origin)
 
 
-def true_positions(signal_frame: pd.DataFrame, record_id: str, origin_phase: float | None, teeth: int) -> list:
-    """Where a bench record's damaged pinion teeth begin in the machine's tooth frame (pitches
-    from the frame's start; `frame_origin_phase`): [] without the truth."""
-    truth = record_truth(signal_frame, record_id)
-    if origin_phase is None or not truth.get("damaged_teeth"):
-        return []
-    return [float((tooth - origin_phase) % teeth) for tooth in truth["damaged_teeth"]]
+def true_positions(signal_frame: pd.DataFrame, origin_phase: float | None, teeth: int) -> dict:
+    """{record: where its damaged pinion teeth begin in the machine's tooth frame (pitches from
+    the frame's start; `frame_origin_phase`)} of a bench's records that carry the truth; {}
+    without a frame's truth (a user's records, a simulated table)."""
+    if origin_phase is None:
+        return {}
+    truths = {record: record_truth(signal_frame, record) for record in signal_frame["record_id"].unique()}
+    return {record: [float((tooth - origin_phase) % teeth) for tooth in truth["damaged_teeth"]]
+            for record, truth in truths.items() if truth.get("damaged_teeth")}
 
 
 # -- the feature family --------------------------------------------------------------------------
@@ -914,6 +916,7 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
         first = min(positions)
         origin_phase = frame_origin_phase(signal_frame, ids, arrays, positions[first], fs_hz, shafts, P, phase,
                                           first in cycles)
+    truths = true_positions(signal_frame, origin_phase, shafts[0][2])
     # features of the shafts whose gears the modelled faults damage; every shaft's pattern is
     # still estimated, to keep the others out of theirs
     chosen = [(k, shaft) for k, shaft in enumerate(shafts) if shaft[0] in damaged]
@@ -942,7 +945,7 @@ def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -
                   for residual, (k, (_, ratio, teeth)) in zip(residuals, chosen)]
         teeth_block = [np.log10(teeth_features(excess)[f] + TINY) for excess in spread for f in TEETH_FEATURES]
         values[i] = np.concatenate([block.transpose(2, 0, 1).ravel(), teeth_block])
-        truth = true_positions(signal_frame, ids.at[i, "record_id"], origin_phase, shafts[0][2])
+        truth = truths.get(ids.at[i, "record_id"], [])
         locations += [{"row": i, "part": name, "positions": teeth, "span": contact_ratio,
                        "position": tooth, "share": share, "true_positions": truth if k == 0 else []}
                       for excess, (k, (name, _, teeth)) in zip(spread, chosen)
