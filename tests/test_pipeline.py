@@ -74,8 +74,10 @@ def test_every_design_output_is_written(smoke):
     timings = pd.read_csv(results / "report" / "job_timings.csv").set_index("rule")
     assert set(timings.index) == {"measured_part", "measured", "calibrate", "simulate", "features_measured",
                                   "features_simulated", "hybrid", "train",
-                                  "physics_baseline"}  # every job before the report
+                                  "physics_baseline", "run"}  # every job before the report, the run
     assert timings.loc["simulate", "jobs"] == 6 and (timings["peak_rss_mb_max"] > 0).all()
+    run = timings.loc["run"]  # elapsed time at least the CPU work over the cores
+    assert run["cores"] >= 1 and 0 < run["parallel_efficiency"] <= 1.05
     assert "job_timings.png" in summary["plots"] and (results / "report" / "plots" / "job_timings.png").is_file()
     assert set(summary["job_timings"]) == set(timings.index)
 

@@ -257,6 +257,14 @@ def test_job_timings_summarise_snakemake_benchmark_files(tmp_path):
     assert timings.loc["simulate", "wall_seconds_median"] == 7.5 and timings.loc["simulate", "peak_rss_mb_max"] == 310.2
     assert timings.loc["track", "cpu_seconds_total"] == 19.5
     assert summarise({"simulate": []}).empty
+    # the run: from the first job's start (its file's time less its wall seconds) to the last end
+    import os
+    for path, end in zip(paths[:3], (1000.0, 1004.0, 1030.0)):
+        os.utime(path, (end, end))
+    run = summarise({"simulate": paths[:2], "track": paths[2:3]}, cores=2).set_index("rule").loc["run"]
+    assert run["wall_seconds_total"] == 1030.0 - (1000.0 - 6.5) and run["cpu_seconds_total"] == 6.0 + 8.0 + 19.5
+    assert run["cores"] == 2 and run["cpu_seconds_per_core"] == 16.75
+    assert run["parallel_efficiency"] == round(16.75 / 36.5, 2)
     figure = timings_plot(timings.reset_index(), "note")
     assert [ax.get_xlabel() for ax in figure.axes] == ["wall seconds (all jobs)", "peak memory per job (MB)"]
     assert [t.get_text() for t in figure.axes[0].get_yticklabels()] == ["simulate", "track"]

@@ -1,5 +1,7 @@
 """Per-job wall time and peak memory of a run, from the benchmark files Snakemake writes for every
-rule with a `benchmark:` directive (columns `s`, `max_rss` in MB, `cpu_time`, ...)."""
+rule with a `benchmark:` directive (columns `s`, `max_rss` in MB, `cpu_time`, ...), and the run's
+elapsed time against its CPU work: a benchmark file is written when its job ends, so its
+modification time less the job's wall seconds is when the job started."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,6 +10,8 @@ import pandas as pd
 
 COLUMNS = ["rule", "jobs", "wall_seconds_total", "wall_seconds_median", "wall_seconds_max", "cpu_seconds_total",
            "peak_rss_mb_max"]
+RUN_ROW = "run"  # the row of the whole run: its elapsed seconds, CPU seconds and parallel efficiency
+RUN_COLUMNS = ["cores", "cpu_seconds_per_core", "parallel_efficiency"]
 
 
 def read_benchmarks(files_by_rule: dict) -> pd.DataFrame:
@@ -19,12 +23,13 @@ def read_benchmarks(files_by_rule: dict) -> pd.DataFrame:
         for path in map(Path, paths):
             frame = pd.read_csv(path, sep="\t")
             if not frame.empty:
-                rows.append(frame.assign(rule=rule, job=path.stem))
+                rows.append(frame.assign(rule=rule, job=path.stem, end=path.stat().st_mtime))
     return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=["rule", "job", "s", "max_rss"])
 
 
-def summarise(files_by_rule: dict) -> pd.DataFrame:
-    """Per rule: jobs, total / median / longest wall seconds, CPU seconds, largest peak RSS (MB)."""
+def summarise(files_by_rule: dict, cores: int | None = None) -> pd.DataFrame:
+    """Per rule: jobs, total / median / longest wall seconds, CPU seconds, largest peak RSS (MB);
+    with `cores` (the run's `--cores`) a last row `run` (`run_row`)."""
     jobs = read_benchmarks(files_by_rule)
     if jobs.empty:
         return pd.DataFrame(columns=COLUMNS)
@@ -36,4 +41,22 @@ def summarise(files_by_rule: dict) -> pd.DataFrame:
     out = pd.DataFrame({"jobs": grouped.size(), "wall_seconds_total": grouped["s"].sum(),
                         "wall_seconds_median": grouped["s"].median(), "wall_seconds_max": grouped["s"].max(),
                         "cpu_seconds_total": grouped["cpu_time"].sum(), "peak_rss_mb_max": grouped["max_rss"].max()})
-    return out.reset_index()[COLUMNS].round(2)
+    out = out.reset_index()[COLUMNS]
+    if cores:
+        out = pd.concat([out, run_row(jobs, cores)], ignore_index=True)
+    return out.round(2)
+
+
+def run_row(jobs: pd.DataFrame, cores: int) -> pd.DataFrame:
+    """The run as one row: `wall_seconds_total` its elapsed seconds, from the first job's start to
+    the last job's end (the jobs `read_benchmarks` read), `cpu_seconds_total` its jobs' CPU
+    seconds; `cpu_seconds_per_core` those over `cores`, the least the run could take, and
+    `parallel_efficiency` that least over the elapsed seconds (1: every core busy all along)."""
+    start, end = (jobs["end"] - jobs["s"]).min(), jobs["end"].max()
+    elapsed, cpu = float(end - start), float(jobs["cpu_time"].sum())
+    per_core = cpu / cores
+    return pd.DataFrame([{"rule": RUN_ROW, "jobs": len(jobs), "wall_seconds_total": elapsed,
+                          "wall_seconds_median": float("nan"), "wall_seconds_max": elapsed,
+                          "cpu_seconds_total": cpu, "peak_rss_mb_max": float(jobs["max_rss"].max()),
+                          "cores": cores, "cpu_seconds_per_core": per_core,
+                          "parallel_efficiency": per_core / elapsed if elapsed > 0 else float("nan")}])

@@ -117,6 +117,7 @@ rule report:
         bench_differences=SYSTEM.bench_differences(),
         confusion_percent=config["report"]["confusion_percent"],
         benchmarked_rules=list(upstream_benchmarks()),
+        cores=workflow.cores,  # the run's elapsed time against its CPU seconds / cores
         healthy_state=SYSTEM.healthy_state,
         calibrations=CALIBRATIONS,  # the first one's calibration made the simulated data
         state_models=STATE_CALIBRATIONS,  # calibration.per_state: labelled in every plot

@@ -48,7 +48,8 @@ summary = write_report(ReportInputs(
     upstream=StageRecords(simulation_reports=inputs.simulation_reports,
                           measured_records=inputs.measured_records,
                           benchmarks={rule: tuple(inputs[f"benchmarks_{rule}"])
-                                      for rule in params.benchmarked_rules}),
+                                      for rule in params.benchmarked_rules},
+                          cores=params.get("cores")),
     outputs=ReportOutputs(summary=output.summary, plots=output.plots,
                           tables={name: output[name] for name in output.keys()
                                   if name not in ("summary", "plots")}),

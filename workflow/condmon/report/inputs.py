@@ -131,6 +131,7 @@ class StageRecords(_Frozen):
     measured_records: Path_ | None = None       # measured/records.csv: kept and left-out records
     # {rule: the benchmark files of its jobs} of every job before the report; None: no timings
     benchmarks: Mapping[str, tuple] | None = None
+    cores: int | None = None  # the run's --cores: its elapsed time against CPU seconds / cores
     _sequences = ("simulation_reports",)
 
 

@@ -1,6 +1,7 @@
 """The job timings section: per rule the jobs' wall time and peak memory (condmon.job_timings,
-from the benchmark files of every job before the report): job_timings.csv, its plot and
-summary.json's `job_timings` ({rule: figures})."""
+from the benchmark files of every job before the report) and the run's elapsed time against its
+CPU seconds over the cores (row `run`): job_timings.csv, its plot and summary.json's `job_timings`
+({rule: figures})."""
 from __future__ import annotations
 
 from condmon import job_timings, plots
@@ -9,11 +10,24 @@ from condmon.report.section import Section, Table
 
 def write(report) -> dict:
     """job_timings.csv, summary.json's `job_timings`, and the plot where any job was measured."""
-    timings = job_timings.summarise(report.inputs.upstream.benchmarks)
-    if not timings.empty:
-        report.save(plots.job_timings(timings, f"run {report.run.run_name}"), "job_timings.png")
+    upstream = report.inputs.upstream
+    timings = job_timings.summarise(upstream.benchmarks, cores=upstream.cores)
+    rules = timings[timings["rule"] != job_timings.RUN_ROW]
+    if not rules.empty:
+        report.save(plots.job_timings(rules, _note(report.run.run_name, timings)), "job_timings.png")
     report.summary["job_timings"] = {row.pop("rule"): row for row in timings.to_dict("records")}
     return {"job_timings": timings}
+
+
+def _note(run_name: str, timings) -> str:
+    """The plot's note: the run, and its elapsed time against its CPU work where known."""
+    run = timings[timings["rule"] == job_timings.RUN_ROW]
+    if run.empty:
+        return f"run {run_name}"
+    row = run.iloc[0]
+    return (f"run {run_name}: {row.wall_seconds_total:.0f} s elapsed for {row.cpu_seconds_total:.0f} CPU-s on "
+            f"{row.cores:.0f} cores ({row.cpu_seconds_per_core:.0f} s per core; parallel efficiency "
+            f"{row.parallel_efficiency:.2f})")
 
 
 SECTION = Section(
