@@ -21,6 +21,7 @@ from condmon.models.gear.drivetrain import (Drivetrain, SimulationSettings, oper
                                             simulate)
 from condmon.models.gear.shaft_damage import SHAFT_HEALTH_STATES
 from condmon.systems.base import System
+from condmon.systems.gear.mesh_lines import mesh_line_problems
 from condmon.systems.gear.parameters import (CALIBRATABLE, COMPLIANCE_PARAMETERS, STATE_SEVERITY, build_parameters,
                                              draw_mesh_compliance, measured_fluctuation_fields, perturb, sample_effects,
                                              state_model_fields, state_variants)
@@ -176,6 +177,9 @@ class GearSystem(System):
         if "condition_holdout" in config["hybrid"]["protocols"] and len(rig["speeds_rpm"]) < 2:
             problems.append("hybrid.protocols: condition_holdout needs at least two rig.speeds_rpm")
         problems += unlisted_measured_speeds(config["measured_table"], rig["speeds_rpm"])
+        # a rate the healthy records' mesh lines contradict (a guessed fs_hz), named with the rate they imply
+        problems += mesh_line_problems(config["measured_table"], self.healthy_state,
+                                       int(config["model"]["geometry"]["teeth_pinion"]))
         try:
             Drivetrain(self.parameters())
         except (ValueError, TypeError) as exc:
