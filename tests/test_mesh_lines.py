@@ -1,4 +1,4 @@
-"""The config check of a gear table's rate against where its mesh lines lie (issue 73, item 4)."""
+"""The config checks of a gear table against its rate: where its mesh lines lie, and the TSA grid (issue 73, item 4)."""
 import numpy as np
 import pytest
 
@@ -68,3 +68,19 @@ def test_the_gear_config_check_names_the_rate(tmp_path):
     schema = load_schema(Path(__file__).parents[1] / "config" / "schema.yaml")
     with pytest.raises(ConfigError, match=r"fs_hz 5632 Hz.*imply a rate of 51[0-9][0-9] Hz"):
         validate_config({"measured_table": str(table(tmp_path, 1.1 * FS))}, schema)
+
+
+def test_an_angular_grid_that_folds_is_refused_when_the_config_is_read():
+    """The residual's TSA grid against the rate, for the widest window `auto` can give: found by
+    the config check (before any job), not by the features job after the simulation."""
+    from pathlib import Path
+
+    from condmon.config import ConfigError, load_schema, validate_config
+
+    schema = load_schema(Path(__file__).parents[1] / "config" / "schema.yaml")
+    config = {"features": {"kind": "residual", "residual": {"samples_per_revolution": 400},
+                           "healthy_reference": {"enabled": True}}}
+    with pytest.raises(ConfigError, match=r"samples_per_revolution: 400 per revolution of the pinion at 450 rpm"):
+        validate_config(config, schema)
+    config["features"]["residual"]["samples_per_revolution"] = 1024
+    validate_config(config, schema)

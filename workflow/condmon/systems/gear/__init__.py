@@ -370,16 +370,23 @@ class GearSystem(System):
             if not self.config["features"]["healthy_reference"]["enabled"]:
                 problems.append("features.kind residual: the residual signatures take every machine against "
                                 "its own healthy reference; set features.healthy_reference.enabled: true")
-            if order["mesh_harmonics"] == "auto":  # the rule's window, bounded by the passband (`window_harmonics`)
-                from condmon.systems.gear.residual_features import PASSBAND_SHARE, passband_harmonics
+            from condmon.systems.gear.residual_features import (PASSBAND_SHARE, passband_harmonics,
+                                                                resolution_problem)
 
-                if min(passband_harmonics(self.output_rate_hz, max(self.speeds_rpm), teeth, ratio)
-                       for _, ratio, teeth in shafts) < 1:
+            # the grid against the rate at every speed, for the widest window the rule can give
+            widest = order["mesh_harmonics"]
+            if widest == "auto":  # the rule's window, bounded by the passband (`window_harmonics`)
+                widest = min(passband_harmonics(self.output_rate_hz, max(self.speeds_rpm), teeth, ratio)
+                             for _, ratio, teeth in shafts)
+                if widest < 1:
                     problems.append(f"features.residual.mesh_harmonics: auto finds no mesh harmonic within "
                                     f"rig.output_rate_hz / 2.56 ({self.output_rate_hz * PASSBAND_SHARE:g} Hz) at "
                                     f"{max(self.speeds_rpm):g} rpm")
-                return problems + self._order_problems("features.residual", shafts, 1)
-            return problems + self._order_problems("features.residual", shafts, order["mesh_harmonics"])
+            folding = {resolution_problem(self.output_rate_hz, speed, shafts, order["samples_per_revolution"],
+                                          max(widest, 1)) for speed in self.speeds_rpm}
+            problems += sorted(p for p in folding if p)
+            return problems + self._order_problems("features.residual", shafts,
+                                                   1 if order["mesh_harmonics"] == "auto" else order["mesh_harmonics"])
         fastest, slowest = max(self.speeds_rpm) / 60, min(self.speeds_rpm) / 60
         seconds = (self.segment_length - 1) / self.output_rate_hz
         nyquist_order = self.output_rate_hz / 2 / fastest

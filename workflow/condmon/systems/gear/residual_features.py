@@ -979,9 +979,9 @@ residual_feature_table.takes_reference = True
 residual_feature_table.takes_processes = True
 
 
-def check_resolution(fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int,
-                     mesh_harmonics: int) -> None:
-    """Refuse an angular grid that folds content into the orders kept. `resample_at` has no
+def resolution_problem(fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int,
+                       mesh_harmonics: int) -> str | None:
+    """Why an angular grid folds content into the orders kept, or None. `resample_at` has no
     anti-alias filter: on a grid coarser than the samples (P x shaft frequency < fs) content up
     to fs / 2 folds down to P - fs / (2 x shaft frequency) orders, which must lie above every
     order the features keep (the mesh harmonics and their sideband)."""
@@ -990,7 +990,15 @@ def check_resolution(fs_hz: float, speed_rpm: float, shafts, samples_per_revolut
         lowest_folded = samples_per_revolution - fs_hz / (2 * shaft_hz)
         top = mesh_harmonics * int(teeth) + 1
         if lowest_folded < top:
-            raise FeatureTableError(
-                f"{KEY}.samples_per_revolution: {samples_per_revolution} per revolution of the {name} at "
-                f"{speed_rpm:g} rpm folds {fs_hz:g} Hz content down to order {lowest_folded:.0f}, below its "
-                f"order {top}; raise it to at least {int(np.ceil(top + fs_hz / (2 * shaft_hz)))}")
+            return (f"{KEY}.samples_per_revolution: {samples_per_revolution} per revolution of the {name} at "
+                    f"{speed_rpm:g} rpm folds {fs_hz:g} Hz content down to order {lowest_folded:.0f}, below its "
+                    f"order {top}; raise it to at least {int(np.ceil(top + fs_hz / (2 * shaft_hz)))}")
+    return None
+
+
+def check_resolution(fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int,
+                     mesh_harmonics: int) -> None:
+    """Refuse an angular grid that folds content into the orders kept (`resolution_problem`)."""
+    problem = resolution_problem(fs_hz, speed_rpm, shafts, samples_per_revolution, mesh_harmonics)
+    if problem:
+        raise FeatureTableError(problem)
