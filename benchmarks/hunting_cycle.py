@@ -28,9 +28,8 @@ import numpy as np
 import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))  # config_of: a project config file, merged and validated
 
-from conftest import config_of  # noqa: E402
+from condmon.config import load_config  # noqa: E402
 from condmon.records import save_record  # noqa: E402
 from condmon.signals import to_arrays  # noqa: E402
 from condmon.systems import get_system  # noqa: E402
@@ -113,7 +112,7 @@ def main(argv=None) -> None:
     parser.add_argument("--cycle", type=float, default=None, help="record seconds for the hunting-cycle reference")
     args = parser.parse_args(argv)
     changes = {} if args.seed is None else {"virtual_bench": {"seed": args.seed}}
-    system = get_system(config_of(args.configfile, changes))
+    system = get_system(load_config([args.configfile], changes, project=ROOT))
     bench = dict(system.config["virtual_bench"])
     _, _, teeth = system.shafts()[0]
     residual = system.config["features"]["residual"]

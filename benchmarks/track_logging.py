@@ -1,6 +1,6 @@
 """Time the `track` job (MLflow logging) on synthetic train outputs the size of the default run.
 
-The set (tests/fake_train_outputs.default_run_size: SVM and k-NN on 11 measured percentages x 3
+The set (benchmarks/fake_train_outputs.default_run_size: SVM and k-NN on 11 measured percentages x 3
 repeats, the CNN ensemble on 0/50/100 % x 2 repeats, both protocols over 3 speeds: 288 nested
 runs, 4000 spectral features) is built once into ``--work`` (fitting its 24 CNN ensembles takes a
 few minutes) and reused. Each repeat runs workflow/scripts/track.py as the rule runs it, in a fresh
@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "workflow")]
+sys.path[:0] = [str(ROOT / "benchmarks"), str(ROOT / "workflow")]  # fake_train_outputs, condmon
 from condmon.records import save_record  # noqa: E402
 
 TARGET_S = 15.0  # issue #15: the default run's track job

@@ -35,7 +35,10 @@ A run is `snakemake --cores all --configfile config/<name>.yaml`. A `--configfil
 `config.yaml` whole: keys it lacks take the schema's defaults below, unless it names a `base`, a
 config file (a path from the project folder) it states only its differences from: its keys are
 merged over the base's, dicts key by key, anything else replaced, as Snakemake merges several
-`--configfile`s; the base is read before validation and no job sees it. Any key can be overridden
+`--configfile`s; the base is read before validation and no job sees it. Every file that states
+only differences names its base (`benches/`, `cwru-tasks/`, `per-state.yaml`, `cfrp-per-state.yaml`,
+`cfrp-study-pitting.yaml`, the CI configs), so it runs alone as it runs stacked over that base;
+the others are whole runs. Any key can be overridden
 by its dotted name, as the tables below (and MLflow's parameters) give it:
 `--config set=classifiers.svm.C=3`, several in one quoted value,
 `--config set='classifiers.svm.C=3 hybrid.measured_percent=[0, 100]'` (Snakemake takes only plain

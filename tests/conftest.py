@@ -18,6 +18,10 @@ import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
+# benchmarks/fake_train_outputs.py (`import fake_train_outputs as fake`): the synthetic train
+# outputs the report and tracking tests share with the tracking benchmark. Tests may import from
+# benchmarks/, never the reverse.
+sys.path.insert(0, str(ROOT / "benchmarks"))
 SCRIPTS = ROOT / "workflow" / "scripts"  # the rules' scripts, which some tests run as Snakemake would
 # The shared CWRU files: beside the checkout, or where CONDMON_CWRU_DIR points (a git worktree
 # elsewhere, another machine's data folder).
@@ -55,23 +59,22 @@ def deep_update(base: dict, changes: dict) -> dict:
 
 
 def config_file(path) -> dict:
-    """A project config file as the Snakefile reads it: merged over its `base`, if it names one."""
-    from condmon.config import apply_base
+    """A project config file as the Snakefile reads it: merged over its `base`, if it names one
+    (not validated: no defaults filled in)."""
+    from condmon.config import read_config
 
-    return apply_base(yaml.safe_load((ROOT / path).read_text()), ROOT)
+    return read_config([path], project=ROOT)
 
 
 def config_of(configfile=".test/config/smoke.yaml", changes: dict | None = None) -> dict:
-    """A validated config: a project config file (or a config dict) with `changes` merged in."""
-    from condmon.config import apply_base, load_schema, validate_config
+    """A validated config, as the workflow loads it (`condmon.config.load_config`): a project config
+    file (or a config dict) with `changes` merged in; a data folder it names is this machine's."""
+    from condmon.config import load_config, read_config
 
-    if isinstance(configfile, dict):
-        config = apply_base(copy.deepcopy(configfile), ROOT)
-    else:
-        config = config_file(configfile)
-    config.update({key: str(folder) for key, folder in DATA_FOLDERS.items() if key in config})
-    deep_update(config, changes or {})
-    return validate_config(config, load_schema(ROOT / "config" / "schema.yaml"))
+    paths, overrides = ([], copy.deepcopy(configfile)) if isinstance(configfile, dict) else ([configfile], {})
+    named = read_config(paths, overrides, project=ROOT)
+    deep_update(overrides, {key: str(folder) for key, folder in DATA_FOLDERS.items() if key in named})
+    return load_config(paths, deep_update(overrides, changes or {}), project=ROOT)
 
 
 def system_of(configfile: str = ".test/config/smoke.yaml", changes: dict | None = None):

@@ -439,15 +439,16 @@ def test_the_0028_in_inner_race_is_another_bearing_with_its_reason():
 
 @pytest.mark.parametrize("task", sorted(p.name for p in (ROOT / "config" / "cwru-tasks").glob("*.yaml")))
 def test_cwru_task_variants_layer_over_the_cwru_config(task):
-    """Each CWRU task variant states only what differs: layered over config/cwru.yaml (as
-    `--configfile config/cwru.yaml config/cwru-tasks/<task>` does) it validates, names its own
-    run and task, and changes nothing of the rig, calibration, simulation or features."""
+    """Each CWRU task variant states only what differs from config/cwru.yaml, its base: alone
+    (`--configfile config/cwru-tasks/<task>`) it validates, names its own run and task, and
+    changes nothing of the rig, calibration, simulation or features."""
     from conftest import system_of
 
     changes = yaml.safe_load((ROOT / "config" / "cwru-tasks" / task).read_text())
     base = system_of("config/cwru.yaml")
-    system = system_of("config/cwru.yaml", changes)
+    system = system_of(f"config/cwru-tasks/{task}")
     assert not system.problems()
+    assert changes.pop("base") == "config/cwru.yaml"
     assert system.config["run_name"] != base.config["run_name"]
     assert system.config["cwru"]["task"] != base.config["cwru"]["task"]
     assert set(changes) <= {"run_name", "cwru", "hybrid"}

@@ -206,15 +206,16 @@ def test_every_bench_record_starts_at_its_own_shaft_angle(monkeypatch):
 
 @pytest.mark.parametrize("variant", sorted(p.name for p in (ROOT / "config" / "benches").glob("*.yaml")))
 def test_bench_variants_layer_over_the_default_config(variant):
-    """Each shipped bench variant states only what differs: layered over config/config.yaml (as
-    `--configfile config/config.yaml config/benches/<variant>` does) it validates, names its own run
-    and differs from the default bench in what the report lists."""
+    """Each shipped bench variant states only what differs from config/config.yaml, its base: alone
+    (`--configfile config/benches/<variant>`) it validates, names its own run and differs from the
+    default bench in what the report lists."""
     from conftest import deep_update, system_of
 
     changes = yaml.safe_load((ROOT / "config" / "benches" / variant).read_text())
     default = system_of("config/config.yaml")
-    system = system_of("config/config.yaml", changes)
+    system = system_of(f"config/benches/{variant}")
     assert not system.problems()
+    assert changes.pop("base") == "config/config.yaml"
     assert system.config["run_name"] != default.config["run_name"]
     assert system.bench_differences() != default.bench_differences()
     assert set(changes) <= {"run_name", "virtual_bench"}  # the model section is the default run's

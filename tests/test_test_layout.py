@@ -1,5 +1,5 @@
 """The test suite's own layout: a test module imports no other test module (shared helpers live in
-conftest.py or a helper module such as fake_train_outputs.py), and the project's paths are found
+conftest.py, or benchmarks/fake_train_outputs.py, shared with a benchmark), and the project's paths are found
 once, in conftest.py (`ROOT`, `SCRIPTS`, `CWRU`)."""
 import ast
 import re
@@ -32,3 +32,15 @@ def test_the_project_root_is_found_only_in_conftest():
             for n, line in enumerate(path.read_text().splitlines(), 1)
             if OWN_LOCATION.search(line)]
     assert hits == []
+
+
+def test_no_benchmark_imports_from_tests():
+    """benchmarks/ load configs as the workflow does (condmon.config.load_config), never through
+    the test suite's helpers: no import of a tests/ module, no tests/ folder put on sys.path."""
+    test_modules = {path.stem for path in TESTS.glob("*.py")}
+    hits = {}
+    for path in sorted((ROOT / "benchmarks").glob("*.py")):
+        found = sorted(imported_modules(path) & test_modules)
+        if found or re.search(r"ROOT\s*/\s*[\"']tests[\"']", path.read_text()):
+            hits[path.name] = found
+    assert hits == {}

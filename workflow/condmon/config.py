@@ -318,6 +318,72 @@ def missing_run_message(run_name: str, results="results", project=".") -> str:
 # --configfile (dicts key by key, anything else replaced). So `--configfile .test/config/smoke.yaml`
 # alone is the whole smoke run, and an edit of the base reaches it.
 BASE_KEY = "base"
+DEFAULT_CONFIG = "config/config.yaml"  # the run of a command line that names no --configfile
+SCHEMA_FILE = "config/schema.yaml"
+
+
+def read_config(paths, overrides: dict | None = None, project=".") -> dict:
+    """The unvalidated config of a run, as Snakemake and the Snakefile build it.
+
+    Parameters
+    ----------
+    paths : list of str or Path
+        Config files, merged in order (dicts key by key, anything else replaced), as several
+        ``--configfile`` are; a relative path is taken from ``project``.
+    overrides : dict, optional
+        The ``--config`` entries (or a caller's changes), merged over the files.
+    project : str or Path
+        The project folder, from which a relative path and a file's `base` are read.
+
+    Returns
+    -------
+    dict
+        The merged files and overrides over the `base` they name (`base` dropped); no defaults,
+        no typing, no checks: :func:`load_config` adds those.
+    """
+    import yaml
+
+    config: dict = {}
+    for path in paths:
+        path = Path(project) / path
+        if not path.is_file():
+            raise ConfigError(f"invalid config:\n  --configfile: no config file {path}")
+        _merge(config, yaml.safe_load(path.read_text()) or {})
+    _merge(config, copy.deepcopy(overrides or {}))
+    return apply_base(config, project)
+
+
+def load_config(paths, overrides: dict | None = None, project=".", schema: dict | None = None) -> dict:
+    """The validated config of a run, exactly as the workflow sees it (the Snakefile calls this).
+
+    Parameters
+    ----------
+    paths : list of str or Path
+        Config files, merged in order as several ``--configfile`` are (each may name its `base`);
+        none: the default run's, ``config/config.yaml``.
+    overrides : dict, optional
+        ``--config`` entries: nested dicts merged key by key, text read as the schema's types,
+        dotted keys under ``set`` (``{"set": "classifiers.svm.C=3"}``).
+    project : str or Path
+        The project folder (config files, bases and the schema are read from it).
+    schema : dict, optional
+        The shared schema, if the caller has it loaded; else ``config/schema.yaml``.
+
+    Returns
+    -------
+    dict
+        The config with every default filled in and every check passed.
+
+    Raises
+    ------
+    ConfigError
+        A missing file or base, or a key that breaks the schema or a cross-field rule, by name.
+    """
+    schema = load_schema(Path(project) / SCHEMA_FILE) if schema is None else schema
+    config = read_config(list(paths) or [DEFAULT_CONFIG], overrides, project)
+    apply_typed_overrides(config, overrides or {}, schema)
+    apply_dotted_overrides(config, schema)
+    return validate_config(config, schema)
 
 
 def apply_base(config: dict, project=".") -> dict:

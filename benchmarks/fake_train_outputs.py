@@ -1,4 +1,5 @@
-"""Small but contract-conforming train and calibration outputs for report/tracking tests.
+"""Small but contract-conforming train and calibration outputs for the report and tracking tests
+and the tracking benchmark (benchmarks/track_logging.py; the tests find it through conftest.py).
 
 By default two classifiers x two protocols (record_split; condition_holdout over two speeds),
 measured percentages 0 and 50, two repeats; real fitted sklearn pipelines on a six-feature table.
@@ -247,8 +248,7 @@ def track_job(paths: dict, tracking_uri: str, workdir: Path, config_hash: str = 
     ``workdir``."""
     import sys
 
-    from conftest import SCRIPTS
-    script = SCRIPTS / "track.py"
+    script = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "track.py"
     args = dict(script=str(script), log=str(workdir / "track.log"),
                 params=dict(tracking_uri=tracking_uri, run_name=run_name, config_hash=config_hash,
                             data_source="virtual_bench", config=config or {"run_name": run_name},
