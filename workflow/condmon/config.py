@@ -359,8 +359,8 @@ def load_config(paths, overrides: dict | None = None, project=".", schema: dict 
     Parameters
     ----------
     paths : list of str or Path
-        Config files, merged in order as several ``--configfile`` are (each may name its `base`);
-        none: the default run's, ``config/config.yaml``.
+        Config files, merged in order as several ``--configfile`` are (each may name its `base`;
+        the Snakefile passes ``DEFAULT_CONFIG`` when the command line names none).
     overrides : dict, optional
         ``--config`` entries: nested dicts merged key by key, text read as the schema's types,
         dotted keys under ``set`` (``{"set": "classifiers.svm.C=3"}``).
@@ -380,7 +380,7 @@ def load_config(paths, overrides: dict | None = None, project=".", schema: dict 
         A missing file or base, or a key that breaks the schema or a cross-field rule, by name.
     """
     schema = load_schema(Path(project) / SCHEMA_FILE) if schema is None else schema
-    config = read_config(list(paths) or [DEFAULT_CONFIG], overrides, project)
+    config = read_config(paths, overrides, project)
     apply_typed_overrides(config, overrides or {}, schema)
     apply_dotted_overrides(config, schema)
     return validate_config(config, schema)
