@@ -4,6 +4,7 @@ healthy record's residual against a reference with the tone at another phase is 
 import numpy as np
 import pandas as pd
 
+from condmon.features import FamilyInputs
 from condmon.systems.gear import fixed_tones as ft
 from condmon.systems.gear import residual_features as rf
 
@@ -87,17 +88,17 @@ def test_a_healthy_record_whose_tone_has_another_phase_stays_healthy_and_the_ton
     simulated run (given the measured references) remove it too."""
     spec = {"source": "measured", "healthy_state": "healthy", "condition": "speed_rpm", "reserve": {}}
     written = rf.residual_feature_table(bench([450.0, 775.0], np.random.default_rng(2)), CHANNELS,
-                                        dict(PARAMS, against=spec))
+                                        PARAMS, FamilyInputs(healthy_reference=spec))
     references = written.attrs["references"]
     assert np.allclose(rf.tones_from_table(references), [120.0], atol=0.05)
-    one_speed = rf.residual_feature_table(bench([450.0], np.random.default_rng(2)), CHANNELS, dict(PARAMS, against=spec))
+    one_speed = rf.residual_feature_table(bench([450.0], np.random.default_rng(2)), CHANNELS, PARAMS, FamilyInputs(healthy_reference=spec))
     assert rf.tones_from_table(one_speed.attrs["references"]) == []
     test = "vb-healthy-450rpm-r01"
     assert (one_speed.set_index("record_id").at[test, BAND]
             > written.set_index("record_id").at[test, BAND] + 1.0)  # 2 sin(1.3) x 0.02 m/s^2 against noise
     # a packaged model's copy removes the same tone
     frame = bench([450.0, 775.0], np.random.default_rng(2))
-    packaged = rf.residual_feature_table(frame, CHANNELS, dict(PARAMS, reference_patterns=references.to_dict("list")))
+    packaged = rf.residual_feature_table(frame, CHANNELS, PARAMS, FamilyInputs(packaged_references=references.to_dict("list")))
     names = written.attrs["referenced_columns"]
     np.testing.assert_allclose(packaged[names].to_numpy(), written[names].to_numpy(), atol=1e-5)
     # a simulated healthy sample (segment 0) against its twin (segments 1, 2), its tone at another phase
@@ -108,6 +109,6 @@ def test_a_healthy_record_whose_tone_has_another_phase_stays_healthy_and_the_ton
         rows += signal_rows(machine, "healthy", 450.0, segment, record(450.0, SECONDS, rng, phase=0.3), "simulated")
     twins = {"source": "simulated", "healthy_state": "healthy", "segments_per_sample": 1}
     simulated = pd.DataFrame(rows)
-    removed = rf.residual_feature_table(simulated, CHANNELS, dict(PARAMS, against=twins, measured_references=references))
-    left = rf.residual_feature_table(simulated, CHANNELS, dict(PARAMS, against=twins))
+    removed = rf.residual_feature_table(simulated, CHANNELS, PARAMS, FamilyInputs(healthy_reference=twins, measured_references=references))
+    left = rf.residual_feature_table(simulated, CHANNELS, PARAMS, FamilyInputs(healthy_reference=twins))
     assert left.at[0, BAND] > removed.at[0, BAND] + 1.0

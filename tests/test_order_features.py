@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from condmon.features import FeatureTableError, compute_feature_table_from_files, feature_families
+from condmon.features import FeatureTableError, SystemFamily, compute_feature_table_from_files, feature_families
 from condmon.systems.gear.order_features import (INDICATORS, OrderFeatures, angular_resample, condition_indicators,
                                                  difference_signal, energy_ratio, fm0, fm4, keep_orders, m6a, m8a,
                                                  na4, order_feature_table, regular_signal, residual_signal,
@@ -243,7 +243,7 @@ def test_spectrum_and_order_families_side_by_side(tmp_path, record):
     path = signal_table(tmp_path, signals)
     spectrum = {"f_min_hz": 0.0, "f_max_hz": 2000.0, "resolution_hz": 2.0, "scale": "log", "band_statistic": "rms"}
     params = {"spectrum": spectrum, "order": {"shafts": SHAFTS}}
-    order = {"order": order_feature_table}  # the gear system's own family
+    order = {"order": SystemFamily(order_feature_table)}  # the gear system's own family
     both = compute_feature_table_from_files([path], CHANNELS, "spectrum+order", params, system_families=order)
     alone = compute_feature_table_from_files([path], CHANNELS, "order", params, system_families=order)
     columns = [c for c in both.columns if c.startswith(("fft_", "ord_", "ci_"))]

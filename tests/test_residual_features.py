@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from condmon.features import FeatureTableError
+from condmon.features import FamilyInputs, FeatureTableError
 from condmon.systems.gear import residual_features as rf
 
 P = 1024
@@ -110,9 +110,9 @@ def test_bands_without_mesh_lines_follow_the_path_not_the_mesh_lines_size():
 def test_an_unknown_reference_level_names_the_key():
     with pytest.raises(FeatureTableError, match="reference_level"):
         rf.residual_feature_table(pd.DataFrame(), ["A1_x"], dict(
-            shafts=SHAFTS, against={"source": "measured"}, samples_per_revolution=P, bands_per_mesh=4,
+            shafts=SHAFTS, samples_per_revolution=P, bands_per_mesh=4,
             mesh_harmonics=3, shaft_orders=2, phase_harmonic=1, phase_band_orders=0.3, phase_min_snr=5.0,
-            reference_level="median"))
+            reference_level="median"), FamilyInputs(healthy_reference={"source": "measured"}))
 
 
 def test_a_pit_on_one_tooth_shows_in_that_teeths_residual_energy():
@@ -254,13 +254,13 @@ def test_the_family_takes_references_covering_the_hunting_cycle_against_it():
               "mesh_harmonics": 3, "shaft_orders": 2, "phase_harmonic": 1, "phase_band_orders": 0.3,
               "phase_min_snr": 5.0}
     spec = {"source": "measured", "healthy_state": "healthy", "condition": "speed_rpm", "reserve": {}}
-    written = rf.residual_feature_table(frame, ["A1_x"], dict(params, against=spec))
+    written = rf.residual_feature_table(frame, ["A1_x"], params, FamilyInputs(healthy_reference=spec))
     references = written.attrs["references"]
     assert (references["shaft"] == rf.CYCLE_ROW).sum() == 1
     assert len(references.loc[references["shaft"] == rf.CYCLE_ROW, "pattern"].iloc[0]) == GEAR * P
     rms = written.set_index("record_id")["res_A1_x_pinion_tooth_peak1"]
     assert rms["vb-surface_fault-1100rpm-r00"] > rms["vb-healthy-1100rpm-r01"] + 0.3
-    packaged = rf.residual_feature_table(frame, ["A1_x"], dict(params, reference_patterns=references.to_dict("list")))
+    packaged = rf.residual_feature_table(frame, ["A1_x"], params, FamilyInputs(packaged_references=references.to_dict("list")))
     names = rf.feature_names(["A1_x"], SHAFTS, 12)
     np.testing.assert_allclose(packaged[names].to_numpy(), written[names].to_numpy(), atol=1e-5)
 
@@ -288,12 +288,12 @@ def test_the_family_takes_simulated_twins_and_packaged_references():
               "mesh_harmonics": 3, "shaft_orders": 2, "phase_harmonic": 1, "phase_band_orders": 0.3,
               "phase_min_snr": 5.0}
     against = {"source": "simulated", "healthy_state": "healthy", "segments_per_sample": 1}
-    table = rf.residual_feature_table(frame, ["A1_x"], dict(params, against=against))
+    table = rf.residual_feature_table(frame, ["A1_x"], params, FamilyInputs(healthy_reference=against))
     peak = table.set_index(["record_id", "segment"])["res_A1_x_pinion_tooth_peak1"]
     assert peak[("sim-surface_fault-1100rpm-b000-s000", 0)] > peak[("sim-healthy-1100rpm-b000-s000", 0)] + 0.5
     assert table.attrs["referenced_columns"] == rf.feature_names(["A1_x"], SHAFTS, 12)
     # the segments spread over worker processes: the same table
-    spread = rf.residual_feature_table(frame, ["A1_x"], dict(params, against=against, processes=2))
+    spread = rf.residual_feature_table(frame, ["A1_x"], params, FamilyInputs(healthy_reference=against, processes=2))
     pd.testing.assert_frame_equal(spread, table)
     with pytest.raises(FeatureTableError, match="healthy_reference"):
         rf.residual_feature_table(frame, ["A1_x"], params)
@@ -302,15 +302,15 @@ def test_the_family_takes_simulated_twins_and_packaged_references():
     measured.loc[measured["segment"] == 1, "record_id"] = "vb-healthy-1100rpm-r00"
     measured.loc[measured["segment"] == 1, "segment"] = 0
     spec = {"source": "measured", "healthy_state": "healthy", "condition": "speed_rpm", "reserve": {}}
-    written = rf.residual_feature_table(measured, ["A1_x"], dict(params, against=spec))
+    written = rf.residual_feature_table(measured, ["A1_x"], params, FamilyInputs(healthy_reference=spec))
     # ... and a packaged model's copy gives a new record the same features
     packaged = rf.residual_feature_table(measured, ["A1_x"],
-                                         dict(params, reference_patterns=written.attrs["references"].to_dict("list")))
+                                         params, FamilyInputs(packaged_references=written.attrs["references"].to_dict("list")))
     names = rf.feature_names(["A1_x"], SHAFTS, 12)
     np.testing.assert_allclose(packaged[names].to_numpy(), written[names].to_numpy(), atol=1e-5)
     # without magnitudes: no feature that grows with the fault's size, the bands as their shape
     # (zero mean per channel and shaft), every feature the fault's size leaves unchanged as it was
-    shape = rf.residual_feature_table(frame, ["A1_x"], dict(params, against=against, magnitudes=False))
+    shape = rf.residual_feature_table(frame, ["A1_x"], dict(params, magnitudes=False), FamilyInputs(healthy_reference=against))
     sized = [n for n in rf.feature_names(["A1_x"], SHAFTS, 12) if n.endswith(rf.SIZED_FEATURES)]
     assert shape.attrs["referenced_columns"] == [n for n in rf.feature_names(["A1_x"], SHAFTS, 12) if n not in sized]
     bands = [f"res_A1_x_pinion_b{k:02d}" for k in range(12)]
@@ -349,7 +349,7 @@ def test_a_packaged_model_takes_a_new_record_against_its_reference_waveforms():
               "bands_per_mesh": 4, "mesh_harmonics": 3, "shaft_orders": 2, "phase_harmonic": 1,
               "phase_band_orders": 0.3, "phase_min_snr": 5.0}
     spec = {"source": "measured", "healthy_state": "healthy", "condition": "speed_rpm", "reserve": {}}
-    written = rf.residual_feature_table(frame.assign(source="measured"), ["A1_x"], dict(params, against=spec))
+    written = rf.residual_feature_table(frame.assign(source="measured"), ["A1_x"], params, FamilyInputs(healthy_reference=spec))
     names = rf.feature_names(["A1_x"], SHAFTS[:1], 12)
     system = get_system(config_of("config/config.yaml")).job_spec("measured")
     features = {"kind": "residual", "channels": ["A1_x"], "spectrum": {}, "statistical": None,
@@ -467,7 +467,7 @@ def test_a_fault_whose_change_lies_above_the_old_window_is_inside_the_new_one():
     spec = {"source": "measured", "healthy_state": "healthy", "condition": "speed_rpm", "reserve": {}}
 
     def rms_ratio(mesh_harmonics):
-        table = rf.residual_feature_table(frame, ["A1_x"], dict(params, against=spec, mesh_harmonics=mesh_harmonics))
+        table = rf.residual_feature_table(frame, ["A1_x"], dict(params, mesh_harmonics=mesh_harmonics), FamilyInputs(healthy_reference=spec))
         return table.set_index("record_id")["res_A1_x_pinion_rms_ratio"], table
 
     new, table = rms_ratio("auto")
@@ -477,8 +477,46 @@ def test_a_fault_whose_change_lies_above_the_old_window_is_inside_the_new_one():
     old, _ = rms_ratio(3)
     assert abs(old["vb-spall-450rpm-r00"] - old["vb-healthy-450rpm-r01"]) < 0.3
     # the simulated job and a packaged model take the measured job's window
-    packaged = rf.residual_feature_table(frame, ["A1_x"], dict(
-        params, mesh_harmonics="auto", reference_patterns=table.attrs["references"].to_dict("list")))
+    packaged = rf.residual_feature_table(frame, ["A1_x"], dict(params, mesh_harmonics="auto"), FamilyInputs(
+        packaged_references=table.attrs["references"].to_dict("list")))
     assert list(packaged.columns) == list(table.columns)
     with pytest.raises(FeatureTableError, match="auto"):
         rf.resolved_window("auto", table.attrs["references"].query("shaft != @rf.WINDOW_ROW"), "the references")
+
+
+def test_settings_and_run_time_inputs_stay_apart():
+    """The family's settings are features.residual and what the system adds; a reference or the
+    job's cores in them is refused by name (they are `FamilyInputs`), and the gear system declares
+    what its families take on their entries."""
+    from condmon.features import SystemFamily
+    from conftest import system_of
+
+    params = {"shafts": [list(s) for s in SHAFTS], "samples_per_revolution": P, "bands_per_mesh": 4,
+              "mesh_harmonics": 3, "shaft_orders": 2, "phase_harmonic": 1, "phase_band_orders": 0.3,
+              "phase_min_snr": 5.0}
+    for leaked in ({"against": {"source": "measured"}}, {"processes": 2}, {"reference_patterns": {}}):
+        with pytest.raises(FeatureTableError, match=f"unknown parameter.*{next(iter(leaked))}"):
+            rf.residual_feature_table(pd.DataFrame(), ["A1_x"], {**params, **leaked},
+                                      FamilyInputs(healthy_reference={"source": "measured"}))
+    families = system_of(".test/config/smoke.yaml").feature_families()
+    assert all(isinstance(family, SystemFamily) for family in families.values())
+    assert (families["residual"].references, families["residual"].parallel) == (True, True)
+    assert (families["order"].references, families["order"].parallel) == (False, False)
+
+
+def test_a_packaged_models_families_carry_their_references_and_give_them_back_as_inputs():
+    from condmon.features import SystemFamily
+    from condmon.signal_model import PACKAGED_REFERENCES, packaged_features, unpacked_families
+
+    features = {"kind": "residual", "families": {"residual": {"bands_per_mesh": 4}, "order": {"order_max": 9}}}
+    own = {"residual": SystemFamily(rf.residual_feature_table, references=True),
+           "order": SystemFamily(lambda *a: None)}
+    references = pd.DataFrame({"shaft": ["pinion"], "pattern": [[0.0, 1.0]]})
+    packaged = packaged_features(features, {"bpfo": 3.6}, own, {"condition": "speed_rpm", "table": {}}, references)
+    assert features == {"kind": "residual", "families": {"residual": {"bands_per_mesh": 4}, "order": {"order_max": 9}}}
+    assert packaged["families"]["residual"][PACKAGED_REFERENCES] == references.to_dict("list")
+    assert PACKAGED_REFERENCES not in packaged["families"]["order"]
+    assert packaged["defect_orders"] == {"bpfo": 3.6} and packaged["reference"]["condition"] == "speed_rpm"
+    settings, inputs = unpacked_families(packaged["families"])
+    assert settings == features["families"]
+    assert inputs.packaged_references == references.to_dict("list") and inputs.healthy_reference is None

@@ -35,7 +35,7 @@ from condmon.stat_features import statistical_features_from_params
 __all__ = ["amplitude_spectrum", "SpectrumFeatures", "compute_feature_table", "compute_feature_table_from_files",
            "statistical_feature_table", "feature_families", "read_feature_table",
            "write_feature_table", "FeatureTableError", "FEATURE_FAMILIES", "FeatureFamily",
-           "register_feature_family"]
+           "register_feature_family", "FamilyInputs", "SystemFamily", "family_table"]
 
 log = logging.getLogger(__name__)
 
@@ -204,49 +204,107 @@ def feature_families(kind: str, system_families=()) -> list[str]:
     return families
 
 
+@dataclass(frozen=True)
+class FamilyInputs:
+    """What a caller hands a system's own feature family at run time, apart from its settings.
+
+    A family's settings (``features.<family>`` and what the system adds,
+    `System.feature_family_params`) are the features rule's params: an edit reruns the job.
+    These inputs are not settings: where each machine's healthy reference lies and how many
+    cores the job has. A family reads the ones its entry declares (`SystemFamily`).
+
+    Attributes
+    ----------
+    healthy_reference : dict or None
+        The features job's `features.healthy_reference` (source, healthy_state, condition,
+        reserve, segments_per_sample) when on: each machine's reference segments lie in the
+        signal table itself (a simulated sample's healthy twin among them).
+    measured_references : DataFrame or None
+        The measured records' references as the measured features job wrote them (a simulated
+        run's family reads what the measured ones share, e.g. their fixed tones).
+    packaged_references : dict or DataFrame or None
+        A packaged model's measured references (`condmon.signal_model`): new records are taken
+        against them instead of a reference of their own.
+    processes : int
+        Worker processes the family may spread its segments over.
+    """
+
+    healthy_reference: dict | None = None
+    measured_references: pd.DataFrame | None = None
+    packaged_references: dict | pd.DataFrame | None = None
+    processes: int = 1
+
+
+@dataclass(frozen=True)
+class SystemFamily:
+    """A system's own feature family (`System.feature_families`): its table function and the
+    run-time inputs it takes.
+
+    Attributes
+    ----------
+    table : callable
+        ``table(signal_frame, channels, settings, inputs)`` -> wide features table (the id
+        columns, then its float32 feature columns); `settings` is features.<family> with what
+        the system adds, `inputs` a `FamilyInputs`.
+    references : bool
+        Takes every machine against its healthy reference itself (a waveform, not a mean
+        feature): the features job reads every record at once (a reference may lie in another
+        file) and writes the references it returns; the reference step leaves its columns alone.
+    parallel : bool
+        Spreads its segments over `FamilyInputs.processes`: the features job gets every core.
+    """
+
+    table: Callable[..., pd.DataFrame]
+    references: bool = False
+    parallel: bool = False
+
+
 def family_table(signal_frame: pd.DataFrame, channels, kind: str, family_params: dict,
-                 defect_orders: dict | None = None, system_families: dict | None = None) -> pd.DataFrame:
+                 defect_orders: dict | None = None, system_families: dict | None = None,
+                 inputs: FamilyInputs | None = None) -> pd.DataFrame:
     """The features table of one signal table: the families of `kind` ("+" joins several,
     columns in that order) side by side, each from FEATURE_FAMILIES or the system's own
-    (`system_families` = System.feature_families(): {family: table function(signals, channels,
-    params)}), each with its settings `family_params[family]` (features.<family>; the system's
-    own with what it adds); `defect_orders`: the system's envelope lines (the statistical
-    family's)."""
+    (`system_families` = System.feature_families(): {family: SystemFamily}), each with its
+    settings `family_params[family]` (features.<family>; the system's own with what it adds);
+    `defect_orders`: the system's envelope lines (the statistical family's); `inputs`: what a
+    system family takes at run time (references, processes), never part of its settings."""
     system_families = system_families or {}
+    inputs = inputs or FamilyInputs()
     parts = []
     for family in feature_families(kind, tuple(system_families)):
         params = family_params.get(family) or {}
         if family in FEATURE_FAMILIES:
             parts.append(FEATURE_FAMILIES[family].table(signal_frame, channels, params, defect_orders))
         else:
-            parts.append(system_families[family](signal_frame, channels, params))
+            parts.append(system_families[family].table(signal_frame, channels, params, inputs))
     return side_by_side(parts)
 
 
 def compute_feature_table_from_files(paths, channels, kind: str, family_params: dict,
                                      defect_orders: dict | None = None,
-                                     system_families: dict | None = None) -> pd.DataFrame:
+                                     system_families: dict | None = None,
+                                     inputs: FamilyInputs | None = None) -> pd.DataFrame:
     """Features of several signal tables in one table: `family_table` of each (its arguments),
     rows sorted by record and segment. Read one at a time to bound memory, unless a family of
-    `kind` takes every segment against its machine's reference itself (`takes_reference`: a
-    system family; the reference may lie in another file, e.g. a simulated sample's healthy twin),
-    which reads every record at once. The table's `attrs` carry what such a family hands on
+    `kind` takes every segment against its machine's reference itself (`SystemFamily.references`;
+    the reference may lie in another file, e.g. a simulated sample's healthy twin), which reads
+    every record at once. The table's `attrs` carry what such a family hands on
     (`referenced_columns`, its references)."""
     system_families = system_families or {}
     families = feature_families(kind, tuple(system_families))  # an unknown family: before any read
     if not paths:
         raise FeatureTableError("no signal tables given")
-    if any(getattr(system_families.get(family), "takes_reference", False) for family in families):
+    if any(family in system_families and system_families[family].references for family in families):
         log.info("%s features of %d signal tables at once", kind, len(paths))
         tables = [read_signal_table(path) for path in paths]
         frames = [family_table(pd.concat(tables, ignore_index=True), channels, kind, family_params,
-                               defect_orders, system_families)]
+                               defect_orders, system_families, inputs)]
     else:
         frames = []
         for path in paths:
             log.info("%s features of %s", kind, path)
             frames.append(family_table(read_signal_table(path), channels, kind, family_params,
-                                       defect_orders, system_families))
+                                       defect_orders, system_families, inputs))
     attrs = frames[0].attrs if len(frames) == 1 else {}
     frame = pd.concat([without_attrs(f) for f in frames], ignore_index=True)
     single_sampling_rate(frame, where="signal tables " + ", ".join(map(str, paths)))

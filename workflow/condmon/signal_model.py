@@ -23,9 +23,60 @@ from contextlib import contextmanager
 import numpy as np
 import pandas as pd
 
-from condmon.features import FEATURE_FAMILIES, family_table
+from condmon.features import FEATURE_FAMILIES, FamilyInputs, family_table
 from condmon.reference import nearest_reference, reference_from_table
 from condmon.signals import COLUMNS, SignalTableError, validate
+
+# where a packaged model keeps a family's references (`SystemFamily.references`): in that family's
+# settings of its packaged features, a format older models share; read back as run-time inputs
+PACKAGED_REFERENCES = "reference_patterns"
+
+
+def packaged_features(features: dict, defect_orders, system_families: dict, reference: dict | None = None,
+                      family_references: pd.DataFrame | None = None) -> dict:
+    """The feature extraction a packaged model carries (a new dict, `features` untouched).
+
+    Parameters
+    ----------
+    features : dict
+        The features job's settings (kind, channels, each family's section, `families`: the
+        system's own families' settings).
+    defect_orders : dict or None
+        The system's envelope lines (`System.defect_orders`).
+    system_families : dict
+        `System.feature_families()`: which families take their references themselves.
+    reference : dict, optional
+        The healthy reference new records are taken against, ``{"condition", "table"}``.
+    family_references : DataFrame, optional
+        The measured features job's family references (waveforms), packaged into the settings of
+        each family that takes them (`PACKAGED_REFERENCES`).
+
+    Returns
+    -------
+    dict
+        `features` with the defect orders, the reference and the families' references.
+    """
+    packaged = {**features, "defect_orders": defect_orders}
+    if reference is not None:
+        packaged["reference"] = reference
+    if family_references is not None:
+        patterns = family_references.to_dict("list")
+        packaged["families"] = {
+            family: ({**settings, PACKAGED_REFERENCES: patterns}
+                     if family in system_families and system_families[family].references else dict(settings))
+            for family, settings in (features.get("families") or {}).items()}
+    return packaged
+
+
+def unpacked_families(families: dict) -> tuple[dict, FamilyInputs]:
+    """({family: settings}, run-time inputs) of a packaged model's `families`: the references
+    `packaged_features` put into a family's settings become `FamilyInputs.packaged_references`."""
+    settings = {family: {k: v for k, v in params.items() if k != PACKAGED_REFERENCES}
+                for family, params in families.items()}
+    references = next((params[PACKAGED_REFERENCES] for params in families.values() if PACKAGED_REFERENCES in params),
+                      None)
+    return settings, FamilyInputs(packaged_references=references)
+
 
 # Relative distance to the nearest trained speed a record may have (records of one operating point
 # differ by a few rpm in some rigs; distinct operating speeds lie hundreds of rpm apart).
@@ -167,9 +218,9 @@ class SignalModel:
             from condmon.systems import load_system
 
             own = load_system(self.system).feature_families()
-        params = {"spectrum": f["spectrum"], "statistical": f["statistical"] or {},
-                  **{family: dict(p) for family, p in (f.get("families") or {}).items()}}
-        table = family_table(frame, f["channels"], f["kind"], params, f.get("defect_orders"), own)
+        families, inputs = unpacked_families(f.get("families") or {})
+        params = {"spectrum": f["spectrum"], "statistical": f["statistical"] or {}, **families}
+        table = family_table(frame, f["channels"], f["kind"], params, f.get("defect_orders"), own, inputs)
         missing = [name for name in f["feature_names"] if name not in table.columns]
         if missing:  # a feature-code change since training: never classify other features
             raise ValueError(f"the features of this signal table lack {missing[:5]} that the model "

@@ -405,6 +405,178 @@ class TrackedRun:
     healthy_state: str | None = None
 
 
+@dataclass
+class TrackInputs:
+    """Everything `log_pipeline_run` logs, read and checked before the first MLflow call
+    (`read_track_inputs`)."""
+
+    metrics: pd.DataFrame
+    predictions: pd.DataFrame
+    histories: dict  # {run key: training history} (CNN)
+    files: dict  # {run key: the model file each nested run names}
+    datasets: dict  # {name: MLflow dataset}
+    example: pd.DataFrame  # the models' signatures (without a model store)
+    runs: list  # (key, params, metrics) of every nested run
+    confusion: pd.DataFrame
+    store: dict | None = None  # the model store's index
+    by_key: dict | None = None  # {run key: its store entry}
+
+
+def read_track_inputs(train_dirs, datasets: dict, model_store, healthy_state) -> TrackInputs:
+    """The train outputs, datasets and model store of a run, every nested run checked to have
+    its model (in info.json, and in the store where there is one)."""
+    metrics, predictions, clf_params, files, histories = read_train_outputs(train_dirs)
+    inputs = {name: file_dataset(name, paths) for name, paths in datasets.items()}
+    example = feature_example(datasets["measured_features"][0])
+    runs = nested_runs(metrics, predictions, clf_params, histories)
+    if missing := [key for key, _, _ in runs if tuple(key.values()) not in files]:
+        raise TrackingError(f"no model file in info.json for {missing[:3]}")
+    store = by_key = None
+    if model_store is not None:
+        from condmon.model_store import read_index
+
+        store = read_index(model_store)
+        by_key = {(e["classifier"], e["protocol"], e["measured_percent"], e["repeat"], e["holdout"]): e
+                  for e in store["models"]}
+        if missing := [key for key, _, _ in runs if tuple(key.values()) not in by_key]:
+            raise TrackingError(f"{model_store}: no packaged model for {missing[:3]}")
+        files = {key: Path(model_store) / entry["file"] for key, entry in by_key.items()}
+    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
+    confusion = (predictions.groupby([*KEYS, "true_label", "predicted_label"]).size()
+                 .unstack(fill_value=0).reindex(columns=labels, fill_value=0))
+    return TrackInputs(metrics, predictions, histories, files, inputs, example, runs, confusion, store, by_key)
+
+
+def parent_tags(run: TrackedRun, log_models, n_runs: int, workdir=".") -> dict:
+    """The parent run's tags: the commit, the config hash, the run name, the data source."""
+    commit, dirty = git_state(workdir)
+    return {"git_commit": commit, "git_dirty": dirty, "config_hash": run.config_hash,
+            "snakemake_run_name": run.run_name, "data_source": run.data_source,
+            "data_source_synthetic": str(is_synthetic(run.data_source)).lower(),
+            "models_logged": json.dumps(log_models), "n_nested_runs": str(n_runs)}
+
+
+def log_parent_contents(data: TrackInputs, params: dict, artifacts: dict | None) -> None:
+    """The active parent run's inputs, params, summary metrics, tables and artifacts."""
+    import mlflow
+
+    log_inputs(data.datasets)
+    mlflow.log_params(params)
+    mlflow.log_metrics(summary_metrics(data.metrics))
+    mlflow.log_text(data.metrics.to_csv(index=False), "accuracy.csv")
+    # counts per run (rows: true label, columns: predicted label)
+    mlflow.log_text(data.confusion.reset_index().to_csv(index=False), "confusion_matrices.csv")
+    for folder, path in (artifacts or {}).items():  # hidden files (Snakemake's marks) left out
+        for file in sorted(Path(path).iterdir()) if Path(path).is_dir() else [Path(path)]:
+            if file.is_file() and not file.name.startswith("."):
+                mlflow.log_artifact(str(file), folder)
+
+
+def nested_run_model(data: TrackInputs, run_key: tuple, key: dict, run_id: str, name: str, params: dict,
+                     run_tags: dict, log_models, logged_digests: dict) -> tuple[str | None, bool]:
+    """The model a nested run logs (its id, None if the policy logs none) and whether it was
+    linked, not logged again: the packaged SignalModel (a digest the experiment has is linked),
+    or without a store the fitted estimator."""
+    if not wants_model(log_models, key):
+        return None, False
+    if data.store:
+        digest = data.by_key[run_key]["digest"]
+        model_id = logged_digests.get(digest)
+        if model_id is not None:  # unchanged models are linked, not logged again
+            return model_id, True
+        model_id = log_signal_model(data.files[run_key], run_id, re.sub(r"[^\w-]+", "-", name), params,
+                                    {**run_tags, "model_digest": digest})
+        logged_digests[digest] = model_id
+        return model_id, False
+    return log_model(data.files[run_key], data.example, run_id, re.sub(r"[^\w-]+", "-", name), params,
+                     run_tags), False
+
+
+def log_nested_run(client, experiment_id: str, parent_id: str, data: TrackInputs, nested: tuple,
+                   config_hash: str, log_models, logged_digests: dict) -> tuple[str | None, bool]:
+    """One nested run (`nested`: key, params, metrics): created, its model, one log_batch of its
+    metrics (linked to the model) and params, terminated; returns (model id, linked)."""
+    from mlflow.entities import Metric, Param
+
+    key, params, values = nested
+    run_key = tuple(key.values())
+    name = f"{key['classifier']}/{key['protocol']}/p{key['measured_percent']}/r{key['repeat']}"
+    name += f"/{key['holdout']}" if key["holdout"] else ""
+    run_tags = {**{k: str(v) for k, v in key.items()}, "config_hash": config_hash,
+                "leaky": str(key["protocol"] in LEAKY_PROTOCOLS).lower(),
+                "model_file": str(data.files[run_key].resolve())}
+    run_id = client.create_run(experiment_id, run_name=name,
+                               tags={**run_tags, "mlflow.parentRunId": parent_id}).info.run_id
+    if data.store:  # the device it was fitted on (the CNN: cpu or cuda:<n> (<GPU>))
+        params = {**params, "device": data.by_key[run_key]["device"]}
+    model_id, linked = nested_run_model(data, run_key, key, run_id, name, params, run_tags, log_models,
+                                        logged_digests)
+    measured, now = data.datasets["measured_features"], int(time.time() * 1000)
+    points = [Metric(k, v, now, 0, dataset_name=measured.name, dataset_digest=measured.digest,
+                     model_id=model_id) for k, v in values.items()]
+    if run_key in data.histories:  # the members' mean curves; every member's in an artifact
+        history = data.histories[run_key]
+        points += [Metric(k, v, now, step, model_id=model_id) for k, v, step in curves(history)]
+        client.log_text(run_id, history[["member", "epoch", *CURVES]].to_csv(index=False), "training_history.csv")
+    client.log_batch(run_id, metrics=points, params=[Param(k, v) for k, v in params.items()])
+    client.set_terminated(run_id)
+    return model_id, linked
+
+
+def tracking_client(uri: str):
+    """MLflow pointed at `uri` (a local SQLite store switched to write-ahead logging) and its client."""
+    import mlflow
+
+    use_write_ahead_log(uri)
+    mlflow.set_tracking_uri(uri)
+    return mlflow.MlflowClient(uri)
+
+
+def log_nested_runs(client, experiment_id: str, parent_id: str, data: TrackInputs, config_hash: str, log_models,
+                    logged_digests: dict) -> tuple[list, int]:
+    """Every nested run (`log_nested_run`): the ids of the models logged or linked, and how many
+    were linked rather than logged again."""
+    model_ids, n_reused = [], 0
+    for nested in data.runs:
+        model_id, linked = log_nested_run(client, experiment_id, parent_id, data, nested, config_hash, log_models,
+                                          logged_digests)
+        model_ids += [model_id] if wants_model(log_models, nested[0]) else []
+        n_reused += linked
+    return model_ids, n_reused
+
+
+def register_store_best(client, data: TrackInputs, logged_digests: dict, run_name: str, config_hash: str) -> dict:
+    """The store's best model registered (`register_best`) and the parent tagged with it, where
+    this experiment logged it; {} otherwise."""
+    import mlflow
+
+    if not data.store or data.store["best"] is None:
+        return {}
+    best = next(e for e in data.store["models"] if e["file"] == data.store["best"])
+    best_id = logged_digests.get(best["digest"])
+    if best_id is None:
+        return {}
+    registered = register_best(client, best_id, run_name, config_hash, best)
+    mlflow.set_tags({"best_model_id": best_id,
+                     "best_model_file": str(data.files[tuple(best[k] for k in KEYS)].resolve())})
+    return registered
+
+
+def tracking_failure(uri: str, parent_id: str | None, exc: Exception) -> TrackingError | None:
+    """After a failure while logging: the parent ended as FAILED (best effort: the server may be
+    gone) and, for a remote server, the error that names it and the unfinished parent."""
+    import mlflow
+
+    with contextlib.suppress(Exception):
+        mlflow.end_run("FAILED")
+    if is_remote(uri) and not isinstance(exc, TrackingError):
+        return TrackingError(
+            f"MLflow tracking server {uri} failed while logging parent run {parent_id} "
+            f"({type(exc).__name__}: {str(exc)[:300]}). That run stays unfinished and is never "
+            "counted; rerun the track job once the server answers")
+    return None
+
+
 def log_pipeline_run(tracking_uri: str, run: TrackedRun, train_dirs, datasets: dict,
                      log_models="all", workdir=".", model_store=None,
                      artifacts: dict | None = None) -> dict:
@@ -418,123 +590,47 @@ def log_pipeline_run(tracking_uri: str, run: TrackedRun, train_dirs, datasets: d
     (``register_best``); ``artifacts``: {artifact folder: local file or folder} of the parent
     (the report's plots). Every input is read and checked before the first MLflow call.
     """
-    run_name, config_hash, data_source = run.run_name, run.config_hash, run.data_source
-    config, healthy_state = run.config, run.healthy_state
     if not isinstance(log_models, dict) and log_models not in MODEL_POLICIES:
         raise ValueError(f"log_models={log_models!r}; expected one of {MODEL_POLICIES} or a filter")
     started = time.perf_counter()
     uri = resolve_tracking_uri(tracking_uri, workdir)
     check_tracking_server(uri)
-    metrics, predictions, clf_params, files, histories = read_train_outputs(train_dirs)
-    inputs = {name: file_dataset(name, paths) for name, paths in datasets.items()}
-    example = feature_example(datasets["measured_features"][0])
-    runs = nested_runs(metrics, predictions, clf_params, histories)
-    if missing := [key for key, _, _ in runs if tuple(key.values()) not in files]:
-        raise TrackingError(f"no model file in info.json for {missing[:3]}")
-    store = None
-    if model_store is not None:
-        from condmon.model_store import read_index
-
-        store = read_index(model_store)
-        by_key = {(e["classifier"], e["protocol"], e["measured_percent"], e["repeat"], e["holdout"]): e
-                  for e in store["models"]}
-        if missing := [key for key, _, _ in runs if tuple(key.values()) not in by_key]:
-            raise TrackingError(f"{model_store}: no packaged model for {missing[:3]}")
-        files = {key: Path(model_store) / entry["file"] for key, entry in by_key.items()}
-    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
-    confusion = (predictions.groupby([*KEYS, "true_label", "predicted_label"]).size()
-                 .unstack(fill_value=0).reindex(columns=labels, fill_value=0))
-
+    data = read_track_inputs(train_dirs, datasets, model_store, run.healthy_state)
     import mlflow
-    from mlflow.entities import Metric, Param
 
-    use_write_ahead_log(uri)
-    mlflow.set_tracking_uri(uri)
-    client = mlflow.MlflowClient(uri)
-    commit, dirty = git_state(workdir)
-    tags = {"git_commit": commit, "git_dirty": dirty, "config_hash": config_hash,
-            "snakemake_run_name": run_name, "data_source": data_source,
-            "data_source_synthetic": str(is_synthetic(data_source)).lower(),
-            "models_logged": json.dumps(log_models), "n_nested_runs": str(len(runs))}
-    measured, model_ids, parent_id = inputs["measured_features"], [], None
+    client, parent_id = tracking_client(uri), None
+    tags = parent_tags(run, log_models, len(data.runs), workdir)
     try:
-        experiment_id = get_or_create_experiment(client, uri, run_name)
-        params = flatten_params(config or {})
-        name = parent_run_name(client, experiment_id, run_name, config_hash, params)
+        experiment_id = get_or_create_experiment(client, uri, run.run_name)
+        params = flatten_params(run.config or {})
+        name = parent_run_name(client, experiment_id, run.run_name, run.config_hash, params)
         parent_id = mlflow.start_run(experiment_id=experiment_id, tags=tags, run_name=name).info.run_id
-        log_inputs(inputs)
-        mlflow.log_params(params)
-        mlflow.log_metrics(summary_metrics(metrics))
-        mlflow.log_text(metrics.to_csv(index=False), "accuracy.csv")
-        # counts per run (rows: true label, columns: predicted label)
-        mlflow.log_text(confusion.reset_index().to_csv(index=False), "confusion_matrices.csv")
-        for folder, path in (artifacts or {}).items():  # hidden files (Snakemake's marks) left out
-            for file in sorted(Path(path).iterdir()) if Path(path).is_dir() else [Path(path)]:
-                if file.is_file() and not file.name.startswith("."):
-                    mlflow.log_artifact(str(file), folder)
-        logged_digests = logged_model_digests(experiment_id) if store else {}
-        n_reused = 0
-        for key, params, values in runs:
-            run_key = tuple(key.values())
-            name = f"{key['classifier']}/{key['protocol']}/p{key['measured_percent']}/r{key['repeat']}"
-            name += f"/{key['holdout']}" if key["holdout"] else ""
-            run_tags = {**{k: str(v) for k, v in key.items()}, "config_hash": config_hash,
-                        "leaky": str(key["protocol"] in LEAKY_PROTOCOLS).lower(),
-                        "model_file": str(files[run_key].resolve())}
-            run_id = client.create_run(experiment_id, run_name=name,
-                                       tags={**run_tags, "mlflow.parentRunId": parent_id}).info.run_id
-            model_id = None
-            if store:  # the device it was fitted on (the CNN: cpu or cuda:<n> (<GPU>))
-                params = {**params, "device": by_key[run_key]["device"]}
-            if wants_model(log_models, key) and store:
-                digest = by_key[run_key]["digest"]
-                model_id = logged_digests.get(digest)
-                n_reused += model_id is not None
-                if model_id is None:  # unchanged models are linked, not logged again
-                    model_id = log_signal_model(files[run_key], run_id, re.sub(r"[^\w-]+", "-", name),
-                                                params, {**run_tags, "model_digest": digest})
-                    logged_digests[digest] = model_id
-                model_ids.append(model_id)
-            elif wants_model(log_models, key):
-                model_id = log_model(files[run_key], example, run_id, re.sub(r"[^\w-]+", "-", name),
-                                     params, run_tags)
-                model_ids.append(model_id)
-            now = int(time.time() * 1000)
-            points = [Metric(k, v, now, 0, dataset_name=measured.name, dataset_digest=measured.digest,
-                             model_id=model_id) for k, v in values.items()]
-            if run_key in histories:  # the members' mean curves; every member's in an artifact
-                points += [Metric(k, v, now, step, model_id=model_id) for k, v, step in curves(histories[run_key])]
-                client.log_text(run_id, histories[run_key][["member", "epoch", *CURVES]].to_csv(index=False),
-                                "training_history.csv")
-            client.log_batch(run_id, metrics=points, params=[Param(k, v) for k, v in params.items()])
-            client.set_terminated(run_id)
-        registered = {}
-        if store and store["best"] is not None:
-            best = next(e for e in store["models"] if e["file"] == store["best"])
-            best_id = logged_digests.get(best["digest"])
-            if best_id is not None:
-                registered = register_best(client, best_id, run_name, config_hash, best)
-                mlflow.set_tags({"best_model_id": best_id, "best_model_file": str(files[
-                    tuple(best[k] for k in KEYS)].resolve())})
+        log_parent_contents(data, params, artifacts)
+        logged_digests = logged_model_digests(experiment_id) if data.store else {}
+        model_ids, n_reused = log_nested_runs(client, experiment_id, parent_id, data, run.config_hash,
+                                              log_models, logged_digests)
+        registered = register_store_best(client, data, logged_digests, run.run_name, run.config_hash)
         mlflow.end_run()
     except Exception as exc:
-        with contextlib.suppress(Exception):  # the server may be gone: best effort
-            mlflow.end_run("FAILED")
-        if is_remote(uri) and not isinstance(exc, TrackingError):
-            raise TrackingError(
-                f"MLflow tracking server {uri} failed while logging parent run {parent_id} "
-                f"({type(exc).__name__}: {str(exc)[:300]}). That run stays unfinished and is never "
-                "counted; rerun the track job once the server answers") from exc
+        if (error := tracking_failure(uri, parent_id, exc)) is not None:
+            raise error from exc
         raise
-    elapsed = time.perf_counter() - started
-    log.info("logged %d nested runs and %d models under %s in %.1f s", len(runs), len(model_ids),
+    return run_info(run, uri, tracking_uri, experiment_id, parent_id, data, log_models, model_ids, n_reused,
+                    registered, time.perf_counter() - started)
+
+
+def run_info(run: TrackedRun, uri: str, tracking_uri: str, experiment_id: str, parent_id: str,
+             data: TrackInputs, log_models, model_ids: list, n_reused: int, registered: dict,
+             elapsed: float) -> dict:
+    """What `log_pipeline_run` returns (and the track job writes as mlflow_run.json)."""
+    log.info("logged %d nested runs and %d models under %s in %.1f s", len(data.runs), len(model_ids),
              parent_id, elapsed)
     return {"parent_run_id": parent_id, "experiment_id": experiment_id,
-            "experiment_name": run_name, "tracking_uri": uri, "tracking_uri_configured": tracking_uri,
-            "n_nested_runs": len(runs), "models_logged": log_models, "n_models_logged": len(model_ids),
-            "config_hash": config_hash,
-            **({"n_models_linked_not_logged": n_reused, "best_model": registered} if store else {}),
-            "datasets": {name: dataset.digest for name, dataset in inputs.items()},
+            "experiment_name": run.run_name, "tracking_uri": uri, "tracking_uri_configured": tracking_uri,
+            "n_nested_runs": len(data.runs), "models_logged": log_models, "n_models_logged": len(model_ids),
+            "config_hash": run.config_hash,
+            **({"n_models_linked_not_logged": n_reused, "best_model": registered} if data.store else {}),
+            "datasets": {name: dataset.digest for name, dataset in data.datasets.items()},
             "seconds": round(elapsed, 2)}
 
 

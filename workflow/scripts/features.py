@@ -6,7 +6,7 @@ system's own families, or several of these side by side).
 import pandas as pd
 
 from condmon.atomic import write_frame, write_text
-from condmon.features import compute_feature_table_from_files, feature_columns, write_feature_table
+from condmon.features import FamilyInputs, compute_feature_table_from_files, feature_columns, write_feature_table
 from condmon import reference
 from condmon.runlog import setup_logging
 from condmon.systems import load_system
@@ -24,21 +24,17 @@ families = dict(getattr(snakemake.params, "families", None) or {})  # the system
 # the system says where its envelope lines are (its defect orders), if it has any, and computes its own families
 system = load_system(snakemake.params.system)
 against = getattr(snakemake.params, "healthy_reference", None)
-family_params = {family: dict(params) for family, params in families.items()}
-own = system.feature_families()
 # the measured records' own references (a simulated run's families read what they share, e.g. fixed tones)
 measured_references = getattr(snakemake.input, "family_references", None)
-measured_references = pd.read_parquet(measured_references) if measured_references else None
-for family in family_params:  # a family that takes every machine against its reference itself
-    if getattr(own.get(family), "takes_reference", False):
-        family_params[family]["against"] = dict(against) if against else None
-        if measured_references is not None:
-            family_params[family]["measured_references"] = measured_references
-    if getattr(own.get(family), "takes_processes", False):  # ... or spreads its work over the job's cores
-        family_params[family]["processes"] = snakemake.threads
-frame = compute_feature_table_from_files(signal_paths, channels, kind,
-                                         {"spectrum": spectrum, "statistical": statistical, **family_params},
-                                         system.defect_orders(), own)
+# the families' settings (the rule's params) apart from what they take at run time: the healthy
+# reference (a family that takes every machine against it itself), the job's cores
+inputs = FamilyInputs(healthy_reference=dict(against) if against else None,
+                      measured_references=pd.read_parquet(measured_references) if measured_references else None,
+                      processes=snakemake.threads)
+settings = {"spectrum": spectrum, "statistical": statistical,
+            **{family: dict(params) for family, params in families.items()}}
+frame = compute_feature_table_from_files(signal_paths, channels, kind, settings, system.defect_orders(),
+                                         system.feature_families(), inputs)
 names = feature_columns(frame)
 referenced = list(frame.attrs.get("referenced_columns", ()))  # a family that took its reference itself
 family_references = frame.attrs.get("references")  # ... and its measured references, to package

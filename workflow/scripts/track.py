@@ -11,6 +11,7 @@ import pandas as pd
 
 from condmon.model_store import build_store
 from condmon.runlog import setup_logging
+from condmon.signal_model import packaged_features
 from condmon.systems import load_system
 from condmon.tracking import (TrackedRun, TrackingError, check_tracking_server, log_pipeline_run,
                               resolve_tracking_uri, write_run_info)
@@ -25,17 +26,15 @@ try:
     # tests run, logs the fitted estimators as they are)
     store = snakemake.output.models if "models" in snakemake.output.keys() else None
     if store is not None:
-        features = {**dict(params.features), "defect_orders": load_system(params.features_system).defect_orders()}
+        system = load_system(params.features_system)
+        reference = None
         if "reference" in inputs.keys():  # features.healthy_reference: new records taken against it too
-            features["reference"] = {"condition": params.condition,
-                                     "table": pd.read_parquet(inputs.reference).to_dict("list")}
-        if "family_references" in inputs.keys():  # a family's own references (waveforms), packaged in its params
-            own = load_system(params.features_system).feature_families()
-            patterns = pd.read_parquet(inputs.family_references).to_dict("list")
-            features["families"] = {family: dict(settings) for family, settings in (features.get("families") or {}).items()}
-            for family, settings in features["families"].items():
-                if getattr(own.get(family), "takes_reference", False):
-                    settings["reference_patterns"] = patterns
+            reference = {"condition": params.condition, "table": pd.read_parquet(inputs.reference).to_dict("list")}
+        family_references = None  # a family's own references (waveforms), packaged in its settings
+        if "family_references" in inputs.keys():
+            family_references = pd.read_parquet(inputs.family_references)
+        features = packaged_features(dict(params.features), system.defect_orders(), system.feature_families(),
+                                     reference, family_references)
         index = build_store(store, train_dirs, dict(zip(params.protocols, inputs.splits)),
                             inputs.measured_signals, inputs.features_simulated, inputs.features_measured,
                             features, params.healthy_state, dict(params.measured_system), params.config_hash)

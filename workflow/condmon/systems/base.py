@@ -411,9 +411,11 @@ class System(ABC):
         return None
 
     def feature_families(self) -> dict:
-        """The system's own feature families beside the built-in ones: {name: function(signal
-        frame, channels, params) -> wide features table}; `params` is `features.<name>` (its
-        schema in the system's schema file) plus what `feature_family_params` adds. None by default."""
+        """The system's own feature families beside the built-in ones: {name:
+        `condmon.features.SystemFamily`}, whose table is ``table(signal frame, channels,
+        settings, inputs) -> wide features table``; `settings` is `features.<name>` (its schema
+        in the system's schema file) plus what `feature_family_params` adds, `inputs` the
+        run-time `condmon.features.FamilyInputs` (references, processes). None by default."""
         return {}
 
     def feature_family_params(self, family: str) -> dict:

@@ -332,10 +332,14 @@ class GearSystem(System):
     # -- features: the order-domain gear diagnostics (order_features.py) and the residual
     # signatures against each machine's healthy reference (residual_features.py) -------------
     def feature_families(self) -> dict:
+        from condmon.features import SystemFamily
         from condmon.systems.gear.order_features import order_feature_table
         from condmon.systems.gear.residual_features import residual_feature_table
 
-        return {"order": order_feature_table, "residual": residual_feature_table}
+        # the residual signatures take every machine against its healthy reference (a waveform)
+        # themselves and spread their segments over the job's cores
+        return {"order": SystemFamily(order_feature_table),
+                "residual": SystemFamily(residual_feature_table, references=True, parallel=True)}
 
     def feature_family_params(self, family: str) -> dict:
         shafts = {"shafts": [list(shaft) for shaft in self.shafts()]}

@@ -520,11 +520,12 @@ def order_features_from_params(channels, shafts, order_params: dict) -> OrderFea
     return OrderFeatures(shafts=[tuple(s) for s in shafts], channels=list(channels), **order_params)
 
 
-def order_feature_table(signal_frame, channels, params: dict) -> pd.DataFrame:
+def order_feature_table(signal_frame, channels, params: dict, inputs=None) -> pd.DataFrame:
     """Wide features table of one signal table: order-spectrum bands and gear condition indicators
     per channel (`condmon.order_features.OrderFeatures`, configured by `params` = the config's
     `features.order` with the rig's `shafts` [(name, speed ratio, teeth)], `GearSystem.shafts()`),
-    with each segment's stored input-shaft speed."""
+    with each segment's stored input-shaft speed. `inputs` (`condmon.features.FamilyInputs`):
+    unused, the order features take no reference and run in one process."""
     params = dict(params)
     shafts = params.pop("shafts", None)
     try:

@@ -52,6 +52,7 @@ import json
 import logging
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
 from fractions import Fraction
 
 import numpy as np
@@ -59,7 +60,7 @@ import pandas as pd
 from scipy.interpolate import CubicSpline
 from scipy.signal import resample_poly
 
-from condmon.features import FeatureTableError, single_sampling_rate
+from condmon.features import FamilyInputs, FeatureTableError, single_sampling_rate
 from condmon.hybrid import calibration_frame
 from condmon.signals import to_arrays
 from condmon.simulate import machine_of
@@ -818,144 +819,244 @@ def without_fixed_tones(ids: pd.DataFrame, arrays: np.ndarray, fs_hz: float, sha
     return cleaned
 
 
-def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -> pd.DataFrame:
-    """Wide features table of one signal table: every segment's residual signatures against its
-    machine's healthy reference (module docstring), the segments' patterns in `processes` worker
-    processes (default 1). `params`: the config's `features.residual`
-    with the rig's `shafts`, the `damaged_shafts` whose features it gives (default: every
-    shaft; the gear system's faults damage the pinion and its shaft) and either `against` (the features job's healthy-reference spec:
-    measured segments against the calibration set per condition, simulated ones against their
-    healthy twins) or `reference_patterns` (a packaged model's measured references). With
-    `against` measured, the references go in `attrs["references"]` to be written and packaged;
-    with `against` simulated, `measured_references` (that table) gives the fixed tones every
-    segment loses as the measured ones do (`fixed_tones`)."""
+@dataclass(frozen=True)
+class ResidualSettings:
+    """`features.residual` with what the gear system adds, read and checked once
+    (`residual_settings`)."""
+
+    shafts: list  # [(name, speed ratio, teeth)], the input shaft first
+    damaged: list  # the shafts whose features the table gives
+    contact_ratio: float  # the pair's, for the located teeth
+    samples_per_revolution: int
+    bands_per_mesh: int
+    magnitudes: bool
+    reference_level: str
+    shaft_orders: int
+    phase: tuple  # (harmonic, band in orders, least SNR) of the mesh phase
+    mesh_harmonics: int | str  # a count, or "auto": the window from the calibration records
+
+
+def residual_settings(params: dict) -> ResidualSettings:
+    """The residual family's settings of `params` (`features.residual` with the rig's `shafts`,
+    the `damaged_shafts` whose features it gives, default every shaft, and the pair's
+    `contact_ratio`); an unknown or invalid one is refused by name."""
     params = dict(params)
     shafts = [(str(n), float(r), int(t)) for n, r, t in params.pop("shafts")]
-    contact_ratio = float(params.pop("contact_ratio", 2.0))  # the pair's, for the located teeth
+    contact_ratio = float(params.pop("contact_ratio", 2.0))
     damaged = [str(name) for name in params.pop("damaged_shafts", None) or [name for name, _, _ in shafts]]
-    against, packaged = params.pop("against", None), params.pop("reference_patterns", None)
-    measured_references = params.pop("measured_references", None)  # a simulated run's: its fixed tones
-    processes = int(params.pop("processes", 1))  # the job's cores, not a feature setting
     if not set(damaged) <= {name for name, _, _ in shafts}:
         raise FeatureTableError(f"{KEY}: damaged shafts {damaged} are not all among the rig's {[n for n, _, _ in shafts]}")
     unknown = sorted(set(params) - set(RESIDUAL_PARAMS))
     if unknown:
         raise FeatureTableError(f"{KEY}: unknown parameter(s) {unknown}; allowed: {list(RESIDUAL_PARAMS)}")
-    if against is None and packaged is None:
-        raise FeatureTableError(f"{KEY}: residual signatures take each machine against its healthy reference; "
-                                "switch features.healthy_reference on")
-    P, bands_per_mesh = int(params["samples_per_revolution"]), int(params["bands_per_mesh"])
-    magnitudes = bool(params.get("magnitudes", True))
     reference_level = str(params.get("reference_level", "whole"))
     if reference_level not in REFERENCE_LEVELS:
         raise FeatureTableError(f"{KEY}.reference_level: {reference_level!r} is none of {list(REFERENCE_LEVELS)}")
-    shaft_orders = int(params["shaft_orders"])
+    return ResidualSettings(
+        shafts=shafts, damaged=damaged, contact_ratio=contact_ratio,
+        samples_per_revolution=int(params["samples_per_revolution"]),
+        bands_per_mesh=int(params["bands_per_mesh"]), magnitudes=bool(params.get("magnitudes", True)),
+        reference_level=reference_level, shaft_orders=int(params["shaft_orders"]),
+        phase=(int(params["phase_harmonic"]), float(params["phase_band_orders"]), float(params["phase_min_snr"])),
+        mesh_harmonics=params["mesh_harmonics"])
+
+
+@dataclass
+class MachineReferences:
+    """Where each segment's healthy reference comes from, and the segments without the fixed
+    tones (`packaged_machine`, `own_machine`)."""
+
+    keys: list  # each row's reference key: its condition (measured, packaged) or its machine
+    mesh_harmonics: int  # the bands reach this mesh harmonic
+    tones: list  # the machine's fixed tones in Hz, removed from `arrays`
+    arrays: np.ndarray  # (n_segments, n_channels, n_samples)
+    positions: dict | None = None  # the job's own: {key: rows of its reference segments}
+    cycles: dict = field(default_factory=dict)  # {key: hunting-cycle average}
+    references: dict | None = None  # {key: [pattern per shaft]}
+    window: tuple | None = None  # (mesh harmonics, energy order, passband limit) chosen here
+
+
+def packaged_machine(ids, arrays, fs_hz: float, s: ResidualSettings, packaged, channels) -> MachineReferences:
+    """A packaged model's references (`patterns_table`): each segment against the nearest
+    condition's."""
+    condition, references, cycles, tones = patterns_from_table(packaged, s.shafts, list(channels))
+    known = np.array(sorted(references))
+    keys = [float(known[np.argmin(np.abs(known - v))]) for v in ids[condition].astype(float)]
+    mesh_harmonics = resolved_window(s.mesh_harmonics, packaged, "the packaged model's references")
+    arrays = without_fixed_tones(ids, arrays, fs_hz, s.shafts, tones)
+    return MachineReferences(keys, mesh_harmonics, tones, arrays, cycles=cycles, references=references)
+
+
+def own_machine(ids, arrays, fs_hz: float, s: ResidualSettings, against: dict,
+                measured_references) -> MachineReferences:
+    """The features job's references in the signal table itself (`against`: the healthy-reference
+    spec): the calibration set per condition, or each simulated sample's healthy twin, which loses
+    the fixed tones the measured records (`measured_references`) lost."""
+    positions, keys = reference_rows(ids, against)
+    window = None
+    if against["source"] == "measured":  # the calibration records' lines at one frequency at every speed
+        chosen = sorted(i for rows in positions.values() for i in rows)
+        by_speed = {speed: arrays[list(rows)] for speed, rows in ids.loc[chosen].groupby("speed_rpm").groups.items()}
+        tones = fixed_tones(by_speed, fs_hz)
+        if s.mesh_harmonics == "auto":  # the window from the calibration records (`window_harmonics`)
+            window = window_harmonics(by_speed, fs_hz, s.shafts)
+            log.info("residual window: up to mesh harmonic %d (%d orders of the %s); the healthy records' "
+                     "%.0f %% energy order at %g rpm %.0f, the passband's limit %d harmonics", window[0],
+                     window[0] * s.shafts[0][2], s.shafts[0][0], 100 * WINDOW_ENERGY_SHARE, min(by_speed),
+                     window[1], window[2])
+        mesh_harmonics = window[0] if window else int(s.mesh_harmonics)
+    else:  # a simulated machine has none, but loses the same orders as the measured records
+        tones = tones_from_table(measured_references) if measured_references is not None else []
+        mesh_harmonics = resolved_window(s.mesh_harmonics, measured_references,
+                                         "the measured records' references")
+    arrays = without_fixed_tones(ids, arrays, fs_hz, s.shafts, tones)
+    return MachineReferences(keys, mesh_harmonics, tones, arrays, positions=positions, window=window)
+
+
+def own_cycles(ids, machine: MachineReferences, fs_hz: float, s: ResidualSettings, top: int) -> dict:
+    """A machine whose reference records cover the hunting cycle is taken against its average
+    over the cycle; one whose records are shorter, against its shafts' separated patterns."""
+    cycles = {key: record_cycles(ids, machine.arrays, rows, fs_hz, s.shafts, s.samples_per_revolution, s.phase, top)
+              for key, rows in machine.positions.items()}
+    cycles = {key: cycle for key, cycle in cycles.items() if cycle is not None}
+    shorter = sorted(str(key) for key in set(machine.positions) - set(cycles))
+    if shorter:
+        log.info("%d of %d healthy references cover less than the hunting cycle (%d input revolutions): "
+                 "their shafts' patterns are separated instead (%s)", len(shorter), len(machine.positions),
+                 hunting_revolutions(s.shafts), ", ".join(shorter[:5]) + (" ..." if len(shorter) > 5 else ""))
+    return cycles
+
+
+def own_references(patterns, machine: MachineReferences, s: ResidualSettings, n_bands: int, against: dict) -> dict:
+    """{key: [pattern per shaft]}: the hunting cycle's shaft patterns where it is covered, else the
+    reference segments' patterns averaged; a measured condition without calibration records is
+    refused by name."""
+    revolutions = hunting_revolutions(s.shafts)
+    references = {key: (cycle_shaft_patterns(machine.cycles[key], s.shafts, revolutions, s.samples_per_revolution)
+                        if key in machine.cycles else
+                        [reference_pattern([patterns[i][k] for i in rows], teeth,
+                                           top_band_order(teeth / s.bands_per_mesh, n_bands))
+                         for k, (_, _, teeth) in enumerate(s.shafts)])
+                  for key, rows in machine.positions.items()}
+    missing = sorted({str(k) for k in machine.keys} - {str(k) for k in references})
+    if against["source"] == "measured" and missing:
+        raise FeatureTableError(f"{KEY}: no calibration records at {against['condition']} {missing}")
+    return references
+
+
+def tooth_frames(signal_frame, ids, machine: MachineReferences, fs_hz: float, s: ResidualSettings,
+                 tops: list, measured: bool, packaged: bool) -> tuple[dict, dict]:
+    """One tooth frame for the machine (measured or packaged references; a simulated machine's
+    locations go nowhere): {key: each shaft's turns from the frame's start}, and where its damaged
+    teeth begin on a bench whose records carry the truth ({record: positions})."""
+    references = machine.references
+    frames = (reference_frames(references, s.shafts, tops) if packaged or measured
+              else {key: np.zeros(len(s.shafts)) for key in references})
+    origin_phase = None
+    if not packaged and measured:
+        first = min(machine.positions)
+        origin_phase = frame_origin_phase(signal_frame, ids, machine.arrays, machine.positions[first], fs_hz,
+                                          s.shafts, s.samples_per_revolution, s.phase, first in machine.cycles)
+    return frames, true_positions(signal_frame, origin_phase, s.shafts[0][2])
+
+
+def segment_residual_features(i: int, patterns, origins, machine: MachineReferences, s: ResidualSettings,
+                              frames: dict, n_bands: int, tops: list) -> tuple[np.ndarray, list]:
+    """One segment's residual signatures (the names' order: channel, shaft, feature; then how the
+    change is spread over each damaged shaft's teeth) and each damaged shaft's excess per tooth."""
+    key, references = machine.keys[i], machine.references
+    chosen = [(k, shaft) for k, shaft in enumerate(s.shafts) if shaft[0] in s.damaged]
+    # against the hunting cycle the patterns are already residuals; else aligned and subtracted
+    residuals = [patterns[i][k] if key in machine.cycles else
+                 aligned(patterns[i][k], references[key][k], teeth, top_band_order(teeth / s.bands_per_mesh, n_bands))
+                 - references[key][k] for k, (_, _, teeth) in chosen]
+    found = [residual_signatures(residual, references[key][k], teeth, teeth / s.bands_per_mesh, n_bands,
+                                 s.shaft_orders, machine.mesh_harmonics, s.reference_level)
+             for residual, (k, (_, _, teeth)) in zip(residuals, chosen)]
+    # (shaft, feature, channel) -> the names' order: channel, shaft, feature
+    kept = band_names(n_bands) + kept_features(s.magnitudes)
+    block = np.log10(np.array([[shaft[feature] for feature in kept] for shaft in found]) + TINY)
+    if not s.magnitudes:  # (shaft, feature, channel): the bands as their shape per shaft and channel
+        block[:, :n_bands] = band_shape(block[:, :n_bands].transpose(0, 2, 1)).transpose(0, 2, 1)
+    # how the change is spread over each shaft's teeth, in its reference's frame
+    spread = [damaged_pitches(residual_signal(
+        in_reference_frame(band_limited(residual, 1, tops[k]), (origins[i] or 0.0) * ratio + frames[key][k]),
+        teeth, s.shaft_orders, machine.mesh_harmonics), teeth)
+              for residual, (k, (_, ratio, teeth)) in zip(residuals, chosen)]
+    teeth_block = [np.log10(teeth_features(excess)[f] + TINY) for excess in spread for f in TEETH_FEATURES]
+    return np.concatenate([block.transpose(2, 0, 1).ravel(), teeth_block]), spread
+
+
+def segment_locations(i: int, ids, spread: list, s: ResidualSettings, truths: dict) -> list[dict]:
+    """Where one segment's change sits on each damaged shaft (`located_tooth`), beside the truth."""
+    truth = truths.get(ids.at[i, "record_id"], [])
+    chosen = [(k, shaft) for k, shaft in enumerate(s.shafts) if shaft[0] in s.damaged]
+    return [{"row": i, "part": name, "positions": teeth, "span": s.contact_ratio,
+             "position": tooth, "share": share, "true_positions": truth if k == 0 else []}
+            for excess, (k, (name, _, teeth)) in zip(spread, chosen)
+            for tooth, share in [located_tooth(excess)]]
+
+
+def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict,
+                           inputs: FamilyInputs | None = None) -> pd.DataFrame:
+    """Wide features table of one signal table: every segment's residual signatures against its
+    machine's healthy reference (module docstring).
+
+    `params`: the settings (`residual_settings`). `inputs` (`condmon.features.FamilyInputs`):
+    either `healthy_reference` (the features job's spec: measured segments against the
+    calibration set per condition, simulated ones against their healthy twins; with a
+    simulated one, `measured_references` gives the fixed tones every segment loses as the
+    measured ones do) or `packaged_references` (a packaged model's); the segments' patterns in
+    `processes` worker processes. Measured, the references go in `attrs["references"]` to be
+    written and packaged; `attrs["fault_locations"]`: where each segment's change sits."""
+    s, inputs = residual_settings(params), inputs or FamilyInputs()
+    against, packaged = inputs.healthy_reference, inputs.packaged_references
+    if against is None and packaged is None:
+        raise FeatureTableError(f"{KEY}: residual signatures take each machine against its healthy reference; "
+                                "switch features.healthy_reference on")
     fs_hz = single_sampling_rate(signal_frame)
     ids, arrays = to_arrays(signal_frame, list(channels))
     ids = ids.reset_index(drop=True)
+    machine = (packaged_machine(ids, arrays, fs_hz, s, packaged, channels) if packaged is not None
+               else own_machine(ids, arrays, fs_hz, s, against, inputs.measured_references))
+    return residual_frame(signal_frame, ids, machine, fs_hz, s, channels, against, inputs.processes,
+                          packaged is not None)
+
+
+def residual_frame(signal_frame, ids, machine: MachineReferences, fs_hz: float, s: ResidualSettings, channels,
+                   against: dict | None, processes: int, packaged: bool) -> pd.DataFrame:
+    """`residual_feature_table`'s table once the references' source is known (`machine`)."""
     speeds = ids["speed_rpm"].to_numpy(float)
-    phase = (int(params["phase_harmonic"]), float(params["phase_band_orders"]), float(params["phase_min_snr"]))
-    revolutions = hunting_revolutions(shafts)
-    window = None  # (mesh harmonics, energy order, passband limit) where the rule chose them here
-    if packaged is not None:
-        condition, references, cycles, tones = patterns_from_table(packaged, shafts, list(channels))
-        known = np.array(sorted(references))
-        keys = [float(known[np.argmin(np.abs(known - v))]) for v in ids[condition].astype(float)]
-        mesh_harmonics = resolved_window(params["mesh_harmonics"], packaged, "the packaged model's references")
-        arrays = without_fixed_tones(ids, arrays, fs_hz, shafts, tones)
-    else:
-        positions, keys = reference_rows(ids, against)
-        if against["source"] == "measured":  # the calibration records' lines at one frequency at every speed
-            chosen = sorted(i for rows in positions.values() for i in rows)
-            by_speed = {speed: arrays[list(rows)] for speed, rows in ids.loc[chosen].groupby("speed_rpm").groups.items()}
-            tones = fixed_tones(by_speed, fs_hz)
-            if params["mesh_harmonics"] == "auto":  # the window from the calibration records (`window_harmonics`)
-                window = window_harmonics(by_speed, fs_hz, shafts)
-                log.info("residual window: up to mesh harmonic %d (%d orders of the %s); the healthy records' "
-                         "%.0f %% energy order at %g rpm %.0f, the passband's limit %d harmonics", window[0],
-                         window[0] * shafts[0][2], shafts[0][0], 100 * WINDOW_ENERGY_SHARE, min(by_speed),
-                         window[1], window[2])
-            mesh_harmonics = window[0] if window else int(params["mesh_harmonics"])
-        else:  # a simulated machine has none, but loses the same orders as the measured records
-            tones = tones_from_table(measured_references) if measured_references is not None else []
-            mesh_harmonics = resolved_window(params["mesh_harmonics"], measured_references,
-                                             "the measured records' references")
-        arrays = without_fixed_tones(ids, arrays, fs_hz, shafts, tones)
-    n_bands = bands_per_mesh * mesh_harmonics
+    n_bands = s.bands_per_mesh * machine.mesh_harmonics
     for speed in np.unique(speeds):
-        check_resolution(fs_hz, float(speed), shafts, P, mesh_harmonics)
-    top = top_band_order(shafts[0][2] / bands_per_mesh, n_bands)
-    if packaged is None:
-        # a machine whose reference records cover the hunting cycle is taken against its average
-        # over the cycle; one whose records are shorter, against its shafts' separated patterns
-        cycles = {key: record_cycles(ids, arrays, rows, fs_hz, shafts, P, phase, top) for key, rows in positions.items()}
-        cycles = {key: cycle for key, cycle in cycles.items() if cycle is not None}
-        shorter = sorted(str(key) for key in set(positions) - set(cycles))
-        if shorter:
-            log.info("%d of %d healthy references cover less than the hunting cycle (%d input revolutions): "
-                     "their shafts' patterns are separated instead (%s)", len(shorter), len(positions),
-                     revolutions, ", ".join(shorter[:5]) + (" ..." if len(shorter) > 5 else ""))
-    patterns, origins = map(list, zip(*every_segments_patterns(arrays, speeds, fs_hz, shafts, P, phase, processes,
-                                                               keys, cycles, top)))
-    if packaged is None:
-        references = {key: (cycle_shaft_patterns(cycles[key], shafts, revolutions, P) if key in cycles else
-                            [reference_pattern([patterns[i][k] for i in rows], teeth,
-                                               top_band_order(teeth / bands_per_mesh, n_bands))
-                             for k, (_, _, teeth) in enumerate(shafts)])
-                      for key, rows in positions.items()}
-        missing = sorted({str(k) for k in keys} - {str(k) for k in references})
-        if against["source"] == "measured" and missing:
-            raise FeatureTableError(f"{KEY}: no calibration records at {against['condition']} {missing}")
-    # one tooth frame for the machine (measured or packaged references; a simulated machine's
-    # locations go nowhere), and where it begins on a bench whose records carry the truth
-    tops = [top_band_order(teeth / bands_per_mesh, n_bands) for _, _, teeth in shafts]
-    frames = (reference_frames(references, shafts, tops) if packaged is not None or against["source"] == "measured"
-              else {key: np.zeros(len(shafts)) for key in references})
-    origin_phase = None
-    if packaged is None and against["source"] == "measured":
-        first = min(positions)
-        origin_phase = frame_origin_phase(signal_frame, ids, arrays, positions[first], fs_hz, shafts, P, phase,
-                                          first in cycles)
-    truths = true_positions(signal_frame, origin_phase, shafts[0][2])
+        check_resolution(fs_hz, float(speed), s.shafts, s.samples_per_revolution, machine.mesh_harmonics)
+    top = top_band_order(s.shafts[0][2] / s.bands_per_mesh, n_bands)
+    if not packaged:
+        machine.cycles = own_cycles(ids, machine, fs_hz, s, top)
+    patterns, origins = map(list, zip(*every_segments_patterns(
+        machine.arrays, speeds, fs_hz, s.shafts, s.samples_per_revolution, s.phase, processes, machine.keys,
+        machine.cycles, top)))
+    if not packaged:
+        machine.references = own_references(patterns, machine, s, n_bands, against)
+    measured = against is not None and against["source"] == "measured"
+    tops = [top_band_order(teeth / s.bands_per_mesh, n_bands) for _, _, teeth in s.shafts]
+    frames, truths = tooth_frames(signal_frame, ids, machine, fs_hz, s, tops, measured, packaged)
     # features of the shafts whose gears the modelled faults damage; every shaft's pattern is
     # still estimated, to keep the others out of theirs
-    chosen = [(k, shaft) for k, shaft in enumerate(shafts) if shaft[0] in damaged]
-    names = feature_names(channels, [shaft for _, shaft in chosen], n_bands, magnitudes)
-    kept = band_names(n_bands) + kept_features(magnitudes)
-    values = np.full((len(ids), len(names)), np.nan)
-    locations = []
-    for i, key in enumerate(keys):
-        if key not in references:  # a simulated sample whose healthy twin failed: left out later
+    names = feature_names(channels, [shaft for shaft in s.shafts if shaft[0] in s.damaged], n_bands, s.magnitudes)
+    values, locations = np.full((len(ids), len(names)), np.nan), []
+    for i, key in enumerate(machine.keys):
+        if key not in machine.references:  # a simulated sample whose healthy twin failed: left out later
             continue
-        # against the hunting cycle the patterns are already residuals; else aligned and subtracted
-        residuals = [patterns[i][k] if key in cycles else
-                     aligned(patterns[i][k], references[key][k], teeth, top_band_order(teeth / bands_per_mesh, n_bands))
-                     - references[key][k] for k, (_, _, teeth) in chosen]
-        found = [residual_signatures(residual, references[key][k], teeth, teeth / bands_per_mesh, n_bands,
-                                     shaft_orders, mesh_harmonics, reference_level)
-                 for residual, (k, (_, _, teeth)) in zip(residuals, chosen)]
-        # (shaft, feature, channel) -> the names' order: channel, shaft, feature
-        block = np.log10(np.array([[shaft[feature] for feature in kept] for shaft in found]) + TINY)
-        if not magnitudes:  # (shaft, feature, channel): the bands as their shape per shaft and channel
-            block[:, :n_bands] = band_shape(block[:, :n_bands].transpose(0, 2, 1)).transpose(0, 2, 1)
-        # how the change is spread over each shaft's teeth, in its reference's frame
-        spread = [damaged_pitches(residual_signal(
-            in_reference_frame(band_limited(residual, 1, tops[k]), (origins[i] or 0.0) * ratio + frames[key][k]),
-            teeth, shaft_orders, mesh_harmonics), teeth)
-                  for residual, (k, (_, ratio, teeth)) in zip(residuals, chosen)]
-        teeth_block = [np.log10(teeth_features(excess)[f] + TINY) for excess in spread for f in TEETH_FEATURES]
-        values[i] = np.concatenate([block.transpose(2, 0, 1).ravel(), teeth_block])
-        truth = truths.get(ids.at[i, "record_id"], [])
-        locations += [{"row": i, "part": name, "positions": teeth, "span": contact_ratio,
-                       "position": tooth, "share": share, "true_positions": truth if k == 0 else []}
-                      for excess, (k, (name, _, teeth)) in zip(spread, chosen)
-                      for tooth, share in [located_tooth(excess)]]
+        values[i], spread = segment_residual_features(i, patterns, origins, machine, s, frames, n_bands, tops)
+        locations += segment_locations(i, ids, spread, s, truths)
     frame = pd.concat([ids, pd.DataFrame(values.astype(np.float32), columns=names)], axis=1)
     frame.attrs["referenced_columns"] = names
     frame.attrs["fault_locations"] = fault_locations(ids, locations)
-    if against is not None and against["source"] == "measured":
-        frame.attrs["references"] = patterns_table(references, against["condition"], shafts, list(channels), cycles,
-                                                   tones, window or (mesh_harmonics, np.nan, np.nan))
+    if measured:
+        frame.attrs["references"] = patterns_table(machine.references, against["condition"], s.shafts, list(channels),
+                                                   machine.cycles, machine.tones,
+                                                   machine.window or (machine.mesh_harmonics, np.nan, np.nan))
     return frame
 
 
@@ -970,13 +1071,6 @@ def fault_locations(ids: pd.DataFrame, locations: list[dict]) -> pd.DataFrame:
                                              "true_positions"])
     located = ids.iloc[table["row"].to_numpy()].reset_index(drop=True)
     return pd.concat([located, table.drop(columns="row").reset_index(drop=True)], axis=1)
-
-
-# the features job hands it the healthy-reference spec (`against`) and reads every record at once
-# for it (a simulated sample's healthy twin lies in another file)
-residual_feature_table.takes_reference = True
-# ... and spreads its segments over the job's cores (`processes`)
-residual_feature_table.takes_processes = True
 
 
 def check_resolution(fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int,
