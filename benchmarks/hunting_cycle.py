@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -74,7 +73,7 @@ def cycle_shares(system, bench: dict, speed: float, seconds: float, records: int
     ids, arrays, fs_hz = bench_records(system, bench, speed, segment_seconds, records,
                                        int(round(seconds / segment_seconds)))
     shafts, phase = system.shafts(), (1, 0.3, 5.0)
-    revolutions, teeth = hunting_revolutions(shafts), shafts[0][2]
+    revolutions = hunting_revolutions(shafts)
     records_in_order = [group.sort_values("segment").index for _, group in ids.groupby("record_id")]
     joined = [np.concatenate(list(arrays[rows]), axis=-1) for rows in records_in_order]
     firsts = [arrays[rows[0]] for rows in records_in_order]
@@ -112,7 +111,7 @@ def main(argv=None) -> None:
     parser.add_argument("--cycle", type=float, default=None, help="record seconds for the hunting-cycle reference")
     args = parser.parse_args(argv)
     changes = {} if args.seed is None else {"virtual_bench": {"seed": args.seed}}
-    system = get_system(load_config([args.configfile], changes, project=ROOT))
+    system = get_system(load_config([args.configfile], project=ROOT, changes=changes))
     bench = dict(system.config["virtual_bench"])
     _, _, teeth = system.shafts()[0]
     residual = system.config["features"]["residual"]

@@ -8,6 +8,7 @@ Each pipeline config that several tests read runs once per session, in a fixture
 pytest-xdist hands a whole file to one worker (`--dist loadfile`, pyproject.toml), so it still runs once.
 """
 import copy
+import logging
 import os
 import shutil
 import subprocess
@@ -15,7 +16,6 @@ import sys
 from pathlib import Path
 
 import pytest
-import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 # benchmarks/fake_train_outputs.py (`import fake_train_outputs as fake`): the synthetic train
@@ -74,7 +74,7 @@ def config_of(configfile=".test/config/smoke.yaml", changes: dict | None = None)
     paths, overrides = ([], copy.deepcopy(configfile)) if isinstance(configfile, dict) else ([configfile], {})
     named = read_config(paths, overrides, project=ROOT)
     deep_update(overrides, {key: str(folder) for key, folder in DATA_FOLDERS.items() if key in named})
-    return load_config(paths, deep_update(overrides, changes or {}), project=ROOT)
+    return load_config(paths, overrides, project=ROOT, changes=changes)
 
 
 def system_of(configfile: str = ".test/config/smoke.yaml", changes: dict | None = None):
@@ -82,6 +82,32 @@ def system_of(configfile: str = ".test/config/smoke.yaml", changes: dict | None 
     from condmon.systems import get_system
 
     return get_system(config_of(configfile, changes))
+
+
+@pytest.fixture
+def isolated_logging(monkeypatch):
+    """A test that runs a rule's script (which reconfigures logging and sys.excepthook, as
+    `condmon.runlog.setup_logging` does): both put back afterwards."""
+    monkeypatch.setattr(sys, "excepthook", sys.excepthook)
+    root = logging.getLogger()
+    handlers, level = root.handlers[:], root.level
+    yield
+    for handler in root.handlers:
+        if handler not in handlers:
+            handler.close()
+    root.handlers[:], root.level = handlers, level
+    logging.captureWarnings(False)
+
+
+@pytest.fixture(scope="module")
+def knn_train_outputs(tmp_path_factory):
+    """(results folder, paths) of fake train outputs (benchmarks/fake_train_outputs.py) of one
+    classifier, k-NN: what a report section reads, without the plots of several classifiers
+    (most of the report's time). Once per test module."""
+    import fake_train_outputs as fake
+
+    root = tmp_path_factory.mktemp("results") / "demo"
+    return root, fake.build(root, classifiers={"knn": {"n_neighbors": 3}})
 
 
 # -- the pipeline fixtures --------------------------------------------------------------------

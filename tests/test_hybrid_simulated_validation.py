@@ -1,10 +1,8 @@
 """hybrid.simulated_validation_share: the held-out simulated records in the split table, training
 without them, their metrics apart from the measured ones, the config check and the scripts."""
 import json
-import logging
 import math
 import runpy
-import sys
 from types import SimpleNamespace
 
 import numpy as np
@@ -234,20 +232,6 @@ def test_config_default_and_range():
 
 
 # -- the hybrid and train scripts ----------------------------------------------------------------
-@pytest.fixture
-def isolated_logging(monkeypatch):
-    """The scripts reconfigure logging and sys.excepthook; put both back afterwards."""
-    monkeypatch.setattr(sys, "excepthook", sys.excepthook)
-    root = logging.getLogger()
-    handlers, level = root.handlers[:], root.level
-    yield
-    for handler in root.handlers:
-        if handler not in handlers:
-            handler.close()
-    root.handlers[:], root.level = handlers, level
-    logging.captureWarnings(False)
-
-
 def run_script(name, **attributes):
     fake = SimpleNamespace(rule=name.removesuffix(".py"), **attributes)
     runpy.run_path(str(SCRIPTS / name), init_globals={"snakemake": fake})

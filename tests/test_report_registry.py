@@ -14,12 +14,6 @@ from condmon.train_tables import ReportInputError
 REPORT = ROOT / "workflow" / "condmon" / "report"
 
 
-@pytest.fixture(scope="module")
-def train_outputs(tmp_path_factory):
-    root = tmp_path_factory.mktemp("results") / "demo"
-    return root, fake.build(root, classifiers={"knn": {"n_neighbors": 3}})
-
-
 def records_per_class(report) -> dict:
     """A toy section's table: the tested records of each true class."""
     counts = report.predictions.groupby("true_label")["record_id"].nunique()
@@ -32,11 +26,11 @@ TOY = Section("records_per_class", records_per_class, inputs=("train.predictions
               summary_keys=("records_per_class",))
 
 
-def test_a_registered_section_writes_its_table_and_summary_key(train_outputs, tmp_path, monkeypatch):
+def test_a_registered_section_writes_its_table_and_summary_key(knn_train_outputs, tmp_path, monkeypatch):
     """One module's SECTION and one registry line: the report writes the new table where the
     outputs name it, its summary key after every other section's, and the rule's outputs and the
     pages' tables (registry.tables) list it."""
-    _, paths = train_outputs
+    _, paths = knn_train_outputs
     # the registry as two real sections and the new one: the claim is write_report's loop over
     # whatever is registered, not the other sections' plots
     real = [section for section in registry.SECTIONS if section.name in ("accuracy", "evaluation")]
@@ -56,8 +50,8 @@ def test_a_registered_section_writes_its_table_and_summary_key(train_outputs, tm
         fake.write_report(paths, tmp_path / "again", outputs={"records_per_class": out / "x.csv"})
 
 
-def test_a_section_that_adds_what_it_does_not_declare_is_refused(train_outputs, tmp_path, monkeypatch):
-    _, paths = train_outputs
+def test_a_section_that_adds_what_it_does_not_declare_is_refused(knn_train_outputs, tmp_path, monkeypatch):
+    _, paths = knn_train_outputs
 
     def sloppy(report):
         report.summary["surprise"] = 1

@@ -115,16 +115,8 @@ def test_simulation_coverage_judges_the_design_records_at_the_lowest_share():
     assert not entry["covers_design_records"] and entry["design_segments_outside"] is None
 
 
-@pytest.fixture(scope="module")
-def train_outputs(tmp_path_factory):
-    root = tmp_path_factory.mktemp("results") / "demo"
-    # one classifier: the signatures and the records' shares outside the simulation are the
-    # features', and the report's plots per classifier (most of its time) add nothing here
-    return root, fake.build(root, classifiers={"knn": {"n_neighbors": 3}})
-
-
-def test_the_report_gives_the_signatures_and_their_plot(train_outputs, tmp_path):
-    _, paths = train_outputs
+def test_the_report_gives_the_signatures_and_their_plot(knn_train_outputs, tmp_path):
+    _, paths = knn_train_outputs
     out = tmp_path / "report"
     summary = fake.write_sections(paths, out, ["fault_signatures", "recall_per_record"],
                                   evaluation={"measured_features": paths["features_measured"],
@@ -144,8 +136,8 @@ def test_the_report_gives_the_signatures_and_their_plot(train_outputs, tmp_path)
         assert row["outside_simulation"] == pytest.approx(outside.loc[row["record_id"], "outside_simulation"])
 
 
-def test_simulated_features_of_other_names_are_refused_with_the_file_named(train_outputs, tmp_path):
-    _, paths = train_outputs
+def test_simulated_features_of_other_names_are_refused_with_the_file_named(knn_train_outputs, tmp_path):
+    _, paths = knn_train_outputs
     simulated, names = read_feature_table(paths["features_simulated"])
     other = tmp_path / "simulated.parquet"
     write_feature_table(simulated.drop(columns=names[-1]), names[:-1], other)

@@ -44,3 +44,24 @@ def test_no_benchmark_imports_from_tests():
         if found or re.search(r"ROOT\s*/\s*[\"']tests[\"']", path.read_text()):
             hits[path.name] = found
     assert hits == {}
+
+
+def fixtures(path) -> dict[str, str]:
+    """{name: its code (AST, comments aside)} of the fixtures a test file defines."""
+    found = {}
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.FunctionDef):
+            for decorator in node.decorator_list:
+                target = decorator.func if isinstance(decorator, ast.Call) else decorator
+                if isinstance(target, ast.Attribute) and target.attr == "fixture":
+                    found[node.name] = ast.dump(node)
+    return found
+
+
+def test_a_fixture_two_test_files_share_lives_in_conftest():
+    """The same fixture (the same code) in two test files belongs in conftest.py, once."""
+    seen = {}
+    for path in sorted(TESTS.glob("test_*.py")):
+        for name, code in fixtures(path).items():
+            seen.setdefault(code, []).append(f"{path.name}::{name}")
+    assert [where for where in seen.values() if len(where) > 1] == []

@@ -2,7 +2,6 @@
 import json
 import logging
 import runpy
-import sys
 from types import SimpleNamespace
 
 import joblib
@@ -187,26 +186,12 @@ def test_model_files_and_metrics_csv(tmp_path):
 
 # -- the Snakemake scripts, with a stand-in snakemake object --------------------------------
 class FakeSnakemake(SimpleNamespace):
-    """Enough of Snakemake's script object: rule, input, output, params, log."""
+    """Enough of Snakemake's script object: rule, input, output, params, log, threads."""
 
 
 def run_script(name, **attributes):
-    fake = FakeSnakemake(rule=name.removesuffix(".py"), **attributes)
+    fake = FakeSnakemake(rule=name.removesuffix(".py"), threads=1, **attributes)
     runpy.run_path(str(SCRIPTS / name), init_globals={"snakemake": fake})
-
-
-@pytest.fixture
-def isolated_logging(monkeypatch):
-    """The scripts reconfigure logging and sys.excepthook; put both back afterwards."""
-    monkeypatch.setattr(sys, "excepthook", sys.excepthook)
-    root = logging.getLogger()
-    handlers, level = root.handlers[:], root.level
-    yield
-    for handler in root.handlers:
-        if handler not in handlers:
-            handler.close()
-    root.handlers[:], root.level = handlers, level
-    logging.captureWarnings(False)
 
 
 def write_signals(path, source, n_records, seed):

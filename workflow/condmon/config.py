@@ -353,7 +353,8 @@ def read_config(paths, overrides: dict | None = None, project=".") -> dict:
     return apply_base(config, project)
 
 
-def load_config(paths, overrides: dict | None = None, project=".", schema: dict | None = None) -> dict:
+def load_config(paths, overrides: dict | None = None, project=".", schema: dict | None = None,
+                changes: dict | None = None) -> dict:
     """The validated config of a run, exactly as the workflow sees it (the Snakefile calls this).
 
     Parameters
@@ -368,6 +369,8 @@ def load_config(paths, overrides: dict | None = None, project=".", schema: dict 
         The project folder (config files, bases and the schema are read from it).
     schema : dict, optional
         The shared schema, if the caller has it loaded; else ``config/schema.yaml``.
+    changes : dict, optional
+        A caller's own values, merged last as they are (not read as text), before validation.
 
     Returns
     -------
@@ -383,6 +386,7 @@ def load_config(paths, overrides: dict | None = None, project=".", schema: dict 
     config = read_config(paths, overrides, project)
     apply_typed_overrides(config, overrides or {}, schema)
     apply_dotted_overrides(config, schema)
+    _merge(config, copy.deepcopy(changes or {}))
     return validate_config(config, schema)
 
 
