@@ -9,7 +9,7 @@ from conftest import ROOT
 from condmon.models.gear.drivetrain import GearDrivetrainParameters, SimulationSettings, simulate
 from condmon.models.gear.errors import FlankMap, draw_gear_errors, iso1328_tolerances, wear_flank_map
 from condmon.models.gear.mesh import GearGeometry, GearMesh
-from condmon.models.gear.virtual_bench import bench_fault, broken_tooth_map, pitting_map, spall_map
+from condmon.models.gear.virtual_bench import bench_fault, broken_tooth_map, pitting_map
 
 GEOMETRY = GearGeometry()
 PINION_DIAMETER = 2 * GEOMETRY.pitch_radius(GEOMETRY.teeth_pinion)

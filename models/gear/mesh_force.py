@@ -244,7 +244,7 @@ class MeshForce:
         # contact
         maps = add_flank_maps(tuple(p.flank_maps_pinion), damage_maps(p))
         if maps:
-            z1, z2 = p.geometry.teeth_pinion, p.geometry.teeth_gear
+            z1 = p.geometry.teeth_pinion
             mean = [0.0 if m is None else float(m.array().mean()) for m in maps]
             self.pair_pitch_error = [e - mean[j % z1] for j, e in enumerate(self.pair_pitch_error)]
         if whole_tooth_missing(p):
