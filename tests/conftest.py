@@ -124,7 +124,7 @@ def snakemake(workdir, *args, check=True):
 def copy_project(target: Path) -> Path:
     """The workflow's files (no results) in `target`, to run a pipeline in."""
     target.mkdir(parents=True, exist_ok=True)
-    for name in ("Snakefile", "workflow", "config", ".test", "models", "profiles"):
+    for name in ("Snakefile", "workflow", "config", ".test", "profiles"):
         source = ROOT / name
         if source.is_dir():
             shutil.copytree(source, target / name, ignore=shutil.ignore_patterns("__pycache__"))

@@ -47,10 +47,9 @@ def rule_scripts() -> dict:
 
 
 def condmon_file(module: str):
-    """The source file of a condmon module (condmon.models lives in models/), or None."""
+    """The source file of a condmon module, or None."""
     parts = module.split(".")
-    base = ROOT / "models" if parts[:2] == ["condmon", "models"] else ROOT / "workflow" / "condmon"
-    path = base.joinpath(*parts[2 if parts[:2] == ["condmon", "models"] else 1:])
+    path = (ROOT / "workflow" / "condmon").joinpath(*parts[1:])
     for candidate in (path / "__init__.py", path.with_suffix(".py")):
         if candidate.is_file():
             return candidate

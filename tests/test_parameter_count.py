@@ -1,6 +1,6 @@
 """A lint rule: no function or method of the workflow or the benchmarks takes more than
 MAX_PARAMETERS parameters (a long list of "skip if None" arguments wants an object: see
-condmon.report.inputs). The physics models (models/) lie outside the rule; the systems' code is
+condmon.report.inputs). The physics models (workflow/condmon/models/) lie outside the rule; the systems' code is
 inside it. Counted: every parameter a caller can pass (positional, keyword-only, *args and
 **kwargs one each), a method's self or cls not."""
 import ast
@@ -8,6 +8,7 @@ import ast
 from conftest import ROOT
 
 SCANNED = ("workflow", "benchmarks")
+PHYSICS = "workflow/condmon/models/"  # parameters in, signals out: a model's parameters are many
 MAX_PARAMETERS = 10
 # (file, qualified name) -> why it may take more. An entry no longer needed fails the test too.
 EXEMPT = {
@@ -63,6 +64,8 @@ def test_no_function_takes_more_than_ten_parameters():
     for folder in SCANNED:
         for path in sorted((ROOT / folder).rglob("*.py")):
             relative = path.relative_to(ROOT).as_posix()
+            if relative.startswith(PHYSICS):
+                continue
             for name, count in long_signatures(ast.parse(path.read_text(), relative)).items():
                 found[(relative, name)] = count
     unexpected = {key: count for key, count in found.items() if key not in EXEMPT}

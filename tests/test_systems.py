@@ -333,13 +333,13 @@ def test_registry_errors_name_the_culprit():
 
 
 def shared_files() -> list:
-    """The shared layer: every file of the workflow outside condmon/systems/ (and models/, which
-    lies outside workflow/), and the shared schema."""
+    """The shared layer: every file of the workflow outside condmon/systems/ and condmon/models/,
+    and the shared schema."""
     workflow = ROOT / "workflow"
     library = workflow / "condmon"
     return [workflow / "Snakefile", *sorted((workflow / "rules").glob("*.smk")),
             *sorted((workflow / "scripts").glob("*.py")), *sorted((workflow / "report").glob("*.rst")),
-            *sorted(p for p in library.rglob("*.py") if "systems" not in p.relative_to(library).parts),
+            *sorted(p for p in library.rglob("*.py") if p.relative_to(library).parts[0] not in ("systems", "models")),
             ROOT / "config" / "schema.yaml"]
 
 
@@ -544,14 +544,14 @@ def test_the_default_profile_is_loaded():
 
 def import_graph() -> dict:
     """{module: the condmon modules it imports}, lazy imports included, over workflow/condmon and
-    models/ (installed as condmon.models), plus the registry's imports through importlib (each
+    its models/ (condmon.models), plus the registry's imports through importlib (each
     built-in system's module, by its import path in BUILT_IN)."""
     import ast
 
     from condmon.systems import BUILT_IN
 
     modules = {}
-    for package, prefix in ((ROOT / "workflow" / "condmon", ("condmon",)), (ROOT / "models", ("condmon", "models"))):
+    for package, prefix in ((ROOT / "workflow" / "condmon", ("condmon",)),):
         for path in package.rglob("*.py"):
             parts = prefix + path.relative_to(package).with_suffix("").parts
             modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
@@ -606,7 +606,8 @@ def test_the_models_mirror_the_systems_that_use_them():
     from condmon.systems import BUILT_IN
 
     graph = import_graph()
-    packages = {path.parent for path in (ROOT / "models").rglob("__init__.py")} - {ROOT / "models"}
+    models = ROOT / "workflow" / "condmon" / "models"
+    packages = {path.parent for path in models.rglob("__init__.py")} - {models}
     subpackages = {folder.name for folder in packages}
     assert subpackages and subpackages <= set(BUILT_IN), f"models/ subpackages that are no system: {subpackages}"
 
@@ -639,8 +640,7 @@ def test_the_models_mirror_the_systems_that_use_them():
     assert "condmon.models.gear.drivetrain" in graph["condmon.systems.gear"]
     assert "condmon.models.cfrp.laminate" in graph["condmon.systems.cfrp.parameters"]
 
-    on_disk = {"condmon.models." + ".".join(folder.relative_to(ROOT / "models").parts) for folder in packages}
-    on_disk |= {"condmon.models"} | {".".join(path.parent.relative_to(ROOT / "workflow").parts)
+    on_disk = {".".join(path.parent.relative_to(ROOT / "workflow").parts)
                                     for path in (ROOT / "workflow" / "condmon").rglob("__init__.py")}
     listed = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
     assert set(listed) == on_disk, f"pyproject.toml's packages differ from the folders: {set(listed) ^ on_disk}"

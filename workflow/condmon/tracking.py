@@ -615,18 +615,21 @@ def log_pipeline_run(tracking_uri: str, run: TrackedRun, train_dirs, datasets: d
         if (error := tracking_failure(uri, parent_id, exc)) is not None:
             raise error from exc
         raise
-    return run_info(run, uri, tracking_uri, experiment_id, parent_id, data, log_models, model_ids, n_reused,
-                    registered, time.perf_counter() - started)
+    where = {"parent_run_id": parent_id, "experiment_id": experiment_id, "tracking_uri": uri,
+             "tracking_uri_configured": tracking_uri}
+    return run_info(run, data, log_models, where, (model_ids, n_reused, registered), time.perf_counter() - started)
 
 
-def run_info(run: TrackedRun, uri: str, tracking_uri: str, experiment_id: str, parent_id: str,
-             data: TrackInputs, log_models, model_ids: list, n_reused: int, registered: dict,
-             elapsed: float) -> dict:
-    """What `log_pipeline_run` returns (and the track job writes as mlflow_run.json)."""
+def run_info(run: TrackedRun, data: TrackInputs, log_models, where: dict, models: tuple, elapsed: float) -> dict:
+    """What `log_pipeline_run` returns (and the track job writes as mlflow_run.json); `where`: the
+    parent run's and experiment's ids and the store's URI (resolved, configured); `models`: the
+    ids of the models logged or linked, how many were linked, the registered best."""
+    model_ids, n_reused, registered = models
     log.info("logged %d nested runs and %d models under %s in %.1f s", len(data.runs), len(model_ids),
-             parent_id, elapsed)
-    return {"parent_run_id": parent_id, "experiment_id": experiment_id,
-            "experiment_name": run.run_name, "tracking_uri": uri, "tracking_uri_configured": tracking_uri,
+             where["parent_run_id"], elapsed)
+    return {"parent_run_id": where["parent_run_id"], "experiment_id": where["experiment_id"],
+            "experiment_name": run.run_name, "tracking_uri": where["tracking_uri"],
+            "tracking_uri_configured": where["tracking_uri_configured"],
             "n_nested_runs": len(data.runs), "models_logged": log_models, "n_models_logged": len(model_ids),
             "config_hash": run.config_hash,
             **({"n_models_linked_not_logged": n_reused, "best_model": registered} if data.store else {}),
