@@ -26,17 +26,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-ROOT = Path(__file__).resolve().parents[1]
-
-from condmon.config import load_config  # noqa: E402
-from condmon.records import save_record  # noqa: E402
-from condmon.signals import to_arrays  # noqa: E402
-from condmon.systems import get_system  # noqa: E402
-from condmon.systems.gear import BENCH_NUMERICS  # noqa: E402
-from condmon.systems.gear.bench import virtual_bench_rows  # noqa: E402
-from condmon.systems.gear.residual_features import (aligned, cycle_shaft_patterns, hunting_cycle,  # noqa: E402
+from condmon.config import load_config
+from condmon.records import save_record
+from condmon.signals import to_arrays
+from condmon.systems import get_system
+from condmon.systems.gear import BENCH_NUMERICS
+from condmon.systems.gear.bench import virtual_bench_rows
+from condmon.systems.gear.residual_features import (aligned, cycle_shaft_patterns, hunting_cycle,
                                                     hunting_revolutions, input_angle, segment_patterns,
                                                     top_band_order)
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def bench_records(system, bench: dict, speed: float, seconds: float, records: int, pieces: int = 1):
