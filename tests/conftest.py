@@ -49,6 +49,16 @@ def pytest_collection_modifyitems(items):
             item.add_marker(pytest.mark.pipeline)
 
 
+def logical_lines(text: str) -> int:
+    """Lines of Python as a formatter cannot change them: its logical lines (one per simple
+    statement, def or class line and compound statement's header, however it is wrapped; a
+    docstring counts once). Length rules count these, so `ruff format` never breaks them."""
+    import io
+    import tokenize
+
+    return sum(token.type == tokenize.NEWLINE for token in tokenize.generate_tokens(io.StringIO(text).readline))
+
+
 def deep_update(base: dict, changes: dict) -> dict:
     for key, value in changes.items():
         if isinstance(value, dict) and isinstance(base.get(key), dict):

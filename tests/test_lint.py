@@ -3,15 +3,13 @@
 longer than 60 lines, but the few listed here with the reason."""
 
 import ast
-import io
 import subprocess
 import sys
 import textwrap
-import tokenize
 from importlib.metadata import version
 
 import pytest
-from conftest import ROOT
+from conftest import ROOT, logical_lines
 
 MAX_LINES = 60
 # {(file under workflow/, function): why it is longer}; at most five
@@ -48,15 +46,14 @@ def test_ruff_format_leaves_the_code_as_it_is():
 
 
 def function_lines(source: str, node) -> int:
-    """A function's lines of code as a formatter cannot change them: its logical lines (the def
-    line, one per simple statement and one per compound statement's header, however the formatter
-    wraps them), the docstring aside."""
+    """A function's lines of code as a formatter cannot change them (conftest.logical_lines: the
+    def line, one per simple statement and one per compound statement's header, however the
+    formatter wraps them), the docstring aside."""
     text = textwrap.dedent("\n".join(source.splitlines()[node.lineno - 1:node.end_lineno])) + "\n"
-    lines = sum(token.type == tokenize.NEWLINE for token in tokenize.generate_tokens(io.StringIO(text).readline))
     first = node.body[0]
     docstring = isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(
         first.value.value, str)
-    return lines - docstring
+    return logical_lines(text) - docstring
 
 
 def long_functions(folder) -> dict:

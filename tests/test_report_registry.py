@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 import fake_train_outputs as fake
-from conftest import ROOT
+from conftest import ROOT, logical_lines
 from condmon.report import registry
 from condmon.report.section import Section, Table
 from condmon.train_tables import ReportInputError
@@ -78,10 +78,11 @@ def test_the_registry_declares_every_summary_key_and_table_once():
     assert [t.file for t in registry.tables()] == [f"{t.name}.csv" for t in registry.tables()]
 
 
-def test_no_report_module_is_over_300_lines():
-    """The report is a package of small modules (issue 50): no module of it over 300 lines, and
-    the old single module is gone."""
-    lengths = {path.name: len(path.read_text().splitlines()) for path in REPORT.glob("*.py")}
+def test_no_report_module_is_over_200_logical_lines():
+    """The report is a package of small modules (issue 50): no module of it over 200 logical lines
+    (conftest.logical_lines, which the formatter cannot change; 300 lines as written before the
+    code was formatted at 100 columns), and the old single module is gone."""
+    lengths = {path.name: logical_lines(path.read_text()) for path in REPORT.glob("*.py")}
     assert {"registry.py", "write.py", "headline.py"} <= set(lengths)
-    assert max(lengths.values()) <= 300, lengths
+    assert max(lengths.values()) <= 200, lengths
     assert not (ROOT / "workflow" / "condmon" / "report.py").exists()
