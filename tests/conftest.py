@@ -7,6 +7,7 @@ Each pipeline config that several tests read runs once per session, in a fixture
 `cwru_run`); a test that changes a run works on a copy of it. Each is read by one test file, and
 pytest-xdist hands a whole file to one worker (`--dist loadfile`, pyproject.toml), so it still runs once.
 """
+
 import copy
 import logging
 import os
@@ -22,7 +23,9 @@ ROOT = Path(__file__).resolve().parents[1]
 # outputs the report and tracking tests share with the tracking benchmark. Tests may import from
 # benchmarks/, never the reverse.
 sys.path.insert(0, str(ROOT / "benchmarks"))
-SCRIPTS = ROOT / "workflow" / "scripts"  # the rules' scripts, which some tests run as Snakemake would
+SCRIPTS = (
+    ROOT / "workflow" / "scripts"
+)  # the rules' scripts, which some tests run as Snakemake would
 # The shared CWRU files: beside the checkout, or where CONDMON_CWRU_DIR points (a git worktree
 # elsewhere, another machine's data folder).
 CWRU = Path(os.environ.get("CONDMON_CWRU_DIR", ROOT.parent / "shared" / "data" / "cwru")).resolve()
@@ -56,7 +59,10 @@ def logical_lines(text: str) -> int:
     import io
     import tokenize
 
-    return sum(token.type == tokenize.NEWLINE for token in tokenize.generate_tokens(io.StringIO(text).readline))
+    return sum(
+        token.type == tokenize.NEWLINE
+        for token in tokenize.generate_tokens(io.StringIO(text).readline)
+    )
 
 
 def deep_update(base: dict, changes: dict) -> dict:
@@ -81,9 +87,13 @@ def config_of(configfile=".test/config/smoke.yaml", changes: dict | None = None)
     file (or a config dict) with `changes` merged in; a data folder it names is this machine's."""
     from condmon.config import load_config, read_config
 
-    paths, overrides = ([], copy.deepcopy(configfile)) if isinstance(configfile, dict) else ([configfile], {})
+    paths, overrides = (
+        ([], copy.deepcopy(configfile)) if isinstance(configfile, dict) else ([configfile], {})
+    )
     named = read_config(paths, overrides, project=ROOT)
-    deep_update(overrides, {key: str(folder) for key, folder in DATA_FOLDERS.items() if key in named})
+    deep_update(
+        overrides, {key: str(folder) for key, folder in DATA_FOLDERS.items() if key in named}
+    )
     return load_config(paths, overrides, project=ROOT, changes=changes)
 
 
@@ -127,7 +137,9 @@ SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 def snakemake(workdir, *args, check=True):
     result = subprocess.run(SNAKEMAKE + list(args), cwd=workdir, capture_output=True, text=True)
     if check and result.returncode != 0:
-        raise AssertionError(f"snakemake {' '.join(args)} failed:\n{result.stdout[-3000:]}\n{result.stderr[-5000:]}")
+        raise AssertionError(
+            f"snakemake {' '.join(args)} failed:\n{result.stdout[-3000:]}\n{result.stderr[-5000:]}"
+        )
     return result
 
 
@@ -175,6 +187,13 @@ def cwru_run(tmp_path_factory):
     root = tmp_path_factory.mktemp("cwru")
     workdir = copy_project(root / "project")
     folder = cwru_folder(root / "slice", CWRU_SLICE)
-    snakemake(workdir, "--cores", "2", "--configfile", ".test/config/cwru-smoke.yaml", "--config",
-              f"measured_dir={folder}")
+    snakemake(
+        workdir,
+        "--cores",
+        "2",
+        "--configfile",
+        ".test/config/cwru-smoke.yaml",
+        "--config",
+        f"measured_dir={folder}",
+    )
     return workdir, workdir / "results" / "cwru-smoke"

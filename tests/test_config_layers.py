@@ -46,28 +46,44 @@ def loaded(paths) -> dict:
 def test_every_config_names_its_base_or_is_a_whole_run():
     layered = {path for path in run_configs() if base_of(path)}
     whole = set(run_configs()) - layered
-    assert whole == set(WHOLE), f"a config without a base that is no whole run: {sorted(whole - set(WHOLE))}"
+    assert whole == set(WHOLE), (
+        f"a config without a base that is no whole run: {sorted(whole - set(WHOLE))}"
+    )
     for path in layered:
         assert (ROOT / base_of(path)).is_file(), f"{path}: base {base_of(path)} is no file"
     # the overlays the issue names among them
-    assert {"config/per-state.yaml", "config/cfrp-per-state.yaml", "config/benches/noisy-chain.yaml",
-            "config/cwru-tasks/severity.yaml", ".test/config/smoke.yaml", "config/cfrp-study-pitting.yaml"} <= layered
+    assert {
+        "config/per-state.yaml",
+        "config/cfrp-per-state.yaml",
+        "config/benches/noisy-chain.yaml",
+        "config/cwru-tasks/severity.yaml",
+        ".test/config/smoke.yaml",
+        "config/cfrp-study-pitting.yaml",
+    } <= layered
 
 
 @pytest.mark.parametrize("path", [p for p in run_configs() if base_of(p)])
 def test_a_layer_alone_is_the_run_it_is_stacked_over_its_base(path):
     alone = loaded([path])
     assert alone == loaded([base_of(path), path])
-    assert alone["run_name"] != loaded([base_of(path)])["run_name"], f"{path} shares its base's results folder"
+    assert alone["run_name"] != loaded([base_of(path)])["run_name"], (
+        f"{path} shares its base's results folder"
+    )
 
 
 def test_load_config_names_a_missing_file_and_takes_overrides_as_the_command_line_does(tmp_path):
     with pytest.raises(ConfigError, match=r"no config file .*config/none\.yaml"):
         load_config(["config/none.yaml"], project=ROOT)
     config = load_config(
-        [".test/config/smoke.yaml"], {"classifiers": {"svm": {"C": "3"}}, "set": "hybrid.repeats=1"}, project=ROOT
+        [".test/config/smoke.yaml"],
+        {"classifiers": {"svm": {"C": "3"}}, "set": "hybrid.repeats=1"},
+        project=ROOT,
     )
-    assert config["classifiers"]["svm"]["C"] == 3.0 and config["hybrid"]["repeats"] == 1 and "set" not in config
+    assert (
+        config["classifiers"]["svm"]["C"] == 3.0
+        and config["hybrid"]["repeats"] == 1
+        and "set" not in config
+    )
     # no file: the overrides alone (a whole config as a dict) over the schema's defaults
     assert load_config([], {"run_name": "mine"}, project=ROOT)["rig"]["segment_seconds"] == 0.5
 
@@ -75,10 +91,12 @@ def test_load_config_names_a_missing_file_and_takes_overrides_as_the_command_lin
 def planned_jobs(*configfiles) -> dict:
     result = subprocess.run(
         [sys.executable, "-m", "snakemake", "-n", "--forceall", "--configfile", *configfiles],
-        cwd=ROOT, capture_output=True, text=True,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
     )
     assert result.returncode == 0, result.stderr[-3000:]
-    table = result.stdout[result.stdout.index("Job stats:"):]
+    table = result.stdout[result.stdout.index("Job stats:") :]
     return dict(re.findall(r"^(\w+)\s+(\d+)$", table, re.M))
 
 

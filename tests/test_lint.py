@@ -27,11 +27,17 @@ LONGER = {
 
 
 def ruff(*args):
-    return subprocess.run([sys.executable, "-m", "ruff", *args], cwd=ROOT, capture_output=True, text=True)
+    return subprocess.run(
+        [sys.executable, "-m", "ruff", *args], cwd=ROOT, capture_output=True, text=True
+    )
 
 
 def test_ruff_is_pinned_at_the_installed_version():
-    pins = dict(line.split("==") for line in (ROOT / "environment.txt").read_text().splitlines() if "==" in line)
+    pins = dict(
+        line.split("==")
+        for line in (ROOT / "environment.txt").read_text().splitlines()
+        if "==" in line
+    )
     assert pins.get("ruff") == version("ruff"), f"environment.txt pins ruff at {pins.get('ruff')}"
 
 
@@ -42,17 +48,22 @@ def test_ruff_check_is_clean():
 
 def test_ruff_format_leaves_the_code_as_it_is():
     result = ruff("format", "--check", ".")
-    assert result.returncode == 0, "run `ruff format .`:\n" + result.stdout[-3000:] + result.stderr[-2000:]
+    assert result.returncode == 0, (
+        "run `ruff format .`:\n" + result.stdout[-3000:] + result.stderr[-2000:]
+    )
 
 
 def function_lines(source: str, node) -> int:
     """A function's lines of code as a formatter cannot change them (conftest.logical_lines: the
     def line, one per simple statement and one per compound statement's header, however the
     formatter wraps them), the docstring aside."""
-    text = textwrap.dedent("\n".join(source.splitlines()[node.lineno - 1:node.end_lineno])) + "\n"
+    text = textwrap.dedent("\n".join(source.splitlines()[node.lineno - 1 : node.end_lineno])) + "\n"
     first = node.body[0]
-    docstring = isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(
-        first.value.value, str)
+    docstring = (
+        isinstance(first, ast.Expr)
+        and isinstance(first.value, ast.Constant)
+        and isinstance(first.value.value, str)
+    )
     return logical_lines(text) - docstring
 
 
@@ -70,7 +81,7 @@ def long_functions(folder) -> dict:
 
 def test_the_line_count_is_the_statements_a_formatter_cannot_change():
     wrapped = 'def f(a):\n    """Doc."""\n    x = g(\n        a,\n        a,\n    )\n    return x\n'
-    one_line = 'def f(a):\n    x = g(a, a)\n    return x\n'
+    one_line = "def f(a):\n    x = g(a, a)\n    return x\n"
     lengths = [function_lines(text, ast.parse(text).body[0]) for text in (wrapped, one_line)]
     assert lengths == [3, 3]  # the def line and two statements
 
@@ -79,7 +90,9 @@ def test_no_function_in_workflow_is_longer_than_60_lines_but_the_listed_ones():
     assert len(LONGER) <= 5
     found = long_functions(ROOT / "workflow")
     assert set(found) - set(LONGER) == set(), f"over {MAX_LINES} lines: {found}"
-    assert set(LONGER) <= set(found), f"listed but no longer over {MAX_LINES} lines: {set(LONGER) - set(found)}"
+    assert set(LONGER) <= set(found), (
+        f"listed but no longer over {MAX_LINES} lines: {set(LONGER) - set(found)}"
+    )
 
 
 @pytest.mark.parametrize("name", ["residual_feature_table", "log_pipeline_run"])

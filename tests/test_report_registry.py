@@ -1,5 +1,6 @@
 """The report as sections: write_report runs exactly the registered sections (condmon.report.registry),
 each declaring its inputs, tables and summary.json keys; a new table is one module and one line."""
+
 import json
 
 import pandas as pd
@@ -21,12 +22,18 @@ def records_per_class(report) -> dict:
     return {"records_per_class": counts.rename("records").reset_index()}
 
 
-TOY = Section("records_per_class", records_per_class, inputs=("train.predictions",),
-              tables=(Table("records_per_class", "records_per_class.csv", "Records per class"),),
-              summary_keys=("records_per_class",))
+TOY = Section(
+    "records_per_class",
+    records_per_class,
+    inputs=("train.predictions",),
+    tables=(Table("records_per_class", "records_per_class.csv", "Records per class"),),
+    summary_keys=("records_per_class",),
+)
 
 
-def test_a_registered_section_writes_its_table_and_summary_key(knn_train_outputs, tmp_path, monkeypatch):
+def test_a_registered_section_writes_its_table_and_summary_key(
+    knn_train_outputs, tmp_path, monkeypatch
+):
     """One module's SECTION and one registry line: the report writes the new table where the
     outputs name it, its summary key after every other section's, and the rule's outputs and the
     pages' tables (registry.tables) list it."""
@@ -36,21 +43,29 @@ def test_a_registered_section_writes_its_table_and_summary_key(knn_train_outputs
     real = [section for section in registry.SECTIONS if section.name in ("accuracy", "evaluation")]
     monkeypatch.setattr(registry, "SECTIONS", [*real, TOY])
     out = tmp_path / "report"
-    summary = fake.write_report(paths, out, outputs={"records_per_class": out / "records_per_class.csv"})
+    summary = fake.write_report(
+        paths, out, outputs={"records_per_class": out / "records_per_class.csv"}
+    )
     table = pd.read_csv(out / "records_per_class.csv")
     predictions = pd.concat(pd.read_parquet(p) for p in paths["predictions"])
-    assert dict(zip(table["true_label"], table["records"])) == \
-        predictions.groupby("true_label")["record_id"].nunique().to_dict()
+    assert (
+        dict(zip(table["true_label"], table["records"]))
+        == predictions.groupby("true_label")["record_id"].nunique().to_dict()
+    )
     written = json.loads((out / "summary.json").read_text())
     assert list(written)[-1] == "records_per_class" and written == summary
     assert "records_per_class" in {t.name: t.file for t in registry.tables()}
     # not registered: no section writes it, and asking for it says so
     monkeypatch.setattr(registry, "SECTIONS", [s for s in registry.SECTIONS if s is not TOY])
-    with pytest.raises(ReportInputError, match=r"\['records_per_class'\] asked for, but no report section"):
+    with pytest.raises(
+        ReportInputError, match=r"\['records_per_class'\] asked for, but no report section"
+    ):
         fake.write_report(paths, tmp_path / "again", outputs={"records_per_class": out / "x.csv"})
 
 
-def test_a_section_that_adds_what_it_does_not_declare_is_refused(knn_train_outputs, tmp_path, monkeypatch):
+def test_a_section_that_adds_what_it_does_not_declare_is_refused(
+    knn_train_outputs, tmp_path, monkeypatch
+):
     _, paths = knn_train_outputs
 
     def sloppy(report):

@@ -1,6 +1,7 @@
 """The test suite's own layout: a test module imports no other test module (shared helpers live in
 conftest.py, or benchmarks/fake_train_outputs.py, shared with a benchmark), and the project's paths are found
 once, in conftest.py (`ROOT`, `SCRIPTS`, `CWRU`)."""
+
 import ast
 import re
 
@@ -28,9 +29,13 @@ def test_no_test_module_imports_another():
 
 def test_the_project_root_is_found_only_in_conftest():
     """A path built from a test file's own location (its `__file__`'s parents) is a second ROOT."""
-    hits = [f"{path.name}:{n}" for path in sorted(TESTS.glob("*.py")) if path.name != "conftest.py"
-            for n, line in enumerate(path.read_text().splitlines(), 1)
-            if OWN_LOCATION.search(line)]
+    hits = [
+        f"{path.name}:{n}"
+        for path in sorted(TESTS.glob("*.py"))
+        if path.name != "conftest.py"
+        for n, line in enumerate(path.read_text().splitlines(), 1)
+        if OWN_LOCATION.search(line)
+    ]
     assert hits == []
 
 

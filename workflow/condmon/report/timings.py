@@ -1,6 +1,7 @@
 """The job timings section: per rule the jobs' wall time and peak memory (condmon.job_timings,
 from the benchmark files of every job before the report): job_timings.csv, its plot and
 summary.json's `job_timings` ({rule: figures})."""
+
 from __future__ import annotations
 
 from condmon import job_timings, plots
@@ -17,6 +18,10 @@ def write(report) -> dict:
 
 
 SECTION = Section(
-    "job_timings", write, inputs=("upstream.benchmarks",), requires=("upstream.benchmarks",),
+    "job_timings",
+    write,
+    inputs=("upstream.benchmarks",),
+    requires=("upstream.benchmarks",),
     tables=(Table("job_timings", "job_timings.csv", "Job timings per rule (job_timings.csv)"),),
-    summary_keys=("job_timings",))
+    summary_keys=("job_timings",),
+)
