@@ -32,6 +32,7 @@ default run; `bench_seeds_<name>.json` for another) and to its committed record
 `--layer` (default benchmarks/seeds.yaml; `--layer none` for the whole config) is layered over the
 config files: the SVM alone at 0 % and 100 %, whose figures are those of the full config.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -49,10 +50,25 @@ import pandas as pd
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-EXEMPT_BELOW = SHOWN_RECALL  # a class the bench's own records find less often than this is exempt there
+EXEMPT_BELOW = (
+    SHOWN_RECALL  # a class the bench's own records find less often than this is exempt there
+)
 PROTOCOL = "record_split"
-COLUMNS = ("bench", "seed", "speed_rpm", "measured_percent", "classifier", "balanced_accuracy", "false_alarm_rate",
-           "recall", "bench_only_recall", "bench_only_chance", "exempt", "signature_correlation", "located")
+COLUMNS = (
+    "bench",
+    "seed",
+    "speed_rpm",
+    "measured_percent",
+    "classifier",
+    "balanced_accuracy",
+    "false_alarm_rate",
+    "recall",
+    "bench_only_recall",
+    "bench_only_chance",
+    "exempt",
+    "signature_correlation",
+    "located",
+)
 
 
 def config_value(configfiles, section: str, key: str, default):
@@ -69,8 +85,10 @@ def run_name_of(configfiles, seed: int) -> tuple[str, bool]:
     """(run name, whether to run it) of one seed: `<run_name>-seed<k>`; the config's own bench
     seed is the config's own run where it has finished (the same bench, so the same SVM figures)."""
     base = config_value(configfiles, None, "run_name", "default")
-    if seed == config_value(configfiles, "virtual_bench", "seed", None) and \
-            (ROOT / "results" / base / "report" / "summary.json").exists():
+    if (
+        seed == config_value(configfiles, "virtual_bench", "seed", None)
+        and (ROOT / "results" / base / "report" / "summary.json").exists()
+    ):
         return base, False
     return f"{base}-seed{seed}", True
 
@@ -79,8 +97,18 @@ def run_seed(configfiles, seed: int | None, run_name: str, cores: int) -> float:
     """Run (or complete) the pipeline of one seed (None: the config files' own bench); its wall
     seconds."""
     bench = [f"virtual_bench={json.dumps({'seed': seed})}"] if seed is not None else []
-    command = [sys.executable, "-m", "snakemake", "--cores", str(cores), "--configfile", *configfiles,
-               "--config", f"run_name={run_name}", *bench]
+    command = [
+        sys.executable,
+        "-m",
+        "snakemake",
+        "--cores",
+        str(cores),
+        "--configfile",
+        *configfiles,
+        "--config",
+        f"run_name={run_name}",
+        *bench,
+    ]
     start = time.perf_counter()
     print(f"seed {seed}: {' '.join(command)}", flush=True)
     subprocess.run(command, cwd=ROOT, check=True)
@@ -103,27 +131,48 @@ def seed_rows(report: Path, seed: int, classifier: str, bench: str | None = None
     signatures = summary.get("fault_signatures", {}).get("per_condition", {})
     rows = []
     for percent in (0, 100):
-        chosen = evaluation[(evaluation["classifier"] == classifier) & (evaluation["protocol"] == PROTOCOL)
-                            & (evaluation["measured_percent"] == percent) & (evaluation["records"] == "all")]
+        chosen = evaluation[
+            (evaluation["classifier"] == classifier)
+            & (evaluation["protocol"] == PROTOCOL)
+            & (evaluation["measured_percent"] == percent)
+            & (evaluation["records"] == "all")
+        ]
         for row in chosen.itertuples():
             speed = speed_of(row.condition)
             if speed is None:
                 continue
-            here = shares[(shares["classifier"] == classifier) & (shares["protocol"] == PROTOCOL)
-                          & (shares["measured_percent"] == percent) & (shares["speed_rpm"] == speed)]
-            recall = {str(s): float(g.loc[g["predicted_label"] == s, "share"].sum())
-                      for s, g in here.groupby("true_label")}
+            here = shares[
+                (shares["classifier"] == classifier)
+                & (shares["protocol"] == PROTOCOL)
+                & (shares["measured_percent"] == percent)
+                & (shares["speed_rpm"] == speed)
+            ]
+            recall = {
+                str(s): float(g.loc[g["predicted_label"] == s, "share"].sum())
+                for s, g in here.groupby("true_label")
+            }
             entry = separability.get(f"{speed:g}") or {}
             ceiling = entry.get("recall_per_class") or {}
             classes = (signatures.get(f"{speed:g}") or {}).get("classes", {})
-            rows.append({"bench": bench or f"seed{seed}", "seed": seed, "speed_rpm": speed,
-                         "measured_percent": percent, "classifier": classifier,
-                         "balanced_accuracy": float(row.balanced_accuracy_mean),
-                         "false_alarm_rate": float(row.false_alarm_rate_mean),
-                         "recall": recall, "bench_only_recall": ceiling, "bench_only_chance": entry.get("chance"),
-                         "exempt": sorted(entry.get("not_shown") or []),
-                         "signature_correlation": {c: v.get("direction_correlation") for c, v in classes.items()},
-                         "located": located})
+            rows.append(
+                {
+                    "bench": bench or f"seed{seed}",
+                    "seed": seed,
+                    "speed_rpm": speed,
+                    "measured_percent": percent,
+                    "classifier": classifier,
+                    "balanced_accuracy": float(row.balanced_accuracy_mean),
+                    "false_alarm_rate": float(row.false_alarm_rate_mean),
+                    "recall": recall,
+                    "bench_only_recall": ceiling,
+                    "bench_only_chance": entry.get("chance"),
+                    "exempt": sorted(entry.get("not_shown") or []),
+                    "signature_correlation": {
+                        c: v.get("direction_correlation") for c, v in classes.items()
+                    },
+                    "located": located,
+                }
+            )
     return rows
 
 
@@ -135,21 +184,55 @@ def means(rows: list[dict]) -> list[dict]:
     frame = pd.DataFrame(rows)
     if "classifier" not in frame:  # rows of one classifier from before several were collected
         frame["classifier"] = "svm"
-    for (classifier, speed, percent), part in frame.groupby(["classifier", "speed_rpm", "measured_percent"]):
+    for (classifier, speed, percent), part in frame.groupby(
+        ["classifier", "speed_rpm", "measured_percent"]
+    ):
         classes = sorted({c for r in part["recall"] for c in r})
-        recall = {c: float(np.mean([r[c] for r, ex in zip(part["recall"], part["exempt"]) if c in r and c not in ex]
-                                   or [np.nan])) for c in classes}
-        correlation = {c: float(np.nanmean([s.get(c) if s.get(c) is not None else np.nan
-                                            for s in part["signature_correlation"]] or [np.nan]))
-                       for c in classes if any(c in s for s in part["signature_correlation"])}
-        out.append({"classifier": classifier, "speed_rpm": float(speed), "measured_percent": int(percent),
-                    "seeds": int(len(part)),
-                    "balanced_accuracy": float(part["balanced_accuracy"].mean()),
-                    "lowest_balanced_accuracy": float(part["balanced_accuracy"].min()),
-                    "false_alarm_rate": float(part["false_alarm_rate"].mean()),
-                    "highest_false_alarm_rate": float(part["false_alarm_rate"].max()),
-                    "recall": recall, "signature_correlation": correlation,
-                    "exempt": {str(getattr(r, "bench", r.seed)): r.exempt for r in part.itertuples() if r.exempt}})
+        recall = {
+            c: float(
+                np.mean(
+                    [
+                        r[c]
+                        for r, ex in zip(part["recall"], part["exempt"])
+                        if c in r and c not in ex
+                    ]
+                    or [np.nan]
+                )
+            )
+            for c in classes
+        }
+        correlation = {
+            c: float(
+                np.nanmean(
+                    [
+                        s.get(c) if s.get(c) is not None else np.nan
+                        for s in part["signature_correlation"]
+                    ]
+                    or [np.nan]
+                )
+            )
+            for c in classes
+            if any(c in s for s in part["signature_correlation"])
+        }
+        out.append(
+            {
+                "classifier": classifier,
+                "speed_rpm": float(speed),
+                "measured_percent": int(percent),
+                "seeds": int(len(part)),
+                "balanced_accuracy": float(part["balanced_accuracy"].mean()),
+                "lowest_balanced_accuracy": float(part["balanced_accuracy"].min()),
+                "false_alarm_rate": float(part["false_alarm_rate"].mean()),
+                "highest_false_alarm_rate": float(part["false_alarm_rate"].max()),
+                "recall": recall,
+                "signature_correlation": correlation,
+                "exempt": {
+                    str(getattr(r, "bench", r.seed)): r.exempt
+                    for r in part.itertuples()
+                    if r.exempt
+                },
+            }
+        )
     return out
 
 
@@ -157,10 +240,14 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--configfile", nargs="+", default=["config/config.yaml"])
     parser.add_argument("--seeds", nargs="+", type=int, default=[7, 8, 9, 10, 11])
-    parser.add_argument("--layer", default="benchmarks/seeds.yaml", help="config layered last, or none")
+    parser.add_argument(
+        "--layer", default="benchmarks/seeds.yaml", help="config layered last, or none"
+    )
     parser.add_argument("--cores", type=int, default=2)
     parser.add_argument("--classifier", nargs="+", default=["svm"])
-    parser.add_argument("--benches", nargs="*", default=[], help="bench variants (config/benches/*.yaml)")
+    parser.add_argument(
+        "--benches", nargs="*", default=[], help="bench variants (config/benches/*.yaml)"
+    )
     parser.add_argument("--collect-only", action="store_true", help="only collect finished runs")
     parser.add_argument("--name", default=None, help="output name (default: the config's run_name)")
     args = parser.parse_args(argv)
@@ -171,29 +258,57 @@ def main(argv=None) -> int:
         run_name, to_run = run_name_of(args.configfile, seed)
         if to_run and not args.collect_only:
             seconds[f"seed{seed}"] = run_seed(configfiles, seed, run_name, args.cores)
-        rows += [row for classifier in args.classifier
-                 for row in seed_rows(ROOT / "results" / run_name / "report", seed, classifier)]
-    for variant in args.benches:  # each its own bench: its run name and seed, layered over the config
-        files = list(args.configfile) + [variant] + configfiles[len(args.configfile):]
-        run_name, bench = config_value(files, None, "run_name", Path(variant).stem), Path(variant).stem
+        rows += [
+            row
+            for classifier in args.classifier
+            for row in seed_rows(ROOT / "results" / run_name / "report", seed, classifier)
+        ]
+    for (
+        variant
+    ) in args.benches:  # each its own bench: its run name and seed, layered over the config
+        files = list(args.configfile) + [variant] + configfiles[len(args.configfile) :]
+        run_name, bench = (
+            config_value(files, None, "run_name", Path(variant).stem),
+            Path(variant).stem,
+        )
         if not args.collect_only:
             seconds[bench] = run_seed(files, None, run_name, args.cores)
-        rows += [row for classifier in args.classifier
-                 for row in seed_rows(ROOT / "results" / run_name / "report",
-                                      config_value(files, "virtual_bench", "seed", None), classifier, bench)]
-    result = {"configfiles": configfiles, "benches": list(args.benches), "protocol": PROTOCOL,
-              "exempt_below": EXEMPT_BELOW,
-              "columns": list(COLUMNS), "per_seed": rows, "mean": means(rows),
-              "wall_seconds": seconds}
+        rows += [
+            row
+            for classifier in args.classifier
+            for row in seed_rows(
+                ROOT / "results" / run_name / "report",
+                config_value(files, "virtual_bench", "seed", None),
+                classifier,
+                bench,
+            )
+        ]
+    result = {
+        "configfiles": configfiles,
+        "benches": list(args.benches),
+        "protocol": PROTOCOL,
+        "exempt_below": EXEMPT_BELOW,
+        "columns": list(COLUMNS),
+        "per_seed": rows,
+        "mean": means(rows),
+        "wall_seconds": seconds,
+    }
     name = args.name or base
-    out = ROOT / "results" / "benchmark" / ("bench_seeds.json" if name == "default" else f"bench_seeds_{name}.json")
+    out = (
+        ROOT
+        / "results"
+        / "benchmark"
+        / ("bench_seeds.json" if name == "default" else f"bench_seeds_{name}.json")
+    )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1))
     for row in result["mean"]:
-        print(f"{row['classifier']} {row['speed_rpm']:g} rpm {row['measured_percent']:3d} %: "
-              f"balanced {row['balanced_accuracy']:.3f} "
-              f"(lowest {row['lowest_balanced_accuracy']:.3f}), false alarms {row['false_alarm_rate']:.3f}, "
-              f"recall {json.dumps({k: round(v, 2) for k, v in row['recall'].items()})}")
+        print(
+            f"{row['classifier']} {row['speed_rpm']:g} rpm {row['measured_percent']:3d} %: "
+            f"balanced {row['balanced_accuracy']:.3f} "
+            f"(lowest {row['lowest_balanced_accuracy']:.3f}), false alarms {row['false_alarm_rate']:.3f}, "
+            f"recall {json.dumps({k: round(v, 2) for k, v in row['recall'].items()})}"
+        )
     print(f"wrote {out}")
     save_record("bench_seeds", name, result, script=__file__, argv=argv, configfiles=configfiles)
     return 0

@@ -19,6 +19,7 @@ Lei et al. (2008), Table 1 (mean of the spectrum, frequency centre, root-mean-sq
 standard deviation frequency). Envelope analysis: Randall, Antoni (2011), "Rolling element bearing
 diagnostics - a tutorial", MSSP 25, 485-520; Smith, Randall (2015), MSSP 64-65, 100-131 (CWRU).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -45,8 +46,9 @@ def highpass(x, fs_hz: float, cutoff_hz: float = 10.0, order: int = 4) -> np.nda
         raise ValueError(f"high-pass cutoff {cutoff_hz} Hz must lie in (0, fs/2 = {fs_hz / 2} Hz)")
     sos = butter(order, cutoff_hz, btype="highpass", fs=fs_hz, output="sos")
     padlen = min(x.shape[-1] - 1, int(np.ceil(3 * fs_hz / cutoff_hz)))
-    return sosfiltfilt(sos, x - x.mean(axis=-1, keepdims=True), axis=-1, padtype="even",
-                       padlen=padlen)
+    return sosfiltfilt(
+        sos, x - x.mean(axis=-1, keepdims=True), axis=-1, padtype="even", padlen=padlen
+    )
 
 
 def bandpass(x, fs_hz: float, band_hz=(2000.0, 5000.0), order: int = 4) -> np.ndarray:
@@ -155,7 +157,7 @@ def frequency_centre(x, fs_hz: float):
 def rms_frequency(x, fs_hz: float):
     """RMS frequency RMSF = sqrt(sum f_k^2 s_k / sum s_k) (Hz)."""
     f, s = _spectrum(x, fs_hz)
-    return np.sqrt((s * f ** 2).sum(axis=-1) / s.sum(axis=-1))
+    return np.sqrt((s * f**2).sum(axis=-1) / s.sum(axis=-1))
 
 
 def std_frequency(x, fs_hz: float):
@@ -203,8 +205,7 @@ def _speed_hz(speed_rpm, shape) -> np.ndarray:
     return speed
 
 
-def envelope_line_ratio(freqs, amps, line_hz, tolerance: float = 0.015,
-                        floor_halfwidth_hz=15.0):
+def envelope_line_ratio(freqs, amps, line_hz, tolerance: float = 0.015, floor_halfwidth_hz=15.0):
     """Line-over-local-floor ratio of an envelope spectrum at `line_hz` (per segment).
 
     line  = max amplitude within line_hz (1 +/- tolerance);
@@ -228,8 +229,9 @@ def envelope_line_ratio(freqs, amps, line_hz, tolerance: float = 0.015,
     return out
 
 
-def envelope_band_energy(x, fs_hz: float, line_hz, band_hz=(2000.0, 5000.0),
-                         tolerance: float = 0.015):
+def envelope_band_energy(
+    x, fs_hz: float, line_hz, band_hz=(2000.0, 5000.0), tolerance: float = 0.015
+):
     """Power of the envelope (`envelope`) within line_hz (1 +/- tolerance), widened to at least
     +/- 2 FFT bins (the Hann main lobe), per segment: the envelope's periodogram (Hann, density
     scaling, single-sided) summed over the band times the bin width. A sinusoidal envelope
@@ -260,8 +262,19 @@ def band_power(freqs, density, line_hz, tolerance):
 
 
 # -- the transformer -------------------------------------------------------------------------
-TIME_FEATURES = ("rms", "peak", "kurtosis", "crest_factor", "skewness", "impulse_factor",
-                 "shape_factor", "mean", "std", "talaf", "thikat")
+TIME_FEATURES = (
+    "rms",
+    "peak",
+    "kurtosis",
+    "crest_factor",
+    "skewness",
+    "impulse_factor",
+    "shape_factor",
+    "mean",
+    "std",
+    "talaf",
+    "thikat",
+)
 FREQUENCY_FEATURES = ("mean_frequency", "rms_frequency", "frequency_centre", "std_frequency")
 STUDY_FEATURES = TIME_FEATURES + FREQUENCY_FEATURES  # the study's 15
 
@@ -284,10 +297,18 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
     `rms_ref` is RMS_0 of TALAF/THIKAT in the signal's unit.
     """
 
-    def __init__(self, fs_hz: float = 12000.0, band_hz=(2000.0, 5000.0),
-                 highpass_hz: float | None = 10.0, defect_orders: dict | None = None,
-                 line_tolerance: float = 0.015, floor_halfwidth_orders: float = 0.5,
-                 rms_ref: float = 1.0, envelope: bool = True, prefix: str = ""):
+    def __init__(
+        self,
+        fs_hz: float = 12000.0,
+        band_hz=(2000.0, 5000.0),
+        highpass_hz: float | None = 10.0,
+        defect_orders: dict | None = None,
+        line_tolerance: float = 0.015,
+        floor_halfwidth_orders: float = 0.5,
+        rms_ref: float = 1.0,
+        envelope: bool = True,
+        prefix: str = "",
+    ):
         self.fs_hz = fs_hz
         self.band_hz = band_hz
         self.highpass_hz = highpass_hz
@@ -325,25 +346,49 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
             raise ValueError("segments contain NaN or inf")
         fs = float(self.fs_hz)
         x = highpass(X, fs, self.highpass_hz)
-        columns = [rms(x), peak(x), kurtosis(x), crest_factor(x), skewness(x), impulse_factor(x),
-                   shape_factor(x), mean(x), std(x), talaf(x, self.rms_ref),
-                   thikat(x, self.rms_ref)]
-        columns += [mean_frequency(x, fs), rms_frequency(x, fs), frequency_centre(x, fs),
-                    std_frequency(x, fs)]
+        columns = [
+            rms(x),
+            peak(x),
+            kurtosis(x),
+            crest_factor(x),
+            skewness(x),
+            impulse_factor(x),
+            shape_factor(x),
+            mean(x),
+            std(x),
+            talaf(x, self.rms_ref),
+            thikat(x, self.rms_ref),
+        ]
+        columns += [
+            mean_frequency(x, fs),
+            rms_frequency(x, fs),
+            frequency_centre(x, fs),
+            std_frequency(x, fs),
+        ]
         if self.envelope and self._orders():
             if speed_rpm is None:
-                raise ValueError("envelope features need the shaft speed of every segment "
-                                 "(speed_rpm)")
+                raise ValueError(
+                    "envelope features need the shaft speed of every segment (speed_rpm)"
+                )
             shaft_hz = _speed_hz(speed_rpm, X.shape[:1])
             orders = self._orders()
             env = envelope(x, fs, self.band_hz)
             freqs, amps = _amplitude_spectrum_padded(env, fs)
             psd_freqs, density = envelope_periodogram(env, fs)  # once for every order
-            energies = [band_power(psd_freqs, density, o * shaft_hz, self.line_tolerance)
-                        for o in orders.values()]
-            ratios = [envelope_line_ratio(freqs, amps, o * shaft_hz, self.line_tolerance,
-                                          self.floor_halfwidth_orders * shaft_hz)
-                      for o in orders.values()]
+            energies = [
+                band_power(psd_freqs, density, o * shaft_hz, self.line_tolerance)
+                for o in orders.values()
+            ]
+            ratios = [
+                envelope_line_ratio(
+                    freqs,
+                    amps,
+                    o * shaft_hz,
+                    self.line_tolerance,
+                    self.floor_halfwidth_orders * shaft_hz,
+                )
+                for o in orders.values()
+            ]
             columns += energies + ratios
         return np.column_stack(columns)
 
@@ -367,8 +412,9 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
 
 
 # -- features tables -------------------------------------------------------------------------
-def statistical_features_from_params(params: dict, fs_hz: float, prefix: str = "",
-                                     defect_orders: dict | None = None) -> StatisticalFeatures:
+def statistical_features_from_params(
+    params: dict, fs_hz: float, prefix: str = "", defect_orders: dict | None = None
+) -> StatisticalFeatures:
     """The extractor a `features.statistical` config section describes (band_hz, highpass_hz,
     line_tolerance, floor_halfwidth_orders, rms_ref), with envelope lines at `defect_orders` (the
     system's; None: none)."""

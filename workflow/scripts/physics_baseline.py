@@ -3,6 +3,7 @@ predictions on every split's test set (condmon.baselines).
 
 `snakemake` is injected by Snakemake's script directive.
 """
+
 from condmon.atomic import write_frame, write_json
 from condmon.baselines import physics_predictions
 from condmon.features import read_feature_table
@@ -17,5 +18,6 @@ baselines = load_system(snakemake.params.system).physics_baselines(feature_names
 predictions, info = physics_predictions(baselines, measured, splits)
 write_frame(predictions, snakemake.output.predictions)
 write_json({"protocol": str(splits["protocol"].iloc[0]), "baselines": info}, snakemake.output.info)
-log.info("%d physics baseline(s) %s, %d predictions", len(baselines), sorted(baselines),
-         len(predictions))
+log.info(
+    "%d physics baseline(s) %s, %d predictions", len(baselines), sorted(baselines), len(predictions)
+)

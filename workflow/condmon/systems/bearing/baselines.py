@@ -13,6 +13,7 @@ healthy calibration segments only (the calibration set, never a test segment): t
 segment is called faulty about as often as a calibration segment would be, if the healthy
 record's line ratios stay alike.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -34,8 +35,10 @@ def envelope_columns(feature_names) -> dict | None:
     for channel in channels:
         found = {}
         for line in LINE_OF_DEFECT.values():
-            for column, logged in ((f"{channel}_env_ratio_{line}", False),
-                                   (f"{channel}_log_env_ratio_{line}", True)):
+            for column, logged in (
+                (f"{channel}_env_ratio_{line}", False),
+                (f"{channel}_log_env_ratio_{line}", True),
+            ):
                 if column in names:
                     found[line] = (column, logged)
                     break
@@ -68,10 +71,15 @@ class EnvelopeRule:
         missing = [column for column, _ in self.columns.values() if column not in frame.columns]
         if missing:
             raise ValueError(f"envelope rule: the features lack column(s) {missing}")
-        return pd.DataFrame({line: np.exp(frame[column].to_numpy(float)) if logged
-                             else frame[column].to_numpy(float)
-                             for line, (column, logged) in self.columns.items()},
-                            index=frame.index)
+        return pd.DataFrame(
+            {
+                line: np.exp(frame[column].to_numpy(float))
+                if logged
+                else frame[column].to_numpy(float)
+                for line, (column, logged) in self.columns.items()
+            },
+            index=frame.index,
+        )
 
     def fit(self, calibration: pd.DataFrame) -> "EnvelopeRule":
         if not 0 < self.quantile <= 1:
@@ -99,22 +107,35 @@ class EnvelopeRule:
         faulty = frame[frame["health_state"].astype(str).isin(line_of_label)].reset_index(drop=True)
         ratios = self.line_ratios(faulty)
         rows = []
-        for (record_id, label), index in faulty.groupby(["record_id", "health_state"], sort=True).groups.items():
+        for (record_id, label), index in faulty.groupby(
+            ["record_id", "health_state"], sort=True
+        ).groups.items():
             line = line_of_label[str(label)]
             median = float(np.median(ratios.loc[index, line]))
-            rows.append({"record_id": str(record_id), "label": str(label), "line": line,
-                         "median_ratio": median, "threshold": self.threshold_,
-                         "shows_line": bool(median > self.threshold_)})
+            rows.append(
+                {
+                    "record_id": str(record_id),
+                    "label": str(label),
+                    "line": line,
+                    "median_ratio": median,
+                    "threshold": self.threshold_,
+                    "shows_line": bool(median > self.threshold_),
+                }
+            )
         return rows
 
     def describe(self) -> dict:
         """What the rule is and the threshold it took from the calibration segments."""
-        return {"rule": "argmax of the envelope line-to-floor ratios at "
-                        + ", ".join(f"{line} ({self.labels[line]})" for line in self.columns)
-                        + f"; {self.healthy_state} where the largest is at or below the threshold",
-                "threshold_from": (f"the {self.quantile:g} quantile of the largest line ratio "
-                                   "over the healthy calibration segments (never a test "
-                                   "segment)"),
-                "columns": {line: column for line, (column, _) in self.columns.items()},
-                "threshold": getattr(self, "threshold_", None),
-                "n_calibration_segments": getattr(self, "n_calibration_", None)}
+        return {
+            "rule": "argmax of the envelope line-to-floor ratios at "
+            + ", ".join(f"{line} ({self.labels[line]})" for line in self.columns)
+            + f"; {self.healthy_state} where the largest is at or below the threshold",
+            "threshold_from": (
+                f"the {self.quantile:g} quantile of the largest line ratio "
+                "over the healthy calibration segments (never a test "
+                "segment)"
+            ),
+            "columns": {line: column for line, (column, _) in self.columns.items()},
+            "threshold": getattr(self, "threshold_", None),
+            "n_calibration_segments": getattr(self, "n_calibration_", None),
+        }
