@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from condmon.signals import make_rows, write_signal_table
+from conftest import ROOT
 from condmon.systems.gear.mesh_lines import (
     implied_rate,
     line_to_floor,
@@ -78,11 +79,9 @@ def test_no_clear_evidence_refuses_nothing():
 def test_the_gear_config_check_names_the_rate(tmp_path):
     """The default rig (a 29-tooth pinion, 450 rpm among its speeds) over a table at a wrong rate:
     refused when the config is read, before any job."""
-    from pathlib import Path
-
     from condmon.config import ConfigError, load_schema, validate_config
 
-    schema = load_schema(Path(__file__).parents[1] / "config" / "schema.yaml")
+    schema = load_schema(ROOT / "config" / "schema.yaml")
     with pytest.raises(ConfigError, match=r"fs_hz 5632 Hz.*imply a rate of 51[0-9][0-9] Hz"):
         validate_config({"measured_table": str(table(tmp_path, 1.1 * FS))}, schema)
 
@@ -90,11 +89,9 @@ def test_the_gear_config_check_names_the_rate(tmp_path):
 def test_an_angular_grid_that_folds_is_refused_when_the_config_is_read():
     """The residual's TSA grid against the rate, for the widest window `auto` can give: found by
     the config check (before any job), not by the features job after the simulation."""
-    from pathlib import Path
-
     from condmon.config import ConfigError, load_schema, validate_config
 
-    schema = load_schema(Path(__file__).parents[1] / "config" / "schema.yaml")
+    schema = load_schema(ROOT / "config" / "schema.yaml")
     config = {
         "features": {
             "kind": "residual",
