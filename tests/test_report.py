@@ -591,9 +591,10 @@ def test_recall_beside_whether_each_fault_record_shows_its_line(tmp_path):
     info.write_text(json.dumps({"protocol": "unseen_fault", "baselines": {"envelope_rule": {
         "threshold": 3.0, "threshold_from": "calibration", "fault_lines": [
             {"record_id": "or1", "label": "outer_race", "line": "bpfo", "median_ratio": 9.0,
-             "threshold": 3.0, "shows_line": True},
+             "threshold": 3.0, "shows_line": True, "shown_by": "fixed, kurtogram", "no_line_why": ""},
             {"record_id": "or2", "label": "outer_race", "line": "bpfo", "median_ratio": 1.2,
-             "threshold": 3.0, "shows_line": False}]}}}))
+             "threshold": 3.0, "shows_line": False, "shown_by": "",
+             "no_line_why": "no analysis lifts the median bpfo ratio above its healthy threshold"}]}}}))
     lines, rule = load_fault_lines([info])
     predictions = pd.DataFrame({
         "classifier": "svm", "protocol": "unseen_fault", "measured_percent": 0,
@@ -602,6 +603,9 @@ def test_recall_beside_whether_each_fault_record_shows_its_line(tmp_path):
     per_record = recall_per_record(predictions, lines).set_index("record_id")
     assert per_record.loc["or1", "shows_line"] is True and per_record.loc["or2", "shows_line"] is False
     assert pd.isna(per_record.loc["h", "shows_line"])
+    # which analyses show a record's line, or why none does
+    assert per_record.loc["or1", "line_shown_by"] == "fixed, kurtogram" and not per_record.loc["or1", "no_line_why"]
+    assert per_record.loc["or2", "no_line_why"].startswith("no analysis lifts")
     # the rule's own reading of each record stands beside the classifiers'
     rule_reads = predictions.assign(classifier="envelope_rule", predicted_label="inner_race")
     both = recall_per_record(predictions, lines, rule_reads)

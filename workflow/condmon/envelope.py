@@ -1,29 +1,32 @@
-"""Bearing envelope analysis as the field does it: cepstral prewhitening, the demodulation band
-chosen by spectral kurtosis (a fast kurtogram), the squared envelope spectrum (SES), and lines
-read with their harmonics and sidebands.
+"""Envelope analysis as the field does it for impacting defects: cepstral prewhitening, the
+demodulation band chosen by spectral kurtosis (a fast kurtogram), the squared envelope spectrum
+(SES), and lines read with their harmonics and sidebands.
 
 Every function works along the last axis of an array (one segment or a stack of segments) and is
-pure: arrays and numbers in, arrays out.
+pure: arrays and numbers in, arrays out. Which lines to read (the defect orders and the sideband
+spacings that modulate them) is the system's to say (`System.defect_orders`,
+`System.defect_sidebands`).
 
 - `prewhiten`: cepstral prewhitening (Sawalhi & Randall 2011; Randall & Antoni 2011, MSSP 25,
   485-520): the real cepstrum set to zero but for its zero quefrency, which is the spectrum
-  divided by its own magnitude, x_w = IFFT(X / |X|). Discrete lines (gear mesh, shaft harmonics)
-  and resonances are flattened alike, so the impulsive part of a signal stands out.
+  divided by its own magnitude, x_w = IFFT(X / |X|). Discrete lines (the harmonics of rotating
+  parts) and resonances are flattened alike, so the impulsive part of a signal stands out.
 - `kurtogram`: the spectral kurtosis of the complex envelope in every band of Antoni's 1/3-binary
   tree (J. Antoni, "Fast computation of the kurtogram for the detection of transient faults",
   MSSP 21 (2007) 108-124): level k holds 2^k bands of width fs / 2^(k+1), the level k + 0.6
   between k and k + 1 holds 3 * 2^(k-1) bands of width fs / (3 * 2^k). The band filters here
   are frequency-domain filters on the analytic signal (the band's FFT bins with raised-cosine
   edges), not Antoni's quasi-analytic FIR cascade: the same bands, one FFT per segment and one
-  short inverse FFT per band. The band of largest kurtosis is where the fault's impacts ring.
+  short inverse FFT per band. The band of largest kurtosis is where the defect's impacts ring.
 - `squared_envelope_spectrum`: |analytic band-passed signal|^2, mean removed, its amplitude
   spectrum (Hann, amplitude corrected, zero-padded).
 - `fault_line_sets` and `line_ratio`: the lines of a defect (its order's harmonics, with
-  sidebands where the defect is modulated: the inner race at +/- the shaft order as the defect
-  turns through the load zone, the ball at +/- the cage order as the cage carries it through),
-  and the summed line heights over the summed local floors of an SES.
+  sidebands where the defect is modulated, e.g. as a rotating defect passes through a load zone
+  once a turn of the part that carries it), and the summed line heights over the summed local
+  floors of an SES.
 
-Smith & Randall (2015, MSSP 64-65, 100-131) read the CWRU records this way.
+Smith & Randall (2015, MSSP 64-65, 100-131) benchmark this on a public data set of rolling
+element defects.
 """
 from __future__ import annotations
 
@@ -260,10 +263,10 @@ def fault_line_sets(orders: dict, sidebands: dict | None = None, harmonics: int 
     Parameters
     ----------
     orders : dict
-        {name: order of the defect's line}, e.g. {"bpfo": 3.585, "bpfi": 5.415, "bsf_x2": 4.713}.
+        {name: order of the defect's line}, e.g. {"a": 3.585, "b": 5.415, "c": 4.713}.
     sidebands : dict, optional
-        {name: sideband spacing in orders} for defects whose lines are modulated (the inner race:
-        1, the shaft; the ball: the cage order FTF); the others carry none.
+        {name: sideband spacing in orders} for defects whose lines are modulated (by the shaft:
+        1; by a part turning at another order: that order); the others carry none.
     harmonics : int
         Harmonics 1..harmonics of each order, each with its sidebands at +/- the spacing.
     tolerance : float
@@ -351,6 +354,15 @@ def line_ratio(freqs, amps, lines_hz, tolerance: float = 0.015, floor_halfwidth_
     return out
 
 
+def min_bandwidth_hz(line_sets: dict, shaft_hz, tolerance: float = 0.015,
+                     floor_halfwidth_orders: float = 0.5):
+    """The narrowest demodulation band whose squared envelope holds every line of `line_sets`
+    ({name: orders}) with its floor: (highest order x (1 + tolerance) + the floor's half-width)
+    x the shaft speed (Hz; `shaft_hz` a scalar or one per segment)."""
+    highest = max(max(orders) for orders in line_sets.values())
+    return (highest * (1 + tolerance) + floor_halfwidth_orders) * np.asarray(shaft_hz, dtype=float)
+
+
 def line_ratios(x, fs_hz: float, speed_rpm, line_sets: dict, analysis: str = "fixed",
                 fixed_band_hz=(2000.0, 5000.0), max_level: int = 4, tolerance: float = 0.015,
                 floor_halfwidth_orders: float = 0.5, pad_factor: int = 4) -> dict:
@@ -383,8 +395,7 @@ def line_ratios(x, fs_hz: float, speed_rpm, line_sets: dict, analysis: str = "fi
         raise ValueError("envelope lines need a positive shaft speed for every segment")
     if not line_sets:
         raise ValueError("envelope lines: no line set to read")
-    highest = max(max(orders) for orders in line_sets.values())
-    min_width = (highest * (1 + tolerance) + floor_halfwidth_orders) * shaft_hz
+    min_width = min_bandwidth_hz(line_sets, shaft_hz, tolerance, floor_halfwidth_orders)
     signal, bands = demodulation_bands(x, fs_hz, analysis, fixed_band_hz, max_level, min_width)
     freqs, amps = squared_envelope_spectrum(signal, fs_hz, bands, pad_factor)
     out = {name: line_ratio(freqs, amps, np.outer(shaft_hz, orders), tolerance,

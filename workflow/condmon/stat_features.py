@@ -26,6 +26,7 @@ import scipy.stats
 from scipy.signal import butter, hilbert, periodogram, sosfiltfilt
 from sklearn.base import BaseEstimator, TransformerMixin
 
+from condmon import envelope as envelope_analysis
 from condmon.spectra import amplitude_spectrum
 
 
@@ -273,9 +274,16 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
 
     Every segment is high-pass filtered first (`highpass_hz`, default 10 Hz: no DC offset or
     drift, which differ between sensors and records and would let a classifier learn the record).
-    Envelope features per defect order o (line at o x shaft speed of the segment):
-    `env_energy_<name>` (`envelope_band_energy`) and `env_ratio_<name>`
-    (`envelope_line_ratio`, floor over +/- `floor_halfwidth_orders` x shaft speed).
+    Envelope features per defect order o (line at o x shaft speed of the segment), by the
+    envelope analysis `envelope_band` (`fixed`: the band `band_hz`; `kurtogram`: each segment's
+    band of largest spectral kurtosis, levels to `kurtogram_max_level`), after cepstral
+    prewhitening where `prewhiten` (`condmon.envelope`):
+    `env_ratio_<name>`: the squared envelope spectrum's summed line heights over their summed
+    local floors (`condmon.envelope.line_ratio`, floor over +/- `floor_halfwidth_orders` x shaft
+    speed) at the defect's harmonics 1..`harmonics`, each with sidebands at +/- the spacing
+    `line_sidebands` gives the defect ({name: order}: the system's `defect_sidebands()`);
+    `env_energy_<name>`: the power of the (plain) envelope of that band within
+    the fundamental's window (`band_power`).
     Parameters are constructor arguments; stateless (fit only checks them).
 
     transform(X, speed_rpm): X (n_segments, n_samples), speed_rpm scalar or (n_segments,) ->
@@ -287,7 +295,9 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
     def __init__(self, fs_hz: float = 12000.0, band_hz=(2000.0, 5000.0),
                  highpass_hz: float | None = 10.0, defect_orders: dict | None = None,
                  line_tolerance: float = 0.015, floor_halfwidth_orders: float = 0.5,
-                 rms_ref: float = 1.0, envelope: bool = True, prefix: str = ""):
+                 rms_ref: float = 1.0, envelope: bool = True, prefix: str = "",
+                 envelope_band: str = "fixed", prewhiten: bool = False, harmonics: int = 1,
+                 line_sidebands: dict | None = None, kurtogram_max_level: int = 4):
         self.fs_hz = fs_hz
         self.band_hz = band_hz
         self.highpass_hz = highpass_hz
@@ -297,6 +307,11 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
         self.rms_ref = rms_ref
         self.envelope = envelope
         self.prefix = prefix
+        self.envelope_band = envelope_band
+        self.prewhiten = prewhiten
+        self.harmonics = harmonics
+        self.line_sidebands = line_sidebands
+        self.kurtogram_max_level = kurtogram_max_level
 
     def _orders(self) -> dict:
         return dict(self.defect_orders or {})
@@ -336,18 +351,33 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
                                  "(speed_rpm)")
             shaft_hz = _speed_hz(speed_rpm, X.shape[:1])
             orders = self._orders()
-            env = envelope(x, fs, self.band_hz)
-            freqs, amps = _amplitude_spectrum_padded(env, fs)
-            psd_freqs, density = envelope_periodogram(env, fs)  # once for every order
+            sets = envelope_analysis.fault_line_sets(orders, self.line_sidebands, self.harmonics,
+                                                     self.line_tolerance)
+            signal, bands = envelope_analysis.demodulation_bands(
+                x, fs, self.analysis(), self.band_hz, self.kurtogram_max_level,
+                envelope_analysis.min_bandwidth_hz(sets, shaft_hz, self.line_tolerance,
+                                                   self.floor_halfwidth_orders))
+            freqs, amps = envelope_analysis.squared_envelope_spectrum(signal, fs, bands)
+            env = np.abs(envelope_analysis.analytic_band(signal, fs, bands))
+            psd_freqs, density = envelope_periodogram(env - env.mean(axis=-1, keepdims=True), fs)
             energies = [band_power(psd_freqs, density, o * shaft_hz, self.line_tolerance)
                         for o in orders.values()]
-            ratios = [envelope_line_ratio(freqs, amps, o * shaft_hz, self.line_tolerance,
-                                          self.floor_halfwidth_orders * shaft_hz)
-                      for o in orders.values()]
+            ratios = [envelope_analysis.line_ratio(freqs, amps, np.outer(shaft_hz, sets[name]),
+                                                   self.line_tolerance,
+                                                   self.floor_halfwidth_orders * shaft_hz)
+                      for name in orders]
             columns += energies + ratios
         return np.column_stack(columns)
 
+    def analysis(self) -> str:
+        """The envelope analysis's name (`condmon.envelope.ANALYSES`)."""
+        return ("prewhitened_" if self.prewhiten else "") + str(self.envelope_band)
+
     def _check_params(self) -> None:
+        if self.analysis() not in envelope_analysis.ANALYSES:
+            raise ValueError(f"envelope_band {self.envelope_band!r}: choose fixed or kurtogram")
+        if not (isinstance(self.harmonics, (int, np.integer)) and self.harmonics >= 1):
+            raise ValueError(f"harmonics must be a whole number >= 1, got {self.harmonics!r}")
         if not self.fs_hz > 0:
             raise ValueError(f"fs_hz must be positive, got {self.fs_hz}")
         low, high = self.band_hz
@@ -370,12 +400,19 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
 def statistical_features_from_params(params: dict, fs_hz: float, prefix: str = "",
                                      defect_orders: dict | None = None) -> StatisticalFeatures:
     """The extractor a `features.statistical` config section describes (band_hz, highpass_hz,
-    line_tolerance, floor_halfwidth_orders, rms_ref), with envelope lines at `defect_orders` (the
-    system's; None: none)."""
-    keys = ("band_hz", "highpass_hz", "line_tolerance", "floor_halfwidth_orders", "rms_ref")
+    line_tolerance, floor_halfwidth_orders, rms_ref; its `envelope` analysis: band, prewhiten,
+    harmonics, kurtogram_max_level; `line_sidebands`, the system's, added by the features job),
+    with envelope lines at `defect_orders` (the system's; None: none)."""
+    keys = ("band_hz", "highpass_hz", "line_tolerance", "floor_halfwidth_orders", "rms_ref",
+            "line_sidebands")
     kwargs = {k: params[k] for k in keys if k in params}
     if "band_hz" in kwargs:
         kwargs["band_hz"] = tuple(kwargs["band_hz"])
+    analysis = dict(params.get("envelope") or {})
+    for key, name in (("band", "envelope_band"), ("prewhiten", "prewhiten"), ("harmonics", "harmonics"),
+                      ("kurtogram_max_level", "kurtogram_max_level")):
+        if key in analysis:
+            kwargs[name] = analysis[key]
     if defect_orders is not None:
         kwargs["defect_orders"] = dict(defect_orders)
     return StatisticalFeatures(fs_hz=fs_hz, prefix=prefix, **kwargs)

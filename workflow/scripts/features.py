@@ -36,6 +36,9 @@ for family in family_params:  # a family that takes every machine against its re
             family_params[family]["measured_references"] = measured_references
     if getattr(own.get(family), "takes_processes", False):  # ... or spreads its work over the job's cores
         family_params[family]["processes"] = snakemake.threads
+sidebands = system.defect_sidebands()  # the lines a defect modulates (the envelope features read them)
+if sidebands and statistical:
+    statistical["line_sidebands"] = dict(sidebands)
 frame = compute_feature_table_from_files(signal_paths, channels, kind,
                                          {"spectrum": spectrum, "statistical": statistical, **family_params},
                                          system.defect_orders(), own)
