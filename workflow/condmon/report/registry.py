@@ -5,8 +5,8 @@ tables follow from `tables()`."""
 from __future__ import annotations
 
 from condmon.report import (accuracy, calibration, ceiling, conditions, evaluation_tables, gain,
-                            headline, physics, prediction_shares, recall_per_record, signatures,
-                            stages, timings, fault_location)
+                            headline, measured_share, physics, prediction_shares, recall_per_record,
+                            signatures, stages, timings, fault_location)
 from condmon.report.section import Section, Table
 
 SECTIONS: list[Section] = [
@@ -23,6 +23,7 @@ SECTIONS: list[Section] = [
     conditions.SECTION,
     headline.SECTION,
     recall_per_record.SECTION,
+    measured_share.SECTION,
     fault_location.SECTION,
 ]
 
