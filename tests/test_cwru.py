@@ -472,3 +472,17 @@ def test_cwru_envelope_variants_change_the_envelope_analysis_only(variant):
     for section in ("bearing", "rig", "calibration", "simulation", "hybrid", "classifiers"):
         assert system.config[section] == base.config[section], section
     assert system.config["features"]["statistical"]["envelope"] != base.config["features"]["statistical"]["envelope"]
+
+
+def test_the_envelope_rules_settings_reach_the_baselines_job_alone():
+    """bearing.envelope_rule (quantile, line_analyses) and the envelope analysis it reads are the
+    baselines job's: an edit of them reruns no calibration or simulation."""
+    from conftest import system_of
+
+    system = system_of("config/cwru.yaml")
+    for stage in ("measured", "calibrate", "simulate", "features"):
+        assert "envelope_rule" not in system.job_config(stage).get("bearing", {}), stage
+    baselines = system.job_config("baselines")
+    assert baselines["bearing"]["envelope_rule"]["line_analyses"] == [
+        "fixed", "kurtogram", "prewhitened_fixed", "prewhitened_kurtogram"]
+    assert set(baselines["features"]["statistical"]) >= {"band_hz", "envelope", "line_tolerance"}

@@ -155,6 +155,9 @@ class BearingSystem(System):
                                                  if key in statistical}}}
         if stage != "measured":
             config.pop("measured_dir", None)
+        # the envelope rule's settings concern the baselines job alone: an edit reruns nothing else
+        if "bearing" in config:
+            config["bearing"] = {k: v for k, v in config["bearing"].items() if k != "envelope_rule"}
         return config
 
     # -- checks ------------------------------------------------------------------------------
