@@ -76,8 +76,10 @@ def load_fault_lines(info_paths) -> tuple[pd.DataFrame | None, dict]:
     for path in info_paths:
         for name, rule in json.loads(Path(path).read_text()).get("baselines", {}).items():
             if rule.get("fault_lines"):
-                return pd.DataFrame(rule["fault_lines"]), {"rule": name, "threshold": rule.get("threshold"),
-                                                           "threshold_from": rule.get("threshold_from")}
+                return pd.DataFrame(rule["fault_lines"]), {
+                    "rule": name, "threshold": rule.get("threshold"), "threshold_from": rule.get("threshold_from"),
+                    # the envelope analyses the rule consults and each one's healthy threshold
+                    **{key: rule[key] for key in ("analyses", "analysis_thresholds") if key in rule}}
     return None, {}
 
 
