@@ -299,10 +299,14 @@ def test_the_envelope_analysis_comes_from_the_config_section():
               "envelope": {"band": "kurtogram", "prewhiten": True, "harmonics": 2, "kurtogram_max_level": 3},
               "line_sidebands": {"bpfi": 1.0}}
     est = statistical_features_from_params(params, 12000.0, defect_orders={"bpfo": 3.585, "bpfi": 5.415})
-    assert (est.analysis(), est.harmonics, est.kurtogram_max_level) == ("prewhitened_kurtogram", 2, 3)
-    assert est.band_hz == (1000.0, 4000.0) and est.line_sidebands == {"bpfi": 1.0}
+    assert est.analysis() == "prewhitened_kurtogram"
+    assert est.envelope_analysis == {"band": "kurtogram", "prewhiten": True, "harmonics": 2, "kurtogram_max_level": 3,
+                                     "sidebands": {"bpfi": 1.0}}
+    assert est.band_hz == (1000.0, 4000.0)
     X = np.random.default_rng(1).normal(size=(3, 4096))
     values = est.fit_transform(X, speed_rpm=1797.0)
     assert values.shape == (3, 19) and np.isfinite(values).all()
-    with pytest.raises(ValueError, match="envelope_band 'cepstrum'"):
-        StatisticalFeatures(envelope_band="cepstrum", defect_orders={"bpfo": 3.0}).fit(X)
+    with pytest.raises(ValueError, match="envelope_analysis band 'cepstrum'"):
+        StatisticalFeatures(envelope_analysis={"band": "cepstrum"}, defect_orders={"bpfo": 3.0}).fit(X)
+    with pytest.raises(ValueError, match=r"unknown key\(s\) \['bands'\]"):
+        StatisticalFeatures(envelope_analysis={"bands": "fixed"}, defect_orders={"bpfo": 3.0}).fit(X)

@@ -49,7 +49,11 @@ rule physics_baseline:
         splits=rules.hybrid.output.splits,
         # the rules' own reading of the records, where the system's rules read them
         # (System.baselines_read_signals)
-        **({"signals": rules.measured.output[0]} if SYSTEM.baselines_read_signals else {}),
+        **(
+            {"signals": rules.measured.output[0]}
+            if SYSTEM.baselines_read_signals
+            else {}
+        ),
     output:
         predictions=f"{RESULTS}/baselines/{{protocol}}/predictions.parquet",
         info=f"{RESULTS}/baselines/{{protocol}}/info.json",
