@@ -42,18 +42,17 @@ rule train:
 
 
 # The system's training-free physics baselines (System.physics_baselines), on the same test
-# sets: their thresholds come from the calibration segments only.
+# sets: their thresholds come from the calibration segments only; the measured signals too, where
+# the system's rules read them (System.baselines_read_signals).
 rule physics_baseline:
     input:
-        measured=rules.features_measured.output.features,
-        splits=rules.hybrid.output.splits,
-        # the rules' own reading of the records, where the system's rules read them
-        # (System.baselines_read_signals)
         **(
             {"signals": rules.measured.output[0]}
             if SYSTEM.baselines_read_signals
             else {}
         ),
+        measured=rules.features_measured.output.features,
+        splits=rules.hybrid.output.splits,
     output:
         predictions=f"{RESULTS}/baselines/{{protocol}}/predictions.parquet",
         info=f"{RESULTS}/baselines/{{protocol}}/info.json",
