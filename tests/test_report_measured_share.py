@@ -27,7 +27,8 @@ def test_a_figure_lowered_by_measured_data_names_the_class_record_and_why():
     assert bool(svm["lowered"]) and svm["class_most_lowered"] == "outer_race"
     assert svm["record_most_lowered"] == "or1" and svm["record_called"] == "normal"
     assert svm["record_change"] == pytest.approx(-0.75)
-    assert "or1 (outer_race 0.014 in at 6:00)" in svm["why"] and "called normal on 75%" in svm["why"]
+    assert "or1 (outer_race 0.014 in at 6:00), labelled outer_race, is then called normal" in svm["why"]
+    assert "75% of its segments it misses" in svm["why"]
     knn = table.loc["knn"]
     assert not bool(knn["lowered"]) and knn["why"] == "" and knn["change"] == 0.0
 

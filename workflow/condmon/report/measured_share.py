@@ -47,8 +47,10 @@ def _recalls(part: pd.DataFrame) -> tuple[float, pd.Series, pd.DataFrame]:
     hit = part["true_label"] == part["predicted_label"]
     by_class = hit.groupby(part["true_label"]).mean()
     by_record = (part.assign(hit=hit).groupby("record_id")
-                 .agg(recall=("hit", "mean"), label=("true_label", "first"),
-                      called=("predicted_label", lambda s: s.value_counts().index[0])))
+                 .agg(recall=("hit", "mean"), label=("true_label", "first")))
+    # what a record's missed segments are called most often ("" where none is missed)
+    missed = part[~hit].groupby("record_id")["predicted_label"].agg(lambda s: s.value_counts().index[0])
+    by_record["called"] = missed.reindex(by_record.index).fillna("")
     return float(by_class.mean()), by_class, by_record
 
 
@@ -97,8 +99,8 @@ def measured_share(predictions: pd.DataFrame, physics: pd.DataFrame | None = Non
                 specimen = f" ({row['specimen']})" if row["specimen"] else ""
                 row["why"] = (
                     f"with {high} % measured data the fit also learns the measured records {protocol} does not "
-                    f"test; {worst_record}{specimen}, a {label} record, is then called {called} on "
-                    f"{1 - records_after.loc[worst_record, 'recall']:.0%} of its segments (recall "
+                    f"test; {worst_record}{specimen}, labelled {label}, is then called {called} on most of the "
+                    f"{1 - records_after.loc[worst_record, 'recall']:.0%} of its segments it misses (recall "
                     f"{records_before.loc[worst_record, 'recall']:.2f} -> {records_after.loc[worst_record, 'recall']:.2f}): "
                     f"the measured {label} records it trains on resemble it less than the simulation does, "
                     f"and {worst_class}'s recall falls by {-class_change[worst_class]:.2f}")
