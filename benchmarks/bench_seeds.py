@@ -31,6 +31,19 @@ default run; `bench_seeds_<name>.json` for another) and to its committed record
 
 `--layer` (default benchmarks/seeds.yaml; `--layer none` for the whole config) is layered over the
 config files: the SVM alone at 0 % and 100 %, whose figures are those of the full config.
+
+With `--system bearing` (issue 71) a seed is a simulation seed (`simulation.seed k`, run name
+`<run_name>-seed<k>`; the config's own seed is the config's own run where it has finished), the
+layer benchmarks/bearing_seeds.yaml (0 % and 100 % measured, protocols unseen_fault and
+specimen_holdout), and per seed, protocol and measured share, per group of records (design
+specimens at loads 0-1 and 2-3, evaluation specimens, another bearing; benchmarks/specimen_table.py)
+and method (the joined methods, the classifiers, the envelope rule): accuracy, balanced accuracy,
+each class's recall, the recall over the fault records that show their line and over those that
+do not (recall_per_record.csv's `shows_line`), and each specimen's recall; then the mean, lowest,
+highest and standard deviation over the seeds. Its record is
+`benchmarks/records/bench_seeds-<name>.json` with `system: bearing` in its figures.
+
+    python3 benchmarks/bench_seeds.py --system bearing --configfile config/cwru.yaml --seeds 1 2 3 --name cwru
 """
 
 from __future__ import annotations
@@ -93,10 +106,12 @@ def run_name_of(configfiles, seed: int) -> tuple[str, bool]:
     return f"{base}-seed{seed}", True
 
 
-def run_seed(configfiles, seed: int | None, run_name: str, cores: int) -> float:
-    """Run (or complete) the pipeline of one seed (None: the config files' own bench); its wall
-    seconds."""
-    bench = [f"virtual_bench={json.dumps({'seed': seed})}"] if seed is not None else []
+def run_seed(
+    configfiles, seed: int | None, run_name: str, cores: int, section: str = "virtual_bench"
+) -> float:
+    """Run (or complete) the pipeline of one seed (None: the config files' own bench) of
+    `section` (`virtual_bench`; `simulation` for the bearing rig); its wall seconds."""
+    bench = [f"{section}={json.dumps({'seed': seed})}"] if seed is not None else []
     command = [
         sys.executable,
         "-m",
@@ -236,6 +251,161 @@ def means(rows: list[dict]) -> list[dict]:
     return out
 
 
+# -- the bearing rig over simulation seeds -------------------------------------------------------
+BEARING_PROTOCOLS = ("unseen_fault", "specimen_holdout")
+BEARING_LAYER = "benchmarks/bearing_seeds.yaml"
+
+
+def bearing_run_name(configfiles, seed: int) -> tuple[str, bool]:
+    """(run name, whether to run it) of one simulation seed (`run_name_of` for the bearing rig)."""
+    base = config_value(configfiles, None, "run_name", "default")
+    if (
+        seed == config_value(configfiles, "simulation", "seed", None)
+        and (ROOT / "results" / base / "report" / "summary.json").exists()
+    ):
+        return base, False
+    return f"{base}-seed{seed}", True
+
+
+def bearing_rows(run: Path, seed: int) -> list[dict]:
+    """One row per protocol, measured share, group of records and method of one seed's run (module
+    docstring)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from specimen_table import group_table, load, specimen_table
+
+    rows = []
+    for protocol in BEARING_PROTOCOLS:
+        for percent in (0, 100):
+            records = load(run, protocol, percent)
+            if records.empty:
+                continue
+            groups = group_table(records).reset_index()
+            specimens = specimen_table(records)
+            for row in groups.to_dict(orient="records"):
+                here = records[
+                    (records["group"] == row["group"])
+                    & (records["classifier"] == row["classifier"])
+                ]
+                shown = {}
+                if "shows_line" in here:
+                    for key, flag in (("shows_line", True), ("no_line", False)):
+                        part = here[here["shows_line"].astype(str) == str(flag)]
+                        per_class = part.groupby("true_label").agg(
+                            right=("right", "sum"), n=("n_test", "sum")
+                        )
+                        shown[key] = {
+                            label: float(r.right / r.n) for label, r in per_class.iterrows()
+                        }
+                labels = [
+                    k for k in row if k not in ("group", "classifier", "accuracy", "balanced")
+                ]
+                rows.append(
+                    {
+                        "seed": seed,
+                        "protocol": protocol,
+                        "measured_percent": percent,
+                        "group": row["group"],
+                        "classifier": row["classifier"],
+                        "accuracy": float(row["accuracy"]),
+                        "balanced_accuracy": float(row["balanced"]),
+                        "recall": {k: float(row[k]) for k in labels if row[k] == row[k]},
+                        "recall_shows_line": shown.get("shows_line", {}),
+                        "recall_no_line": shown.get("no_line", {}),
+                        "per_specimen": {
+                            specimen: float(value)
+                            for (group, specimen), value in specimens[row["classifier"]].items()
+                            if group == row["group"] and value == value
+                        },
+                    }
+                )
+    return rows
+
+
+def spread(values) -> dict:
+    """mean, lowest, highest and standard deviation (population) of a list of figures."""
+    values = np.asarray([v for v in values if v is not None and v == v], dtype=float)
+    if not len(values):
+        return {"mean": None, "lowest": None, "highest": None, "std": None}
+    return {
+        "mean": float(values.mean()),
+        "lowest": float(values.min()),
+        "highest": float(values.max()),
+        "std": float(values.std()),
+    }
+
+
+def bearing_means(rows: list[dict]) -> list[dict]:
+    """Per protocol, measured share, group and method: the spread over the seeds of the balanced
+    accuracy, of each class's recall (over every record and over those that show their line) and of
+    each specimen's recall."""
+    out = []
+    frame = pd.DataFrame(rows)
+    for (protocol, percent, group, classifier), part in frame.groupby(
+        ["protocol", "measured_percent", "group", "classifier"], sort=True
+    ):
+
+        def of(column):
+            keys = sorted({k for r in part[column] for k in r})
+            return {k: spread([r.get(k) for r in part[column]]) for k in keys}
+
+        out.append(
+            {
+                "protocol": protocol,
+                "measured_percent": int(percent),
+                "group": group,
+                "classifier": classifier,
+                "seeds": sorted(int(s) for s in part["seed"]),
+                "balanced_accuracy": spread(part["balanced_accuracy"]),
+                "accuracy": spread(part["accuracy"]),
+                "recall": of("recall"),
+                "recall_shows_line": of("recall_shows_line"),
+                "per_specimen": of("per_specimen"),
+            }
+        )
+    return out
+
+
+def bearing_main(args) -> int:
+    configfiles = list(args.configfile) + ([] if args.layer == "none" else [args.layer])
+    rows, seconds, runs = [], {}, {}
+    for seed in args.seeds:
+        run_name, to_run = bearing_run_name(args.configfile, seed)
+        if to_run and not args.collect_only:
+            seconds[f"seed{seed}"] = run_seed(
+                configfiles, seed, run_name, args.cores, section="simulation"
+            )
+        runs[seed] = run_name
+        rows += bearing_rows(ROOT / "results" / run_name, seed)
+    result = {
+        "system": "bearing",
+        "configfiles": configfiles,
+        "runs": runs,
+        "per_seed": rows,
+        "mean": bearing_means(rows),
+        "wall_seconds": seconds,
+    }
+    name = args.name or config_value(args.configfile, None, "run_name", "cwru")
+    out = ROOT / "results" / "benchmark" / f"bench_seeds_{name}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=1))
+    for row in result["mean"]:
+        b = row["balanced_accuracy"]
+        print(
+            f"{row['protocol']} {row['measured_percent']:3d} % {row['group']:18s} {row['classifier']:14s} "
+            f"balanced {b['mean']:.3f} ({b['lowest']:.3f}-{b['highest']:.3f}) recall "
+            f"{json.dumps({k: round(v['mean'], 2) for k, v in row['recall'].items()})}"
+        )
+    print(f"wrote {out}")
+    save_record(
+        "bench_seeds", name, result, script=__file__, argv=argv_of(args), configfiles=configfiles
+    )
+    return 0
+
+
+def argv_of(args):
+    return getattr(args, "argv", None)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--configfile", nargs="+", default=["config/config.yaml"])
@@ -250,7 +420,18 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--collect-only", action="store_true", help="only collect finished runs")
     parser.add_argument("--name", default=None, help="output name (default: the config's run_name)")
+    parser.add_argument(
+        "--system",
+        choices=["gear", "bearing"],
+        default="gear",
+        help="bearing: simulation seeds of a CWRU config (module docstring)",
+    )
     args = parser.parse_args(argv)
+    args.argv = argv
+    if args.system == "bearing":
+        if args.layer == parser.get_default("layer"):
+            args.layer = BEARING_LAYER
+        return bearing_main(args)
     base = config_value(args.configfile, None, "run_name", "default")
     configfiles = list(args.configfile) + ([] if args.layer == "none" else [args.layer])
     rows, seconds = [], {}

@@ -134,6 +134,87 @@ def seed_section(title: str, records: list[dict], command: str) -> list[str]:
     return lines
 
 
+def bearing_seed_section(records: list[dict]) -> list[str]:
+    """The bearing rig over simulation seeds (bench_seeds --system bearing records): per protocol,
+    measured share, group of records and method the balanced accuracy's mean and range over the
+    seeds, each class's mean recall (over the records that show their line beside it), then each
+    seed's balanced accuracy."""
+    lines = ["## The CWRU bearing rig over simulation seeds", ""]
+    command = (
+        "python3 benchmarks/bench_seeds.py --system bearing --configfile config/cwru.yaml "
+        "--seeds 1 2 3 --name cwru"
+    )
+    if not records:
+        return lines + [NO_RECORD.format(command=command), ""]
+    for record in reversed(records):
+        figures = record["figures"]
+        lines += [f"### {record['name']} ({record['date']})", "", provenance(record), ""]
+        labels = sorted({k for m in figures["mean"] for k in m["recall"]})
+        rows = []
+        for m in figures["mean"]:
+            b = m["balanced_accuracy"]
+            rows.append(
+                [
+                    m["protocol"],
+                    f"{m['measured_percent']} %",
+                    m["group"],
+                    m["classifier"],
+                    ", ".join(map(str, m["seeds"])),
+                    b["mean"],
+                    f"{b['lowest']:.3f}-{b['highest']:.3f}",
+                    b["std"],
+                    *[(m["recall"].get(k) or {}).get("mean") for k in labels],
+                    *[
+                        (m["recall_shows_line"].get(k) or {}).get("mean")
+                        for k in labels
+                        if k != "normal"
+                    ],
+                ]
+            )
+        header = [
+            "protocol",
+            "measured",
+            "records",
+            "method",
+            "seeds",
+            "balanced accuracy (mean)",
+            "range",
+            "std",
+            *[f"recall {k}" for k in labels],
+            *[f"recall {k}, line shown" for k in labels if k != "normal"],
+        ]
+        lines += table(header, rows) + [""]
+        per_seed = [
+            [
+                r["seed"],
+                r["protocol"],
+                f"{r['measured_percent']} %",
+                r["group"],
+                r["classifier"],
+                r["balanced_accuracy"],
+                *[r["recall"].get(k) for k in labels],
+            ]
+            for r in figures["per_seed"]
+        ]
+        lines += (
+            ["Per seed:", ""]
+            + table(
+                [
+                    "seed",
+                    "protocol",
+                    "measured",
+                    "records",
+                    "method",
+                    "balanced accuracy",
+                    *[f"recall {k}" for k in labels],
+                ],
+                per_seed,
+            )
+            + [""]
+        )
+    return lines
+
+
 def throughput_section(records: list[dict]) -> list[str]:
     """The newest throughput record: cost per simulated second and throughput per system."""
     lines = ["## Simulation throughput", ""]
@@ -299,7 +380,12 @@ def row_columns(value) -> list[str]:
 
 def render_results(records: list[dict]) -> str:
     """docs/results.md from the records (oldest first, as condmon.records.read_records gives them)."""
-    seeds = [r for r in records if r["benchmark"] == "bench_seeds"]
+    bearing = [
+        r
+        for r in records
+        if r["benchmark"] == "bench_seeds" and r["figures"].get("system") == "bearing"
+    ]
+    seeds = [r for r in records if r["benchmark"] == "bench_seeds" and r not in bearing]
     default = [r for r in seeds if bench_of(r) == "default"]
     cfrp = [r for r in seeds if bench_of(r).startswith("cfrp")]
     variants = [r for r in seeds if r not in default and r not in cfrp]
@@ -324,6 +410,7 @@ def render_results(records: list[dict]) -> str:
         "python3 benchmarks/bench_seeds.py --configfile config/config.yaml "
         "config/benches/<bench>.yaml --seeds <its seed> --name variant-<bench>",
     )
+    lines += bearing_seed_section(bearing)
     lines += specimen_section([r for r in records if r["benchmark"] == "specimen_table"])
     lines += throughput_section([r for r in records if r["benchmark"] == "throughput"])
     lines += other_section([r for r in records if r["benchmark"] not in tables])
@@ -333,7 +420,13 @@ def render_results(records: list[dict]) -> str:
 def render_readme_table(records: list[dict]) -> str:
     """The README's one table: the newest default-bench seed record's means at 0 % and 100 %
     measured data (no date: the README says what the run shows now)."""
-    default = [r for r in records if r["benchmark"] == "bench_seeds" and bench_of(r) == "default"]
+    default = [
+        r
+        for r in records
+        if r["benchmark"] == "bench_seeds"
+        and bench_of(r) == "default"
+        and r["figures"].get("system") != "bearing"
+    ]
     if not default:
         return (
             "No record yet of the default run's figures over bench seeds: "

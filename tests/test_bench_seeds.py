@@ -203,3 +203,76 @@ def test_the_variants_run_beside_the_seeds_each_under_its_own_name(tmp_path, mon
         m for m in figures["mean"] if m["classifier"] == "knn" and m["measured_percent"] == 0
     )
     assert mean["seeds"] == 2 and mean["recall"]["surface_fault"] == pytest.approx(0.75)
+
+
+def fake_bearing_run(folder, ball_recall: float):
+    """The three files a bearing seed's rows come from (recall_per_record.csv, records.csv,
+    summary.json's design_records), as the pipeline writes them: two ball records (one shows its
+    line), a normal record, at 0 % and 100 % of unseen_fault."""
+    (folder / "report").mkdir(parents=True)
+    (folder / "measured").mkdir()
+    rows = [
+        {
+            "classifier": classifier,
+            "protocol": "unseen_fault",
+            "measured_percent": percent,
+            "record_id": record,
+            "true_label": label,
+            "recall": recall,
+            "n_test": 10,
+            "shows_line": shows,
+        }
+        for classifier in ("joined_svm", "envelope_rule")
+        for percent in (0, 100)
+        for record, label, recall, shows in (
+            ("b1", "ball", ball_recall, True),
+            ("b2", "ball", 0.0, False),
+            ("n1", "normal", 1.0, None),
+        )
+    ]
+    pd.DataFrame(rows).to_csv(folder / "report" / "recall_per_record.csv", index=False)
+    pd.DataFrame(
+        {
+            "record_id": ["b1", "b2", "n1"],
+            "specimen": ["ball 0.007 in", "ball 0.014 in", "normal"],
+            "load_hp": [0, 1, 0],
+        }
+    ).to_csv(folder / "measured" / "records.csv", index=False)
+    (folder / "report" / "summary.json").write_text(
+        json.dumps({"design_records": {"records": ["b1", "b2", "n1"]}})
+    )
+
+
+def test_the_bearing_seed_rows_carry_groups_classes_lines_and_specimens_and_their_spread(tmp_path):
+    fake_bearing_run(tmp_path / "s1", 1.0)
+    fake_bearing_run(tmp_path / "s2", 0.5)
+    rows = bench_seeds.bearing_rows(tmp_path / "s1", 1) + bench_seeds.bearing_rows(
+        tmp_path / "s2", 2
+    )
+    assert {(r["protocol"], r["measured_percent"], r["classifier"]) for r in rows} == {
+        ("unseen_fault", p, c) for p in (0, 100) for c in ("joined_svm", "envelope_rule")
+    }
+    row = next(
+        r
+        for r in rows
+        if r["seed"] == 2 and r["classifier"] == "joined_svm" and r["measured_percent"] == 0
+    )
+    assert row["group"] == "design, loads 0-1"
+    assert row["recall"] == {"ball": 0.25, "normal": 1.0} and row[
+        "balanced_accuracy"
+    ] == pytest.approx(0.625)
+    assert row["recall_shows_line"] == {"ball": 0.5} and row["recall_no_line"] == {"ball": 0.0}
+    assert row["per_specimen"]["ball 0.007 in"] == 0.5
+    mean = next(
+        m
+        for m in bench_seeds.bearing_means(rows)
+        if m["classifier"] == "joined_svm" and m["measured_percent"] == 0
+    )
+    assert mean["seeds"] == [1, 2]
+    assert mean["balanced_accuracy"]["mean"] == pytest.approx(0.6875)
+    assert (mean["balanced_accuracy"]["lowest"], mean["balanced_accuracy"]["highest"]) == (
+        0.625,
+        0.75,
+    )
+    assert mean["recall_shows_line"]["ball"]["mean"] == pytest.approx(0.75)
+    assert bench_seeds.bearing_run_name(["config/cwru.yaml"], 7) == ("cwru-seed7", True)

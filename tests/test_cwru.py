@@ -570,3 +570,45 @@ def test_cwru_task_variants_layer_over_the_cwru_config(task):
     assert set(changes) <= {"run_name", "cwru", "hybrid"}
     for section in ("bearing", "rig", "calibration", "simulation", "features"):
         assert system.config[section] == base.config[section], section
+
+
+@pytest.mark.parametrize(
+    "variant", sorted(p.name for p in (ROOT / "config" / "cwru-envelopes").glob("*.yaml"))
+)
+def test_cwru_envelope_variants_change_the_envelope_analysis_only(variant):
+    """Each envelope-analysis variant layers on config/cwru.yaml (its `base`), validates, names its
+    own run, and changes nothing but features.statistical.envelope (issue 71)."""
+    from conftest import system_of
+
+    changes = yaml.safe_load((ROOT / "config" / "cwru-envelopes" / variant).read_text())
+    assert changes.pop("base") == "config/cwru.yaml"
+    base = system_of("config/cwru.yaml")
+    system = system_of("config/cwru.yaml", changes)
+    assert not system.problems()
+    assert system.config["run_name"] != base.config["run_name"]
+    assert set(changes) == {"run_name", "features"} and set(changes["features"]) == {"statistical"}
+    assert set(changes["features"]["statistical"]) == {"envelope"}
+    for section in ("bearing", "rig", "calibration", "simulation", "hybrid", "classifiers"):
+        assert system.config[section] == base.config[section], section
+    assert (
+        system.config["features"]["statistical"]["envelope"]
+        != base.config["features"]["statistical"]["envelope"]
+    )
+
+
+def test_the_envelope_rules_settings_reach_the_baselines_job_alone():
+    """bearing.envelope_rule (quantile, line_analyses) and the envelope analysis it reads are the
+    baselines job's: an edit of them reruns no calibration or simulation."""
+    from conftest import system_of
+
+    system = system_of("config/cwru.yaml")
+    for stage in ("measured", "calibrate", "simulate", "features"):
+        assert "envelope_rule" not in system.job_config(stage).get("bearing", {}), stage
+    baselines = system.job_config("baselines")
+    assert baselines["bearing"]["envelope_rule"]["line_analyses"] == [
+        "fixed",
+        "kurtogram",
+        "prewhitened_fixed",
+        "prewhitened_kurtogram",
+    ]
+    assert set(baselines["features"]["statistical"]) >= {"band_hz", "envelope", "line_tolerance"}

@@ -120,6 +120,17 @@ def test_cwru_run_writes_every_protocol_labelled_with_gain_and_recall(cwru_run):
         got = mine[mine["classifier"] == classifier]["outside_training"]
         assert got.to_dict() == pytest.approx(out.reindex(got.index).to_dict())
     assert per_record.loc[per_record["classifier"] == "knn", "outside_training"].isna().all()
+    # every fault record says whether an envelope analysis shows its line, which, or why none does
+    # (issue 71), and the report says where measured data of other records lower a figure
+    faults = per_record[per_record["true_label"] != "normal"]
+    shown = faults["shows_line"].astype(str) == "True"
+    assert faults.loc[shown, "line_shown_by"].notna().all()
+    assert faults.loc[~shown, "no_line_why"].str.startswith("no analysis lifts").all()
+    share = pd.read_csv(results / "report" / "measured_share.csv")
+    assert {"svm", "joined_svm", "envelope_rule"} <= set(share["classifier"])
+    assert (share.loc[share["lowered"], "why"].str.len() > 0).all()
+    summary = json.loads((results / "report" / "summary.json").read_text())
+    assert "measured_share" in summary and summary["fault_lines"]["analyses"][0] == "features"
 
 
 def test_cwru_hybrid_splits_follow_their_protocols(cwru_run):

@@ -52,9 +52,10 @@ def bearing_system(task="location", quantile=0.95):
     )
 
 
-def simulated_features(kind, record_id, seconds=2.0, seed=3):
+def simulated_features(kind, record_id, seconds=2.0, seed=3, with_signals=False):
     """The statistical features of a simulated record of the rig model (its default noise and
-    machine background; an outer-race defect at 6:00), segments of 4096 samples."""
+    machine background; an outer-race defect at 6:00), segments of 4096 samples; `with_signals`:
+    its signal table instead."""
     params = BearingRigParameters(speed_rpm=SPEED, defect_kind=kind)
     signal = simulate_rig(
         params, RigSettings(duration=seconds, settle_time=0.1), np.random.default_rng(seed)
@@ -63,6 +64,8 @@ def simulated_features(kind, record_id, seconds=2.0, seed=3):
     rows = make_rows(
         record_id, "simulated", label, SPEED, 0.0, FS, {"DE": signal}, segment_length=4096
     )
+    if with_signals:
+        return pd.DataFrame(rows)
     # the envelope lines where the bearing system puts them (its geometry, SKF 6205)
     return statistical_feature_table(
         pd.DataFrame(rows),
@@ -157,4 +160,54 @@ def test_a_fault_record_whose_line_stays_at_the_healthy_level_does_not_show_it(r
     lines = {row["record_id"]: row for row in rule.fault_lines(pd.concat([healthy, outer, quiet]))}
     assert set(lines) == {"outer", "quiet"}  # healthy records have no defect line
     assert lines["outer"]["shows_line"] and not lines["quiet"]["shows_line"]
-    assert lines["quiet"]["median_ratio"] <= rule.threshold_ < lines["outer"]["median_ratio"]
+    assert (
+        lines["quiet"]["median_ratio"]
+        <= rule.thresholds_["features"]
+        < lines["outer"]["median_ratio"]
+    )
+    assert lines["outer"]["shown_by"] == "features" and not lines["outer"]["no_line_why"]
+    assert (
+        not lines["quiet"]["shown_by"]
+        and "no analysis lifts the median bpfo ratio" in lines["quiet"]["no_line_why"]
+    )
+
+
+@pytest.mark.slow
+def test_the_rule_consults_every_analysis_of_the_measured_signals(records):
+    """With the measured signals the rule reads `bearing.envelope_rule.line_analyses` beside the
+    features' analysis: each analysis's ratios over its healthy median, the largest per line; a
+    fault record names the analyses that show its line."""
+    healthy, outer = records
+    signals = pd.concat(
+        [
+            simulated_features("none", "healthy", with_signals=True),
+            simulated_features("outer_race", "outer", with_signals=True),
+        ],
+        ignore_index=True,
+    )
+    analyses = ["fixed", "kurtogram", "prewhitened_fixed", "prewhitened_kurtogram"]
+    system = BearingSystem(
+        {
+            "bearing": {
+                "health_states": None,
+                "healthy_state": "normal",
+                "envelope_rule": {"quantile": 0.95, "line_analyses": analyses},
+                "geometry": system_of(".test/config/cwru-smoke.yaml").bearing["geometry"],
+            },
+            "cwru": {"task": "location"},
+            "features": {"statistical": STATISTICAL},
+        }
+    )
+    names = [c for c in outer.columns if c.startswith("DE_")]
+    rule = system.physics_baselines(names, signals)["envelope_rule"].fit(healthy)
+    assert rule.analyses() == ["features", *analyses]
+    assert set(rule.describe()["analysis_thresholds"]) == {"features", *analyses}
+    assert list(rule.predict(outer)) == ["outer_race"] * len(outer)
+    # the features' own analysis (the fixed band) and the line table's agree on the fixed band
+    ratios = rule.analysis_ratios(outer)
+    assert np.allclose(ratios["features"]["bpfo"], ratios["fixed"]["bpfo"])
+    line = {row["record_id"]: row for row in rule.fault_lines(pd.concat([healthy, outer]))}["outer"]
+    assert line["shows_line"] and "fixed" in line["shown_by"].split(", ")
+    assert set(line["median_ratios"]) == {"features", *analyses}
+    with pytest.raises(ValueError, match="no line ratios of segment"):
+        rule.predict(outer.assign(record_id="elsewhere"))

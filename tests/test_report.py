@@ -819,6 +819,8 @@ def test_recall_beside_whether_each_fault_record_shows_its_line(tmp_path):
                                 "median_ratio": 9.0,
                                 "threshold": 3.0,
                                 "shows_line": True,
+                                "shown_by": "fixed, kurtogram",
+                                "no_line_why": "",
                             },
                             {
                                 "record_id": "or2",
@@ -827,6 +829,8 @@ def test_recall_beside_whether_each_fault_record_shows_its_line(tmp_path):
                                 "median_ratio": 1.2,
                                 "threshold": 3.0,
                                 "shows_line": False,
+                                "shown_by": "",
+                                "no_line_why": "no analysis lifts the median bpfo ratio above its healthy threshold",
                             },
                         ],
                     }
@@ -850,6 +854,12 @@ def test_recall_beside_whether_each_fault_record_shows_its_line(tmp_path):
         per_record.loc["or1", "shows_line"] is True and per_record.loc["or2", "shows_line"] is False
     )
     assert pd.isna(per_record.loc["h", "shows_line"])
+    # which analyses show a record's line, or why none does
+    assert (
+        per_record.loc["or1", "line_shown_by"] == "fixed, kurtogram"
+        and not per_record.loc["or1", "no_line_why"]
+    )
+    assert per_record.loc["or2", "no_line_why"].startswith("no analysis lifts")
     # the rule's own reading of each record stands beside the classifiers'
     rule_reads = predictions.assign(classifier="envelope_rule", predicted_label="inner_race")
     both = recall_per_record(predictions, lines, rule_reads)

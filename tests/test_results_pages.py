@@ -4,6 +4,8 @@ committed records: a stale page fails, a seed record shows as a table, no record
 import importlib.util
 import json
 
+import pytest
+
 from conftest import ROOT
 
 spec = importlib.util.spec_from_file_location(
@@ -132,3 +134,46 @@ def test_other_records_render_their_like_rows_as_a_table():
     page = render.render_results([record]).split("## Other benchmarks")[1]
     assert "|  | median | pairs |" in page and "| 6 s | 0.100 | 20 |" in page
     assert "| speed_rpm | 450.000 |" in page
+
+
+def test_a_bearing_seed_record_renders_its_mean_and_spread_and_stays_out_of_the_gear_tables():
+    bench_spec = importlib.util.spec_from_file_location(
+        "bench_seeds", ROOT / "benchmarks" / "bench_seeds.py"
+    )
+    bench = importlib.util.module_from_spec(bench_spec)
+    bench_spec.loader.exec_module(bench)
+    per_seed = [
+        {
+            "seed": seed,
+            "protocol": "unseen_fault",
+            "measured_percent": 0,
+            "group": "design, loads 0-1",
+            "classifier": "joined_svm",
+            "accuracy": balanced,
+            "balanced_accuracy": balanced,
+            "recall": {"ball": balanced - 0.1, "normal": 1.0},
+            "recall_shows_line": {"ball": 0.9},
+            "recall_no_line": {"ball": 0.5},
+            "per_specimen": {"ball 0.007 in": balanced},
+        }
+        for seed, balanced in ((1, 0.8), (2, 0.9), (3, 0.85))
+    ]
+    mean = bench.bearing_means(per_seed)
+    (row,) = mean
+    assert row["seeds"] == [1, 2, 3] and row["balanced_accuracy"]["mean"] == pytest.approx(0.85)
+    assert (row["balanced_accuracy"]["lowest"], row["balanced_accuracy"]["highest"]) == (0.8, 0.9)
+    assert row["recall_shows_line"]["ball"]["mean"] == 0.9
+    record = dict(
+        seed_record(
+            "cwru", ["config/cwru.yaml", "benchmarks/bearing_seeds.yaml"], "2026-12-06", 0.5
+        ),
+        figures={"system": "bearing", "per_seed": per_seed, "mean": mean},
+    )
+    page = render.render_results([record])
+    section = page[page.index("## The CWRU bearing rig over simulation seeds") :]
+    assert (
+        "| unseen_fault | 0 % | design, loads 0-1 | joined_svm | 1, 2, 3 | 0.850 | 0.800-0.900 |"
+        in section
+    )
+    assert "No record yet of the default run" in render.render_readme_table([record])
+    assert "### cwru" not in page[: page.index("## The CWRU bearing rig")]

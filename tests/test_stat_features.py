@@ -245,9 +245,10 @@ def test_envelope_ratios_name_the_location_on_real_data(cwru_features):
         ["record_id", "segment", "health_state", "named"],
     ]
     assert wrong.empty, f"envelope ratios name the wrong location:\n{wrong}"
-    # the winning line stands well above the floor
+    # the winning line stands above the floor on every segment (the squared envelope spectrum's
+    # line over its local median: 2.7 on the weakest segment, 4-27 per record)
     winner = frame.loc[strong, ["env_ratio_bpfo", "env_ratio_bpfi"]].max(axis=1)
-    assert winner.min() > 3
+    assert winner.min() > 2.5 and winner.median() > 5
     # ball faults are weak (not asserted beyond being computed); report the hit rates
     hits = (frame["named"] == frame["location"]).groupby(frame["health_state"]).mean()
     print("\nenvelope-ratio location hit rate per class:\n" + hits.round(3).to_string())
@@ -313,3 +314,41 @@ def test_statistical_feature_table_keeps_names_logs_and_prefixes_channels():
         statistical_feature_table(frame, ["DE"], {"names": ["rms", "loudness"]})
     with pytest.raises(FeatureTableError, match="BA"):
         statistical_feature_table(frame, ["BA"], {})
+
+
+def test_the_envelope_analysis_comes_from_the_config_section():
+    from condmon.stat_features import statistical_features_from_params
+
+    params = {
+        "band_hz": [1000.0, 4000.0],
+        "envelope": {
+            "band": "kurtogram",
+            "prewhiten": True,
+            "harmonics": 2,
+            "kurtogram_max_level": 3,
+        },
+        "line_sidebands": {"bpfi": 1.0},
+    }
+    est = statistical_features_from_params(
+        params, 12000.0, defect_orders={"bpfo": 3.585, "bpfi": 5.415}
+    )
+    assert est.analysis() == "prewhitened_kurtogram"
+    assert est.envelope_analysis == {
+        "band": "kurtogram",
+        "prewhiten": True,
+        "harmonics": 2,
+        "kurtogram_max_level": 3,
+        "sidebands": {"bpfi": 1.0},
+    }
+    assert est.band_hz == (1000.0, 4000.0)
+    X = np.random.default_rng(1).normal(size=(3, 4096))
+    values = est.fit_transform(X, speed_rpm=1797.0)
+    assert values.shape == (3, 19) and np.isfinite(values).all()
+    with pytest.raises(ValueError, match="envelope_analysis band 'cepstrum'"):
+        StatisticalFeatures(
+            envelope_analysis={"band": "cepstrum"}, defect_orders={"bpfo": 3.0}
+        ).fit(X)
+    with pytest.raises(ValueError, match=r"unknown key\(s\) \['bands'\]"):
+        StatisticalFeatures(envelope_analysis={"bands": "fixed"}, defect_orders={"bpfo": 3.0}).fit(
+            X
+        )

@@ -195,7 +195,13 @@ def statistical_feature_params():
     another run's features."""
     if "statistical" not in FEATURE_FAMILIES:
         return None
-    return dict(config["features"]["statistical"])
+    statistical = dict(config["features"]["statistical"])
+    # the lines a defect modulates (the envelope features read them): in the settings the features
+    # jobs and a packaged model take alike
+    sidebands = SYSTEM.defect_sidebands()
+    if sidebands:
+        statistical["line_sidebands"] = dict(sidebands)
+    return statistical
 
 
 def feature_threads():

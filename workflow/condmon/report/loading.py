@@ -95,6 +95,10 @@ def load_fault_lines(info_paths) -> tuple[pd.DataFrame | None, dict]:
                     "rule": name,
                     "threshold": rule.get("threshold"),
                     "threshold_from": rule.get("threshold_from"),
+                    # the envelope analyses the rule consults and each one's healthy threshold
+                    **{
+                        key: rule[key] for key in ("analyses", "analysis_thresholds") if key in rule
+                    },
                 }
     return None, {}
 

@@ -70,9 +70,10 @@ def recall_per_record(
 ) -> pd.DataFrame:
     """Share of every measured record's test segments predicted right, per (classifier,
     protocol, percent), pooled over repeats and holdouts: shows which records a class's recall
-    loses (a class's near-healthy records, say). With `fault_lines` (`load_fault_lines`) a column
-    `shows_line`: whether the fault record's defect line stands out of its envelope spectrum
-    (empty for a healthy record). With `physics` (the physics baselines' predictions) their rows
+    loses (a class's near-healthy records, say). With `fault_lines` (`load_fault_lines`) the columns
+    `shows_line`: whether the fault record's defect line stands out of its envelope spectrum by
+    any analysis the rule consults (empty for a healthy record), `line_shown_by`: the analyses
+    that show it, strongest first, and `no_line_why`: why none does. With `physics` (the physics baselines' predictions) their rows
     too, `classifier` = the rule: where the classifiers and the training-free rule both call a
     record the same other class, the record has that class's envelope line within the rule's
     tolerance (a fault record with another location's line, say): look at its envelope spectrum.
@@ -97,12 +98,17 @@ def recall_per_record(
         )
     )
     if fault_lines is not None:
+        by_record = fault_lines.set_index("record_id")
         table["shows_line"] = (
-            table["record_id"]
-            .astype(str)
-            .map(fault_lines.set_index("record_id")["shows_line"])
-            .astype(object)
+            table["record_id"].astype(str).map(by_record["shows_line"]).astype(object)
         )
+        # which analyses show the line, or why none does (a rule from before they were named: empty)
+        for column, source in (("line_shown_by", "shown_by"), ("no_line_why", "no_line_why")):
+            table[column] = (
+                table["record_id"].astype(str).map(by_record[source]).astype(object)
+                if source in by_record
+                else None
+            )
     if outside is not None:
         by_record = outside.set_index("record_id")
         for column in ("outside_simulation", "features_outside_simulation"):
@@ -151,9 +157,10 @@ def fault_lines_summary(predictions: pd.DataFrame, fault_lines: pd.DataFrame, ru
         recall.append(row)
     return {
         **rule,
-        "what": "a fault record shows its line when the median over its segments of the envelope "
-        "line ratio at its defect's line lies above the threshold the healthy calibration "
-        "segments set (the envelope rule's)",
+        "what": "a fault record shows its line when, by any envelope analysis the rule consults, the "
+        "median over its segments of the line ratio at its defect's line lies above the "
+        "threshold the healthy calibration segments set for that analysis (the envelope "
+        "rule's)",
         "records": fault_lines.to_dict(orient="records"),
         "recall": recall,
     }

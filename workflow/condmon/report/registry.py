@@ -13,6 +13,7 @@ from condmon.report import (
     evaluation_tables,
     gain,
     headline,
+    measured_share,
     physics,
     prediction_shares,
     recall_per_record,
@@ -37,6 +38,7 @@ SECTIONS: list[Section] = [
     conditions.SECTION,
     headline.SECTION,
     recall_per_record.SECTION,
+    measured_share.SECTION,
     fault_location.SECTION,
 ]
 

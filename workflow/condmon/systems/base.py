@@ -510,9 +510,18 @@ class System(ABC):
         return []
 
     # -- baselines ---------------------------------------------------------------------------
-    def physics_baselines(self, feature_names) -> dict:
+    # whether the baselines job hands its rules the measured signal table (`physics_baselines`)
+    baselines_read_signals = False
+
+    def defect_sidebands(self) -> dict | None:
+        """Sideband spacings of the envelope lines ({name of a `defect_orders` line: spacing in
+        shaft orders}), or None: the lines a defect modulates (`condmon.envelope.fault_line_sets`)."""
+        return None
+
+    def physics_baselines(self, feature_names, signals=None) -> dict:
         """{name: rule} of the training-free physics baselines this system offers on features
-        `feature_names` (none by default). A rule has `fit(frame)`, which sees only the healthy
+        `feature_names` (none by default); `signals`, the measured signal table where the rule
+        reads more of it than the features hold. A rule has `fit(frame)`, which sees only the healthy
         calibration segments' feature rows (its thresholds come from them, never from a test
         segment), `predict(frame)` -> labels, and `describe()` -> a JSON-able dict. The
         `baselines` job evaluates each on every split's test set (condmon.baselines)."""

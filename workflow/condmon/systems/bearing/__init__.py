@@ -33,6 +33,8 @@ from condmon.systems.bearing.model import (
 
 
 log = logging.getLogger(__name__)
+# what of features.statistical the envelope rule's own analyses read (the baselines job's config)
+RULE_READS = ("band_hz", "highpass_hz", "line_tolerance", "floor_halfwidth_orders", "envelope")
 
 
 class BearingSystem(System):
@@ -41,6 +43,8 @@ class BearingSystem(System):
     sections = ("rig", "bearing", "cwru", "measured_dir")
     # CWRU records at one load differ by a few rpm: the operating condition is the load
     default_condition = "load"
+    # the envelope rule reads its own analyses of the measured records (line_analyses)
+    baselines_read_signals = True
 
     # -- layout ------------------------------------------------------------------------------
     @property
@@ -157,16 +161,27 @@ class BearingSystem(System):
             }
         if stage == "features":
             return {"bearing": {"geometry": self.bearing["geometry"]}}
-        if stage == "baselines":  # the labels and the envelope rule's setting, nothing else
+        if (
+            stage == "baselines"
+        ):  # the labels, the envelope rule's setting and the analyses it reads
+            statistical = self.config.get("features", {}).get("statistical", {})
             return {
                 "bearing": {
                     key: self.bearing[key]
-                    for key in ("health_states", "healthy_state", "envelope_rule")
+                    for key in ("health_states", "healthy_state", "envelope_rule", "geometry")
                 },
                 "cwru": {"task": self.config["cwru"]["task"]},
+                "features": {
+                    "statistical": {
+                        key: statistical[key] for key in RULE_READS if key in statistical
+                    }
+                },
             }
         if stage != "measured":
             config.pop("measured_dir", None)
+        # the envelope rule's settings concern the baselines job alone: an edit reruns nothing else
+        if "bearing" in config:
+            config["bearing"] = {k: v for k, v in config["bearing"].items() if k != "envelope_rule"}
         return config
 
     # -- checks ------------------------------------------------------------------------------
@@ -360,11 +375,26 @@ class BearingSystem(System):
     def defect_orders(self) -> dict:
         return feature_orders(self.bearing["geometry"])
 
-    def physics_baselines(self, feature_names) -> dict:
+    def defect_sidebands(self) -> dict:
+        """The inner race's lines at +/- the shaft (the defect turns through the load zone), the
+        ball's at +/- the cage (FTF: the cage carries the ball through it)."""
+        from condmon.systems.bearing.model import geometry
+
+        ftf = geometry(self.bearing["geometry"]).orders()["ftf"]
+        return {"bpfi": 1.0, "bsf": ftf, "bsf_x2": ftf}
+
+    def physics_baselines(self, feature_names, signals=None) -> dict:
         """The envelope rule (baselines.py), where the features hold the line ratios at BPFO,
         BPFI and 2 x BSF and every fault location is one label (the location task; not the
-        ten-class or severity labels, which the rule cannot tell apart)."""
-        from condmon.systems.bearing.baselines import LINE_OF_DEFECT, EnvelopeRule, envelope_columns
+        ten-class or severity labels, which the rule cannot tell apart). With the measured
+        `signals` it also reads the analyses `bearing.envelope_rule.line_analyses` of them
+        (`baselines.line_table`)."""
+        from condmon.systems.bearing.baselines import (
+            LINE_OF_DEFECT,
+            EnvelopeRule,
+            envelope_columns,
+            line_table,
+        )
 
         columns = envelope_columns(feature_names)
         if columns is None:
@@ -387,9 +417,21 @@ class BearingSystem(System):
             )
             return {}
         labels = {line: by_defect[defect][0] for defect, line in LINE_OF_DEFECT.items()}
+        analyses = list(self.bearing["envelope_rule"].get("line_analyses") or [])
+        lines = None
+        if signals is not None and analyses:
+            channel = next(iter(columns.values()))[0].split("_", 1)[0]
+            orders = {line: self.defect_orders()[line] for line in columns}
+            sidebands = {line: s for line, s in self.defect_sidebands().items() if line in orders}
+            statistical = self.config.get("features", {}).get("statistical", {})
+            lines = line_table(signals, channel, orders, sidebands, statistical, analyses)
         return {
             "envelope_rule": EnvelopeRule(
-                columns, labels, self.healthy_state, self.bearing["envelope_rule"]["quantile"]
+                columns,
+                labels,
+                self.healthy_state,
+                self.bearing["envelope_rule"]["quantile"],
+                lines,
             )
         }
 
