@@ -75,7 +75,7 @@ summary = write_report(
             benchmarks={
                 rule: tuple(inputs[f"benchmarks_{rule}"]) for rule in params.benchmarked_rules
             },
-            cores=params.get("cores"),
+            cores=getattr(snakemake.resources, "run_cores", None),
         ),
         outputs=ReportOutputs(
             summary=output.summary,
