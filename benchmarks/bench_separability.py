@@ -10,6 +10,7 @@ ceiling a simulation-trained classifier can approach.
 
     python3 benchmarks/bench_separability.py --results results/default [--out FILE]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,15 +38,23 @@ def main(argv=None) -> dict:
     healthy, condition = get_system(config).healthy_state, config["hybrid"]["condition"]
     states = [healthy, *config["calibration"]["per_state"]["states"]]
     frame, names = read_feature_table(results / "features" / "measured.parquet")
-    calibration = calibration_frame(frame, healthy, condition, dict(config["calibration"]["reserve"]), states)
+    calibration = calibration_frame(
+        frame, healthy, condition, dict(config["calibration"]["reserve"]), states
+    )
     out = measured_separability(frame.drop(index=calibration.index), names, condition)
     out["calibration_records_left_out"] = sorted(set(calibration["record_id"].astype(str)))
     text = json.dumps(out, indent=2)
     print(text)
     if args.out:
         Path(args.out).write_text(text + "\n")
-    save_record("bench_separability", Path(args.results).name, out, script=__file__, argv=argv,
-                configfiles=run_configfiles(Path(args.results)))
+    save_record(
+        "bench_separability",
+        Path(args.results).name,
+        out,
+        script=__file__,
+        argv=argv,
+        configfiles=run_configfiles(Path(args.results)),
+    )
     return out
 
 

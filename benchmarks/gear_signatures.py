@@ -8,6 +8,7 @@ over the healthy ones. The same for the measured (virtual bench) table with --me
 
     python3 benchmarks/gear_signatures.py [--results results/default] [--teeth 29] [--out FILE]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -39,9 +40,15 @@ def signatures(frame: pd.DataFrame, teeth: int) -> dict:
             gmf = teeth * speed / 60
             per_harmonic = []
             for k in (1, 2, 3, 4):
-                amp = {axis: np.mean([line(np.asarray(s), k * gmf, fs)
-                                      for s in healthy[healthy["channel"] == f"{housing}_{axis}"]["signal"]])
-                       for axis in ("x", "y")}
+                amp = {
+                    axis: np.mean(
+                        [
+                            line(np.asarray(s), k * gmf, fs)
+                            for s in healthy[healthy["channel"] == f"{housing}_{axis}"]["signal"]
+                        ]
+                    )
+                    for axis in ("x", "y")
+                }
                 per_harmonic.append(amp["y"] / amp["x"])
             out["y_over_x"][f"{housing} {speed:g} rpm"] = [round(r, 3) for r in per_harmonic]
             ratios += per_harmonic
@@ -53,10 +60,16 @@ def signatures(frame: pd.DataFrame, teeth: int) -> dict:
         for state in ("healthy", "missing_tooth"):
             rows = frame[(frame["health_state"] == state) & (frame["speed_rpm"] == speed)]
             per_segment = rows.groupby(["record_id", "segment"])["signal"].apply(
-                lambda signals: sum(line(np.asarray(s), gmf + side * shaft, fs) ** 2
-                                    for s in signals for side in (-1, 1)))
+                lambda signals: sum(
+                    line(np.asarray(s), gmf + side * shaft, fs) ** 2
+                    for s in signals
+                    for side in (-1, 1)
+                )
+            )
             energy[state] = float(per_segment.mean())
-        out["sideband_gain"][f"{speed:g} rpm"] = round(energy["missing_tooth"] / energy["healthy"], 2)
+        out["sideband_gain"][f"{speed:g} rpm"] = round(
+            energy["missing_tooth"] / energy["healthy"], 2
+        )
     return out
 
 
@@ -66,7 +79,9 @@ def main(argv=None):
     parser.add_argument("--teeth", type=int, default=29, help="pinion teeth (input shaft)")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args(argv)
-    simulated = pd.concat([read_signal_table(p) for p in sorted((args.results / "simulated").rglob("*.parquet"))])
+    simulated = pd.concat(
+        [read_signal_table(p) for p in sorted((args.results / "simulated").rglob("*.parquet"))]
+    )
     result = {"simulated": signatures(simulated, args.teeth)}
     measured_path = args.results / "measured" / "signals.parquet"
     if measured_path.exists():
@@ -75,8 +90,14 @@ def main(argv=None):
     print(text)
     if args.out:
         args.out.write_text(text + "\n")
-    save_record("gear_signatures", args.results.name, result, script=__file__, argv=argv,
-                configfiles=run_configfiles(args.results))
+    save_record(
+        "gear_signatures",
+        args.results.name,
+        result,
+        script=__file__,
+        argv=argv,
+        configfiles=run_configfiles(args.results),
+    )
 
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ Candidates (each from the run's own predictions and features, repeat 0):
   threshold (the envelope rule's `threshold`, from the calibration segments), the joined call
   elsewhere: trusting a clear defect line over the classifier (k 1, 2, 3, 5).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -42,14 +43,19 @@ KEYS = ["measured_percent", "repeat", "holdout", "record_id", "segment"]
 
 def calls(run: Path, protocol: str) -> pd.DataFrame:
     """Per tested segment at 0 %, repeat 0: the true label and each method's call."""
-    parts = {"svm": f"train/svm/{protocol}", "knn": f"train/knn/{protocol}",
-             "rule": f"baselines/{protocol}", "joined": f"joined/joined_svm/{protocol}"}
+    parts = {
+        "svm": f"train/svm/{protocol}",
+        "knn": f"train/knn/{protocol}",
+        "rule": f"baselines/{protocol}",
+        "joined": f"joined/joined_svm/{protocol}",
+    }
     frame = None
     for name, folder in parts.items():
         p = pd.read_parquet(run / folder / "predictions.parquet")
         p = p[(p["measured_percent"] == 0) & (p["repeat"] == 0)]
         p = p[KEYS + (["true_label"] if frame is None else []) + ["predicted_label"]].rename(
-            columns={"predicted_label": name})
+            columns={"predicted_label": name}
+        )
         frame = p if frame is None else frame.merge(p, on=KEYS, how="inner")
     return frame
 
@@ -71,49 +77,78 @@ def main(argv=None) -> None:
     load = records.set_index("record_id")["load_hp"]
     measured = pd.read_parquet(run / "features" / "measured.parquet").astype({"record_id": str})
     simulated = pd.read_parquet(run / "features" / "simulated.parquet")
-    names = [c for c in simulated.columns if c.startswith(tuple(f"{ch}_" for ch in ("DE", "FE", "BA")))]
-    lines = [c for c in names if c.endswith(("env_ratio_bpfo", "env_ratio_bpfi", "env_ratio_bsf_x2"))]
+    names = [
+        c for c in simulated.columns if c.startswith(tuple(f"{ch}_" for ch in ("DE", "FE", "BA")))
+    ]
+    lines = [
+        c for c in names if c.endswith(("env_ratio_bpfo", "env_ratio_bpfi", "env_ratio_bsf_x2"))
+    ]
     fits = json.loads((run / "train" / "svm" / args.protocol / "info.json").read_text())["models"]
     own = next(m["selected_features"] for m in fits if m["measured_percent"] == 0) or names
 
     frame = calls(run, args.protocol)
     frame = frame[frame["record_id"].isin(design)].merge(
-        measured[["record_id", "segment"] + names], on=["record_id", "segment"], how="left")
+        measured[["record_id", "segment"] + names], on=["record_id", "segment"], how="left"
+    )
     svm, knn, rule, joined = (frame[c].to_numpy(object) for c in ("svm", "knn", "rule", "joined"))
     out_class = np.zeros(len(frame), bool)
     for state, rows in simulated.groupby("health_state"):
         low, high = rows[own].min(), rows[own].max()
-        out_class |= (svm == state) & (frame[own].lt(low) | frame[own].gt(high)).any(axis=1).to_numpy()
+        out_class |= (svm == state) & (frame[own].lt(low) | frame[own].gt(high)).any(
+            axis=1
+        ).to_numpy()
     threshold = json.loads((run / "baselines" / args.protocol / "info.json").read_text())[
-        "baselines"]["envelope_rule"]["threshold"]
-    strongest = np.exp(frame[lines].to_numpy(float)).max(axis=1) if all("_log_" in c for c in lines) \
+        "baselines"
+    ]["envelope_rule"]["threshold"]
+    strongest = (
+        np.exp(frame[lines].to_numpy(float)).max(axis=1)
+        if all("_log_" in c for c in lines)
         else frame[lines].to_numpy(float).max(axis=1)
-    candidates = {"joined (the run's)": joined,
-                  "class_range": np.where(out_class, rule, joined),
-                  "vote": np.where((knn == rule) & (knn != joined), knn, joined)}
+    )
+    candidates = {
+        "joined (the run's)": joined,
+        "class_range": np.where(out_class, rule, joined),
+        "vote": np.where((knn == rule) & (knn != joined), knn, joined),
+    }
     for label, columns, make in (
-            ("lines_svm", lines, lambda: SVC(C=1.2, gamma="scale")),
-            ("lines_knn", lines, lambda: KNeighborsClassifier(5)),
-            ("all_svm", names, lambda: SVC(C=1.2, gamma="scale"))):
+        ("lines_svm", lines, lambda: SVC(C=1.2, gamma="scale")),
+        ("lines_knn", lines, lambda: KNeighborsClassifier(5)),
+        ("all_svm", names, lambda: SVC(C=1.2, gamma="scale")),
+    ):
         model = Pipeline([("scale", StandardScaler()), ("model", make())])
         model.fit(simulated[columns], simulated["health_state"])
         candidates[label] = model.predict(frame[columns])
     for k in (1, 2, 3, 5):
-        candidates[f"line_over_{k}"] = np.where(strongest > k * threshold, rule, joined)  # k >= 1: a fault call
+        candidates[f"line_over_{k}"] = np.where(
+            strongest > k * threshold, rule, joined
+        )  # k >= 1: a fault call
     candidates.update({"svm": svm, "knn": knn, "rule": rule})
-    groups = {"design, loads 0-1": frame["record_id"].map(load).le(1).to_numpy(),
-              "design, loads 2-3": frame["record_id"].map(load).gt(1).to_numpy()}
-    print(f"{run}: {args.protocol}, 0 % measured, design records only, per segment; the fit's "
-          f"features: {', '.join(own)}\n")
+    groups = {
+        "design, loads 0-1": frame["record_id"].map(load).le(1).to_numpy(),
+        "design, loads 2-3": frame["record_id"].map(load).gt(1).to_numpy(),
+    }
+    print(
+        f"{run}: {args.protocol}, 0 % measured, design records only, per segment; the fit's "
+        f"features: {', '.join(own)}\n"
+    )
     figures = {}
     for name, called in candidates.items():
         scored = frame.assign(call=called)
-        figures[name] = {group: dict(zip(("balanced", "recall"), balanced(scored[mask], "call")))
-                         for group, mask in groups.items() if mask.any()}
+        figures[name] = {
+            group: dict(zip(("balanced", "recall"), balanced(scored[mask], "call")))
+            for group, mask in groups.items()
+            if mask.any()
+        }
         cells = [f"{group} {f['balanced']:.3f} {f['recall']}" for group, f in figures[name].items()]
         print(f"{name:20s}", " | ".join(cells))
-    save_record("join_candidates", f"{run.name}-{args.protocol}", {"protocol": args.protocol, "candidates": figures},
-                script=__file__, argv=argv, configfiles=run_configfiles(run))
+    save_record(
+        "join_candidates",
+        f"{run.name}-{args.protocol}",
+        {"protocol": args.protocol, "candidates": figures},
+        script=__file__,
+        argv=argv,
+        configfiles=run_configfiles(run),
+    )
 
 
 if __name__ == "__main__":

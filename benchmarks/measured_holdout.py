@@ -15,6 +15,7 @@ A class with a single specimen (the healthy bearing) cannot be held out and keep
 example, so its figure is 0 there. It prints per class and per specimen the share of segments
 called right. It never reads an evaluation record.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,14 +30,16 @@ from condmon.classifiers import make_classifier
 from condmon.records import run_configfiles, save_record
 
 
-def held_out_calls(frame: pd.DataFrame, names: list[str], unit: str, classifier: str,
-                   params: dict, seed: int) -> pd.Series:
+def held_out_calls(
+    frame: pd.DataFrame, names: list[str], unit: str, classifier: str, params: dict, seed: int
+) -> pd.Series:
     """Each segment's call by a classifier trained on every row of another `unit`."""
     calls = pd.Series(index=frame.index, dtype=object)
     for _, tested in frame.groupby(unit):
         train = frame[frame[unit] != tested[unit].iloc[0]]
-        model = Pipeline([("scale", StandardScaler()),
-                          ("model", make_classifier(classifier, params, seed))])
+        model = Pipeline(
+            [("scale", StandardScaler()), ("model", make_classifier(classifier, params, seed))]
+        )
         model.fit(train[names], train["health_state"])
         calls[tested.index] = model.predict(tested[names])
     return calls
@@ -47,28 +50,49 @@ def main(argv=None) -> None:
     parser.add_argument("run", type=Path, help="the run's results folder, e.g. results/cwru_full")
     args = parser.parse_args(argv)
     run = args.run
-    design = set(json.loads((run / "report" / "summary.json").read_text())["design_records"]["records"])
-    records = pd.read_csv(run / "measured" / "records.csv", dtype={"record_id": str}).set_index("record_id")
+    design = set(
+        json.loads((run / "report" / "summary.json").read_text())["design_records"]["records"]
+    )
+    records = pd.read_csv(run / "measured" / "records.csv", dtype={"record_id": str}).set_index(
+        "record_id"
+    )
     measured = pd.read_parquet(run / "features" / "measured.parquet").astype({"record_id": str})
     frame = measured[measured["record_id"].isin(design)].reset_index(drop=True)
     frame["specimen"] = frame["record_id"].map(records["specimen"])
     names = [c for c in frame.columns if c.startswith("DE_")]
-    print(f"{run}: measured design records only ({frame['record_id'].nunique()} records, "
-          f"{len(frame)} segments), features {', '.join(names)}\n")
+    print(
+        f"{run}: measured design records only ({frame['record_id'].nunique()} records, "
+        f"{len(frame)} segments), features {', '.join(names)}\n"
+    )
     figures = {}
     for classifier in ("svm", "knn"):
         info = json.loads((run / "train" / classifier / "unseen_fault" / "info.json").read_text())
-        for unit, label in (("record_id", "leave one record out"), ("specimen", "leave one specimen out")):
-            right = held_out_calls(frame, names, unit, classifier, info["classifier_params"],
-                                   int(info["seed"])) == frame["health_state"]
+        for unit, label in (
+            ("record_id", "leave one record out"),
+            ("specimen", "leave one specimen out"),
+        ):
+            right = (
+                held_out_calls(
+                    frame, names, unit, classifier, info["classifier_params"], int(info["seed"])
+                )
+                == frame["health_state"]
+            )
             per_class = right.groupby(frame["health_state"]).mean().round(3)
             per_specimen = right.groupby(frame["specimen"]).mean().round(3)
             print(f"{classifier}, {label}: per class {per_class.to_dict()}")
             print(f"    per specimen {per_specimen.to_dict()}\n")
-            figures.setdefault(classifier, {})[unit] = {"per_class": per_class.to_dict(),
-                                                        "per_specimen": per_specimen.to_dict()}
-    save_record("measured_holdout", run.name, figures, script=__file__, argv=argv,
-                configfiles=run_configfiles(run))
+            figures.setdefault(classifier, {})[unit] = {
+                "per_class": per_class.to_dict(),
+                "per_specimen": per_specimen.to_dict(),
+            }
+    save_record(
+        "measured_holdout",
+        run.name,
+        figures,
+        script=__file__,
+        argv=argv,
+        configfiles=run_configfiles(run),
+    )
 
 
 if __name__ == "__main__":

@@ -14,6 +14,7 @@ seconds (both are integrated); per output sample by the recorded samples.
     python3 benchmarks/mesh_stiffness_cost.py [--seconds 1.0] [--repeats 3] [--core 0] [--out FILE]
         [--shaft-model rigid|flexible]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -62,43 +63,78 @@ def main(argv=None):
             times = {m: [] for m in MODELS}
             for _ in range(args.repeats):
                 for model in MODELS:
-                    params = build_parameters(config["model"], mesh_stiffness_model=model,
-                                              speed_rpm=speed, health_state=health, shaft_model=args.shaft_model)
+                    params = build_parameters(
+                        config["model"],
+                        mesh_stiffness_model=model,
+                        speed_rpm=speed,
+                        health_state=health,
+                        shaft_model=args.shaft_model,
+                    )
                     wall, cpu = time.perf_counter(), time.process_time()
                     simulate(params, settings)
                     times[model].append((time.perf_counter() - wall, time.process_time() - cpu))
             for model in MODELS:
-                params = build_parameters(config["model"], mesh_stiffness_model=model,
-                                          speed_rpm=speed, health_state=health)
+                params = build_parameters(
+                    config["model"],
+                    mesh_stiffness_model=model,
+                    speed_rpm=speed,
+                    health_state=health,
+                )
                 start = time.perf_counter()
                 MeshForce(params)
                 build = time.perf_counter() - start
                 walls = [w for w, _ in times[model]]
                 cpus = [c for _, c in times[model]]
-                rows.append(dict(model=model, shaft_model=args.shaft_model, health_state=health, speed_rpm=speed,
-                                 wall_s=min(walls), wall_median_s=statistics.median(walls),
-                                 cpu_s=min(cpus), mesh_build_s=build,
-                                 wall_per_simulated_second=min(walls) / simulated,
-                                 wall_us_per_output_sample=1e6 * min(walls) / samples))
-                print(f"{model:17s} {health:14s} {speed:6.0f} rpm: {min(walls):6.2f} s wall "
-                      f"(median {statistics.median(walls):.2f}, cpu {min(cpus):.2f}, mesh build "
-                      f"{build:.3f} s) = {min(walls) / simulated:.3f} s per simulated s", flush=True)
+                rows.append(
+                    dict(
+                        model=model,
+                        shaft_model=args.shaft_model,
+                        health_state=health,
+                        speed_rpm=speed,
+                        wall_s=min(walls),
+                        wall_median_s=statistics.median(walls),
+                        cpu_s=min(cpus),
+                        mesh_build_s=build,
+                        wall_per_simulated_second=min(walls) / simulated,
+                        wall_us_per_output_sample=1e6 * min(walls) / samples,
+                    )
+                )
+                print(
+                    f"{model:17s} {health:14s} {speed:6.0f} rpm: {min(walls):6.2f} s wall "
+                    f"(median {statistics.median(walls):.2f}, cpu {min(cpus):.2f}, mesh build "
+                    f"{build:.3f} s) = {min(walls) / simulated:.3f} s per simulated s",
+                    flush=True,
+                )
     print("\nratio potential_energy / simple (min wall time):")
     ratios = []
     for health in args.health:
         for speed in args.speeds:
-            pick = {r["model"]: r["wall_s"] for r in rows
-                    if r["health_state"] == health and r["speed_rpm"] == speed}
+            pick = {
+                r["model"]: r["wall_s"]
+                for r in rows
+                if r["health_state"] == health and r["speed_rpm"] == speed
+            }
             ratio = pick["potential_energy"] / pick["simple"]
             ratios.append(ratio)
             print(f"  {health:14s} {speed:6.0f} rpm: {ratio:.2f}")
     print(f"  mean {statistics.mean(ratios):.2f}, max {max(ratios):.2f}")
-    figures = dict(seconds=args.seconds, repeats=args.repeats, simulated_seconds_per_run=simulated, rows=rows,
-                   ratios=ratios)
+    figures = dict(
+        seconds=args.seconds,
+        repeats=args.repeats,
+        simulated_seconds_per_run=simulated,
+        rows=rows,
+        ratios=ratios,
+    )
     if args.out:
         args.out.write_text(json.dumps(dict(method=__doc__, **figures), indent=2) + "\n")
-    save_record("mesh_stiffness_cost", args.shaft_model, figures, script=__file__, argv=argv,
-                configfiles=["config/config.yaml"])
+    save_record(
+        "mesh_stiffness_cost",
+        args.shaft_model,
+        figures,
+        script=__file__,
+        argv=argv,
+        configfiles=["config/config.yaml"],
+    )
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ either page differs from what the records render.
     python3 benchmarks/render_results.py            # rewrite docs/results.md and README.md's table
     python3 benchmarks/render_results.py --check    # exit 1, naming the page, where one is stale
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,9 +39,11 @@ def provenance(record: dict) -> str:
     """Where a record's figures come from: command, commit, config hash and machine."""
     machine = record["machine"]
     config = f", config hash `{record['config_hash']}`" if record.get("config_hash") else ""
-    return (f"`{record['command']}` at commit `{record['commit'][:10]}`{config}; {machine['cpu_count']} cores "
-            f"({machine['cpu']}), Python {machine['python']}; `benchmarks/records/{record['benchmark']}-"
-            f"{record['name']}.json`.")
+    return (
+        f"`{record['command']}` at commit `{record['commit'][:10]}`{config}; {machine['cpu_count']} cores "
+        f"({machine['cpu']}), Python {machine['python']}; `benchmarks/records/{record['benchmark']}-"
+        f"{record['name']}.json`."
+    )
 
 
 def bench_of(record: dict) -> str:
@@ -57,27 +60,61 @@ def seed_rows(figures: dict) -> tuple[list[str], list[list]]:
     """The seed table of a bench_seeds record: one row per seed, speed and measured share, then the
     mean over the seeds, with each health state's recall."""
     states = sorted({s for row in figures["per_seed"] + figures["mean"] for s in row["recall"]})
-    header = ["bench", "speed (rpm)", "measured", "classifier", "balanced accuracy", "false alarms",
-              *[f"recall {s}" for s in states], "tooth named right", "exempt"]
+    header = [
+        "bench",
+        "speed (rpm)",
+        "measured",
+        "classifier",
+        "balanced accuracy",
+        "false alarms",
+        *[f"recall {s}" for s in states],
+        "tooth named right",
+        "exempt",
+    ]
     default = figures["per_seed"][0]["classifier"] if figures["per_seed"] else "-"
 
     def bench(row):  # records from before the variants ran beside the seeds name the seed only
         return row.get("bench") or f"seed {row['seed']}"
 
     def located(row):
-        return ", ".join(f"{s} {v:.2f}" for s, v in sorted((row.get("located") or {}).items())) or "-"
+        return (
+            ", ".join(f"{s} {v:.2f}" for s, v in sorted((row.get("located") or {}).items())) or "-"
+        )
 
-    rows = [[bench(row), f"{row['speed_rpm']:g}", f"{row['measured_percent']} %", row["classifier"],
-             row["balanced_accuracy"], row["false_alarm_rate"], *[row["recall"].get(s) for s in states],
-             located(row), ", ".join(row["exempt"]) or "none"]
-            for row in sorted(figures["per_seed"], key=lambda r: (r["classifier"], r["measured_percent"], bench(r),
-                                                                  r["speed_rpm"]))]
-    rows += [[f"**mean of {row['seeds']}**", f"{row['speed_rpm']:g}", f"{row['measured_percent']} %",
-              row.get("classifier", default), row["balanced_accuracy"], row["false_alarm_rate"],
-              *[row["recall"].get(s) for s in states], "-",
-              "; ".join(f"{k}: {', '.join(v)}" for k, v in row["exempt"].items()) or "none"]
-             for row in sorted(figures["mean"], key=lambda r: (r.get("classifier", default), r["measured_percent"],
-                                                               r["speed_rpm"]))]
+    rows = [
+        [
+            bench(row),
+            f"{row['speed_rpm']:g}",
+            f"{row['measured_percent']} %",
+            row["classifier"],
+            row["balanced_accuracy"],
+            row["false_alarm_rate"],
+            *[row["recall"].get(s) for s in states],
+            located(row),
+            ", ".join(row["exempt"]) or "none",
+        ]
+        for row in sorted(
+            figures["per_seed"],
+            key=lambda r: (r["classifier"], r["measured_percent"], bench(r), r["speed_rpm"]),
+        )
+    ]
+    rows += [
+        [
+            f"**mean of {row['seeds']}**",
+            f"{row['speed_rpm']:g}",
+            f"{row['measured_percent']} %",
+            row.get("classifier", default),
+            row["balanced_accuracy"],
+            row["false_alarm_rate"],
+            *[row["recall"].get(s) for s in states],
+            "-",
+            "; ".join(f"{k}: {', '.join(v)}" for k, v in row["exempt"].items()) or "none",
+        ]
+        for row in sorted(
+            figures["mean"],
+            key=lambda r: (r.get("classifier", default), r["measured_percent"], r["speed_rpm"]),
+        )
+    ]
     return header, rows
 
 
@@ -87,8 +124,94 @@ def seed_section(title: str, records: list[dict], command: str) -> list[str]:
     if not records:
         return lines + [NO_RECORD.format(command=command), ""]
     for record in reversed(records):
-        lines += [f"### {record['name']} ({bench_of(record)} bench, {record['date']})", "", provenance(record), ""]
+        lines += [
+            f"### {record['name']} ({bench_of(record)} bench, {record['date']})",
+            "",
+            provenance(record),
+            "",
+        ]
         lines += table(*seed_rows(record["figures"])) + [""]
+    return lines
+
+
+def bearing_seed_section(records: list[dict]) -> list[str]:
+    """The bearing rig over simulation seeds (bench_seeds --system bearing records): per protocol,
+    measured share, group of records and method the balanced accuracy's mean and range over the
+    seeds, each class's mean recall (over the records that show their line beside it), then each
+    seed's balanced accuracy."""
+    lines = ["## The CWRU bearing rig over simulation seeds", ""]
+    command = (
+        "python3 benchmarks/bench_seeds.py --system bearing --configfile config/cwru.yaml "
+        "--seeds 1 2 3 --name cwru"
+    )
+    if not records:
+        return lines + [NO_RECORD.format(command=command), ""]
+    for record in reversed(records):
+        figures = record["figures"]
+        lines += [f"### {record['name']} ({record['date']})", "", provenance(record), ""]
+        labels = sorted({k for m in figures["mean"] for k in m["recall"]})
+        rows = []
+        for m in figures["mean"]:
+            b = m["balanced_accuracy"]
+            rows.append(
+                [
+                    m["protocol"],
+                    f"{m['measured_percent']} %",
+                    m["group"],
+                    m["classifier"],
+                    ", ".join(map(str, m["seeds"])),
+                    b["mean"],
+                    f"{b['lowest']:.3f}-{b['highest']:.3f}",
+                    b["std"],
+                    *[(m["recall"].get(k) or {}).get("mean") for k in labels],
+                    *[
+                        (m["recall_shows_line"].get(k) or {}).get("mean")
+                        for k in labels
+                        if k != "normal"
+                    ],
+                ]
+            )
+        header = [
+            "protocol",
+            "measured",
+            "records",
+            "method",
+            "seeds",
+            "balanced accuracy (mean)",
+            "range",
+            "std",
+            *[f"recall {k}" for k in labels],
+            *[f"recall {k}, line shown" for k in labels if k != "normal"],
+        ]
+        lines += table(header, rows) + [""]
+        per_seed = [
+            [
+                r["seed"],
+                r["protocol"],
+                f"{r['measured_percent']} %",
+                r["group"],
+                r["classifier"],
+                r["balanced_accuracy"],
+                *[r["recall"].get(k) for k in labels],
+            ]
+            for r in figures["per_seed"]
+        ]
+        lines += (
+            ["Per seed:", ""]
+            + table(
+                [
+                    "seed",
+                    "protocol",
+                    "measured",
+                    "records",
+                    "method",
+                    "balanced accuracy",
+                    *[f"recall {k}" for k in labels],
+                ],
+                per_seed,
+            )
+            + [""]
+        )
     return lines
 
 
@@ -101,25 +224,55 @@ def throughput_section(records: list[dict]) -> list[str]:
     figures = record["figures"]
     workers = figures["workers"]
     load = figures["machine"].get("load_average_at_start")
-    lines += [f"{record['date']}: " + provenance(record) + (f" Load average at the start: {load}." if load else ""),
-              "", "Wall seconds per simulated second on one core (median, min-max over the repeats after a "
-              "warm-up); samples per hour on one core and on all workers; the step check is the largest "
-              "difference of the noise-free spectrum bands within 40 dB of each channel's strongest against a "
-              "step four times smaller.", ""]
+    lines += [
+        f"{record['date']}: "
+        + provenance(record)
+        + (f" Load average at the start: {load}." if load else ""),
+        "",
+        "Wall seconds per simulated second on one core (median, min-max over the repeats after a "
+        "warm-up); samples per hour on one core and on all workers; the step check is the largest "
+        "difference of the noise-free spectrum bands within 40 dB of each channel's strongest against a "
+        "step four times smaller.",
+        "",
+    ]
     rows = []
     for system, entry in figures["systems"].items():
         cost = entry["wall_seconds_per_simulated_second"]
         check = entry.get("convergence", {}).get("max_difference_db", {}).get("bands_within_40_db")
-        where = ", ".join(f"{p['function']} {100 * p['share']:.0f} %" for p in entry.get("profile", [])[:2])
-        rows.append([system, f"{cost['median']:.3f} ({cost['min']:.3f}-{cost['max']:.3f})",
-                     entry["samples_per_hour_one_core"], entry[f"samples_per_hour_{workers}_cores"],
-                     f"{entry['speedup']:.2f}", entry["peak_memory_mb_per_worker"],
-                     "-" if check is None else f"{check:.3f}", where])
-    lines += table(["system", "wall s per simulated s", "samples/h, 1 core", f"samples/h, {workers} cores",
-                    "speed-up", "peak MB per worker", "step check (dB)", "where the time goes"], rows)
+        where = ", ".join(
+            f"{p['function']} {100 * p['share']:.0f} %" for p in entry.get("profile", [])[:2]
+        )
+        rows.append(
+            [
+                system,
+                f"{cost['median']:.3f} ({cost['min']:.3f}-{cost['max']:.3f})",
+                entry["samples_per_hour_one_core"],
+                entry[f"samples_per_hour_{workers}_cores"],
+                f"{entry['speedup']:.2f}",
+                entry["peak_memory_mb_per_worker"],
+                "-" if check is None else f"{check:.3f}",
+                where,
+            ]
+        )
+    lines += table(
+        [
+            "system",
+            "wall s per simulated s",
+            "samples/h, 1 core",
+            f"samples/h, {workers} cores",
+            "speed-up",
+            "peak MB per worker",
+            "step check (dB)",
+            "where the time goes",
+        ],
+        rows,
+    )
     jobs = figures.get("dag_jobs")
     if jobs:
-        lines += ["", "Jobs in the whole DAG: " + ", ".join(f"`{c}` {n}" for c, n in jobs.items()) + "."]
+        lines += [
+            "",
+            "Jobs in the whole DAG: " + ", ".join(f"`{c}` {n}" for c, n in jobs.items()) + ".",
+        ]
     return lines + [""]
 
 
@@ -131,17 +284,36 @@ def specimen_section(records: list[dict]) -> list[str]:
         return lines + [NO_RECORD.format(command=command), ""]
     for record in reversed(records):
         figures = record["figures"]
-        lines += [f"### {record['name']}: {figures['protocol']}, {figures['measured_percent']} % measured "
-                  f"({record['date']})", "", provenance(record), ""]
+        lines += [
+            f"### {record['name']}: {figures['protocol']}, {figures['measured_percent']} % measured "
+            f"({record['date']})",
+            "",
+            provenance(record),
+            "",
+        ]
         groups = figures["per_group"]
-        labels = sorted({k for g in groups for k in g} - {"group", "classifier", "accuracy", "balanced"})
-        lines += table(["records", "method", "accuracy", "balanced", *labels],
-                       [[g["group"], g["classifier"], g["accuracy"], g["balanced"], *[g.get(k) for k in labels]]
-                        for g in groups]) + [""]
+        labels = sorted(
+            {k for g in groups for k in g} - {"group", "classifier", "accuracy", "balanced"}
+        )
+        lines += table(
+            ["records", "method", "accuracy", "balanced", *labels],
+            [
+                [
+                    g["group"],
+                    g["classifier"],
+                    g["accuracy"],
+                    g["balanced"],
+                    *[g.get(k) for k in labels],
+                ]
+                for g in groups
+            ],
+        ) + [""]
         specimens = figures["per_specimen"]
         methods = sorted({k for s in specimens for k in s} - {"group", "specimen"})
-        lines += table(["records", "specimen", *methods],
-                       [[s["group"], s["specimen"], *[s.get(m) for m in methods]] for s in specimens]) + [""]
+        lines += table(
+            ["records", "specimen", *methods],
+            [[s["group"], s["specimen"], *[s.get(m) for m in methods]] for s in specimens],
+        ) + [""]
     return lines
 
 
@@ -158,17 +330,35 @@ def other_section(records: list[dict]) -> list[str]:
     """Every other benchmark's newest record per name, its figures as key-value rows."""
     lines = ["## Other benchmarks", ""]
     if not records:
-        return lines + ["No record yet of the other benchmarks (hunting_cycle.py, track_logging.py, "
-                        "join_candidates.py, measured_holdout.py, gear_signatures.py, bench_separability.py, "
-                        "mesh_stiffness_cost.py).", ""]
+        return lines + [
+            "No record yet of the other benchmarks (hunting_cycle.py, track_logging.py, "
+            "join_candidates.py, measured_holdout.py, gear_signatures.py, bench_separability.py, "
+            "mesh_stiffness_cost.py).",
+            "",
+        ]
     for record in records:
-        lines += [f"### {record['benchmark']}: {record['name']} ({record['date']})", "", provenance(record), ""]
-        rest = dict(record["figures"]) if isinstance(record["figures"], dict) else {"figures": record["figures"]}
+        lines += [
+            f"### {record['benchmark']}: {record['name']} ({record['date']})",
+            "",
+            provenance(record),
+            "",
+        ]
+        rest = (
+            dict(record["figures"])
+            if isinstance(record["figures"], dict)
+            else {"figures": record["figures"]}
+        )
         for key, value in list(rest.items()):
             columns = row_columns(value)
             if columns:  # a dict of like rows: one table, a row per entry
-                lines += [f"`{key}`:", ""] + table(["", *columns], [[name, *[row.get(c) for c in columns]]
-                                                                    for name, row in value.items()]) + [""]
+                lines += (
+                    [f"`{key}`:", ""]
+                    + table(
+                        ["", *columns],
+                        [[name, *[row.get(c) for c in columns]] for name, row in value.items()],
+                    )
+                    + [""]
+                )
                 del rest[key]
         if rest:
             lines += table(["figure", "value"], [[k, v] for k, v in flatten(rest)]) + [""]
@@ -177,7 +367,11 @@ def other_section(records: list[dict]) -> list[str]:
 
 def row_columns(value) -> list[str]:
     """The common keys of a dict of flat dicts (a table's columns); [] for anything else."""
-    if not isinstance(value, dict) or not value or not all(isinstance(v, dict) for v in value.values()):
+    if (
+        not isinstance(value, dict)
+        or not value
+        or not all(isinstance(v, dict) for v in value.values())
+    ):
         return []
     keys = [list(v) for v in value.values()]
     flat = all(not isinstance(x, (dict, list)) for v in value.values() for x in v.values())
@@ -186,21 +380,37 @@ def row_columns(value) -> list[str]:
 
 def render_results(records: list[dict]) -> str:
     """docs/results.md from the records (oldest first, as condmon.records.read_records gives them)."""
-    seeds = [r for r in records if r["benchmark"] == "bench_seeds"]
+    bearing = [
+        r
+        for r in records
+        if r["benchmark"] == "bench_seeds" and r["figures"].get("system") == "bearing"
+    ]
+    seeds = [r for r in records if r["benchmark"] == "bench_seeds" and r not in bearing]
     default = [r for r in seeds if bench_of(r) == "default"]
     cfrp = [r for r in seeds if bench_of(r).startswith("cfrp")]
     variants = [r for r in seeds if r not in default and r not in cfrp]
     tables = {"bench_seeds", "throughput", "specimen_table"}
-    lines = ["# Results", "",
-             "Rendered by `python3 benchmarks/render_results.py` from the records in `benchmarks/records/`; "
-             "do not edit by hand. Each benchmark writes its record when it runs; the history of how the "
-             "method came to these figures is in [experiments/](experiments/).", ""]
+    lines = [
+        "# Results",
+        "",
+        "Rendered by `python3 benchmarks/render_results.py` from the records in `benchmarks/records/`; "
+        "do not edit by hand. Each benchmark writes its record when it runs; the history of how the "
+        "method came to these figures is in [experiments/](experiments/).",
+        "",
+    ]
     lines += seed_section("The default bench over seeds", default, SEED_COMMAND)
-    lines += seed_section("The CFRP rig over seeds", cfrp,
-                          "python3 benchmarks/bench_seeds.py --configfile config/cfrp.yaml --seeds 7 --name cfrp")
-    lines += seed_section("The bench variants (config/benches/)", variants,
-                          "python3 benchmarks/bench_seeds.py --configfile config/config.yaml "
-                          "config/benches/<bench>.yaml --seeds <its seed> --name variant-<bench>")
+    lines += seed_section(
+        "The CFRP rig over seeds",
+        cfrp,
+        "python3 benchmarks/bench_seeds.py --configfile config/cfrp.yaml --seeds 7 --name cfrp",
+    )
+    lines += seed_section(
+        "The bench variants (config/benches/)",
+        variants,
+        "python3 benchmarks/bench_seeds.py --configfile config/config.yaml "
+        "config/benches/<bench>.yaml --seeds <its seed> --name variant-<bench>",
+    )
+    lines += bearing_seed_section(bearing)
     lines += specimen_section([r for r in records if r["benchmark"] == "specimen_table"])
     lines += throughput_section([r for r in records if r["benchmark"] == "throughput"])
     lines += other_section([r for r in records if r["benchmark"] not in tables])
@@ -210,25 +420,54 @@ def render_results(records: list[dict]) -> str:
 def render_readme_table(records: list[dict]) -> str:
     """The README's one table: the newest default-bench seed record's means at 0 % and 100 %
     measured data (no date: the README says what the run shows now)."""
-    default = [r for r in records if r["benchmark"] == "bench_seeds" and bench_of(r) == "default"]
+    default = [
+        r
+        for r in records
+        if r["benchmark"] == "bench_seeds"
+        and bench_of(r) == "default"
+        and r["figures"].get("system") != "bearing"
+    ]
     if not default:
-        return ("No record yet of the default run's figures over bench seeds: "
-                f"`{SEED_COMMAND}` writes it ([docs/results.md](docs/results.md)).")
+        return (
+            "No record yet of the default run's figures over bench seeds: "
+            f"`{SEED_COMMAND}` writes it ([docs/results.md](docs/results.md))."
+        )
     record = default[-1]
     means = {(m["speed_rpm"], m["measured_percent"]): m for m in record["figures"]["mean"]}
     speeds = sorted({speed for speed, _ in means})
     rows = []
     for speed in speeds:
         zero, full = means.get((speed, 0), {}), means.get((speed, 100), {})
-        rows.append([f"{speed:g}", zero.get("balanced_accuracy"), zero.get("lowest_balanced_accuracy"),
-                     zero.get("false_alarm_rate"), full.get("balanced_accuracy")])
+        rows.append(
+            [
+                f"{speed:g}",
+                zero.get("balanced_accuracy"),
+                zero.get("lowest_balanced_accuracy"),
+                zero.get("false_alarm_rate"),
+                full.get("balanced_accuracy"),
+            ]
+        )
     seeds = sorted({row["seed"] for row in record["figures"]["per_seed"]})
     classifier = record["figures"]["per_seed"][0]["classifier"].upper()
-    lines = table(["speed (rpm)", "0 % measured: balanced accuracy", "lowest seed", "false alarms",
-                   "100 % measured"], rows)
-    return "\n".join(lines + ["", f"{classifier}, `record_split`, mean over bench seeds "
-                              f"{', '.join(map(str, seeds))}; from `{record['command']}` at commit "
-                              f"`{record['commit'][:10]}` (per seed and state: [docs/results.md](docs/results.md))."])
+    lines = table(
+        [
+            "speed (rpm)",
+            "0 % measured: balanced accuracy",
+            "lowest seed",
+            "false alarms",
+            "100 % measured",
+        ],
+        rows,
+    )
+    return "\n".join(
+        lines
+        + [
+            "",
+            f"{classifier}, `record_split`, mean over bench seeds "
+            f"{', '.join(map(str, seeds))}; from `{record['command']}` at commit "
+            f"`{record['commit'][:10]}` (per seed and state: [docs/results.md](docs/results.md)).",
+        ]
+    )
 
 
 def with_readme_table(readme: str, block: str) -> str:
@@ -241,8 +480,10 @@ def pages(root: Path = ROOT, records: list[dict] | None = None) -> dict[Path, st
     """{path: text} of the rendered pages."""
     records = read_records(root / "benchmarks" / "records") if records is None else records
     readme = (root / "README.md").read_text()
-    return {root / "docs" / "results.md": render_results(records),
-            root / "README.md": with_readme_table(readme, render_readme_table(records))}
+    return {
+        root / "docs" / "results.md": render_results(records),
+        root / "README.md": with_readme_table(readme, render_readme_table(records)),
+    }
 
 
 def main(argv=None) -> int:
@@ -259,7 +500,10 @@ def main(argv=None) -> int:
             path.write_text(text)
             print(f"wrote {path.relative_to(ROOT)}")
     if args.check and stale:
-        print("stale (run python3 benchmarks/render_results.py): " + ", ".join(str(p.relative_to(ROOT)) for p in stale))
+        print(
+            "stale (run python3 benchmarks/render_results.py): "
+            + ", ".join(str(p.relative_to(ROOT)) for p in stale)
+        )
         return 1
     return 0
 

@@ -12,6 +12,7 @@ the report's classifiers: the joined methods, the classifiers and the physics ru
 it computes nothing the report did not, it groups it. Its record:
 benchmarks/records/specimen_table-<run>.json (condmon.records; docs/results.md renders it).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,22 +26,30 @@ from condmon.records import run_configfiles, save_record
 
 def load(run: Path, protocol: str, percent: int) -> pd.DataFrame:
     per_record = pd.read_csv(run / "report" / "recall_per_record.csv", dtype={"record_id": str})
-    per_record = per_record[(per_record["protocol"] == protocol)
-                            & (per_record["measured_percent"] == percent)]
+    per_record = per_record[
+        (per_record["protocol"] == protocol) & (per_record["measured_percent"] == percent)
+    ]
     records = pd.read_csv(run / "measured" / "records.csv", dtype={"record_id": str})
     design = json.loads((run / "report" / "summary.json").read_text())["design_records"]
     apart = set(design.get("unmodelled", {}).get("records", {}))
     designed = set(design["records"])
-    rows = per_record.merge(records[["record_id", "specimen", "load_hp"]], on="record_id", how="left")
-    rows["group"] = ["another bearing" if r in apart else
-                     (f"design, loads {'0-1' if load <= 1 else '2-3'}" if r in designed else "evaluation")
-                     for r, load in zip(rows["record_id"], rows["load_hp"])]
+    rows = per_record.merge(
+        records[["record_id", "specimen", "load_hp"]], on="record_id", how="left"
+    )
+    rows["group"] = [
+        "another bearing"
+        if r in apart
+        else (f"design, loads {'0-1' if load <= 1 else '2-3'}" if r in designed else "evaluation")
+        for r, load in zip(rows["record_id"], rows["load_hp"])
+    ]
     rows["right"] = rows["recall"] * rows["n_test"]
     return rows
 
 
 def specimen_table(rows: pd.DataFrame) -> pd.DataFrame:
-    pooled = rows.groupby(["group", "specimen", "classifier"]).agg(right=("right", "sum"), n=("n_test", "sum"))
+    pooled = rows.groupby(["group", "specimen", "classifier"]).agg(
+        right=("right", "sum"), n=("n_test", "sum")
+    )
     return (pooled["right"] / pooled["n"]).unstack("classifier").round(3)
 
 
@@ -49,10 +58,15 @@ def group_table(rows: pd.DataFrame) -> pd.DataFrame:
     for (group, classifier), here in rows.groupby(["group", "classifier"]):
         per_class = here.groupby("true_label").agg(right=("right", "sum"), n=("n_test", "sum"))
         recalls = per_class["right"] / per_class["n"]
-        out.append({"group": group, "classifier": classifier,
-                    "accuracy": round(here["right"].sum() / here["n_test"].sum(), 3),
-                    "balanced": round(recalls.mean(), 3),
-                    **{label: round(value, 3) for label, value in recalls.items()}})
+        out.append(
+            {
+                "group": group,
+                "classifier": classifier,
+                "accuracy": round(here["right"].sum() / here["n_test"].sum(), 3),
+                "balanced": round(recalls.mean(), 3),
+                **{label: round(value, 3) for label, value in recalls.items()},
+            }
+        )
     return pd.DataFrame(out).set_index(["group", "classifier"])
 
 
@@ -67,11 +81,20 @@ def main(argv=None) -> None:
         print(f"{args.run}: {args.protocol}, {args.percent} % measured, per segment\n")
         print(specimen_table(rows).to_string(), "\n")
         print(group_table(rows).to_string())
-    figures = {"protocol": args.protocol, "measured_percent": args.percent,
-               "per_specimen": json.loads(specimen_table(rows).reset_index().to_json(orient="records")),
-               "per_group": json.loads(group_table(rows).reset_index().to_json(orient="records"))}
-    save_record("specimen_table", args.run.name, figures, script=__file__, argv=argv,
-                configfiles=run_configfiles(args.run))
+    figures = {
+        "protocol": args.protocol,
+        "measured_percent": args.percent,
+        "per_specimen": json.loads(specimen_table(rows).reset_index().to_json(orient="records")),
+        "per_group": json.loads(group_table(rows).reset_index().to_json(orient="records")),
+    }
+    save_record(
+        "specimen_table",
+        args.run.name,
+        figures,
+        script=__file__,
+        argv=argv,
+        configfiles=run_configfiles(args.run),
+    )
 
 
 if __name__ == "__main__":

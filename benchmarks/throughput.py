@@ -16,6 +16,7 @@ benchmarks/records/throughput-<name>.json (condmon.records).
         [--repeats 3] [--workers 2] [--dag config/cfrp-study.yaml ...] [--out results/benchmark]
         [--name default]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -44,8 +45,13 @@ from condmon.records import save_record  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
-DEFAULT_CONFIGS = ["config/config.yaml", "config/config.yaml:flexible", "config/cfrp.yaml", "config/cwru.yaml"]
-CONVERGENCE_DB = 0.5       # the issue's tolerance on the features
+DEFAULT_CONFIGS = [
+    "config/config.yaml",
+    "config/config.yaml:flexible",
+    "config/cfrp.yaml",
+    "config/cwru.yaml",
+]
+CONVERGENCE_DB = 0.5  # the issue's tolerance on the features
 # bands more than 40 dB under a channel's strongest sit at or below a sensor noise floor of a few
 # mm/s^2 (the default run's calibrated 1.6 mm/s^2): the features there see the noise, not the model;
 # the json gives the 20 and 60 dB figures beside it
@@ -71,7 +77,9 @@ def load_system(spec: str):
 
 def sample_duration(system, config) -> float:
     """The length of one pipeline sample (s of output), as the simulate stage asks for it."""
-    return system.segment_length * config["simulation"]["segments_per_sample"] / system.output_rate_hz
+    return (
+        system.segment_length * config["simulation"]["segments_per_sample"] / system.output_rate_hz
+    )
 
 
 def _speed(system) -> float:
@@ -93,8 +101,11 @@ def time_samples(spec: str, repeats: int, seed: int) -> dict:
         system.simulate_sample(values, healthy, speed, duration, seed + i)
         if i:  # the first is the warm-up (imports, caches, compiled user functions)
             seconds.append(time.perf_counter() - start)
-    return {"seconds": seconds, "simulated_seconds": system.settle_seconds + duration,
-            "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+    return {
+        "seconds": seconds,
+        "simulated_seconds": system.settle_seconds + duration,
+        "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    }
 
 
 def profile_sample(spec: str, top: int = 6) -> list[dict]:
@@ -104,8 +115,12 @@ def profile_sample(spec: str, top: int = 6) -> list[dict]:
     import pstats
 
     system, config = load_system(spec)
-    values = system.sample_parameters(system.nominal_calibration(), system.healthy_state,
-                                      np.random.default_rng(0), config["simulation"])
+    values = system.sample_parameters(
+        system.nominal_calibration(),
+        system.healthy_state,
+        np.random.default_rng(0),
+        config["simulation"],
+    )
     duration, speed = sample_duration(system, config), _speed(system)
     system.simulate_sample(values, system.healthy_state, speed, duration, 5)  # warm-up
     profiler = cProfile.Profile()
@@ -113,15 +128,27 @@ def profile_sample(spec: str, top: int = 6) -> list[dict]:
     stats = pstats.Stats(profiler).stats  # {(file, line, name): (calls, _, own, cumulative, _)}
     total = sum(own for _, _, own, _, _ in stats.values())
     rows = sorted(stats.items(), key=lambda item: -item[1][2])[:top]
-    return [{"function": f"{Path(file).name}:{line}({name})", "calls": calls, "share": round(own / total, 3)}
-            for (file, line, name), (calls, _, own, _, _) in rows]
+    return [
+        {
+            "function": f"{Path(file).name}:{line}({name})",
+            "calls": calls,
+            "share": round(own / total, 3),
+        }
+        for (file, line, name), (calls, _, own, _, _) in rows
+    ]
 
 
 def run_workers(spec: str, repeats: int, workers: int) -> list[dict]:
     """`workers` fresh processes timing samples at the same time (distinct seeds)."""
     with ProcessPoolExecutor(workers) as pool:
-        return list(pool.map(time_samples, [spec] * workers, [repeats] * workers,
-                             [1000 * (w + 1) for w in range(workers)]))
+        return list(
+            pool.map(
+                time_samples,
+                [spec] * workers,
+                [repeats] * workers,
+                [1000 * (w + 1) for w in range(workers)],
+            )
+        )
 
 
 def convergence(spec: str, refinement: int = 4) -> dict:
@@ -131,16 +158,25 @@ def convergence(spec: str, refinement: int = 4) -> dict:
     from condmon.features import SpectrumFeatures
 
     system, config = load_system(spec)
-    values = system.noise_free(system.sample_parameters(
-        system.nominal_calibration(), system.healthy_state, np.random.default_rng(0),
-        config["simulation"]))
+    values = system.noise_free(
+        system.sample_parameters(
+            system.nominal_calibration(),
+            system.healthy_state,
+            np.random.default_rng(0),
+            config["simulation"],
+        )
+    )
     duration, speed = sample_duration(system, config), _speed(system)
     channels = config["features"]["channels"]
     # linear amplitudes: the dB difference is taken here
-    spectrum = SpectrumFeatures(channels=channels, **{**config["features"]["spectrum"], "scale": "linear"})
+    spectrum = SpectrumFeatures(
+        channels=channels, **{**config["features"]["spectrum"], "scale": "linear"}
+    )
     levels = []
     for step_refinement in (1, refinement):
-        signals = system.simulate_sample(values, system.healthy_state, speed, duration, 11, step_refinement)
+        signals = system.simulate_sample(
+            values, system.healthy_state, speed, duration, 11, step_refinement
+        )
         n = system.segment_length
         stack = np.stack([[signals[c][:n] for c in channels]])
         bands = spectrum.transform(stack, system.output_rate_hz).reshape(len(channels), -1)
@@ -148,17 +184,36 @@ def convergence(spec: str, refinement: int = 4) -> dict:
     coarse, fine = levels
     difference = np.abs(coarse - fine)
     below_strongest = fine.max(axis=1, keepdims=True) - fine
-    worst = {f"bands_within_{floor}_db": round(float(difference[below_strongest <= floor].max()), 3)
-             for floor in (20, CONVERGENCE_FLOOR_DB, 60)}
-    return {"max_difference_db": worst, "step_refinement": refinement, "criterion_floor_db": CONVERGENCE_FLOOR_DB,
-            "within_0_5_db": worst[f"bands_within_{CONVERGENCE_FLOOR_DB}_db"] <= CONVERGENCE_DB}
+    worst = {
+        f"bands_within_{floor}_db": round(float(difference[below_strongest <= floor].max()), 3)
+        for floor in (20, CONVERGENCE_FLOOR_DB, 60)
+    }
+    return {
+        "max_difference_db": worst,
+        "step_refinement": refinement,
+        "criterion_floor_db": CONVERGENCE_FLOOR_DB,
+        "within_0_5_db": worst[f"bands_within_{CONVERGENCE_FLOOR_DB}_db"] <= CONVERGENCE_DB,
+    }
 
 
 def dag_jobs(configfile: str) -> int:
     """Jobs in the whole DAG of `configfile` (`snakemake -n --forceall`: whatever results exist)."""
-    out = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--forceall", "--quiet", "rules",
-                          "--configfile", configfile],
-                         cwd=ROOT, capture_output=True, text=True)
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "snakemake",
+            "-n",
+            "--forceall",
+            "--quiet",
+            "rules",
+            "--configfile",
+            configfile,
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     if out.returncode:
         raise RuntimeError(f"snakemake -n --configfile {configfile} failed:\n{out.stderr[-2000:]}")
     total = re.search(r"^total\s+(\d+)", out.stdout + out.stderr, re.MULTILINE)
@@ -170,27 +225,36 @@ def dag_jobs(configfile: str) -> int:
 def machine() -> dict:
     cpuinfo = Path("/proc/cpuinfo").read_text() if Path("/proc/cpuinfo").exists() else ""
     model = re.search(r"model name\s*:\s*(.*)", cpuinfo)
-    memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2 ** 30
+    memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
     import exudyn
 
-    return {"cpu": model.group(1) if model else platform.processor(), "cores": os.cpu_count(),
-            "memory_gib": round(memory, 1), "python": platform.python_version(),
-            "exudyn": exudyn.__version__, "platform": platform.platform(),
-            "load_average_at_start": [round(x, 2) for x in os.getloadavg()]}
+    return {
+        "cpu": model.group(1) if model else platform.processor(),
+        "cores": os.cpu_count(),
+        "memory_gib": round(memory, 1),
+        "python": platform.python_version(),
+        "exudyn": exudyn.__version__,
+        "platform": platform.platform(),
+        "load_average_at_start": [round(x, 2) for x in os.getloadavg()],
+    }
 
 
 def summarise(one_core: dict, parallel: list[dict], workers: int) -> dict:
     per_simulated = [s / one_core["simulated_seconds"] for s in one_core["seconds"]]
     rate_one = len(one_core["seconds"]) / sum(one_core["seconds"]) * 3600
     rate_all = sum(len(w["seconds"]) / sum(w["seconds"]) * 3600 for w in parallel)
-    return {"simulated_seconds_per_sample": round(one_core["simulated_seconds"], 4),
-            "wall_seconds_per_simulated_second": {"median": round(statistics.median(per_simulated), 3),
-                                                  "min": round(min(per_simulated), 3),
-                                                  "max": round(max(per_simulated), 3)},
-            "samples_per_hour_one_core": round(rate_one),
-            f"samples_per_hour_{workers}_cores": round(rate_all),
-            "speedup": round(rate_all / rate_one, 2),
-            "peak_memory_mb_per_worker": round(max(w["peak_memory_mb"] for w in [one_core, *parallel]))}
+    return {
+        "simulated_seconds_per_sample": round(one_core["simulated_seconds"], 4),
+        "wall_seconds_per_simulated_second": {
+            "median": round(statistics.median(per_simulated), 3),
+            "min": round(min(per_simulated), 3),
+            "max": round(max(per_simulated), 3),
+        },
+        "samples_per_hour_one_core": round(rate_one),
+        f"samples_per_hour_{workers}_cores": round(rate_all),
+        "speedup": round(rate_all / rate_one, 2),
+        "peak_memory_mb_per_worker": round(max(w["peak_memory_mb"] for w in [one_core, *parallel])),
+    }
 
 
 def plot(results: dict, path: Path) -> None:
@@ -203,7 +267,10 @@ def plot(results: dict, path: Path) -> None:
     fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4))
     cost = [results["systems"][n]["wall_seconds_per_simulated_second"] for n in names]
     median = [c["median"] for c in cost]
-    errors = [[m - c["min"] for m, c in zip(median, cost)], [c["max"] - m for m, c in zip(median, cost)]]
+    errors = [
+        [m - c["min"] for m, c in zip(median, cost)],
+        [c["max"] - m for m, c in zip(median, cost)],
+    ]
     left.bar(names, median, yerr=errors, capsize=4, color="tab:blue")
     left.set_ylabel("wall s per simulated s (one core)")
     left.set_title("simulation cost (median, min-max)")
@@ -226,7 +293,9 @@ def plot(results: dict, path: Path) -> None:
 
 
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--configs", nargs="+", default=DEFAULT_CONFIGS)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--workers", type=int, default=2)
@@ -238,7 +307,12 @@ def main(argv=None) -> None:
     if args.repeats < 1 or args.workers < 1:
         parser.error("--repeats and --workers must be at least 1")
 
-    results = {"machine": machine(), "repeats": args.repeats, "workers": args.workers, "systems": {}}
+    results = {
+        "machine": machine(),
+        "repeats": args.repeats,
+        "workers": args.workers,
+        "systems": {},
+    }
     for spec in args.configs:
         print(f"{spec}: one core ...", flush=True)
         one_core = run_workers(spec, args.repeats, 1)[0]
@@ -256,7 +330,9 @@ def main(argv=None) -> None:
     (args.out / "throughput.json").write_text(json.dumps(results, indent=2) + "\n")
     plot(results, args.out / "throughput.png")
     configfiles = sorted({spec.partition(":")[0] for spec in args.configs} | set(args.dag))
-    save_record("throughput", args.name, results, script=__file__, argv=argv, configfiles=configfiles)
+    save_record(
+        "throughput", args.name, results, script=__file__, argv=argv, configfiles=configfiles
+    )
     print(f"wrote {args.out / 'throughput.json'} and throughput.png")
 
 

@@ -7,6 +7,7 @@ when the page differs from what the schemas render.
     python3 config/render_readme.py            # rewrite config/README.md
     python3 config/render_readme.py --check    # exit 1 where it is stale
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,7 +36,10 @@ A run is `snakemake --cores all --configfile config/<name>.yaml`. A `--configfil
 `config.yaml` whole: keys it lacks take the schema's defaults below, unless it names a `base`, a
 config file (a path from the project folder) it states only its differences from: its keys are
 merged over the base's, dicts key by key, anything else replaced, as Snakemake merges several
-`--configfile`s; the base is read before validation and no job sees it. Any key can be overridden
+`--configfile`s; the base is read before validation and no job sees it. Every file that states
+only differences names its base (`benches/`, `cwru-tasks/`, `per-state.yaml`, `cfrp-per-state.yaml`,
+`cfrp-study-pitting.yaml`, the CI configs), so it runs alone as it runs stacked over that base;
+the others are whole runs. Any key can be overridden
 by its dotted name, as the tables below (and MLflow's parameters) give it:
 `--config set=classifiers.svm.C=3`, several in one quoted value,
 `--config set='classifiers.svm.C=3 hybrid.measured_percent=[0, 100]'` (Snakemake takes only plain
@@ -70,7 +74,12 @@ def kind(schema: dict, definitions: dict) -> str:
         return " or ".join(kind(option, definitions) for option in schema["oneOf"])
     types = schema.get("type", "any")
     words = " or ".join(types) if isinstance(types, list) else types
-    bounds = [(">=", "minimum"), (">", "exclusiveMinimum"), ("<=", "maximum"), ("<", "exclusiveMaximum")]
+    bounds = [
+        (">=", "minimum"),
+        (">", "exclusiveMinimum"),
+        ("<=", "maximum"),
+        ("<", "exclusiveMaximum"),
+    ]
     return " ".join([words] + [f"{sign} {schema[key]}" for sign, key in bounds if key in schema])
 
 
@@ -78,7 +87,13 @@ def default_text(schema: dict) -> str:
     """The default as YAML on one line; empty where the schema has none."""
     if "default" not in schema:
         return ""
-    return "`" + yaml.safe_dump(schema["default"], default_flow_style=True, width=10 ** 6).strip().removesuffix("\n...") + "`"
+    return (
+        "`"
+        + yaml.safe_dump(schema["default"], default_flow_style=True, width=10**6)
+        .strip()
+        .removesuffix("\n...")
+        + "`"
+    )
 
 
 def cell(text: str) -> str:
@@ -107,8 +122,14 @@ def rows(schema: dict, definitions: dict, prefix: str = "") -> list[list[str]]:
     for name, sub in children(schema):
         key = f"{prefix}{name}".replace(".[]", "[]")
         resolved = resolve(sub, definitions)
-        out.append([f"`{key}`", cell(resolved.get("description", "")), cell(kind(sub, definitions)),
-                    cell(default_text(sub))])
+        out.append(
+            [
+                f"`{key}`",
+                cell(resolved.get("description", "")),
+                cell(kind(sub, definitions)),
+                cell(default_text(sub)),
+            ]
+        )
         out += rows(resolved, definitions, f"{key}.")
     return out
 
@@ -143,21 +164,27 @@ def render(shared: dict, systems: dict[str, dict]) -> str:
             if is_section(sub):
                 lines += section(f"### `{name}` (`system: {system}`)", sub, own, f"{name}.")
             else:
-                lines += section(f"### `{name}` (`system: {system}`)", {"properties": {name: sub}}, own, "")
+                lines += section(
+                    f"### `{name}` (`system: {system}`)", {"properties": {name: sub}}, own, ""
+                )
     return "\n".join(lines).rstrip("\n") + "\n"
 
 
 def page(root: Path = ROOT) -> str:
     """config/README.md as the schemas under `root` render it."""
     shared = merge_schema(load_schema(root / "config" / "schema.yaml"), classifier_schema())
-    systems = {path.parent.name: load_schema(path)
-               for path in sorted((root / "workflow" / "condmon" / "systems").glob("*/schema.yaml"))}
+    systems = {
+        path.parent.name: load_schema(path)
+        for path in sorted((root / "workflow" / "condmon" / "systems").glob("*/schema.yaml"))
+    }
     return render(shared, systems)
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--check", action="store_true", help="only say whether config/README.md is stale")
+    parser.add_argument(
+        "--check", action="store_true", help="only say whether config/README.md is stale"
+    )
     args = parser.parse_args(argv)
     text = page()
     if PAGE.read_text() == text:

@@ -7,7 +7,9 @@ Each pipeline config that several tests read runs once per session, in a fixture
 `cwru_run`); a test that changes a run works on a copy of it. Each is read by one test file, and
 pytest-xdist hands a whole file to one worker (`--dist loadfile`, pyproject.toml), so it still runs once.
 """
+
 import copy
+import logging
 import os
 import shutil
 import subprocess
@@ -15,10 +17,15 @@ import sys
 from pathlib import Path
 
 import pytest
-import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-SCRIPTS = ROOT / "workflow" / "scripts"  # the rules' scripts, which some tests run as Snakemake would
+# benchmarks/fake_train_outputs.py (`import fake_train_outputs as fake`): the synthetic train
+# outputs the report and tracking tests share with the tracking benchmark. Tests may import from
+# benchmarks/, never the reverse.
+sys.path.insert(0, str(ROOT / "benchmarks"))
+SCRIPTS = (
+    ROOT / "workflow" / "scripts"
+)  # the rules' scripts, which some tests run as Snakemake would
 # The shared CWRU files: beside the checkout, or where CONDMON_CWRU_DIR points (a git worktree
 # elsewhere, another machine's data folder).
 CWRU = Path(os.environ.get("CONDMON_CWRU_DIR", ROOT.parent / "shared" / "data" / "cwru")).resolve()
@@ -45,6 +52,19 @@ def pytest_collection_modifyitems(items):
             item.add_marker(pytest.mark.pipeline)
 
 
+def logical_lines(text: str) -> int:
+    """Lines of Python as a formatter cannot change them: its logical lines (one per simple
+    statement, def or class line and compound statement's header, however it is wrapped; a
+    docstring counts once). Length rules count these, so `ruff format` never breaks them."""
+    import io
+    import tokenize
+
+    return sum(
+        token.type == tokenize.NEWLINE
+        for token in tokenize.generate_tokens(io.StringIO(text).readline)
+    )
+
+
 def deep_update(base: dict, changes: dict) -> dict:
     for key, value in changes.items():
         if isinstance(value, dict) and isinstance(base.get(key), dict):
@@ -55,23 +75,26 @@ def deep_update(base: dict, changes: dict) -> dict:
 
 
 def config_file(path) -> dict:
-    """A project config file as the Snakefile reads it: merged over its `base`, if it names one."""
-    from condmon.config import apply_base
+    """A project config file as the Snakefile reads it: merged over its `base`, if it names one
+    (not validated: no defaults filled in)."""
+    from condmon.config import read_config
 
-    return apply_base(yaml.safe_load((ROOT / path).read_text()), ROOT)
+    return read_config([path], project=ROOT)
 
 
 def config_of(configfile=".test/config/smoke.yaml", changes: dict | None = None) -> dict:
-    """A validated config: a project config file (or a config dict) with `changes` merged in."""
-    from condmon.config import apply_base, load_schema, validate_config
+    """A validated config, as the workflow loads it (`condmon.config.load_config`): a project config
+    file (or a config dict) with `changes` merged in; a data folder it names is this machine's."""
+    from condmon.config import load_config, read_config
 
-    if isinstance(configfile, dict):
-        config = apply_base(copy.deepcopy(configfile), ROOT)
-    else:
-        config = config_file(configfile)
-    config.update({key: str(folder) for key, folder in DATA_FOLDERS.items() if key in config})
-    deep_update(config, changes or {})
-    return validate_config(config, load_schema(ROOT / "config" / "schema.yaml"))
+    paths, overrides = (
+        ([], copy.deepcopy(configfile)) if isinstance(configfile, dict) else ([configfile], {})
+    )
+    named = read_config(paths, overrides, project=ROOT)
+    deep_update(
+        overrides, {key: str(folder) for key, folder in DATA_FOLDERS.items() if key in named}
+    )
+    return load_config(paths, overrides, project=ROOT, changes=changes)
 
 
 def system_of(configfile: str = ".test/config/smoke.yaml", changes: dict | None = None):
@@ -81,6 +104,32 @@ def system_of(configfile: str = ".test/config/smoke.yaml", changes: dict | None 
     return get_system(config_of(configfile, changes))
 
 
+@pytest.fixture
+def isolated_logging(monkeypatch):
+    """A test that runs a rule's script (which reconfigures logging and sys.excepthook, as
+    `condmon.runlog.setup_logging` does): both put back afterwards."""
+    monkeypatch.setattr(sys, "excepthook", sys.excepthook)
+    root = logging.getLogger()
+    handlers, level = root.handlers[:], root.level
+    yield
+    for handler in root.handlers:
+        if handler not in handlers:
+            handler.close()
+    root.handlers[:], root.level = handlers, level
+    logging.captureWarnings(False)
+
+
+@pytest.fixture(scope="module")
+def knn_train_outputs(tmp_path_factory):
+    """(results folder, paths) of fake train outputs (benchmarks/fake_train_outputs.py) of one
+    classifier, k-NN: what a report section reads, without the plots of several classifiers
+    (most of the report's time). Once per test module."""
+    import fake_train_outputs as fake
+
+    root = tmp_path_factory.mktemp("results") / "demo"
+    return root, fake.build(root, classifiers={"knn": {"n_neighbors": 3}})
+
+
 # -- the pipeline fixtures --------------------------------------------------------------------
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 
@@ -88,14 +137,16 @@ SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 def snakemake(workdir, *args, check=True):
     result = subprocess.run(SNAKEMAKE + list(args), cwd=workdir, capture_output=True, text=True)
     if check and result.returncode != 0:
-        raise AssertionError(f"snakemake {' '.join(args)} failed:\n{result.stdout[-3000:]}\n{result.stderr[-5000:]}")
+        raise AssertionError(
+            f"snakemake {' '.join(args)} failed:\n{result.stdout[-3000:]}\n{result.stderr[-5000:]}"
+        )
     return result
 
 
 def copy_project(target: Path) -> Path:
     """The workflow's files (no results) in `target`, to run a pipeline in."""
     target.mkdir(parents=True, exist_ok=True)
-    for name in ("Snakefile", "workflow", "config", ".test", "models", "profiles"):
+    for name in ("Snakefile", "workflow", "config", ".test", "profiles"):
         source = ROOT / name
         if source.is_dir():
             shutil.copytree(source, target / name, ignore=shutil.ignore_patterns("__pycache__"))
@@ -136,6 +187,13 @@ def cwru_run(tmp_path_factory):
     root = tmp_path_factory.mktemp("cwru")
     workdir = copy_project(root / "project")
     folder = cwru_folder(root / "slice", CWRU_SLICE)
-    snakemake(workdir, "--cores", "2", "--configfile", ".test/config/cwru-smoke.yaml", "--config",
-              f"measured_dir={folder}")
+    snakemake(
+        workdir,
+        "--cores",
+        "2",
+        "--configfile",
+        ".test/config/cwru-smoke.yaml",
+        "--config",
+        f"measured_dir={folder}",
+    )
     return workdir, workdir / "results" / "cwru-smoke"

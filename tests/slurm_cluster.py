@@ -13,6 +13,7 @@ records (`JobCompType=jobcomp/filetxt`) are the simplest thing `sacct` can read:
 lists every finished job from that file. Snakemake's executor then follows its jobs with `squeue`
 (`--slurm-status-command squeue`), reliable because `MinJobAge` keeps finished jobs for an hour.
 """
+
 import io
 import os
 import shutil
@@ -84,18 +85,35 @@ class SlurmCluster:
 
     def _start(self):
         run, key, log = self.root / "run", self.root / "key", self.root / "log"
-        for folder, mode in ((run, 0o755), (key, 0o700), (log, 0o755), (self.root / "state", 0o755),
-                             (self.root / "spool", 0o755)):
+        for folder, mode in (
+            (run, 0o755),
+            (key, 0o700),
+            (log, 0o755),
+            (self.root / "state", 0o755),
+            (self.root / "spool", 0o755),
+        ):
             folder.mkdir(parents=True, exist_ok=True)
-            folder.chmod(mode)  # munged refuses a socket folder others cannot enter, a key others can read
+            folder.chmod(
+                mode
+            )  # munged refuses a socket folder others cannot enter, a key others can read
         self.root.chmod(0o755)
         self._run(["mungekey", "--create", f"--keyfile={key / 'munge.key'}"])
         self.socket = run / "munge.socket"
-        self._daemon(run / "munged.pid", ["munged", f"--key-file={key / 'munge.key'}", f"--socket={self.socket}",
-                                          f"--pid-file={run / 'munged.pid'}", f"--log-file={log / 'munged.log'}",
-                                          f"--seed-file={key / 'munged.seed'}"])
+        self._daemon(
+            run / "munged.pid",
+            [
+                "munged",
+                f"--key-file={key / 'munge.key'}",
+                f"--socket={self.socket}",
+                f"--pid-file={run / 'munged.pid'}",
+                f"--log-file={log / 'munged.log'}",
+                f"--seed-file={key / 'munged.seed'}",
+            ],
+        )
         if self.conf.exists() and not self.conf.read_text().startswith(MARK):
-            raise RuntimeError(f"{self.conf} belongs to this machine's own SLURM; the test will not replace it")
+            raise RuntimeError(
+                f"{self.conf} belongs to this machine's own SLURM; the test will not replace it"
+            )
         self.conf.parent.mkdir(parents=True, exist_ok=True)
         self.conf.write_text(MARK + self.slurm_conf())
         self._daemon(run / "slurmctld.pid", ["slurmctld"])
@@ -103,8 +121,12 @@ class SlurmCluster:
         self._wait_for_idle_node()
 
     def slurm_conf(self) -> str:
-        host = socket.gethostname().split(".")[0]  # slurmctld only runs on the host SlurmctldHost names
-        node = self._run(["slurmd", "-C"]).splitlines()[0]  # "NodeName=<host> CPUs=... RealMemory=..."
+        host = socket.gethostname().split(".")[
+            0
+        ]  # slurmctld only runs on the host SlurmctldHost names
+        node = self._run(["slurmd", "-C"]).splitlines()[
+            0
+        ]  # "NodeName=<host> CPUs=... RealMemory=..."
         assert node.startswith(f"NodeName={host} "), node
         root = self.root
         return f"""\
@@ -117,12 +139,12 @@ SlurmdUser=root
 AuthType=auth/munge
 AuthInfo=socket={self.socket}
 CredType=cred/munge
-StateSaveLocation={root / 'state'}
-SlurmdSpoolDir={root / 'spool'}
-SlurmctldPidFile={root / 'run' / 'slurmctld.pid'}
-SlurmdPidFile={root / 'run' / 'slurmd.pid'}
-SlurmctldLogFile={root / 'log' / 'slurmctld.log'}
-SlurmdLogFile={root / 'log' / 'slurmd.log'}
+StateSaveLocation={root / "state"}
+SlurmdSpoolDir={root / "spool"}
+SlurmctldPidFile={root / "run" / "slurmctld.pid"}
+SlurmdPidFile={root / "run" / "slurmd.pid"}
+SlurmctldLogFile={root / "log" / "slurmctld.log"}
+SlurmdLogFile={root / "log" / "slurmd.log"}
 # no cgroups in a container: processes tracked through /proc, no task binding
 ProctrackType=proctrack/linuxproc
 TaskPlugin=task/none
@@ -134,14 +156,16 @@ ReturnToService=2
 MinJobAge=3600
 AccountingStorageType=accounting_storage/none
 JobCompType=jobcomp/filetxt
-JobCompLoc={root / 'log' / 'jobcomp.txt'}
+JobCompLoc={root / "log" / "jobcomp.txt"}
 {node} NodeAddr=127.0.0.1 State=UNKNOWN
 PartitionName=main Nodes={host} Default=YES MaxTime=INFINITE State=UP
 """
 
     def node(self) -> dict:
         """The node's CPUs and memory (MB) as slurm.conf declares them."""
-        line = next(line for line in self.conf.read_text().splitlines() if line.startswith("NodeName="))
+        line = next(
+            line for line in self.conf.read_text().splitlines() if line.startswith("NodeName=")
+        )
         fields = dict(item.split("=", 1) for item in line.split())
         return {"cpus": int(fields["CPUs"]), "mem_mb": int(fields["RealMemory"])}
 
@@ -173,7 +197,9 @@ PartitionName=main Nodes={host} Default=YES MaxTime=INFINITE State=UP
         deadline = time.monotonic() + 30
         while not (pid_file.exists() and pid_file.read_text().strip()):
             if time.monotonic() > deadline:
-                raise RuntimeError(f"{command[0]} wrote no pid file {pid_file}; see {self.root / 'log'}")
+                raise RuntimeError(
+                    f"{command[0]} wrote no pid file {pid_file}; see {self.root / 'log'}"
+                )
             time.sleep(0.2)
         self.pid_files.append(pid_file)
 
@@ -181,19 +207,24 @@ PartitionName=main Nodes={host} Default=YES MaxTime=INFINITE State=UP
         deadline = time.monotonic() + timeout
         state = ""
         while time.monotonic() < deadline:
-            result = subprocess.run(["sinfo", "--noheader", "--format=%t"], env=self.env, capture_output=True,
-                                    text=True)
+            result = subprocess.run(
+                ["sinfo", "--noheader", "--format=%t"], env=self.env, capture_output=True, text=True
+            )
             state = result.stdout.strip() or result.stderr.strip()
             if state == "idle":
                 return
             time.sleep(0.5)
-        raise RuntimeError(f"the SLURM node never became idle (sinfo: {state!r}); see {self.root / 'log'}")
+        raise RuntimeError(
+            f"the SLURM node never became idle (sinfo: {state!r}); see {self.root / 'log'}"
+        )
 
     def _run(self, command: list) -> str:
         result = subprocess.run(command, env=self.env, capture_output=True, text=True)
         if result.returncode != 0:
-            raise RuntimeError(f"{' '.join(command)} failed ({result.returncode}): {result.stderr.strip()}; "
-                               f"logs in {self.root / 'log'}")
+            raise RuntimeError(
+                f"{' '.join(command)} failed ({result.returncode}): {result.stderr.strip()}; "
+                f"logs in {self.root / 'log'}"
+            )
         return result.stdout
 
 

@@ -1,5 +1,6 @@
 """Atomic writes: no half-written file under an output's name, and no temporary file left after
 SIGTERM; stale temporary files of a SIGKILLed attempt are removed by the next write."""
+
 import signal
 import subprocess
 import sys
@@ -25,7 +26,7 @@ from types import SimpleNamespace
 from condmon.atomic import temporary_path
 from condmon.runlog import setup_logging
 setup_logging(SimpleNamespace(log=[], rule="demo"))
-with temporary_path({str(tmp_path / 'out.txt')!r}) as tmp:
+with temporary_path({str(tmp_path / "out.txt")!r}) as tmp:
     tmp.write_text("partial")
     print("writing", flush=True)
     time.sleep(30)

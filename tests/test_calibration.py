@@ -1,10 +1,18 @@
 """Calibration: cost functions, bounds, and recovery of the virtual bench's hidden parameters."""
+
 import numpy as np
 import pandas as pd
 import pytest
 
-from condmon.calibrate import (Bound, Calibrator, SpectrumModel, estimate_sensor_noise, measured_spectra,
-                               spectrum_cost, with_sensor_noise)
+from condmon.calibrate import (
+    Bound,
+    Calibrator,
+    SpectrumModel,
+    estimate_sensor_noise,
+    measured_spectra,
+    spectrum_cost,
+    with_sensor_noise,
+)
 from condmon.models.gear.drivetrain import operating_mesh_stiffness
 from condmon.systems import get_system
 from condmon.systems.gear.bench import virtual_bench_rows
@@ -32,7 +40,6 @@ def test_log_bounds_round_trip_and_clip():
     assert bound.to_unit(0.0) == 0.0 and bound.to_unit(5e9) == 1.0
 
 
-
 def _quadratic_spectra(law, values):
     """A cheap stand-in for a simulation: spectra that match the target at x = 0.3."""
     return np.full((1, 1, 4), 1.0 + (values["x"] - 0.3) ** 2)
@@ -40,6 +47,7 @@ def _quadratic_spectra(law, values):
 
 def _spectra_unless_the_worker_stops_on_sigterm(law, values):
     import signal
+
     if signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
         raise AssertionError("a calibration worker inherited a SIGTERM handler")
     return _quadratic_spectra(law, values)
@@ -47,6 +55,7 @@ def _spectra_unless_the_worker_stops_on_sigterm(law, values):
 
 def _spectra_or_a_dying_worker(law, values):
     import os
+
     if values["x"] > 0.5:
         os._exit(1)  # as a crash in native code would
     return _quadratic_spectra(law, values)
@@ -56,11 +65,20 @@ def test_calibration_workers_end_at_once_on_sigterm_even_when_the_script_catches
     """The scripts turn SIGTERM into SystemExit for cleanup; the forked workers must not, or
     stopping the pool can leave one waiting for ever on the task queue's lock."""
     import signal
+
     previous = signal.signal(signal.SIGTERM, lambda signum, frame: None)
     try:
-        calibrator = Calibrator([Bound("x", 0.0, 1.0, False)], ["hertz"], strategy="per_law",
-                                population=4, generations=3, processes=2)
-        best, history = calibrator.run(_spectra_unless_the_worker_stops_on_sigterm, np.ones((1, 1, 4)))
+        calibrator = Calibrator(
+            [Bound("x", 0.0, 1.0, False)],
+            ["hertz"],
+            strategy="per_law",
+            population=4,
+            generations=3,
+            processes=2,
+        )
+        best, history = calibrator.run(
+            _spectra_unless_the_worker_stops_on_sigterm, np.ones((1, 1, 4))
+        )
     finally:
         signal.signal(signal.SIGTERM, previous)
     assert len(history) == 12 and (history["error"] == "").all()
@@ -68,8 +86,16 @@ def test_calibration_workers_end_at_once_on_sigterm_even_when_the_script_catches
 
 
 def test_a_calibration_worker_that_dies_fails_the_calibration_instead_of_hanging_it():
-    calibrator = Calibrator([Bound("x", 0.0, 1.0, False)], ["hertz"], strategy="per_law",
-                            population=6, generations=3, sigma0=0.5, processes=2, initial={"x": 0.9})
+    calibrator = Calibrator(
+        [Bound("x", 0.0, 1.0, False)],
+        ["hertz"],
+        strategy="per_law",
+        population=6,
+        generations=3,
+        sigma0=0.5,
+        processes=2,
+        initial={"x": 0.9},
+    )
     with pytest.raises(RuntimeError, match="calibration generation 0: a worker process died"):
         calibrator.run(_spectra_or_a_dying_worker, np.ones((1, 1, 4)))
 
@@ -79,17 +105,34 @@ MESH_MODELS = ("potential_energy", "simple")
 
 # The bench's effects the model lacks, switched off: a bench of the model's own form (white noise
 # only), on which calibration must find the hidden parameters.
-SAME_FORM = dict(housing_model="point", shaft_model="rigid", coloured_noise=0.0, bearing_tone_force=0.0,
-                 motor_ripple=0.0, gear_deviation_share=0.0, misalignment=0.0,
-                 speed_fluctuation=0.0, load_fluctuation=0.0, faults={})
+SAME_FORM = dict(
+    housing_model="point",
+    shaft_model="rigid",
+    coloured_noise=0.0,
+    bearing_tone_force=0.0,
+    motor_ripple=0.0,
+    gear_deviation_share=0.0,
+    misalignment=0.0,
+    speed_fluctuation=0.0,
+    load_fluctuation=0.0,
+    faults={},
+)
 NO_VARIABILITY = dict(speed_fluctuation=0.0, load_fluctuation=0.0)
 PERFECT_GEARS = dict(grade=[5, 5], deviation_share=[0.0, 0.0], misalignment=[0.0, 0.0])
 
 
 def _bench_spectra(config, bench, speeds, channels):
     numerics = dict(config["numerics"], output_rate=config["rig"]["output_rate_hz"])
-    frame = pd.DataFrame(virtual_bench_rows(lambda **overrides: build_parameters(config["model"], **overrides),
-                                            bench, ["healthy"], speeds, numerics, 0.5))
+    frame = pd.DataFrame(
+        virtual_bench_rows(
+            lambda **overrides: build_parameters(config["model"], **overrides),
+            bench,
+            ["healthy"],
+            speeds,
+            numerics,
+            0.5,
+        )
+    )
     spectrum, resolution = config["features"]["spectrum"], config["calibration"]["resolution_hz"]
     return measured_spectra(frame, speeds, channels, spectrum, resolution, 5120.0)
 
@@ -103,14 +146,28 @@ def bench():
     config = config_of("config/config.yaml", {"rig": {"segment_seconds": 0.5}})
     assert config["virtual_bench"]["true_parameters"]["mesh_stiffness_model"] == "potential_energy"
     speeds, channels = [450.0, 1100.0], config["features"]["channels"]
-    config["model"] = dict(config["model"], variability=dict(config["model"]["variability"], **NO_VARIABILITY),
-                           gear_errors=PERFECT_GEARS)
-    same_form = dict(config["virtual_bench"], records_per_state=1, record_seconds=2.0,
-                     housing_stiffness=config["model"]["housing_stiffness"], **SAME_FORM)
+    config["model"] = dict(
+        config["model"],
+        variability=dict(config["model"]["variability"], **NO_VARIABILITY),
+        gear_errors=PERFECT_GEARS,
+    )
+    same_form = dict(
+        config["virtual_bench"],
+        records_per_state=1,
+        record_seconds=2.0,
+        housing_stiffness=config["model"]["housing_stiffness"],
+        **SAME_FORM,
+    )
     target = _bench_spectra(config, same_form, speeds, channels)
     spectrum, resolution = config["features"]["spectrum"], config["calibration"]["resolution_hz"]
-    systems = {m: get_system(dict(config, model=dict(config["model"], mesh_stiffness_model=m))) for m in MESH_MODELS}
-    models = {m: SpectrumModel(systems[m], speeds, channels, spectrum, resolution, 0.5) for m in MESH_MODELS}
+    systems = {
+        m: get_system(dict(config, model=dict(config["model"], mesh_stiffness_model=m)))
+        for m in MESH_MODELS
+    }
+    models = {
+        m: SpectrumModel(systems[m], speeds, channels, spectrum, resolution, 0.5)
+        for m in MESH_MODELS
+    }
     return config, target, models
 
 
@@ -143,8 +200,11 @@ def test_the_true_parameters_explain_a_bench_of_the_models_form_but_not_the_virt
 
     full_bench = dict(config["virtual_bench"], records_per_state=1, record_seconds=2.0)
     real = _bench_spectra(config, full_bench, [450.0, 1100.0], config["features"]["channels"])
-    costs = dict(truth_noisy=spectrum_cost(noisy(truth), target), nominal_noisy=spectrum_cost(noisy(nominal), target),
-                 truth_on_virtual_bench=spectrum_cost(noisy(truth), real))
+    costs = dict(
+        truth_noisy=spectrum_cost(noisy(truth), target),
+        nominal_noisy=spectrum_cost(noisy(nominal), target),
+        truth_on_virtual_bench=spectrum_cost(noisy(truth), real),
+    )
     print(costs)
     assert costs["truth_noisy"] < 0.02
     assert costs["nominal_noisy"] > 1.5 * costs["truth_noisy"]
@@ -166,12 +226,26 @@ def test_calibration_recovers_the_hidden_mesh_stiffness(bench, mesh_model):
     config, target, models = bench
     model, noise = models[mesh_model], config["virtual_bench"]["sensor_noise"]
     law, true = true_values(config)
-    bounds = [Bound("mesh_stiffness", 1e8, 1.5e9, True), Bound("contact_exponent", 1.0, 2.2, False),
-              Bound("bushing_stiffness", 5e7, 8e8, True)]
-    calibrator = Calibrator(bounds, [law], strategy="per_law", population=6, generations=8,
-                            sigma0=0.3, seed=3, processes=2, initial=nominal_values(config, [b.name for b in bounds]))
+    bounds = [
+        Bound("mesh_stiffness", 1e8, 1.5e9, True),
+        Bound("contact_exponent", 1.0, 2.2, False),
+        Bound("bushing_stiffness", 5e7, 8e8, True),
+    ]
+    calibrator = Calibrator(
+        bounds,
+        [law],
+        strategy="per_law",
+        population=6,
+        generations=8,
+        sigma0=0.3,
+        seed=3,
+        processes=2,
+        initial=nominal_values(config, [b.name for b in bounds]),
+    )
     best, history = calibrator.run(model, target)
-    nominal_spectra = model(config["model"]["contact_law"], nominal_values(config, [b.name for b in bounds]))
+    nominal_spectra = model(
+        config["model"]["contact_law"], nominal_values(config, [b.name for b in bounds])
+    )
     best_spectra = model(law, best["parameters"])
     truth_spectra = models["potential_energy"](law, true)
 
@@ -181,14 +255,17 @@ def test_calibration_recovers_the_hidden_mesh_stiffness(bench, mesh_model):
     nominal, truth = spectrum_cost(nominal_spectra, target), spectrum_cost(truth_spectra, target)
 
     def stiffness(values):
-        return operating_mesh_stiffness(build_parameters(config["model"], mesh_stiffness_model=mesh_model,
-                                                         **values))
+        return operating_mesh_stiffness(
+            build_parameters(config["model"], mesh_stiffness_model=mesh_model, **values)
+        )
 
     found = stiffness(best["parameters"])
     expected = stiffness({k: true[k] for k in ("mesh_stiffness", "contact_exponent")})
-    print(f"{mesh_model}: calibrated {best}, nominal cost {nominal:.4g}, truth's cost {truth:.4g}; with "
-          f"the bench noise: best {noisy_cost(best_spectra):.4g}, nominal {noisy_cost(nominal_spectra):.4g}, "
-          f"truth {noisy_cost(truth_spectra):.4g}; operating mesh stiffness {found:.4g} (truth {expected:.4g})")
+    print(
+        f"{mesh_model}: calibrated {best}, nominal cost {nominal:.4g}, truth's cost {truth:.4g}; with "
+        f"the bench noise: best {noisy_cost(best_spectra):.4g}, nominal {noisy_cost(nominal_spectra):.4g}, "
+        f"truth {noisy_cost(truth_spectra):.4g}; operating mesh stiffness {found:.4g} (truth {expected:.4g})"
+    )
     assert len(history) == 48 and (history["error"] == "").all()
     assert best["cost"] < nominal
     if mesh_model == "potential_energy":  # the bench's own mesh: close to the truth
@@ -226,8 +303,13 @@ def test_sensor_noise_estimate_does_not_take_the_form_gap_for_noise(bench):
     machine content and no floor at all (12.8 mm/s^2 with the default bench's grade-5 gears); the
     gear configs take the background the healthy records carry instead (calibration.background)."""
     config, _, models = bench
-    full_bench = dict(config["virtual_bench"], records_per_state=1, record_seconds=2.0,
-                      gear_deviation_share=0.0, misalignment=0.0)
+    full_bench = dict(
+        config["virtual_bench"],
+        records_per_state=1,
+        record_seconds=2.0,
+        gear_deviation_share=0.0,
+        misalignment=0.0,
+    )
     real = _bench_spectra(config, full_bench, [450.0, 1100.0], config["features"]["channels"])
     estimate = estimate_sensor_noise(real, models["potential_energy"].segment_length)
     print(f"noise floor on the virtual bench: {estimate:.4g} m/s^2")

@@ -1,17 +1,28 @@
 """The CFRP rig: laminate shafts against beam theory, the crack's and the delamination's stiffness
 against hand calculations, the breathing, the Table 2/3 values of the config, and that both shaft
 faults show in the spectra."""
+
 import math
 
 import numpy as np
 import pytest
 
 from conftest import config_of
-from condmon.models.cfrp.laminate import (CFRP_STUDY_PLY, Laminate, laminate_tube_section, quasi_isotropic_modulus,
-                                          quasi_isotropic_poisson_ratio)
-from condmon.models.gear.shaft_damage import (RELATIVE_ROTATION, DamagedElement, ShaftDamageForce,
-                                              cracked_tube_geometry, delaminated_tube_geometry,
-                                              removed_rotational_stiffness)
+from condmon.models.cfrp.laminate import (
+    CFRP_STUDY_PLY,
+    Laminate,
+    laminate_tube_section,
+    quasi_isotropic_modulus,
+    quasi_isotropic_poisson_ratio,
+)
+from condmon.models.gear.shaft_damage import (
+    RELATIVE_ROTATION,
+    DamagedElement,
+    ShaftDamageForce,
+    cracked_tube_geometry,
+    delaminated_tube_geometry,
+    removed_rotational_stiffness,
+)
 from condmon.models.structure import BENDING_PLANES, LinearStructure
 from condmon.systems import get_system
 
@@ -41,8 +52,13 @@ def timoshenko_pinned_frequency(section, mode: int) -> float:
     """The lower root of the simply supported Timoshenko beam's frequency equation (Hz):
     EI k^4 - (rho A + (rho I + EI rho A / kGA) k^2) w^2 + rho I rho A / kGA w^4 = 0, k = n pi / L."""
     k = mode * math.pi / LENGTH
-    ei, kga, rho_a, rho_i = section.bending, section.shear, section.mass_per_length, section.rotary_inertia_per_length
-    a, b, c = rho_i * rho_a / kga, -(rho_a + (rho_i + ei * rho_a / kga) * k * k), ei * k ** 4
+    ei, kga, rho_a, rho_i = (
+        section.bending,
+        section.shear,
+        section.mass_per_length,
+        section.rotary_inertia_per_length,
+    )
+    a, b, c = rho_i * rho_a / kga, -(rho_a + (rho_i + ei * rho_a / kga) * k * k), ei * k**4
     omega2 = (-b - math.sqrt(b * b - 4 * a * c)) / (2 * a)
     return math.sqrt(omega2) / (2 * math.pi)
 
@@ -61,7 +77,11 @@ def test_the_laminate_shaft_bends_at_the_analytical_beam_frequencies():
         found = min(bending, key=lambda f: abs(f - expected))
         assert found == pytest.approx(expected, rel=tolerance), mode
     # shear flexibility matters for CFRP (E_x / G_xy = 3.9): Euler-Bernoulli is 2 % off at mode 2
-    euler = (2 * math.pi / LENGTH) ** 2 * math.sqrt(section.bending / section.mass_per_length) / (2 * math.pi)
+    euler = (
+        (2 * math.pi / LENGTH) ** 2
+        * math.sqrt(section.bending / section.mass_per_length)
+        / (2 * math.pi)
+    )
     assert euler > 1.015 * timoshenko_pinned_frequency(section, 2)
 
 
@@ -69,9 +89,21 @@ def midspan_deflection_with_a_weak_stretch(section, length, removed, plane_angle
     """Four-point bending (loads at L/4 and 3L/4, constant moment between): midspan deflection
     along the load plane with a stretch of `length` at midspan whose bending the damage weakens
     (the damage's xi at `plane_angle` from x, open). Returns (deflection, relative rotation along xi)."""
-    stations = sorted({round(float(z), 12) for z in (0.0, LENGTH / 4, LENGTH / 2 - length / 2, LENGTH / 2,
-                                                       LENGTH / 2 + length / 2, 3 * LENGTH / 4, LENGTH,
-                                                       *np.linspace(0.0, LENGTH, 13))})
+    stations = sorted(
+        {
+            round(float(z), 12)
+            for z in (
+                0.0,
+                LENGTH / 4,
+                LENGTH / 2 - length / 2,
+                LENGTH / 2,
+                LENGTH / 2 + length / 2,
+                3 * LENGTH / 4,
+                LENGTH,
+                *np.linspace(0.0, LENGTH, 13),
+            )
+        }
+    )
     structure, nodes = simply_supported_shaft(section, stations)
     index = {z: node for z, node in zip(stations, nodes)}
 
@@ -107,8 +139,12 @@ def extra_deflection(section, ratio, length, load=100.0):
     """Virtual work: a stretch of EI x ratio at midspan under the constant moment P L / 4 adds
     M (1/EI_d - 1/EI) ((L/2)^2 - (L/2 - l/2)^2) / 2 to the midspan deflection."""
     moment = load * LENGTH / 4
-    return (moment * (1 / (section.bending * ratio) - 1 / section.bending)
-            * ((LENGTH / 2) ** 2 - (LENGTH / 2 - length / 2) ** 2) / 2)
+    return (
+        moment
+        * (1 / (section.bending * ratio) - 1 / section.bending)
+        * ((LENGTH / 2) ** 2 - (LENGTH / 2 - length / 2) ** 2)
+        / 2
+    )
 
 
 @pytest.mark.parametrize("plane_angle", [0.0, math.pi / 2, 2.0])
@@ -120,40 +156,59 @@ def test_the_crack_stiffness_follows_its_depth(plane_angle):
     intact, _ = midspan_deflection_with_a_weak_stretch(section, OUTER, lambda _: 0.0, plane_angle)
     extras = []
     for depth in (0.1, 0.3, 0.5):
-        ratio = (cracked_tube_geometry(OUTER, bore, depth).second_moment_xi
-                 / cracked_tube_geometry(OUTER, bore, 0.0).second_moment_xi)
+        ratio = (
+            cracked_tube_geometry(OUTER, bore, depth).second_moment_xi
+            / cracked_tube_geometry(OUTER, bore, 0.0).second_moment_xi
+        )
         cracked, rotations = midspan_deflection_with_a_weak_stretch(
-            section, OUTER, lambda length: removed_rotational_stiffness(length, section.bending, ratio), plane_angle)
-        assert cracked - intact == pytest.approx(extra_deflection(section, ratio, OUTER), rel=1e-6), depth
+            section,
+            OUTER,
+            lambda length: removed_rotational_stiffness(length, section.bending, ratio),
+            plane_angle,
+        )
+        assert cracked - intact == pytest.approx(
+            extra_deflection(section, ratio, OUTER), rel=1e-6
+        ), depth
         extras.append(cracked - intact)
     assert extras[0] < extras[1] < extras[2]
 
 
 def test_the_delamination_stiffness_follows_its_length():
     section, bore = tube()
-    ratio = (delaminated_tube_geometry(OUTER, bore, 0.5, 120.0).second_moment_xi
-             / delaminated_tube_geometry(OUTER, bore, 0.0, 0.0).second_moment_xi)
+    ratio = (
+        delaminated_tube_geometry(OUTER, bore, 0.5, 120.0).second_moment_xi
+        / delaminated_tube_geometry(OUTER, bore, 0.0, 0.0).second_moment_xi
+    )
     assert 0.5 < ratio < 0.9
     intact, _ = midspan_deflection_with_a_weak_stretch(section, 0.02, lambda _: 0.0, 0.0)
     extras = []
     for length in (0.02, 0.05, 0.1):
         weak, _ = midspan_deflection_with_a_weak_stretch(
-            section, length, lambda piece: removed_rotational_stiffness(piece, section.bending, ratio), 0.0)
-        assert weak - intact == pytest.approx(extra_deflection(section, ratio, length), rel=1e-6), length
+            section,
+            length,
+            lambda piece: removed_rotational_stiffness(piece, section.bending, ratio),
+            0.0,
+        )
+        assert weak - intact == pytest.approx(extra_deflection(section, ratio, length), rel=1e-6), (
+            length
+        )
         extras.append(weak - intact)
     assert extras[0] < extras[1] < extras[2]
 
 
 def test_the_crack_breathes_and_turns_with_the_shaft():
-    crack = ShaftDamageForce([DamagedElement(removed_xi=100.0, removed_eta=10.0, breathing=True, angle=0.0,
-                                             spin_hz=1.0)])
+    crack = ShaftDamageForce(
+        [DamagedElement(removed_xi=100.0, removed_eta=10.0, breathing=True, angle=0.0, spin_hz=1.0)]
+    )
     # at t = 0 the mouth points along +x: bending that stretches it (d_x < 0) opens it
     assert crack(0.0, [-1e-3, 0.0]) == pytest.approx([-0.1, 0.0])
     assert crack(0.0, [1e-3, 0.0]) == [0.0, 0.0]  # closed: intact
     # a quarter turn later the mouth points along +y
     assert crack(0.25, [0.0, -1e-3]) == pytest.approx([0.0, -0.1])
     assert crack(0.25, [0.0, 1e-3]) == [0.0, 0.0]  # its mouth squeezed: closed
-    delamination = ShaftDamageForce([DamagedElement(100.0, 10.0, breathing=False, angle=0.0, spin_hz=1.0)])
+    delamination = ShaftDamageForce(
+        [DamagedElement(100.0, 10.0, breathing=False, angle=0.0, spin_hz=1.0)]
+    )
     assert delamination(0.0, [1e-3, 0.0]) == pytest.approx([0.1, 0.0])  # never closes
     assert delamination(0.0, [0.0, 1e-3]) == pytest.approx([0.0, 0.01])
 
@@ -163,15 +218,29 @@ def test_the_config_holds_the_studys_tables_converted():
     K = 3.25e5 N/mm^1.2 as the secant stiffness at 1 um, its bushings in N/m."""
     config = config_of("config/cfrp.yaml")
     model = config["model"]
-    assert model["geometry"]["youngs_modulus"] == pytest.approx(quasi_isotropic_modulus(CFRP_STUDY_PLY), rel=1e-3)
-    assert model["geometry"]["poisson_ratio"] == pytest.approx(quasi_isotropic_poisson_ratio(CFRP_STUDY_PLY), abs=1e-3)
+    assert model["geometry"]["youngs_modulus"] == pytest.approx(
+        quasi_isotropic_modulus(CFRP_STUDY_PLY), rel=1e-3
+    )
+    assert model["geometry"]["poisson_ratio"] == pytest.approx(
+        quasi_isotropic_poisson_ratio(CFRP_STUDY_PLY), abs=1e-3
+    )
     delta_mm = 1e-3
-    assert model["mesh_stiffness"] == pytest.approx(3.25e5 * delta_mm ** 1.2 / 1e-6, rel=1e-3)
-    assert (model["contact_law"], model["restitution"], model["contact_exponent"]) == ("flores", 0.96, 1.2)
+    assert model["mesh_stiffness"] == pytest.approx(3.25e5 * delta_mm**1.2 / 1e-6, rel=1e-3)
+    assert (model["contact_law"], model["restitution"], model["contact_exponent"]) == (
+        "flores",
+        0.96,
+        1.2,
+    )
     assert (model["bushing_stiffness"], model["bushing_damping"]) == (1.825e5 * 1e3, 12.3 * 1e3)
     ply = model["laminate"]["ply"]
     assert (ply["E1"], ply["E2"], ply["G12"], ply["G1z"], ply["G2z"], ply["density"]) == (
-        138.945e9, 6.6154e9, 3.387e9, 3.387e9, 2.2864e9, 1560.0)
+        138.945e9,
+        6.6154e9,
+        3.387e9,
+        3.387e9,
+        2.2864e9,
+        1560.0,
+    )
 
 
 def shaft_lines(signals, speed_rpm, orders=(1, 2, 3)):
@@ -191,10 +260,17 @@ def test_the_breathing_crack_raises_the_shaft_orders():
     1x and 3x lines (measured 6.1x and 6.5x over healthy; at 450 rpm 3.8x and 2.3x, at 1100 rpm
     only 2x rises, 1.9x). The delamination's turning asymmetry moves much less (2x at 775 rpm:
     1.8x; elsewhere within +-20 %): its bending loss is 11-32 % over 5 cm and it never closes."""
-    config = config_of("config/cfrp.yaml", {"model": {"gear_errors": {"deviation_share": [0.0, 0.0], "misalignment": [0.0, 0.0]}}})
+    config = config_of(
+        "config/cfrp.yaml",
+        {"model": {"gear_errors": {"deviation_share": [0.0, 0.0], "misalignment": [0.0, 0.0]}}},
+    )
     system = get_system(config)
-    signals = {state: system.simulate_sample({"contact_law": "flores"}, state, 775.0, 0.5, seed=2)
-               for state in ("healthy", "shaft_crack")}
+    signals = {
+        state: system.simulate_sample({"contact_law": "flores"}, state, 775.0, 0.5, seed=2)
+        for state in ("healthy", "shaft_crack")
+    }
     for order in (1, 3):
-        gain = shaft_lines(signals["shaft_crack"], 775.0, (order,)) / shaft_lines(signals["healthy"], 775.0, (order,))
+        gain = shaft_lines(signals["shaft_crack"], 775.0, (order,)) / shaft_lines(
+            signals["healthy"], 775.0, (order,)
+        )
         assert gain > 3.0, order

@@ -3,6 +3,7 @@
 Small synthetic spectra (2 channels x 32 bands, a class-specific peak) and 2-member, 2-epoch
 ensembles keep this file at a few seconds.
 """
+
 import json
 
 import joblib
@@ -14,20 +15,38 @@ import torch
 
 from condmon import tracking
 from condmon.classifiers import make_classifier
-from condmon.cnn import (CNNConfigError, CNNEnsembleClassifier, channels_from_feature_names,
-                         validation_split)
+from condmon.cnn import (
+    CNNConfigError,
+    CNNEnsembleClassifier,
+    channels_from_feature_names,
+    validation_split,
+)
 from condmon.features import write_feature_table
 from condmon.protocols import make_splits
-from condmon.train import (HISTORY_FILE, PREDICTION_COLUMNS, JobCost, run_protocol, train_info,
-                           write_metrics, write_models, write_predictions)
+from condmon.train import (
+    HISTORY_FILE,
+    PREDICTION_COLUMNS,
+    JobCost,
+    run_protocol,
+    train_info,
+    write_metrics,
+    write_models,
+    write_predictions,
+)
 
 CLASSES = ("healthy", "surface_fault", "missing_tooth")
 SPEEDS = (450.0, 775.0)
 CHANNELS = ("A1_x", "A2_y")
 N_BANDS = 32
 FEATURES = [f"fft_{c}_{2.0 * b:07.1f}Hz" for c in CHANNELS for b in range(N_BANDS)]
-SMALL = {"members": 2, "epochs": 2, "batch_size": 16, "conv_channels": [4], "input_pool": 1,
-         "dense_units": [8]}
+SMALL = {
+    "members": 2,
+    "epochs": 2,
+    "batch_size": 16,
+    "conv_channels": [4],
+    "input_pool": 1,
+    "dense_units": [8],
+}
 
 # MLflow's input-example handling raises this, not this code
 pytestmark = pytest.mark.filterwarnings("ignore:Operation with range is deprecated")
@@ -41,9 +60,17 @@ def spectra(source, n_records, n_segments, seed):
         for speed in SPEEDS:
             for r in range(n_records):
                 for segment in range(n_segments):
-                    rows.append({"record_id": f"{source}_{label}_{int(speed)}_{r:02d}",
-                                 "segment": segment, "source": source, "health_state": label,
-                                 "speed_rpm": speed, "load": 10.0, "fs_hz": 5120.0})
+                    rows.append(
+                        {
+                            "record_id": f"{source}_{label}_{int(speed)}_{r:02d}",
+                            "segment": segment,
+                            "source": source,
+                            "health_state": label,
+                            "speed_rpm": speed,
+                            "load": 10.0,
+                            "fs_hz": 5120.0,
+                        }
+                    )
                     spectrum = rng.normal(0, 0.3, (len(CHANNELS), N_BANDS)) - 3.0
                     spectrum[:, 6 + 8 * k] += 2.0
                     values.append(spectrum.ravel())
@@ -104,8 +131,9 @@ def test_same_seed_same_model_other_seed_other_model():
 def test_standardisation_comes_from_the_training_data_only():
     model = fitted(standardize="channel")
     blocks = X.reshape(len(X), len(CHANNELS), N_BANDS)
-    np.testing.assert_allclose(model.mean_.reshape(len(CHANNELS), N_BANDS)[:, 0],
-                               blocks.mean(axis=(0, 2)), rtol=1e-5)
+    np.testing.assert_allclose(
+        model.mean_.reshape(len(CHANNELS), N_BANDS)[:, 0], blocks.mean(axis=(0, 2)), rtol=1e-5
+    )
     before = model.mean_.copy()
     model.predict(MEASURED[FEATURES].to_numpy(np.float32) + 100.0)  # never refits on test data
     np.testing.assert_array_equal(model.mean_, before)
@@ -127,8 +155,14 @@ def test_validation_split_keeps_records_whole_and_every_class_in_training():
 def test_early_stopping_history_and_member_info():
     model = fitted(epochs=30, patience=1, learning_rate=0.05)
     history = pd.DataFrame(model.history_)
-    assert list(history.columns) == ["member", "epoch", "train_loss", "train_accuracy",
-                                     "val_loss", "val_accuracy"]
+    assert list(history.columns) == [
+        "member",
+        "epoch",
+        "train_loss",
+        "train_accuracy",
+        "val_loss",
+        "val_accuracy",
+    ]
     for info in model.member_info_:
         rows = history[history.member == info["member"]]
         assert len(rows) == info["epochs_run"]
@@ -136,7 +170,9 @@ def test_early_stopping_history_and_member_info():
         assert info["n_val"] > 0
     assert any(info["epochs_run"] < 30 for info in model.member_info_)  # stopped early
     # where it trained, as the MLflow run logs it (device "auto": the GPU if PyTorch sees one)
-    assert model.device_.startswith("cuda:") if torch.cuda.is_available() else model.device_ == "cpu"
+    assert (
+        model.device_.startswith("cuda:") if torch.cuda.is_available() else model.device_ == "cpu"
+    )
 
 
 def test_epochs_are_logged_at_most_every_few_seconds(caplog, monkeypatch):
@@ -145,7 +181,9 @@ def test_epochs_are_logged_at_most_every_few_seconds(caplog, monkeypatch):
     with caplog.at_level("INFO", logger="condmon.cnn"):
         fitted(epochs=3, patience=5)
     lines = [r.getMessage() for r in caplog.records if ", epoch " in r.getMessage()]
-    assert len(lines) == 2 and lines[0].startswith("CNN member 1 of 2, epoch 1 of at most 3: train loss")
+    assert len(lines) == 2 and lines[0].startswith(
+        "CNN member 1 of 2, epoch 1 of at most 3: train loss"
+    )
     caplog.clear()
     monkeypatch.setattr(cnn, "EPOCH_LOG_SECONDS", 0.0)
     with caplog.at_level("INFO", logger="condmon.cnn"):
@@ -175,15 +213,18 @@ def test_channels_from_feature_names():
     assert model.input_shape_ == (1, len(FEATURES))
 
 
-@pytest.mark.parametrize("params, message", [
-    ({"members": 0}, "members=0"),
-    ({"conv_channels": []}, "conv_channels is empty"),
-    ({"dropout": 1.0}, "dropout=1.0"),
-    ({"device": "tpu"}, "device='tpu'"),
-    ({"standardize": "global"}, "standardize='global'"),
-    ({"input_channels": 3}, "input_channels=3: 64 features do not split"),
-    ({"pool_size": 8, "conv_channels": [4, 4]}, "pooled away"),
-])
+@pytest.mark.parametrize(
+    "params, message",
+    [
+        ({"members": 0}, "members=0"),
+        ({"conv_channels": []}, "conv_channels is empty"),
+        ({"dropout": 1.0}, "dropout=1.0"),
+        ({"device": "tpu"}, "device='tpu'"),
+        ({"standardize": "global"}, "standardize='global'"),
+        ({"input_channels": 3}, "input_channels=3: 64 features do not split"),
+        ({"pool_size": 8, "conv_channels": [4, 4]}, "pooled away"),
+    ],
+)
 def test_bad_parameters_are_named(params, message):
     with pytest.raises(CNNConfigError, match=message):
         CNNEnsembleClassifier(**{**SMALL, **params}).fit(X, Y, feature_names=FEATURES)
@@ -191,13 +232,25 @@ def test_bad_parameters_are_named(params, message):
 
 # -- train stage ------------------------------------------------------------------------------
 def test_run_protocol_with_a_subset_uncertainty_and_history(tmp_path):
-    splits = make_splits(MEASURED[["record_id", "health_state", "speed_rpm"]],
-                         "condition_holdout", measured_percent=[0, 50, 100], repeats=2, seed=3)
-    predictions, metrics, models = run_protocol("cnn", SMALL, SIMULATED, MEASURED, splits,
-                                                FEATURES, seed=1, measured_percent=[0, 100],
-                                                repeats=1)
-    assert set(models) == {(p, 0, h) for p in (0, 100)
-                           for h in ("speed_rpm=450", "speed_rpm=775")}
+    splits = make_splits(
+        MEASURED[["record_id", "health_state", "speed_rpm"]],
+        "condition_holdout",
+        measured_percent=[0, 50, 100],
+        repeats=2,
+        seed=3,
+    )
+    predictions, metrics, models = run_protocol(
+        "cnn",
+        SMALL,
+        SIMULATED,
+        MEASURED,
+        splits,
+        FEATURES,
+        seed=1,
+        measured_percent=[0, 100],
+        repeats=1,
+    )
+    assert set(models) == {(p, 0, h) for p in (0, 100) for h in ("speed_rpm=450", "speed_rpm=775")}
     assert set(metrics.measured_percent) == {0, 100} and set(metrics.repeat) == {0}
     assert list(predictions.columns) == PREDICTION_COLUMNS
     assert predictions.uncertainty.notna().all() and (predictions.uncertainty >= 0).all()
@@ -215,11 +268,17 @@ def test_run_protocol_with_a_subset_uncertainty_and_history(tmp_path):
 
 
 def test_subset_errors_name_the_config_key():
-    splits = make_splits(MEASURED[["record_id", "health_state", "speed_rpm"]], "record_split",
-                         measured_percent=[0, 50], repeats=1, seed=3)
+    splits = make_splits(
+        MEASURED[["record_id", "health_state", "speed_rpm"]],
+        "record_split",
+        measured_percent=[0, 50],
+        repeats=1,
+        seed=3,
+    )
     with pytest.raises(ValueError, match=r"classifiers.cnn.measured_percent: \[30\].*\[0, 50\]"):
-        run_protocol("cnn", SMALL, SIMULATED, MEASURED, splits, FEATURES, 1,
-                     measured_percent=[0, 30])
+        run_protocol(
+            "cnn", SMALL, SIMULATED, MEASURED, splits, FEATURES, 1, measured_percent=[0, 30]
+        )
     with pytest.raises(ValueError, match=r"classifiers.cnn.repeats: 2 .* 1 repeat"):
         run_protocol("cnn", SMALL, SIMULATED, MEASURED, splits, FEATURES, 1, repeats=2)
 
@@ -228,36 +287,57 @@ def test_tracking_logs_curves_and_the_ensemble_as_a_pytorch_model(tmp_path):
     root = tmp_path / "results" / "cnn_demo"
     write_feature_table(MEASURED, FEATURES, root / "features/measured.parquet")
     write_feature_table(SIMULATED, FEATURES, root / "features/simulated.parquet")
-    splits = make_splits(MEASURED[["record_id", "health_state", "speed_rpm"]], "record_split",
-                         measured_percent=[0], repeats=1, seed=3)
-    predictions, metrics, models = run_protocol("cnn", SMALL, SIMULATED, MEASURED, splits,
-                                                FEATURES, seed=1)
+    splits = make_splits(
+        MEASURED[["record_id", "health_state", "speed_rpm"]],
+        "record_split",
+        measured_percent=[0],
+        repeats=1,
+        seed=3,
+    )
+    predictions, metrics, models = run_protocol(
+        "cnn", SMALL, SIMULATED, MEASURED, splits, FEATURES, seed=1
+    )
     out = root / "train/cnn/record_split"
     write_predictions(predictions, out / "predictions.parquet")
     write_metrics(metrics, out / "metrics.csv")
     entries = write_models(models, out / "models", FEATURES)
-    (out / "info.json").write_text(json.dumps(train_info("cnn", SMALL, 1, "record_split", CLASSES, FEATURES,
-                                                         metrics, entries, JobCost(1.0))))
+    (out / "info.json").write_text(
+        json.dumps(
+            train_info(
+                "cnn", SMALL, 1, "record_split", CLASSES, FEATURES, metrics, entries, JobCost(1.0)
+            )
+        )
+    )
     uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
     tables = [root / "features/measured.parquet", root / "features/simulated.parquet"]
-    info = tracking.log_pipeline_run(uri, tracking.TrackedRun("cnn_demo", "hash-c", "virtual_bench"), [out],
-                                     {"measured_features": tables[:1], "simulated_features": tables[1:]},
-                                     log_models="all", workdir=tmp_path)
+    info = tracking.log_pipeline_run(
+        uri,
+        tracking.TrackedRun("cnn_demo", "hash-c", "virtual_bench"),
+        [out],
+        {"measured_features": tables[:1], "simulated_features": tables[1:]},
+        log_models="all",
+        workdir=tmp_path,
+    )
     assert info["n_nested_runs"] == info["n_models_logged"] == 1
     client = mlflow.MlflowClient(info["tracking_uri"])
-    run = client.search_runs([info["experiment_id"]],
-                             f"tags.mlflow.parentRunId = '{info['parent_run_id']}'")[0]
+    run = client.search_runs(
+        [info["experiment_id"]], f"tags.mlflow.parentRunId = '{info['parent_run_id']}'"
+    )[0]
     assert run.data.params["classifier.members"] == "2"
     assert run.data.params["classifier.conv_channels"] == "[4]"
     assert 0 <= run.data.metrics["uncertainty_mean"] <= 0.5
     model = models[(0, 0, "")]
     assert len(client.get_metric_history(run.info.run_id, "val_loss")) == max(
-        i["epochs_run"] for i in model.member_info_)  # the members' mean, step = epoch
+        i["epochs_run"] for i in model.member_info_
+    )  # the members' mean, step = epoch
     members = pd.read_csv(client.download_artifacts(run.info.run_id, "training_history.csv"))
-    assert list(members.loc[members.member == 1, "epoch"]) == [r["epoch"] for r in model.history_ if r["member"] == 1]
+    assert list(members.loc[members.member == 1, "epoch"]) == [
+        r["epoch"] for r in model.history_ if r["member"] == 1
+    ]
 
-    logged = mlflow.search_logged_models(experiment_ids=[info["experiment_id"]],
-                                         output_format="list")
+    logged = mlflow.search_logged_models(
+        experiment_ids=[info["experiment_id"]], output_format="list"
+    )
     assert len(logged) == 1 and logged[0].source_run_id == run.info.run_id
     # the run's metrics, the curves among them, are the model's
     assert {m.key for m in logged[0].metrics} >= {"accuracy", "val_loss", "uncertainty_mean"}
@@ -267,6 +347,7 @@ def test_tracking_logs_curves_and_the_ensemble_as_a_pytorch_model(tmp_path):
     np.testing.assert_allclose(probabilities, model.predict_proba(X[:3]), rtol=1e-5, atol=1e-6)
     signature = mlflow.models.get_model_info(logged[0].model_uri).signature
     assert list(signature.inputs.to_dict()[0]["tensor-spec"]["shape"]) == [-1, len(FEATURES)]
-    classes = json.loads(open(client.download_artifacts(run.info.run_id,
-                                                        "model_classes.json")).read())
+    classes = json.loads(
+        open(client.download_artifacts(run.info.run_id, "model_classes.json")).read()
+    )
     assert classes["classes"] == list(model.classes_)

@@ -1,5 +1,6 @@
 """The set-up: environment.txt, the rules' conda environments (they pin what environment.txt pins
 and hold every package their rules' code imports), the Python check, and `snakemake --lint`."""
+
 import ast
 import os
 import re
@@ -47,10 +48,9 @@ def rule_scripts() -> dict:
 
 
 def condmon_file(module: str):
-    """The source file of a condmon module (condmon.models lives in models/), or None."""
+    """The source file of a condmon module, or None."""
     parts = module.split(".")
-    base = ROOT / "models" if parts[:2] == ["condmon", "models"] else ROOT / "workflow" / "condmon"
-    path = base.joinpath(*parts[2 if parts[:2] == ["condmon", "models"] else 1:])
+    path = (ROOT / "workflow" / "condmon").joinpath(*parts[1:])
     for candidate in (path / "__init__.py", path.with_suffix(".py")):
         if candidate.is_file():
             return candidate
@@ -69,8 +69,11 @@ def imported_top_levels(script) -> set[str]:
                 names |= {alias.name for alias in node.names}
             elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
                 names |= {node.module} | {f"{node.module}.{alias.name}" for alias in node.names}
-            elif isinstance(node, ast.Constant) and isinstance(node.value, str) \
-                    and re.fullmatch(r"condmon(\.\w+)+:\w+", node.value):
+            elif (
+                isinstance(node, ast.Constant)
+                and isinstance(node.value, str)
+                and re.fullmatch(r"condmon(\.\w+)+:\w+", node.value)
+            ):
                 names.add(node.value.split(":")[0])
         for name in names:
             parts = name.split(".")
@@ -106,7 +109,9 @@ def test_every_rule_environment_pins_what_environment_txt_pins():
     lines = (ROOT / "environment.txt").read_text().splitlines()
     environment = pins(lines)
     # the CPU build from PyTorch's index where it answers; no local label, so the pin also resolves on PyPI
-    assert environment["torch"] == "2.13.0" and PYTORCH_CPU_INDEX in lines, "the CPU torch, chosen explicitly"
+    assert environment["torch"] == "2.13.0" and PYTORCH_CPU_INDEX in lines, (
+        "the CPU torch, chosen explicitly"
+    )
     envs = sorted(ENVS.glob("*.yaml"))
     assert envs
     for path in envs:
@@ -116,8 +121,12 @@ def test_every_rule_environment_pins_what_environment_txt_pins():
         packages = [p for p in pip if not p.startswith("-")]
         assert all("==" in p for p in packages), f"{path.name}: unpinned {packages}"
         for name, version in pins(packages).items():
-            assert environment.get(name) == version, f"{path.name}: {name}=={version}, environment.txt {environment.get(name)}"
-        assert ("torch" in pins(packages)) == (PYTORCH_CPU_INDEX in pip), f"{path.name}: torch's CPU index"
+            assert environment.get(name) == version, (
+                f"{path.name}: {name}=={version}, environment.txt {environment.get(name)}"
+            )
+        assert ("torch" in pins(packages)) == (PYTORCH_CPU_INDEX in pip), (
+            f"{path.name}: torch's CPU index"
+        )
         assert "-e ../.." in pip, f"{path.name} must install the project"
 
 
@@ -126,14 +135,21 @@ def test_every_rule_environment_holds_what_its_code_imports():
     distributions = metadata.packages_distributions()
     for rule, (env, script) in sorted(rule_scripts().items()):
         listed = with_dependencies(pins(pip_section(ENVS / f"{env}.yaml")))
-        needed = {dist.lower().replace("_", "-") for top in imported_top_levels(script)
-                  for dist in distributions.get(top, [top])}
-        assert needed - {"condmon"} <= listed, f"rule {rule}: {env}.yaml lacks {sorted(needed - listed - {'condmon'})}"
+        needed = {
+            dist.lower().replace("_", "-")
+            for top in imported_top_levels(script)
+            for dist in distributions.get(top, [top])
+        }
+        assert needed - {"condmon"} <= listed, (
+            f"rule {rule}: {env}.yaml lacks {sorted(needed - listed - {'condmon'})}"
+        )
 
 
 def test_the_import_scan_finds_the_systems_models():
     """The scan follows the registry's "module:Class" paths: the features script reaches exudyn."""
-    assert {"exudyn", "sklearn", "numpy"} <= imported_top_levels(ROOT / "workflow" / "scripts" / "features.py")
+    assert {"exudyn", "sklearn", "numpy"} <= imported_top_levels(
+        ROOT / "workflow" / "scripts" / "features.py"
+    )
 
 
 def test_a_wrong_python_is_named(monkeypatch):
@@ -151,13 +167,18 @@ def test_every_rule_has_an_environment():
 @pytest.mark.slow  # Snakemake parses the whole workflow: 5-7 s a config
 @pytest.mark.parametrize("configfile", ["config/config.yaml", ".test/config/smoke.yaml"])
 def test_the_linter_is_content(configfile):
-    result = subprocess.run([sys.executable, "-m", "snakemake", "--lint", "--configfile", configfile],
-                            cwd=ROOT, capture_output=True, text=True)
+    result = subprocess.run(
+        [sys.executable, "-m", "snakemake", "--lint", "--configfile", configfile],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
 
 
 def pypi_reachable() -> bool:
     import urllib.request
+
     try:
         urllib.request.urlopen("https://pypi.org/simple/pip/", timeout=10).close()
         return True
@@ -177,14 +198,37 @@ def test_the_pins_resolve_for_the_other_pythons(tmp_path):
     sdist_only = {"connection-pool", "connection_pool"}
     wheels = [r for r in requirements if r.split("==")[0] not in sdist_only]
     sdists = [r for r in requirements if r.split("==")[0] in sdist_only]
-    env = {k: v for k, v in os.environ.items() if not k.startswith("PIP_")}  # PyPI only, no local wheels
+    env = {
+        k: v for k, v in os.environ.items() if not k.startswith("PIP_")
+    }  # PyPI only, no local wheels
     runs = {}
     for python in ("3.12", "3.13"):
-        pip = [sys.executable, "-m", "pip", "install", "--dry-run", "--no-deps", "--ignore-installed",
-               "--isolated", "--python-version", python, "--target", str(tmp_path / python), "--quiet"]
-        for kind, extra, names in (("wheels", ["--only-binary=:all:"], wheels), ("sdists", [], sdists)):
-            runs[python, kind] = subprocess.Popen([*pip, *extra, *names], stdout=subprocess.PIPE,
-                                                  stderr=subprocess.PIPE, text=True, env=env)
+        pip = [
+            sys.executable,
+            "-m",
+            "pip",
+            "install",
+            "--dry-run",
+            "--no-deps",
+            "--ignore-installed",
+            "--isolated",
+            "--python-version",
+            python,
+            "--target",
+            str(tmp_path / python),
+            "--quiet",
+        ]
+        for kind, extra, names in (
+            ("wheels", ["--only-binary=:all:"], wheels),
+            ("sdists", [], sdists),
+        ):
+            runs[python, kind] = subprocess.Popen(
+                [*pip, *extra, *names],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+                env=env,
+            )
     for (python, kind), run in runs.items():
         _, stderr = run.communicate(timeout=900)
         assert run.returncode == 0, f"Python {python} ({kind}): " + stderr[-3000:]
@@ -193,6 +237,10 @@ def test_the_pins_resolve_for_the_other_pythons(tmp_path):
 def test_the_workflow_is_formatted_as_the_workflow_catalog_checks():
     """snakefmt --check (the version the Snakemake workflow catalog runs, pinned) on every
     Snakemake file."""
-    result = subprocess.run([sys.executable, "-m", "snakefmt", "--check", "Snakefile", "workflow"], cwd=ROOT,
-                            capture_output=True, text=True)
+    result = subprocess.run(
+        [sys.executable, "-m", "snakefmt", "--check", "Snakefile", "workflow"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert result.returncode == 0, result.stderr[-3000:]

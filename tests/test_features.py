@@ -1,12 +1,19 @@
 """Known-answer tests for the spectrum features and the features table."""
+
 import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from condmon.features import (FeatureTableError, SpectrumFeatures, amplitude_spectrum,
-                              compute_feature_table, feature_columns, read_feature_table,
-                              write_feature_table)
+from condmon.features import (
+    FeatureTableError,
+    SpectrumFeatures,
+    amplitude_spectrum,
+    compute_feature_table,
+    feature_columns,
+    read_feature_table,
+    write_feature_table,
+)
 from condmon.signals import ID_COLUMNS, SignalTableError, make_rows
 
 FS = 1000.0
@@ -77,8 +84,9 @@ def test_band_averaging_of_two_bins_with_an_offset_grid():
 
 
 def test_channels_are_concatenated_in_the_given_order():
-    extractor = SpectrumFeatures(channels=["A1_y", "A1_x"], f_min_hz=0, f_max_hz=500,
-                                 resolution_hz=5)
+    extractor = SpectrumFeatures(
+        channels=["A1_y", "A1_x"], f_min_hz=0, f_max_hz=500, resolution_hz=5
+    )
     x_channel, y_channel = sine(1.0, 40), sine(1.0, 300)
     features = extractor.transform(np.stack([y_channel, x_channel])[None], FS)[0]
     names = extractor.feature_names(FS, N)
@@ -89,21 +97,28 @@ def test_channels_are_concatenated_in_the_given_order():
 
 def test_log_scale():
     linear = SpectrumFeatures(channels=["x"], f_min_hz=0, f_max_hz=500, resolution_hz=10)
-    log = SpectrumFeatures(channels=["x"], f_min_hz=0, f_max_hz=500, resolution_hz=10,
-                           scale="log")
+    log = SpectrumFeatures(channels=["x"], f_min_hz=0, f_max_hz=500, resolution_hz=10, scale="log")
     X = sine(2.0, 123)[None, None, :]
-    np.testing.assert_allclose(log.transform(X, FS), np.log10(linear.transform(X, FS) + 1e-6),
-                               rtol=1e-5)
+    np.testing.assert_allclose(
+        log.transform(X, FS), np.log10(linear.transform(X, FS) + 1e-6), rtol=1e-5
+    )
     assert log.transform(X, FS)[0, 0] == pytest.approx(-6.0, abs=1e-3)  # silent band
 
 
 def test_feature_names_format():
-    extractor = SpectrumFeatures(channels=["A1_x", "DE"], f_min_hz=0, f_max_hz=20,
-                                 resolution_hz=4)
+    extractor = SpectrumFeatures(channels=["A1_x", "DE"], f_min_hz=0, f_max_hz=20, resolution_hz=4)
     assert extractor.feature_names(12000, 12000) == [
-        "fft_A1_x_00002.0Hz", "fft_A1_x_00006.0Hz", "fft_A1_x_00010.0Hz", "fft_A1_x_00014.0Hz",
-        "fft_A1_x_00018.0Hz", "fft_DE_00002.0Hz", "fft_DE_00006.0Hz", "fft_DE_00010.0Hz",
-        "fft_DE_00014.0Hz", "fft_DE_00018.0Hz"]
+        "fft_A1_x_00002.0Hz",
+        "fft_A1_x_00006.0Hz",
+        "fft_A1_x_00010.0Hz",
+        "fft_A1_x_00014.0Hz",
+        "fft_A1_x_00018.0Hz",
+        "fft_DE_00002.0Hz",
+        "fft_DE_00006.0Hz",
+        "fft_DE_00010.0Hz",
+        "fft_DE_00014.0Hz",
+        "fft_DE_00018.0Hz",
+    ]
 
 
 def test_resolution_finer_than_bin_width_is_an_error():
@@ -118,12 +133,15 @@ def test_f_max_above_nyquist_is_an_error():
         extractor.transform(np.zeros((1, 1, N)), FS)
 
 
-@pytest.mark.parametrize("params, culprit", [
-    (dict(scale="db"), "'db'"),
-    (dict(f_min_hz=50, f_max_hz=10), "f_min_hz=50"),
-    (dict(resolution_hz=3), "resolution_hz = 3"),
-    (dict(resolution_hz=0), "got 0"),
-])
+@pytest.mark.parametrize(
+    "params, culprit",
+    [
+        (dict(scale="db"), "'db'"),
+        (dict(f_min_hz=50, f_max_hz=10), "f_min_hz=50"),
+        (dict(resolution_hz=3), "resolution_hz = 3"),
+        (dict(resolution_hz=0), "got 0"),
+    ],
+)
 def test_bad_parameters_name_the_culprit(params, culprit):
     settings = dict(channels=["x"], f_min_hz=0, f_max_hz=100, resolution_hz=10)
     settings.update(params)
@@ -146,17 +164,20 @@ def signal_frame(records=(("r1", 125.0), ("r2", 235.0)), fs=FS, channels=("A1_x"
     rows = []
     for record_id, freq in records:
         n = int(2 * fs)
-        signals = {ch: (sine(1.0, freq, n, fs) if ch == "A1_x" else sine(0.5, freq + 100, n, fs))
-                   for ch in channels}
-        rows += make_rows(record_id, "measured", "healthy", 775, 1.0, fs, signals,
-                          segment_length=int(fs))
+        signals = {
+            ch: (sine(1.0, freq, n, fs) if ch == "A1_x" else sine(0.5, freq + 100, n, fs))
+            for ch in channels
+        }
+        rows += make_rows(
+            record_id, "measured", "healthy", 775, 1.0, fs, signals, segment_length=int(fs)
+        )
     return pd.DataFrame(rows)
 
 
 def test_feature_table_layout_and_values():
     frame = compute_feature_table(signal_frame(), ["A1_x", "A1_y"], SPECTRUM)
     names = feature_columns(frame)
-    assert list(frame.columns[:len(ID_COLUMNS)]) == ID_COLUMNS
+    assert list(frame.columns[: len(ID_COLUMNS)]) == ID_COLUMNS
     assert len(names) == 100 and names[0] == "fft_A1_x_00005.0Hz"
     assert list(zip(frame.record_id, frame.segment)) == [("r1", 0), ("r1", 1), ("r2", 0), ("r2", 1)]
     assert (frame[names].dtypes == np.float32).all()
@@ -168,8 +189,9 @@ def test_feature_table_layout_and_values():
 
 
 def test_mixed_sampling_rates_name_the_records():
-    frame = pd.concat([signal_frame([("slow", 100.0)], fs=1000.0),
-                       signal_frame([("fast", 100.0)], fs=2000.0)])
+    frame = pd.concat(
+        [signal_frame([("slow", 100.0)], fs=1000.0), signal_frame([("fast", 100.0)], fs=2000.0)]
+    )
     frame["signal"] = [s[:1000] for s in frame["signal"]]
     with pytest.raises(FeatureTableError, match=r"1000 Hz: \['slow'\].*2000 Hz: \['fast'\]"):
         compute_feature_table(frame, ["A1_x"], SPECTRUM)

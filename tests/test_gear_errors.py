@@ -1,4 +1,5 @@
 """Gear manufacturing errors by ISO 1328-1 grade, flank maps, and how they act in the mesh."""
+
 import math
 
 import numpy as np
@@ -7,9 +8,14 @@ import yaml
 from conftest import ROOT
 
 from condmon.models.gear.drivetrain import GearDrivetrainParameters, SimulationSettings, simulate
-from condmon.models.gear.errors import FlankMap, draw_gear_errors, iso1328_tolerances, wear_flank_map
+from condmon.models.gear.errors import (
+    FlankMap,
+    draw_gear_errors,
+    iso1328_tolerances,
+    wear_flank_map,
+)
 from condmon.models.gear.mesh import GearGeometry, GearMesh
-from condmon.models.gear.virtual_bench import bench_fault, broken_tooth_map, pitting_map, spall_map
+from condmon.models.gear.virtual_bench import bench_fault, broken_tooth_map, pitting_map
 
 GEOMETRY = GearGeometry()
 PINION_DIAMETER = 2 * GEOMETRY.pitch_radius(GEOMETRY.teeth_pinion)
@@ -35,20 +41,31 @@ def test_a_grade_yields_deviations_within_its_limits(grade):
     rng = np.random.default_rng(grade)
     for share in (1.0, 0.5):
         for _ in range(40):
-            gear = draw_gear_errors(rng, grade, 29, GEOMETRY.normal_module, PINION_DIAMETER, GEOMETRY.face_width, share)
+            gear = draw_gear_errors(
+                rng, grade, 29, GEOMETRY.normal_module, PINION_DIAMETER, GEOMETRY.face_width, share
+            )
             tol = gear.tolerances
-            assert np.abs(gear.single_pitch_deviations()).max() <= share * tol.single_pitch * (1 + 1e-9)
+            assert np.abs(gear.single_pitch_deviations()).max() <= share * tol.single_pitch * (
+                1 + 1e-9
+            )
             assert gear.total_cumulative_pitch() <= share * tol.cumulative_pitch * (1 + 1e-9)
             assert 2 * gear.eccentricity <= share * tol.runout * (1 + 1e-9)
             for flank in gear.flank_maps:
                 values = flank.array()
                 profile = np.ptp(values[:, 0])  # root to tip at one face edge
-                helix = np.ptp(values[0, :])    # across the face at the root
+                helix = np.ptp(values[0, :])  # across the face at the root
                 assert profile <= share * tol.profile * (1 + 1e-9)
                 assert helix <= share * tol.helix * (1 + 1e-9)
     # a real gear of the grade, not a perfect one: its largest pitch deviation a fair part of the limit
-    gear = draw_gear_errors(np.random.default_rng(1), grade, 29, GEOMETRY.normal_module, PINION_DIAMETER,
-                            GEOMETRY.face_width, 1.0)
+    gear = draw_gear_errors(
+        np.random.default_rng(1),
+        grade,
+        29,
+        GEOMETRY.normal_module,
+        PINION_DIAMETER,
+        GEOMETRY.face_width,
+        1.0,
+    )
     assert np.abs(gear.single_pitch_deviations()).max() > 0.3 * gear.tolerances.single_pitch
 
 
@@ -72,7 +89,9 @@ def test_a_flank_map_of_constant_depth_is_a_later_contact():
     """Material removed evenly from a tooth's flank (h) lowers its pair's contact exactly as a pitch
     deviation of -h would: the loaded transmission error of the mesh is the same."""
     depth = 3e-6
-    maps = tuple(FlankMap.of([[depth]]) if tooth == 5 else None for tooth in range(GEOMETRY.teeth_pinion))
+    maps = tuple(
+        FlankMap.of([[depth]]) if tooth == 5 else None for tooth in range(GEOMETRY.teeth_pinion)
+    )
     with_map = GearMesh(GEOMETRY, slices=20, flank_maps=maps)
     plain = GearMesh(GEOMETRY, slices=20)
     phase = np.linspace(3.0, 9.0, 301)
@@ -80,7 +99,9 @@ def test_a_flank_map_of_constant_depth_is_a_later_contact():
     te_plain = plain.loaded_transmission_error(phase, 300.0)
     # the worn tooth's pair carries less: the mesh deflects more while it is in contact
     assert te_map.max() > te_plain.max()
-    assert np.allclose(te_map[phase < 5.0 - with_map.window], te_plain[phase < 5.0 - with_map.window])
+    assert np.allclose(
+        te_map[phase < 5.0 - with_map.window], te_plain[phase < 5.0 - with_map.window]
+    )
 
 
 def _sideband(signal, fs, gmf, shaft):
@@ -90,7 +111,8 @@ def _sideband(signal, fs, gmf, shaft):
 
     def peak(f):
         i = int(np.argmin(abs(freqs - f)))
-        return amplitude[i - 1:i + 2].max()
+        return amplitude[i - 1 : i + 2].max()
+
     return peak(gmf - shaft) + peak(gmf + shaft)
 
 
@@ -103,7 +125,9 @@ def test_eccentricity_raises_the_mesh_sidebands_as_it_grows():
     settings = SimulationSettings(duration=0.6)
     levels = []
     for eccentricity in (0.0, 5e-6, 20e-6):
-        signals = simulate(GearDrivetrainParameters(speed_rpm=speed, runout_pinion=eccentricity), settings)
+        signals = simulate(
+            GearDrivetrainParameters(speed_rpm=speed, runout_pinion=eccentricity), settings
+        )
         levels.append(_sideband(signals["A1_y"], settings.output_rate, gmf, shaft))
     assert levels[0] < levels[1] < levels[2]
     assert levels[2] > 3 * levels[1] > 9 * levels[0]
@@ -113,8 +137,10 @@ def test_bench_fault_forms_are_its_own_geometry():
     """The bench's surface fault (pitting), missing tooth (broken tooth) and spall (a crater) are
     flank geometry it builds itself: the model runs them as a healthy mesh with those flanks."""
     rng = np.random.default_rng(3)
-    faults = {"surface_fault": {"form": "pitting", "teeth": 4, "pit_depth": 3e-5, "pitted_area": 0.3},
-              "missing_tooth": {"form": "broken_tooth", "broken_height": 0.8}}
+    faults = {
+        "surface_fault": {"form": "pitting", "teeth": 4, "pit_depth": 3e-5, "pitted_area": 0.3},
+        "missing_tooth": {"form": "broken_tooth", "broken_height": 0.8},
+    }
     state, maps = bench_fault("surface_fault", faults, 29, 27, rng)
     assert state == "healthy"
     assert [i for i, m in enumerate(maps) if m is not None] == [0, 1, 27, 28]
@@ -123,7 +149,11 @@ def test_bench_fault_forms_are_its_own_geometry():
     band = pits[(roll >= 0.3) & (roll <= 0.6)]
     assert (band > 0).mean() >= 0.3 and pits.max() <= 3e-5 and pits[:8].max() == 0.0
     state, maps = bench_fault("missing_tooth", faults, 29, 3, rng)
-    assert state == "healthy" and maps[3].array()[-1, 0] == pytest.approx(1e-3) and maps[3].array()[0, 0] == 0.0
+    assert (
+        state == "healthy"
+        and maps[3].array()[-1, 0] == pytest.approx(1e-3)
+        and maps[3].array()[0, 0] == 0.0
+    )
     assert bench_fault("spall", faults, 29, 3, rng) == ("spall", ())  # no bench form: the model's
     with pytest.raises(ValueError, match="unknown form"):
         bench_fault("spall", {"spall": {"form": "crater"}}, 29, 3, rng)
@@ -132,10 +162,16 @@ def test_bench_fault_forms_are_its_own_geometry():
     state, maps = bench_fault("spall", faults, 20, 11, rng)
     assert state == "healthy" and [i for i, m in enumerate(maps) if m is not None] == [11]
     crater = maps[11].array()
-    roll, face = np.meshgrid(np.linspace(0, 1, crater.shape[0]), np.linspace(0, 1, crater.shape[1]), indexing="ij")
+    roll, face = np.meshgrid(
+        np.linspace(0, 1, crater.shape[0]), np.linspace(0, 1, crater.shape[1]), indexing="ij"
+    )
     inside = (roll >= 0.3) & (roll <= 0.6) & (face >= 0.1) & (face <= 0.9)
     assert crater[~inside].max() == 0.0
-    assert 0.7 * 2e-4 <= crater[inside].min() and crater[inside].max() <= 2e-4 and np.ptp(crater[inside]) > 0
+    assert (
+        0.7 * 2e-4 <= crater[inside].min()
+        and crater[inside].max() <= 2e-4
+        and np.ptp(crater[inside]) > 0
+    )
     assert pitting_map(rng, 1e-5, 0.5).array().max() <= 1e-5
     assert broken_tooth_map(0.5).array()[:20].max() == 0.0
 
@@ -155,18 +191,26 @@ def test_per_sample_gear_errors_come_from_the_config():
     assert low <= effects["wear_depth"] <= high
     widths = []
     for k in range(20):  # the spall: its width drawn in its range, anywhere across the face
-        start, end = sample_effects(system.config["model"], params.geometry, np.random.default_rng(k))["spall_face"]
+        start, end = sample_effects(
+            system.config["model"], params.geometry, np.random.default_rng(k)
+        )["spall_face"]
         assert 0.0 <= start < end <= 1.0
         widths.append(end - start)
     low, high = system.config["model"]["fault_severity"]["spall_width"]
     assert low <= min(widths) and max(widths) <= high and np.ptp(widths) > (high - low) / 4
     grade_high = system.config["model"]["gear_errors"]["grade"][1]
-    tol = iso1328_tolerances(grade_high, params.geometry.normal_module, PINION_DIAMETER, params.geometry.face_width)
+    tol = iso1328_tolerances(
+        grade_high, params.geometry.normal_module, PINION_DIAMETER, params.geometry.face_width
+    )
     pitch = np.asarray(effects["pitch_errors_pinion"])
     assert np.ptp(pitch) <= tol.cumulative_pitch and math.isfinite(effects["runout_pinion"])
     cycle = math.lcm(params.geometry.teeth_pinion, params.geometry.teeth_gear)
-    starts = [sample_effects(system.config["model"], params.geometry, np.random.default_rng(k))["start_mesh_phase"]
-              for k in range(20)]
+    starts = [
+        sample_effects(system.config["model"], params.geometry, np.random.default_rng(k))[
+            "start_mesh_phase"
+        ]
+        for k in range(20)
+    ]
     assert 0.0 <= min(starts) and max(starts) < cycle and np.ptp(starts) > cycle / 4
 
 
@@ -179,10 +223,14 @@ def test_a_run_starts_at_its_drawn_mesh_phase():
     later = base.replace(start_mesh_phase=7.25)
     period = 1.0 / (600.0 / 60 * GEOMETRY.teeth_pinion)
     for t in (0.0, 0.013, 0.2):
-        assert MeshForce(later).excitation(t)[0] == pytest.approx(MeshForce(base).excitation(t + 7.25 * period)[0])
+        assert MeshForce(later).excitation(t)[0] == pytest.approx(
+            MeshForce(base).excitation(t + 7.25 * period)[0]
+        )
     fluctuating = base.replace(speed_fluctuation=0.01, speed_fluctuation_phase=0.4)
     shifted = fluctuating.replace(start_mesh_phase=3.0)
-    assert MeshForce(shifted).excitation(0.1)[0] == pytest.approx(MeshForce(fluctuating).excitation(0.1)[0] + 3.0)
+    assert MeshForce(shifted).excitation(0.1)[0] == pytest.approx(
+        MeshForce(fluctuating).excitation(0.1)[0] + 3.0
+    )
 
 
 def test_every_bench_record_starts_at_its_own_shaft_angle(monkeypatch):
@@ -192,8 +240,13 @@ def test_every_bench_record_starts_at_its_own_shaft_angle(monkeypatch):
     import condmon.models.gear.virtual_bench as vb
 
     seen = []
-    monkeypatch.setattr(vb, "simulate", lambda params, settings, extra_loads=(): (
-        seen.append(params.start_mesh_phase) or {"A1_x": np.zeros(8)}))
+    monkeypatch.setattr(
+        vb,
+        "simulate",
+        lambda params, settings, extra_loads=(): (
+            seen.append(params.start_mesh_phase) or {"A1_x": np.zeros(8)}
+        ),
+    )
     truth, settings = GearDrivetrainParameters(speed_rpm=775.0), SimulationSettings(duration=0.1)
     for seed in (5, 5):
         rng = np.random.default_rng(seed)
@@ -204,17 +257,20 @@ def test_every_bench_record_starts_at_its_own_shaft_angle(monkeypatch):
     assert 0.0 <= min(seen) and max(seen) < cycle and np.ptp(seen) > cycle / 4
 
 
-@pytest.mark.parametrize("variant", sorted(p.name for p in (ROOT / "config" / "benches").glob("*.yaml")))
+@pytest.mark.parametrize(
+    "variant", sorted(p.name for p in (ROOT / "config" / "benches").glob("*.yaml"))
+)
 def test_bench_variants_layer_over_the_default_config(variant):
-    """Each shipped bench variant states only what differs: layered over config/config.yaml (as
-    `--configfile config/config.yaml config/benches/<variant>` does) it validates, names its own run
-    and differs from the default bench in what the report lists."""
+    """Each shipped bench variant states only what differs from config/config.yaml, its base: alone
+    (`--configfile config/benches/<variant>`) it validates, names its own run and differs from the
+    default bench in what the report lists."""
     from conftest import deep_update, system_of
 
     changes = yaml.safe_load((ROOT / "config" / "benches" / variant).read_text())
     default = system_of("config/config.yaml")
-    system = system_of("config/config.yaml", changes)
+    system = system_of(f"config/benches/{variant}")
     assert not system.problems()
+    assert changes.pop("base") == "config/config.yaml"
     assert system.config["run_name"] != default.config["run_name"]
     assert system.bench_differences() != default.bench_differences()
     assert set(changes) <= {"run_name", "virtual_bench"}  # the model section is the default run's
@@ -261,15 +317,34 @@ def test_bench_differences_follow_the_config():
     search range or a fluctuation beyond the drawn one says so, an override no calibration tunes is
     neither, per-state calibration calibrates its state, a parameter the search leaves out is neither."""
     deficit = _differences({"calibration": {"background_method": "deficit"}})
-    assert next(row for name, row in deficit.items() if name.startswith("motor torque ripple"))["handled"] == "calibrated"
-    outside = _differences({"model": {"variability": {"speed_fluctuation_source": "config"}},
-                            "virtual_bench": {"true_parameters": {"mesh_stiffness": 2.0e9}, "speed_fluctuation": 0.01,
-                                              "model_overrides": {"gear_mass": 1.6},
-                                              "faults": {"missing_tooth": {"form": "broken_tooth",
-                                                                           "broken_height": 0.3}}}})
-    assert outside["mesh_stiffness 2e+09 at contact_exponent 1.3"]["within_range"] is False  # 0.17 um
-    calibrated_mesh = _differences({"model": {"mesh_compliance": None}, "calibration": {"parameters": {
-        "mesh_stiffness": {"low": 1e8, "high": 1.5e9, "log": True}}}})
+    assert (
+        next(row for name, row in deficit.items() if name.startswith("motor torque ripple"))[
+            "handled"
+        ]
+        == "calibrated"
+    )
+    outside = _differences(
+        {
+            "model": {"variability": {"speed_fluctuation_source": "config"}},
+            "virtual_bench": {
+                "true_parameters": {"mesh_stiffness": 2.0e9},
+                "speed_fluctuation": 0.01,
+                "model_overrides": {"gear_mass": 1.6},
+                "faults": {"missing_tooth": {"form": "broken_tooth", "broken_height": 0.3}},
+            },
+        }
+    )
+    assert (
+        outside["mesh_stiffness 2e+09 at contact_exponent 1.3"]["within_range"] is False
+    )  # 0.17 um
+    calibrated_mesh = _differences(
+        {
+            "model": {"mesh_compliance": None},
+            "calibration": {
+                "parameters": {"mesh_stiffness": {"low": 1e8, "high": 1.5e9, "log": True}}
+            },
+        }
+    )
     assert calibrated_mesh["mesh_stiffness 5.5e+08"]["handled"] == "calibrated"
     assert calibrated_mesh["contact_exponent 1.3"]["handled"] == "neither"
     assert outside["speed fluctuation 0.01 at 1.5 Hz"]["within_range"] is False
@@ -281,9 +356,16 @@ def test_bench_differences_follow_the_config():
     from condmon.systems.gear.differences import bench_differences
 
     system = system_of("config/config.yaml")
-    calibration = dict(system.config["calibration"], parameters={"mesh_stiffness": {"low": 1e8, "high": 1.5e9}})
-    rows = bench_differences(dict(system.config, calibration=calibration), system.health_states, system.healthy_state)
-    assert next(row for row in rows if row["difference"].startswith("bushing_damping"))["handled"] == "neither"
+    calibration = dict(
+        system.config["calibration"], parameters={"mesh_stiffness": {"low": 1e8, "high": 1.5e9}}
+    )
+    rows = bench_differences(
+        dict(system.config, calibration=calibration), system.health_states, system.healthy_state
+    )
+    assert (
+        next(row for row in rows if row["difference"].startswith("bushing_damping"))["handled"]
+        == "neither"
+    )
 
 
 def test_pitting_starts_between_the_lowest_point_of_single_contact_and_the_pitch_point():
@@ -291,12 +373,17 @@ def test_pitting_starts_between_the_lowest_point_of_single_contact_and_the_pitch
     contact (one base pitch before its end), C at the pitch point; the pits lie in it."""
     from condmon.models.gear.errors import contact_fatigue_band, pitted_flank_map
 
-    for geometry in (GEOMETRY, GearGeometry(teeth_pinion=20, teeth_gear=30, normal_module=2e-3, helix_angle_deg=0.0)):
+    for geometry in (
+        GEOMETRY,
+        GearGeometry(teeth_pinion=20, teeth_gear=30, normal_module=2e-3, helix_angle_deg=0.0),
+    ):
         low, high = contact_fatigue_band(geometry)
         eps = geometry.contact_ratio
-        pitch = (geometry.pitch_point - geometry.path_start) / (geometry.path_end - geometry.path_start)
+        pitch = (geometry.pitch_point - geometry.path_start) / (
+            geometry.path_end - geometry.path_start
+        )
         assert (low, high) == pytest.approx(tuple(sorted(((eps - 1) / eps, pitch))))
-        assert 0.25 < low < high < 0.6   # the dedendum, up to the pitch line
+        assert 0.25 < low < high < 0.6  # the dedendum, up to the pitch line
     band = contact_fatigue_band(GEOMETRY)
     pits = pitted_flank_map(3e-5, 0.3, band, np.random.default_rng(4)).array()
     roll = np.linspace(0, 1, pits.shape[0])
@@ -308,8 +395,12 @@ def test_pitting_starts_between_the_lowest_point_of_single_contact_and_the_pitch
 
 
 def test_pitting_is_the_surface_fault_and_wear_a_state_of_its_own():
-    from condmon.models.gear.mesh_force import (contact_stiffness_factors, damage_maps, pitting_band,
-                                                surface_fault_form)
+    from condmon.models.gear.mesh_force import (
+        contact_stiffness_factors,
+        damage_maps,
+        pitting_band,
+        surface_fault_form,
+    )
 
     p = GearDrivetrainParameters(health_state="surface_fault", surface_fault_teeth=4)
     assert surface_fault_form(p) == "pitting"
@@ -318,16 +409,24 @@ def test_pitting_is_the_surface_fault_and_wear_a_state_of_its_own():
     # progressive pitting spreads beyond the band where it starts
     low, high = pitting_band(p)
     assert pitting_band(p.replace(pitting_growth=0.1)) == pytest.approx((low - 0.1, high + 0.1))
-    worn = damage_maps(p.replace(health_state="wear"))  # wear: every tooth slides alike, every tooth wears
+    worn = damage_maps(
+        p.replace(health_state="wear")
+    )  # wear: every tooth slides alike, every tooth wears
     assert all(m is not None for m in worn) and len(worn) == p.geometry.teeth_pinion
     assert not np.array_equal(worn[0].array(), worn[1].array())  # each its own rough surface
     # the CFRP study's -15 %: on the surface fault's teeth, or on the whole mesh
     teeth_only = contact_stiffness_factors(p.replace(surface_fault_model="stiffness_loss"))
     assert teeth_only[:4] == [0.85] * 4 and teeth_only[4:] == [1.0] * (p.geometry.teeth_pinion - 4)
-    assert contact_stiffness_factors(p.replace(surface_fault_model="mesh_stiffness_loss")) == \
-        [0.85] * p.geometry.teeth_pinion
-    assert contact_stiffness_factors(p.replace(surface_fault_model="mesh_stiffness_loss",
-                                               health_state="wear")) == [1.0] * p.geometry.teeth_pinion
+    assert (
+        contact_stiffness_factors(p.replace(surface_fault_model="mesh_stiffness_loss"))
+        == [0.85] * p.geometry.teeth_pinion
+    )
+    assert (
+        contact_stiffness_factors(
+            p.replace(surface_fault_model="mesh_stiffness_loss", health_state="wear")
+        )
+        == [1.0] * p.geometry.teeth_pinion
+    )
     with pytest.raises(ValueError, match="unknown surface_fault_model"):
         surface_fault_form(p.replace(surface_fault_model="rust"))
 
@@ -340,12 +439,18 @@ def test_a_tooth_broken_short_of_its_root_is_a_damage_map_and_a_whole_one_is_mis
 
     gone = broken_tooth_flank_map(0.6).array() > 0
     assert gone.mean() == pytest.approx(0.6, abs=0.05)
-    assert gone[-1].all() and not gone[0].any()            # the tip is gone, the root stays
-    assert gone[:, 0].sum() > gone[:, -1].sum()             # the fracture runs across the face
+    assert gone[-1].all() and not gone[0].any()  # the tip is gone, the root stays
+    assert gone[:, 0].sum() > gone[:, -1].sum()  # the fracture runs across the face
     with pytest.raises(ValueError, match="missing_share"):
         broken_tooth_flank_map(0.0)
-    broken = GearDrivetrainParameters(health_state="missing_tooth", missing_share=0.6, faulty_tooth=3)
+    broken = GearDrivetrainParameters(
+        health_state="missing_tooth", missing_share=0.6, faulty_tooth=3
+    )
     maps = damage_maps(broken)
-    assert tooth_damage(broken) is None and maps[3] is not None and sum(m is not None for m in maps) == 1
+    assert (
+        tooth_damage(broken) is None
+        and maps[3] is not None
+        and sum(m is not None for m in maps) == 1
+    )
     whole = broken.replace(missing_share=1.0)
     assert tooth_damage(whole).kind == "missing" and damage_maps(whole) == ()

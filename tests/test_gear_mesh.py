@@ -1,13 +1,23 @@
 """The potential-energy mesh stiffness (models/gear/mesh.py) on its own: no exudyn."""
+
 import math
 
 import numpy as np
 import pytest
 
-from condmon.models.gear.mesh import (GearGeometry, GearMesh, ProfileDeviation, ToothDamage, iso6336_mesh_stiffness,
-                                      pair_stiffness_per_width, tooth_compliances)
+from condmon.models.gear.mesh import (
+    GearGeometry,
+    GearMesh,
+    ProfileDeviation,
+    ToothDamage,
+    iso6336_mesh_stiffness,
+    pair_stiffness_per_width,
+    tooth_compliances,
+)
 
-RIG = GearGeometry()  # the helical-gear study's pair: 29/44, m_n 2.25 mm, 20 deg, 26 deg helix, b 20 mm
+RIG = (
+    GearGeometry()
+)  # the helical-gear study's pair: 29/44, m_n 2.25 mm, 20 deg, 26 deg helix, b 20 mm
 SPUR = GearGeometry(helix_angle_deg=0.0)
 
 
@@ -23,7 +33,8 @@ def test_rig_geometry_and_cases_of_root_vs_base_circle():
     # The pinion's root circle lies inside its base circle (case 1), the gear's outside (case 2).
     assert RIG.root_below_base(29) and not RIG.root_below_base(44)
     assert 1.2 < RIG.contact_ratio < 2.0 and RIG.overlap_ratio == pytest.approx(
-        RIG.face_width * math.sin(RIG.helix_angle) / (math.pi * RIG.normal_module))
+        RIG.face_width * math.sin(RIG.helix_angle) / (math.pi * RIG.normal_module)
+    )
 
 
 def test_the_two_cases_meet_where_root_and_base_circle_coincide():
@@ -54,7 +65,9 @@ def test_helical_tvms_has_the_mesh_period_and_the_iso_6336_mean(rig_mesh):
     k = rig_mesh.mesh_stiffness(phase)
     np.testing.assert_allclose(rig_mesh.mesh_stiffness(phase + 1.0), k, rtol=1e-9)
     np.testing.assert_allclose(rig_mesh.mesh_stiffness(phase + 7.0), k, rtol=1e-9)
-    assert np.abs(rig_mesh.mesh_stiffness(phase + 0.5) - k).max() > 0.05 * k.mean()  # not a shorter period
+    assert (
+        np.abs(rig_mesh.mesh_stiffness(phase + 0.5) - k).max() > 0.05 * k.mean()
+    )  # not a shorter period
     iso = iso6336_mesh_stiffness(RIG)
     assert 2.5e8 < iso < 4.5e8  # c_gamma_alpha ~ 17 N/(mm um) times 20 mm
     assert rig_mesh.mean_stiffness == pytest.approx(iso, rel=0.25)
@@ -108,8 +121,10 @@ def test_spur_pair_gives_the_rectangular_wave():
 def test_slicing_converges_as_the_number_of_slices_grows():
     phase = np.linspace(0.0, 1.0, 501)
     reference = GearMesh(RIG, slices=640).mesh_stiffness(phase)
-    errors = [np.abs(GearMesh(RIG, slices=m).mesh_stiffness(phase) - reference).max() / reference.mean()
-              for m in (5, 10, 20, 40, 80)]
+    errors = [
+        np.abs(GearMesh(RIG, slices=m).mesh_stiffness(phase) - reference).max() / reference.mean()
+        for m in (5, 10, 20, 40, 80)
+    ]
     assert all(b < a for a, b in zip(errors, errors[1:])), errors
     assert errors[-1] < 0.01  # the drivetrain's default of 80 slices
     # each slice enters and leaves contact gradually (its share of contact line in the path), so
@@ -134,11 +149,16 @@ def test_missing_tooth_removes_exactly_one_tooth_share_once_per_pinion_revolutio
     for rev in (0, 1):
         in_window = (phase >= rev * z) & (phase < rev * z + missing.window)
         # Exactly pinion tooth 0's pair: its whole stiffness over its mesh ...
-        np.testing.assert_allclose(loss[in_window], rig_mesh.pair_stiffness(phase[in_window] - rev * z),
-                                   rtol=1e-9, atol=1e-6 * rig_mesh.mean_stiffness)
+        np.testing.assert_allclose(
+            loss[in_window],
+            rig_mesh.pair_stiffness(phase[in_window] - rev * z),
+            rtol=1e-9,
+            atol=1e-6 * rig_mesh.mean_stiffness,
+        )
         # ... which integrates to one tooth's share: one mesh period of the mean stiffness.
         assert loss[(phase >= rev * z) & (phase < (rev + 1) * z)].sum() * 0.01 == pytest.approx(
-            rig_mesh.mean_stiffness, rel=0.01)
+            rig_mesh.mean_stiffness, rel=0.01
+        )
     # Nothing changes while tooth 0 is out of mesh.
     out = ((phase % z) >= missing.window + 0.01) & ((phase % z) < z - 0.01)
     assert np.abs(loss[out]).max() < 1e-6 * rig_mesh.mean_stiffness
@@ -147,8 +167,17 @@ def test_missing_tooth_removes_exactly_one_tooth_share_once_per_pinion_revolutio
 def test_spall_chip_and_crack_act_on_their_tooth_and_region_only(rig_mesh):
     u = rig_mesh.u
     healthy = rig_mesh.pair_stiffness(u)
-    spall = GearMesh(RIG, damage=ToothDamage("spall", teeth=(3,), profile=(0.35, 0.65), face=(0.25, 0.75),
-                                             depth=2e-5, stiffness_loss=0.15))
+    spall = GearMesh(
+        RIG,
+        damage=ToothDamage(
+            "spall",
+            teeth=(3,),
+            profile=(0.35, 0.65),
+            face=(0.25, 0.75),
+            depth=2e-5,
+            stiffness_loss=0.15,
+        ),
+    )
     groups = spall.groups(3)
     assert len(groups) == 2 and spall.groups(4) is spall.healthy_groups
     pit = groups[1]
@@ -156,14 +185,18 @@ def test_spall_chip_and_crack_act_on_their_tooth_and_region_only(rig_mesh):
     inside = pit.stiffness > 0
     assert inside.any() and np.allclose(pit.deviation[inside], 2e-5)
     assert np.all(groups[0].stiffness + pit.stiffness <= healthy + 1e-6)
-    assert (groups[0].stiffness + pit.stiffness / 0.85 == pytest.approx(healthy, rel=1e-9))
+    assert groups[0].stiffness + pit.stiffness / 0.85 == pytest.approx(healthy, rel=1e-9)
     # Chip: the tooth loses contact near its tip only (the pair's late phases).
-    chip = GearMesh(RIG, damage=ToothDamage("chip", teeth=(0,), profile=(0.6, 1.0), face=(0.0, 0.5)))
+    chip = GearMesh(
+        RIG, damage=ToothDamage("chip", teeth=(0,), profile=(0.6, 1.0), face=(0.0, 0.5))
+    )
     loss = healthy - chip.pair_stiffness(u, tooth=0)
     assert loss.max() > 0.1 * healthy.max() and np.all(loss[u < 0.5] == 0)
     # Root crack: stiffness falls with crack depth over the whole mesh of the tooth.
-    means = [GearMesh(RIG, damage=ToothDamage("crack", crack_depth=q)).pair_stiffness(u, tooth=0).mean()
-             for q in (0.0, 0.25, 0.5, 0.75)]
+    means = [
+        GearMesh(RIG, damage=ToothDamage("crack", crack_depth=q)).pair_stiffness(u, tooth=0).mean()
+        for q in (0.0, 0.25, 0.5, 0.75)
+    ]
     assert means[0] == pytest.approx(healthy.mean(), rel=1e-9)
     assert all(b < a for a, b in zip(means, means[1:]))
 
@@ -179,16 +212,29 @@ def test_damage_deeper_than_the_deflection_takes_its_part_of_the_line_out_of_con
     half = FlankMap.of(np.where(np.linspace(0, 1, 101) <= 0.5, depth, 0.0)[None, :])
     maps = tuple(half if t == tooth else None for t in range(SPUR.teeth_pinion))
     mapped = GearMesh(SPUR, slices=20, damage_maps=maps)
-    spall = GearMesh(SPUR, slices=20, damage=ToothDamage("spall", teeth=(tooth,), profile=(0.0, 1.0),
-                                                         face=(0.0, 0.5), depth=depth, stiffness_loss=0.0))
+    spall = GearMesh(
+        SPUR,
+        slices=20,
+        damage=ToothDamage(
+            "spall",
+            teeth=(tooth,),
+            profile=(0.0, 1.0),
+            face=(0.0, 0.5),
+            depth=depth,
+            stiffness_loss=0.0,
+        ),
+    )
     healthy = GearMesh(SPUR, slices=20)
-    alone = tooth + np.linspace(SPUR.contact_ratio - 1 + 0.05, 0.95, 20)  # tooth 5's pair alone in mesh
+    alone = tooth + np.linspace(
+        SPUR.contact_ratio - 1 + 0.05, 0.95, 20
+    )  # tooth 5's pair alone in mesh
     base = healthy.loaded_transmission_error(alone, load)
     change = mapped.loaded_transmission_error(alone, load) - base
     assert change == pytest.approx(base, rel=0.1)  # half the line: twice the deflection
-    assert change.max() < 0.1 * depth / 2                       # not half the depth
+    assert change.max() < 0.1 * depth / 2  # not half the depth
     assert mapped.loaded_transmission_error(alone, load) == pytest.approx(
-        spall.loaded_transmission_error(alone, load), rel=1e-6)
+        spall.loaded_transmission_error(alone, load), rel=1e-6
+    )
     with pytest.raises(ValueError, match="damage map and a spall"):
         GearMesh(SPUR, slices=20, damage_maps=maps, damage=ToothDamage("spall", teeth=(tooth,)))
 
@@ -215,8 +261,10 @@ def test_static_transmission_error_follows_the_profile_deviation():
         assert sized.flank_amplitude == pytest.approx(0.3e-6 / sized.sine_te_gain)
     # Tip relief lowers the stiffness-weighted engagement and adds a static TE of its own.
     relief = GearMesh(SPUR, slices=1, profile_deviation=ProfileDeviation(tip_relief=5e-6))
-    assert relief.loaded_transmission_error(phase, load).mean() > GearMesh(SPUR, slices=1).loaded_transmission_error(
-        phase, load).mean()
+    assert (
+        relief.loaded_transmission_error(phase, load).mean()
+        > GearMesh(SPUR, slices=1).loaded_transmission_error(phase, load).mean()
+    )
 
 
 def test_damage_and_geometry_errors_are_named():

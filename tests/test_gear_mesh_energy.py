@@ -20,6 +20,7 @@ checked to be sensitive: `test_the_tolerance_sees_each_stiffness_term` proves on
 itself that halving the shear term, doubling the bending term or dropping the axial term moves
 the pair stiffness by several times the tolerance.
 """
+
 import math
 
 import numpy as np
@@ -41,11 +42,23 @@ SPUR_CASES = {
     # the rig's pair made spur: pinion root inside its base circle (case 1), gear outside (case 2)
     "rig-29/44": GearGeometry(helix_angle_deg=0.0),
     # a coarser pair: 20-tooth pinion (case 1) against a 60-tooth gear (case 2)
-    "m3-20/60": GearGeometry(helix_angle_deg=0.0, teeth_pinion=20, teeth_gear=60, normal_module=3e-3,
-                             bore_radius_pinion=0.010, bore_radius_gear=0.030),
+    "m3-20/60": GearGeometry(
+        helix_angle_deg=0.0,
+        teeth_pinion=20,
+        teeth_gear=60,
+        normal_module=3e-3,
+        bore_radius_pinion=0.010,
+        bore_radius_gear=0.030,
+    ),
     # both root circles outside the base circles (case 2 on both sides)
-    "m2-50/70": GearGeometry(helix_angle_deg=0.0, teeth_pinion=50, teeth_gear=70, normal_module=2e-3,
-                             bore_radius_pinion=0.020, bore_radius_gear=0.030),
+    "m2-50/70": GearGeometry(
+        helix_angle_deg=0.0,
+        teeth_pinion=50,
+        teeth_gear=70,
+        normal_module=2e-3,
+        bore_radius_pinion=0.020,
+        bore_radius_gear=0.030,
+    ),
 }
 
 # Sainsot, Velex & Duverger (2004), J. Mech. Design 126(4): 748-752, Table 1 (as reproduced by
@@ -62,6 +75,7 @@ SAINSOT_TABLE = {
 
 # --- independent reference -------------------------------------------------------------------------
 
+
 def inv(angle):
     """Involute function."""
     return math.tan(angle) - angle
@@ -75,7 +89,10 @@ def reference_pair(g: GearGeometry) -> dict:
     m_t = g.normal_module / math.cos(beta)
     alpha_t = math.atan(math.tan(alpha_n) / math.cos(beta))
     teeth = {}
-    for name, z, bore in (("pinion", g.teeth_pinion, g.bore_radius_pinion), ("gear", g.teeth_gear, g.bore_radius_gear)):
+    for name, z, bore in (
+        ("pinion", g.teeth_pinion, g.bore_radius_pinion),
+        ("gear", g.teeth_gear, g.bore_radius_gear),
+    ):
         r_p = z * m_t / 2
         teeth[name] = {
             "rb": r_p * math.cos(alpha_t),
@@ -88,9 +105,13 @@ def reference_pair(g: GearGeometry) -> dict:
     p, w = teeth["pinion"], teeth["gear"]
     t1t2 = (p["rb"] + w["rb"]) * math.tan(alpha_t)
     return {
-        "pinion": p, "gear": w, "E": g.youngs_modulus, "nu": g.poisson_ratio, "t1t2": t1t2,
+        "pinion": p,
+        "gear": w,
+        "E": g.youngs_modulus,
+        "nu": g.poisson_ratio,
+        "t1t2": t1t2,
         "start": t1t2 - math.sqrt(w["ra"] ** 2 - w["rb"] ** 2),  # gear tip on the pinion flank
-        "end": math.sqrt(p["ra"] ** 2 - p["rb"] ** 2),           # pinion tip
+        "end": math.sqrt(p["ra"] ** 2 - p["rb"] ** 2),  # pinion tip
         "base_pitch": math.pi * m_t * math.cos(alpha_t),
         "base_helix": math.asin(math.sin(beta) * math.cos(alpha_n)),
         "width": g.face_width,
@@ -129,23 +150,39 @@ def reference_tooth(tooth: dict, a1: float, e_mod: float, nu: float, width: floa
     def integral(f):
         return quad(f, -a1, upper, epsabs=0.0, epsrel=1e-11, limit=200)[0]
 
-    bending = integral(lambda a: 3 * (1 + c1 * ((a2 - a) * math.sin(a) - math.cos(a))) ** 2 * (a2 - a) * math.cos(a)
-                       / (2 * e_mod * width * half_thickness(a) ** 3))
-    shear = integral(lambda a: 1.2 * (1 + nu) * (a2 - a) * math.cos(a) * c1 ** 2
-                     / (e_mod * width * half_thickness(a)))
-    axial = integral(lambda a: (a2 - a) * math.cos(a) * s1 ** 2 / (2 * e_mod * width * half_thickness(a)))
+    bending = integral(
+        lambda a: (
+            3
+            * (1 + c1 * ((a2 - a) * math.sin(a) - math.cos(a))) ** 2
+            * (a2 - a)
+            * math.cos(a)
+            / (2 * e_mod * width * half_thickness(a) ** 3)
+        )
+    )
+    shear = integral(
+        lambda a: (
+            1.2 * (1 + nu) * (a2 - a) * math.cos(a) * c1**2 / (e_mod * width * half_thickness(a))
+        )
+    )
+    axial = integral(
+        lambda a: (a2 - a) * math.cos(a) * s1**2 / (2 * e_mod * width * half_thickness(a))
+    )
     if case1:
         hb = rb * math.sin(a2)
-        x_base, x_root = rb * math.cos(a2), math.sqrt(rf ** 2 - hb ** 2)
+        x_base, x_root = rb * math.cos(a2), math.sqrt(rf**2 - hb**2)
         area, inertia = 2 * hb * width, (2 * hb) ** 3 * width / 12
         bending += ((rb - x_root * c1) ** 3 - (rb - x_base * c1) ** 3) / (3 * c1 * e_mod * inertia)
-        shear += 1.2 * c1 ** 2 * (x_base - x_root) / (shear_mod * area)
-        axial += s1 ** 2 * (x_base - x_root) / (e_mod * area)
+        shear += 1.2 * c1**2 * (x_base - x_root) / (shear_mod * area)
+        axial += s1**2 * (x_base - x_root) / (e_mod * area)
         theta_f = math.asin(hb / rf)  # the straight flank meets the root circle
     else:
         theta_f = a2 - inv(math.acos(rb / rf))  # the involute meets the root circle
-    return {"bending": bending, "shear": shear, "axial": axial,
-            "fillet": reference_fillet(tooth, a1, theta_f, e_mod, width)}
+    return {
+        "bending": bending,
+        "shear": shear,
+        "axial": axial,
+        "fillet": reference_fillet(tooth, a1, theta_f, e_mod, width),
+    }
 
 
 def reference_fillet(tooth: dict, a1: float, theta_f: float, e_mod: float, width: float) -> float:
@@ -154,11 +191,20 @@ def reference_fillet(tooth: dict, a1: float, theta_f: float, e_mod: float, width
     joining the two fillet ends (at r_f cos theta_f) to where the line of action crosses the tooth
     centre line (at r_b / cos a1, the line being tangent to the base circle), h_f = r_f / r_bore."""
     rf, h_f = tooth["rf"], tooth["rf"] / tooth["bore"]
-    coeff = {k: a / theta_f ** 2 + b * h_f ** 2 + c * h_f / theta_f + d / theta_f + e * h_f + f
-             for k, (a, b, c, d, e, f) in SAINSOT_TABLE.items()}
+    coeff = {
+        k: a / theta_f**2 + b * h_f**2 + c * h_f / theta_f + d / theta_f + e * h_f + f
+        for k, (a, b, c, d, e, f) in SAINSOT_TABLE.items()
+    }
     ratio = (tooth["rb"] / math.cos(a1) - rf * math.cos(theta_f)) / (2 * rf * theta_f)
-    return math.cos(a1) ** 2 / (e_mod * width) * (
-        coeff["L"] * ratio ** 2 + coeff["M"] * ratio + coeff["P"] * (1 + coeff["Q"] * math.tan(a1) ** 2))
+    return (
+        math.cos(a1) ** 2
+        / (e_mod * width)
+        * (
+            coeff["L"] * ratio**2
+            + coeff["M"] * ratio
+            + coeff["P"] * (1 + coeff["Q"] * math.tan(a1) ** 2)
+        )
+    )
 
 
 def reference_pair_stiffness(ref: dict, s, scale: dict | None = None) -> np.ndarray:
@@ -167,7 +213,7 @@ def reference_pair_stiffness(ref: dict, s, scale: dict | None = None) -> np.ndar
     single terms (used only to show the tolerance sees each term)."""
     scale = scale or {}
     e_mod, nu = ref["E"], ref["nu"]
-    hertz = 4 * (1 - nu ** 2) / (math.pi * e_mod)
+    hertz = 4 * (1 - nu**2) / (math.pi * e_mod)
     out = []
     for si in np.atleast_1d(s):
         compliance = hertz
@@ -197,6 +243,7 @@ def contact_positions(ref: dict, n: int = 9) -> np.ndarray:
 
 # --- comparison helpers (take the module as an argument so a mutated copy can be checked too) -------
 
+
 def max_term_errors(gear_mesh_module, g: GearGeometry) -> dict:
     """Largest relative difference of each compliance term (module's `tooth_compliances` vs the
     reference) over the path of contact, for pinion and gear."""
@@ -219,8 +266,14 @@ def max_pair_error(gear_mesh_module, g: GearGeometry) -> float:
     """Largest relative difference of the single-pair stiffness per width over the path of contact."""
     ref = reference_pair(g)
     s = contact_positions(ref)
-    return float(np.max(np.abs(gear_mesh_module.pair_stiffness_per_width(g, s)
-                               / reference_pair_stiffness(ref, s) - 1)))
+    return float(
+        np.max(
+            np.abs(
+                gear_mesh_module.pair_stiffness_per_width(g, s) / reference_pair_stiffness(ref, s)
+                - 1
+            )
+        )
+    )
 
 
 def max_spur_mesh_error(gear_mesh_module, g: GearGeometry) -> float:
@@ -233,9 +286,15 @@ def max_spur_mesh_error(gear_mesh_module, g: GearGeometry) -> float:
     pb, b, cell = ref["base_pitch"], ref["width"], 1.0 / mesh.points_per_pitch
     eps_alpha = (ref["end"] - ref["start"]) / pb
     u = np.linspace(2 * cell, eps_alpha - 2 * cell, 11)
-    errors = [mesh.pair_stiffness(u) / (b * reference_pair_stiffness(ref, ref["start"] + u * pb)) - 1]
-    phase = np.concatenate([np.linspace(2 * cell, eps_alpha - 1 - 2 * cell, 4),   # two pairs
-                            np.linspace(eps_alpha - 1 + 2 * cell, 1 - 2 * cell, 4)])  # one pair
+    errors = [
+        mesh.pair_stiffness(u) / (b * reference_pair_stiffness(ref, ref["start"] + u * pb)) - 1
+    ]
+    phase = np.concatenate(
+        [
+            np.linspace(2 * cell, eps_alpha - 1 - 2 * cell, 4),  # two pairs
+            np.linspace(eps_alpha - 1 + 2 * cell, 1 - 2 * cell, 4),
+        ]
+    )  # one pair
     expected = b * reference_pair_stiffness(ref, ref["start"] + phase * pb)
     double = phase < eps_alpha - 1
     expected[double] += b * reference_pair_stiffness(ref, ref["start"] + (phase[double] + 1) * pb)
@@ -255,22 +314,38 @@ def max_helical_error(gear_mesh_module, g: GearGeometry, slices: int = 20) -> fl
     z = (np.arange(slices) + 0.5) * dz
     span = dz * math.tan(ref["base_helix"])
     ppp = mesh.points_per_pitch
-    eps_gamma = (ref["end"] - ref["start"]) / ref["base_pitch"] + ref["width"] * math.tan(ref["base_helix"]) / ref["base_pitch"]
+    eps_gamma = (ref["end"] - ref["start"]) / ref["base_pitch"] + ref["width"] * math.tan(
+        ref["base_helix"]
+    ) / ref["base_pitch"]
     u = np.arange(1, int(eps_gamma * ppp), ppp // 8) / ppp
     errors = []
     for ui in u:
         s = ref["start"] + ui * ref["base_pitch"] - z * math.tan(ref["base_helix"])
-        share = np.clip(np.minimum(s + span / 2, ref["end"]) - np.maximum(s - span / 2, ref["start"]), 0, None) / span
+        share = (
+            np.clip(
+                np.minimum(s + span / 2, ref["end"]) - np.maximum(s - span / 2, ref["start"]),
+                0,
+                None,
+            )
+            / span
+        )
         if not share.any():  # before the first slice enters / after the last one leaves
             continue
         inside = share > 0
-        expected = dz * (share[inside] * reference_pair_stiffness(ref, np.clip(s[inside], ref["start"], ref["end"]))).sum()
+        expected = (
+            dz
+            * (
+                share[inside]
+                * reference_pair_stiffness(ref, np.clip(s[inside], ref["start"], ref["end"]))
+            ).sum()
+        )
         errors.append(mesh.pair_stiffness(ui) / expected - 1)
     assert len(errors) >= 8
     return float(np.max(np.abs(errors)))
 
 
 # --- tests ------------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("name", list(SPUR_CASES))
 def test_reference_geometry_is_the_modules(name):
@@ -284,7 +359,11 @@ def test_reference_geometry_is_the_modules(name):
         assert (tooth["rf"] < tooth["rb"]) == g.root_below_base(z)
     assert (ref["start"], ref["end"]) == pytest.approx((g.path_start, g.path_end), rel=1e-12)
     # The chosen pairs do cover case 1 (root inside base circle) and case 2.
-    expected_cases = {"rig-29/44": (True, False), "m3-20/60": (True, False), "m2-50/70": (False, False)}[name]
+    expected_cases = {
+        "rig-29/44": (True, False),
+        "m3-20/60": (True, False),
+        "m2-50/70": (False, False),
+    }[name]
     assert (g.root_below_base(g.teeth_pinion), g.root_below_base(g.teeth_gear)) == expected_cases
 
 
@@ -299,7 +378,7 @@ def test_each_compliance_term_matches_the_textbook_integrals(name):
 def test_hertz_compliance_is_yang_and_lin():
     """1/k_h = 4 (1 - nu^2) / (pi E L) (Yang & Lin 1987), both gears of one material."""
     g = SPUR_CASES["rig-29/44"]
-    expected = 4 * (1 - 0.3 ** 2) / (math.pi * 2.08e11 * 0.02)
+    expected = 4 * (1 - 0.3**2) / (math.pi * 2.08e11 * 0.02)
     assert gear_mesh.hertz_compliance(g, width=0.02) == pytest.approx(expected, rel=1e-12)
 
 
@@ -347,7 +426,9 @@ def test_stiffness_is_of_the_published_magnitude():
     for g in SPUR_CASES.values():
         ref = reference_pair(g)
         pb = ref["base_pitch"]
-        single_zone = np.linspace(ref["end"] - pb, ref["start"] + pb, 5)  # one pair carries the load
+        single_zone = np.linspace(
+            ref["end"] - pb, ref["start"] + pb, 5
+        )  # one pair carries the load
         peak = g.face_width * gear_mesh.pair_stiffness_per_width(g, single_zone).max()
         c_single, c_mesh = iso6336_single_and_mesh_stiffness(g)
         assert peak == pytest.approx(c_single, rel=0.25)

@@ -1,4 +1,5 @@
 """Physics checks of the 3-D gear drivetrain model, its mesh force and its contact laws."""
+
 import math
 
 import numpy as np
@@ -7,9 +8,20 @@ from scipy.signal import resample_poly
 
 from condmon.features import SpectrumFeatures
 from condmon.models.gear.contact_laws import CONTACT_LAWS, contact_force, hysteresis_factor
-from condmon.models.gear.drivetrain import (Drivetrain, GearDrivetrainParameters, GearGeometry, SimulationSettings,
-                                            simulate, steps_per_sensor_sample)
-from condmon.models.gear.mesh_force import DEFLECTION_REF, MESH_HEALTH_STATES, MeshForce, TVMSMeshForce
+from condmon.models.gear.drivetrain import (
+    Drivetrain,
+    GearDrivetrainParameters,
+    GearGeometry,
+    SimulationSettings,
+    simulate,
+    steps_per_sensor_sample,
+)
+from condmon.models.gear.mesh_force import (
+    DEFLECTION_REF,
+    MESH_HEALTH_STATES,
+    MeshForce,
+    TVMSMeshForce,
+)
 from condmon.models.numerics import SimulationError, decimation_filter
 from condmon.models.structure import LinearStructure, Section
 
@@ -19,10 +31,16 @@ SIMPLE = "simple"
 def test_all_eight_table1_laws_with_their_factors():
     assert len(CONTACT_LAWS) == 8
     cr = 0.8
-    expected = {"gharib_hurmuzlu": 1 / cr, "herbert_mcwhannel": 6 * 0.2 / ((2 * cr - 1) ** 2 + 3),
-                "flores": 8 * 0.2 / (5 * cr), "lee_wang": 3 * 0.2 / 4, "hunt_crossley": 3 * 0.2 / 2,
-                "lankarani_nikravesh": 3 * (1 - cr ** 2) / 4,
-                "zhiying_qishao": 3 * (1 - cr ** 2) * math.exp(2 * 0.2) / 4, "gonthier": (1 - cr ** 2) / cr}
+    expected = {
+        "gharib_hurmuzlu": 1 / cr,
+        "herbert_mcwhannel": 6 * 0.2 / ((2 * cr - 1) ** 2 + 3),
+        "flores": 8 * 0.2 / (5 * cr),
+        "lee_wang": 3 * 0.2 / 4,
+        "hunt_crossley": 3 * 0.2 / 2,
+        "lankarani_nikravesh": 3 * (1 - cr**2) / 4,
+        "zhiying_qishao": 3 * (1 - cr**2) * math.exp(2 * 0.2) / 4,
+        "gonthier": (1 - cr**2) / cr,
+    }
     for law, value in expected.items():
         assert hysteresis_factor(law, cr) == pytest.approx(value)
     # Every law but Gharib-Hurmuzlu dissipates nothing for a perfectly elastic contact.
@@ -62,8 +80,11 @@ def test_decimation_filter_removes_what_would_alias():
 
 def test_simple_mesh_force_missing_tooth_removes_one_pair_and_neighbours_catch_the_gear():
     healthy = MeshForce(GearDrivetrainParameters(speed_rpm=600.0, mesh_stiffness_model=SIMPLE))
-    missing = MeshForce(GearDrivetrainParameters(speed_rpm=600.0, health_state="missing_tooth",
-                                                 mesh_stiffness_model=SIMPLE))
+    missing = MeshForce(
+        GearDrivetrainParameters(
+            speed_rpm=600.0, health_state="missing_tooth", mesh_stiffness_model=SIMPLE
+        )
+    )
     ratio = healthy.contact_ratio
     period = 1.0 / healthy.mesh_frequency
     # Middle of the single-contact zone of pair 0 (the missing tooth), static deflection 1 um.
@@ -75,14 +96,23 @@ def test_simple_mesh_force_missing_tooth_removes_one_pair_and_neighbours_catch_t
     # One pinion revolution later the same tooth is missing again; a tooth away it is not (a
     # fresh force: after the loss of contact above, the next contact would count as an impact).
     assert missing(t + 29 * period, 1e-6, 0.0) == 0.0
-    missing = MeshForce(GearDrivetrainParameters(speed_rpm=600.0, health_state="missing_tooth",
-                                                 mesh_stiffness_model=SIMPLE))
+    missing = MeshForce(
+        GearDrivetrainParameters(
+            speed_rpm=600.0, health_state="missing_tooth", mesh_stiffness_model=SIMPLE
+        )
+    )
     assert missing(t + period, 1e-6, 0.0) == pytest.approx(healthy(t + period, 1e-6, 0.0))
 
 
 def test_simple_surface_fault_lowers_the_stiffness_of_the_affected_teeth_by_15_percent():
-    p = GearDrivetrainParameters(speed_rpm=600.0, health_state="surface_fault", surface_fault_model="stiffness_loss",
-                                 contact_exponent=1.0, transmission_error=0.0, mesh_stiffness_model=SIMPLE)
+    p = GearDrivetrainParameters(
+        speed_rpm=600.0,
+        health_state="surface_fault",
+        surface_fault_model="stiffness_loss",
+        contact_exponent=1.0,
+        transmission_error=0.0,
+        mesh_stiffness_model=SIMPLE,
+    )
     faulty, healthy = MeshForce(p), MeshForce(p.replace(health_state="healthy"))
     period = 1.0 / healthy.mesh_frequency
     t = 0.5 * (1 + healthy.contact_ratio - 1) * period  # single contact of pair 0
@@ -94,16 +124,25 @@ def test_surface_fault_mesh_force_follows_its_stiffness_loss(loss):
     """Potential-energy mesh, one faulty tooth, at the static deflection and beyond it: the force
     lost is exactly `loss` x that tooth's pair force, at every phase of its mesh (the studies'
     -15 % contact stiffness acts, whatever the loaded deflection)."""
-    p = GearDrivetrainParameters(speed_rpm=600.0, transmission_error=0.0, health_state="surface_fault",
-                                 surface_fault_teeth=1, surface_fault_stiffness_loss=loss,
-                                 surface_fault_model="stiffness_loss")
+    p = GearDrivetrainParameters(
+        speed_rpm=600.0,
+        transmission_error=0.0,
+        health_state="surface_fault",
+        surface_fault_teeth=1,
+        surface_fault_stiffness_loss=loss,
+        surface_fault_model="stiffness_loss",
+    )
     healthy, faulty = MeshForce(p.replace(health_state="healthy")), MeshForce(p)
     period = 1.0 / healthy.mesh_frequency
     scale = p.mesh_stiffness * DEFLECTION_REF / healthy.tvms.mean_stiffness
     for deflection in (0.65e-6, 2e-6):
         for phase in (0.3, 0.9, 1.6, 2.2):
             t = phase * period
-            pair = float(healthy.tvms.pair_stiffness(phase)) * scale * (deflection / DEFLECTION_REF) ** p.contact_exponent
+            pair = (
+                float(healthy.tvms.pair_stiffness(phase))
+                * scale
+                * (deflection / DEFLECTION_REF) ** p.contact_exponent
+            )
             lost = healthy(t, deflection, 0.0) - faulty(t, deflection, 0.0)
             assert lost == pytest.approx(loss * pair, rel=1e-9)
 
@@ -121,7 +160,9 @@ def test_mesh_stiffness_model_switch():
 def test_both_mesh_models_carry_the_same_mean_load(model):
     """mesh_stiffness is the mean mesh stiffness at 1 um in both models: over a mesh cycle at a fixed
     deflection the mean force is the same."""
-    p = GearDrivetrainParameters(speed_rpm=600.0, transmission_error=0.0, mesh_stiffness_model=model)
+    p = GearDrivetrainParameters(
+        speed_rpm=600.0, transmission_error=0.0, mesh_stiffness_model=model
+    )
     mesh = MeshForce(p)
     times = (5.0 + np.arange(400) / 400) / mesh.mesh_frequency
     mean = np.mean([mesh(t, 1e-6, 0.0) for t in times])
@@ -141,7 +182,12 @@ def test_tvms_mesh_force_missing_tooth_removes_its_pair_once_per_revolution():
             t = (29 * revolution + phase) * period
             lost = healthy(t, 1e-6, 0.0) - missing(t, 1e-6, 0.0)
             # Exactly tooth 0's pair: the TVMS pair stiffness at u = phase, at 1 um.
-            pair = healthy.tvms.pair_stiffness(phase) * 1e-6 * p.mesh_stiffness / healthy.tvms.mean_stiffness
+            pair = (
+                healthy.tvms.pair_stiffness(phase)
+                * 1e-6
+                * p.mesh_stiffness
+                / healthy.tvms.mean_stiffness
+            )
             assert lost == pytest.approx(float(pair), rel=1e-6)
             assert 0 < lost < healthy(t, 1e-6, 0.0)  # the neighbours still carry
         for phase in (window + 0.05, 10.0, 28.5):
@@ -151,14 +197,19 @@ def test_tvms_mesh_force_missing_tooth_removes_its_pair_once_per_revolution():
 
 def test_every_health_state_runs_in_both_models():
     for model in ("potential_energy", SIMPLE):
-        p = GearDrivetrainParameters(speed_rpm=775.0, mesh_stiffness_model=model, transmission_error=0.0)
+        p = GearDrivetrainParameters(
+            speed_rpm=775.0, mesh_stiffness_model=model, transmission_error=0.0
+        )
         healthy = MeshForce(p)
         t = np.arange(29 * 40) / 40 / healthy.mesh_frequency  # one pinion revolution
         reference = np.array([healthy(x, 1e-6, 0.0) for x in t])
         for state in MESH_HEALTH_STATES[1:]:  # the shaft states leave the mesh healthy
             faulty = MeshForce(p.replace(health_state=state))
             force = np.array([faulty(x, 1e-6, 0.0) for x in t])
-            assert np.all(force <= reference + 1e-9) and force.sum() < reference.sum(), (model, state)
+            assert np.all(force <= reference + 1e-9) and force.sum() < reference.sum(), (
+                model,
+                state,
+            )
 
 
 @pytest.mark.parametrize("speed", [450.0, 775.0, 1100.0])
@@ -167,7 +218,9 @@ def test_missing_tooth_is_numerically_sound_at_every_speed(speed):
     missing tooth, so the teeth never separate; the run is finite and the deflection bounded."""
     params = GearDrivetrainParameters(speed_rpm=speed, health_state="missing_tooth")
     diagnostics = {}
-    signals = simulate(params, SimulationSettings(duration=60.0 / speed + 0.01, settle_time=0.05), diagnostics)
+    signals = simulate(
+        params, SimulationSettings(duration=60.0 / speed + 0.01, settle_time=0.05), diagnostics
+    )
     deflection = diagnostics["deflection"]
     assert all(np.isfinite(s).all() for s in signals.values())
     assert 0.0 < deflection.min() and deflection.max() < 5e-6
@@ -176,15 +229,19 @@ def test_missing_tooth_is_numerically_sound_at_every_speed(speed):
 def test_spur_missing_tooth_reengages_within_backlash():
     """Spur gears (helix 0): the gear flies free over the missing tooth and the next pair's extended
     contact catches it: no flight beyond the backlash, no NaN, a bounded impact."""
-    params = GearDrivetrainParameters(geometry=GearGeometry(helix_angle_deg=0.0), helix_slices=1,
-                                      speed_rpm=1100.0, health_state="missing_tooth")
+    params = GearDrivetrainParameters(
+        geometry=GearGeometry(helix_angle_deg=0.0),
+        helix_slices=1,
+        speed_rpm=1100.0,
+        health_state="missing_tooth",
+    )
     diagnostics = {}
     signals = simulate(params, SimulationSettings(duration=0.12, settle_time=0.05), diagnostics)
     deflection = diagnostics["deflection"]
     assert all(np.isfinite(s).all() for s in signals.values())
-    assert deflection.min() > -params.backlash   # never on the back flank
-    assert deflection.min() < 0.0                 # it did lose contact ...
-    assert deflection.max() < 50e-6               # ... and the re-engagement impact stays bounded
+    assert deflection.min() > -params.backlash  # never on the back flank
+    assert deflection.min() < 0.0  # it did lose contact ...
+    assert deflection.max() < 50e-6  # ... and the re-engagement impact stays bounded
 
 
 @pytest.fixture(scope="module")
@@ -213,7 +270,9 @@ def test_healthy_spectrum_peaks_at_gear_mesh_harmonics(healthy_run):
 
 @pytest.mark.parametrize("model", ["potential_energy", SIMPLE])
 def test_divergence_is_an_error_that_names_the_run(model):
-    params = GearDrivetrainParameters(speed_rpm=450.0, mesh_stiffness=1.0, mesh_stiffness_model=model)
+    params = GearDrivetrainParameters(
+        speed_rpm=450.0, mesh_stiffness=1.0, mesh_stiffness_model=model
+    )
     with pytest.raises(SimulationError, match="450"):
         simulate(params, SimulationSettings(duration=0.2, settle_time=0.05))
 
@@ -234,50 +293,100 @@ def _exudyn_rigid_rig(p: GearDrivetrainParameters, mesh_stiffness: float):
     centre_distance = g.pitch_radius(g.teeth_pinion) + g.pitch_radius(g.teeth_gear)
     bodies = []
     for x, layout, gear_mass, gear_inertia, hub_mass, hub_inertia in (
-            (0.0, p.input_shaft, p.pinion_mass, p.pinion_inertia, p.coupling_mass, p.coupling_inertia),
-            (centre_distance, p.output_shaft, p.gear_mass, p.gear_inertia, p.brake_mass, p.brake_inertia)):
+        (0.0, p.input_shaft, p.pinion_mass, p.pinion_inertia, p.coupling_mass, p.coupling_inertia),
+        (
+            centre_distance,
+            p.output_shaft,
+            p.gear_mass,
+            p.gear_inertia,
+            p.brake_mass,
+            p.brake_inertia,
+        ),
+    ):
         radius = layout.diameter / 2
-        shaft_mass = 7850.0 * math.pi * radius ** 2 * layout.length
-        parts = [(shaft_mass, layout.length / 2, shaft_mass * (3 * radius ** 2 + layout.length ** 2) / 12,
-                  shaft_mass * radius ** 2 / 2),
-                 (gear_mass, layout.gear, gear_inertia / 2, gear_inertia),
-                 (hub_mass, layout.hub, hub_inertia / 2, hub_inertia)]
+        shaft_mass = 7850.0 * math.pi * radius**2 * layout.length
+        parts = [
+            (
+                shaft_mass,
+                layout.length / 2,
+                shaft_mass * (3 * radius**2 + layout.length**2) / 12,
+                shaft_mass * radius**2 / 2,
+            ),
+            (gear_mass, layout.gear, gear_inertia / 2, gear_inertia),
+            (hub_mass, layout.hub, hub_inertia / 2, hub_inertia),
+        ]
         mass = sum(m for m, *_ in parts)
         z_c = sum(m * z for m, z, *_ in parts) / mass
         transverse = sum(i_t + m * (z - z_c) ** 2 for m, z, i_t, _ in parts)
         polar = sum(i_p for *_, i_p in parts)
         node = mbs.AddNode(eii.NodeRigidBodyRxyz(referenceCoordinates=[x, 0.0, z_c, 0.0, 0.0, 0.0]))
-        body = mbs.AddObject(eii.ObjectRigidBody(mass=mass, inertia=[transverse, transverse, polar, 0, 0, 0],
-                                                  nodeNumber=node))
+        body = mbs.AddObject(
+            eii.ObjectRigidBody(
+                mass=mass, inertia=[transverse, transverse, polar, 0, 0, 0], nodeNumber=node
+            )
+        )
         bodies.append((body, node, x, z_c))
         for z in layout.bearings:
-            housing = mbs.AddObject(eii.ObjectMassPoint(mass=p.housing_mass, nodeNumber=mbs.AddNode(
-                eii.NodePoint(referenceCoordinates=[x, 0.0, z]))))
-            on_shaft = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=body, localPosition=[0.0, 0.0, z - z_c]))
+            housing = mbs.AddObject(
+                eii.ObjectMassPoint(
+                    mass=p.housing_mass,
+                    nodeNumber=mbs.AddNode(eii.NodePoint(referenceCoordinates=[x, 0.0, z])),
+                )
+            )
+            on_shaft = mbs.AddMarker(
+                eii.MarkerBodyPosition(bodyNumber=body, localPosition=[0.0, 0.0, z - z_c])
+            )
             on_housing = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=housing))
-            on_base = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=ground, localPosition=[x, 0.0, z]))
-            mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
-                markerNumbers=[on_shaft, on_housing],
-                stiffness=[p.bushing_stiffness, p.bushing_stiffness, p.bushing_axial_stiffness]))
-            mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
-                markerNumbers=[on_base, on_housing], stiffness=list(p.housing_stiffness)))
+            on_base = mbs.AddMarker(
+                eii.MarkerBodyPosition(bodyNumber=ground, localPosition=[x, 0.0, z])
+            )
+            mbs.AddObject(
+                eii.ObjectConnectorCartesianSpringDamper(
+                    markerNumbers=[on_shaft, on_housing],
+                    stiffness=[p.bushing_stiffness, p.bushing_stiffness, p.bushing_axial_stiffness],
+                )
+            )
+            mbs.AddObject(
+                eii.ObjectConnectorCartesianSpringDamper(
+                    markerNumbers=[on_base, on_housing], stiffness=list(p.housing_stiffness)
+                )
+            )
     pinion_node = bodies[0][1]
-    mbs.AddObject(eii.ObjectConnectorCoordinateSpringDamper(
-        markerNumbers=[mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=mbs.AddNode(eii.NodePointGround()),
-                                                              coordinate=0)),
-                       mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=pinion_node, coordinate=5))],
-        stiffness=p.coupling_stiffness))
+    mbs.AddObject(
+        eii.ObjectConnectorCoordinateSpringDamper(
+            markerNumbers=[
+                mbs.AddMarker(
+                    eii.MarkerNodeCoordinate(
+                        nodeNumber=mbs.AddNode(eii.NodePointGround()), coordinate=0
+                    )
+                ),
+                mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=pinion_node, coordinate=5)),
+            ],
+            stiffness=p.coupling_stiffness,
+        )
+    )
     # Mesh: a spring along the unit normal n of the helical flank, between the pitch point on the
     # pinion and a point one unit length along n on the gear. Along n its stiffness is
     # k_transverse / cos^2(beta_b): the transverse-equivalent deflection is delta_n / cos(beta_b).
     alpha, beta_b = g.transverse_pressure_angle, g.base_helix_angle
-    normal = np.array([math.sin(alpha) * math.cos(beta_b), math.cos(alpha) * math.cos(beta_b), math.sin(beta_b)])
+    normal = np.array(
+        [math.sin(alpha) * math.cos(beta_b), math.cos(alpha) * math.cos(beta_b), math.sin(beta_b)]
+    )
     pitch = np.array([g.pitch_radius(g.teeth_pinion), 0.0, p.input_shaft.gear])
     (pinion, _, x1, z1), (gear, _, x2, z2) = bodies
-    on_pinion = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=pinion, localPosition=list(pitch - [x1, 0, z1])))
-    on_gear = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=gear, localPosition=list(pitch + normal - [x2, 0, z2])))
-    mbs.AddObject(eii.ObjectConnectorSpringDamper(markerNumbers=[on_pinion, on_gear], referenceLength=1.0,
-                                                  stiffness=mesh_stiffness / math.cos(beta_b) ** 2))
+    on_pinion = mbs.AddMarker(
+        eii.MarkerBodyPosition(bodyNumber=pinion, localPosition=list(pitch - [x1, 0, z1]))
+    )
+    on_gear = mbs.AddMarker(
+        eii.MarkerBodyPosition(bodyNumber=gear, localPosition=list(pitch + normal - [x2, 0, z2]))
+    )
+    mbs.AddObject(
+        eii.ObjectConnectorSpringDamper(
+            markerNumbers=[on_pinion, on_gear],
+            referenceLength=1.0,
+            stiffness=mesh_stiffness / math.cos(beta_b) ** 2,
+        )
+    )
     mbs.Assemble()
     values, _ = mbs.ComputeODE2Eigenvalues(useSparseSolver=False)
     return np.sqrt(np.clip(np.sort(values), 0, None)) / (2 * math.pi)
@@ -291,7 +400,9 @@ def test_natural_frequencies_match_an_exudyn_rigid_body_model(mesh_stiffness):
     assembled = Drivetrain(p).natural_frequencies(mesh_stiffness)
     reference = _exudyn_rigid_rig(p, mesh_stiffness)
     assert len(assembled) == len(reference) == 24
-    np.testing.assert_allclose(assembled, reference, rtol=1e-6, atol=1e-3)  # atol: the free spin without mesh
+    np.testing.assert_allclose(
+        assembled, reference, rtol=1e-6, atol=1e-3
+    )  # atol: the free spin without mesh
 
 
 def test_flexible_beam_bends_at_the_analytical_frequency():
@@ -307,7 +418,11 @@ def test_flexible_beam_bends_at_the_analytical_frequency():
         structure.add_spring((node, structure.positions[node]), None, [1e13, 1e13, 1e13], [0, 0, 0])
     structure.add_coordinate_spring(nodes[0], 5, 1e9, 0.0)  # no free spin
     frequencies = structure.natural_frequencies()
-    euler = (math.pi / length) ** 2 * math.sqrt(section.bending / section.mass_per_length) / (2 * math.pi)
+    euler = (
+        (math.pi / length) ** 2
+        * math.sqrt(section.bending / section.mass_per_length)
+        / (2 * math.pi)
+    )
     # Timoshenko's first-order correction for mode 1: 1 - (pi r_g / L)^2 (1 + E / (kappa G)) / 2
     gyration = section.bending / section.axial
     correction = 1 - 0.5 * (math.pi / length) ** 2 * gyration * (1 + section.axial / section.shear)
@@ -319,7 +434,10 @@ def test_flexible_beam_bends_at_the_analytical_frequency():
 def test_flexible_shafts_run_and_soften_the_rig():
     rigid = GearDrivetrainParameters(speed_rpm=775.0)
     flexible = rigid.replace(shaft_model="flexible")
-    assert Drivetrain(flexible).natural_frequencies()[:12].sum() < Drivetrain(rigid).natural_frequencies()[:12].sum()
+    assert (
+        Drivetrain(flexible).natural_frequencies()[:12].sum()
+        < Drivetrain(rigid).natural_frequencies()[:12].sum()
+    )
     signals = simulate(flexible, SimulationSettings(duration=0.1, settle_time=0.05))
     assert all(np.isfinite(s).all() and s.std() > 0 for s in signals.values())
 
@@ -329,10 +447,12 @@ def test_static_mesh_deflection_follows_load_over_stiffness():
     load torque, delta = (T / r_b2) / k_mean + the static TE's mean, at two loads."""
     deflections = []
     for load in (10.0, 20.0):
-        p = GearDrivetrainParameters(speed_rpm=450.0, contact_exponent=1.0, load_torque=load, transmission_error=0.0)
+        p = GearDrivetrainParameters(
+            speed_rpm=450.0, contact_exponent=1.0, load_torque=load, transmission_error=0.0
+        )
         diagnostics = {}
         simulate(p, SimulationSettings(duration=0.3, settle_time=0.1), diagnostics)
-        mean = diagnostics["deflection"][len(diagnostics["deflection"]) // 3:].mean()
+        mean = diagnostics["deflection"][len(diagnostics["deflection"]) // 3 :].mean()
         force = load / p.geometry.base_radius(p.geometry.teeth_gear)
         assert mean == pytest.approx(force / p.mesh_stiffness, rel=0.02)
         deflections.append(mean)
@@ -351,13 +471,19 @@ def rig_runs():
     training sample) at the three study speeds."""
     rng = np.random.default_rng(3)
     geometry = GearGeometry()
-    effects = dict(runout_pinion=1e-6, runout_gear=1e-6, runout_phase_gear=1.0,
-                   pitch_errors_pinion=tuple(rng.normal(0, 0.05e-6, 29)),
-                   pitch_errors_gear=tuple(rng.normal(0, 0.05e-6, 44)))
+    effects = dict(
+        runout_pinion=1e-6,
+        runout_gear=1e-6,
+        runout_phase_gear=1.0,
+        pitch_errors_pinion=tuple(rng.normal(0, 0.05e-6, 29)),
+        pitch_errors_gear=tuple(rng.normal(0, 0.05e-6, 44)),
+    )
     runs = {}
     for speed in (450.0, 775.0, 1100.0):
         for state in ("healthy", "missing_tooth"):
-            p = GearDrivetrainParameters(geometry=geometry, speed_rpm=speed, health_state=state, **effects)
+            p = GearDrivetrainParameters(
+                geometry=geometry, speed_rpm=speed, health_state=state, **effects
+            )
             runs[speed, state] = simulate(p, SimulationSettings(duration=1.0, settle_time=0.1))
     return runs
 
@@ -369,7 +495,9 @@ def test_missing_tooth_raises_the_mesh_sidebands_at_every_speed(rig_runs, speed)
     gmf = 29 * shaft
 
     def sidebands(signals):
-        return sum(_line(signals[c], gmf + s * shaft) ** 2 for c in ("A1_x", "A1_y") for s in (-1, 1))
+        return sum(
+            _line(signals[c], gmf + s * shaft) ** 2 for c in ("A1_x", "A1_y") for s in (-1, 1)
+        )
 
     assert sidebands(rig_runs[speed, "missing_tooth"]) > 2.0 * sidebands(rig_runs[speed, "healthy"])
 
@@ -384,7 +512,9 @@ def test_housing_x_and_y_are_not_collinear(rig_runs):
         signals = rig_runs[speed, "healthy"]
         assert abs(np.corrcoef(signals["A1_x"], signals["A1_y"])[0, 1]) < 0.9
         gmf = 29 * speed / 60
-        ratios += [_line(signals["A1_y"], k * gmf) / _line(signals["A1_x"], k * gmf) for k in (1, 2, 3, 4)]
+        ratios += [
+            _line(signals["A1_y"], k * gmf) / _line(signals["A1_x"], k * gmf) for k in (1, 2, 3, 4)
+        ]
     assert max(ratios) / min(ratios) > 1.5
 
 
@@ -393,11 +523,17 @@ def test_the_step_has_converged():
     """The spectral features the classifiers see (2 Hz log bands to 2 kHz, every channel) within
     0.5 dB of a run with a four times smaller step, in every band within 40 dB of the strongest."""
     p = GearDrivetrainParameters(speed_rpm=1100.0, health_state="missing_tooth")
-    features = SpectrumFeatures(channels=["A1_x", "A1_y", "A2_x", "A2_y"], f_max_hz=2000.0, resolution_hz=2.0,
-                                band_statistic="rms")
+    features = SpectrumFeatures(
+        channels=["A1_x", "A1_y", "A2_x", "A2_y"],
+        f_max_hz=2000.0,
+        resolution_hz=2.0,
+        band_statistic="rms",
+    )
     levels = []
     for steps in (1, 4):
-        signals = simulate(p, SimulationSettings(duration=0.5, settle_time=0.1, steps_per_sensor_sample=steps))
+        signals = simulate(
+            p, SimulationSettings(duration=0.5, settle_time=0.1, steps_per_sensor_sample=steps)
+        )
         segment = np.stack([signals[c] for c in features.channels])[None]
         levels.append(20 * np.log10(features.transform(segment, fs_hz=5120.0)[0] + 1e-12))
     strong = levels[1] > levels[1].max() - 40.0
@@ -411,15 +547,27 @@ def test_the_central_difference_matches_rk44_at_a_quarter_step():
     0.5 dB in every band within 40 dB of the strongest, a missing tooth at 1100 rpm (its
     impacts are the hardest on the step), and one force call a step."""
     p = GearDrivetrainParameters(speed_rpm=1100.0, health_state="missing_tooth")
-    features = SpectrumFeatures(channels=["A1_x", "A1_y", "A2_x", "A2_y"], f_max_hz=2000.0, resolution_hz=2.0,
-                                band_statistic="rms")
+    features = SpectrumFeatures(
+        channels=["A1_x", "A1_y", "A2_x", "A2_y"],
+        f_max_hz=2000.0,
+        resolution_hz=2.0,
+        band_statistic="rms",
+    )
     levels, calls = [], []
     for integrator, steps in (("central_difference", 2), ("rk44", 4)):
         diagnostics = {}
-        settings = SimulationSettings(duration=0.5, settle_time=0.1, oversampling=6, integrator=integrator,
-                                      steps_per_sensor_sample=steps)
+        settings = SimulationSettings(
+            duration=0.5,
+            settle_time=0.1,
+            oversampling=6,
+            integrator=integrator,
+            steps_per_sensor_sample=steps,
+        )
         signals = simulate(p, settings, diagnostics=diagnostics)
-        calls.append(diagnostics["mesh_calls"] / (diagnostics["steps_per_sensor_sample"] * len(diagnostics["time"])))
+        calls.append(
+            diagnostics["mesh_calls"]
+            / (diagnostics["steps_per_sensor_sample"] * len(diagnostics["time"]))
+        )
         segment = np.stack([signals[c] for c in features.channels])[None]
         levels.append(20 * np.log10(features.transform(segment, fs_hz=5120.0)[0] + 1e-12))
     strong = levels[1] > levels[1].max() - 40.0
@@ -434,12 +582,23 @@ def test_features_do_not_depend_on_the_sensor_rate():
     harmonics near 51.2 kHz to 250-290 Hz at 775 rpm, 14 dB above this run's band there, and the
     benchmark's convergence check measured that aliasing, not the model."""
     p = GearDrivetrainParameters(speed_rpm=775.0)
-    features = SpectrumFeatures(channels=["A2_y"], f_max_hz=400.0, resolution_hz=4.0, band_statistic="rms")
+    features = SpectrumFeatures(
+        channels=["A2_y"], f_max_hz=400.0, resolution_hz=4.0, band_statistic="rms"
+    )
     levels = []
     for oversampling, steps in ((10, 2), (20, 1)):
-        signals = simulate(p, SimulationSettings(duration=0.25, settle_time=0.05, oversampling=oversampling,
-                                                 steps_per_sensor_sample=steps))
-        levels.append(20 * np.log10(features.transform(signals["A2_y"][None, None], fs_hz=5120.0)[0]))
+        signals = simulate(
+            p,
+            SimulationSettings(
+                duration=0.25,
+                settle_time=0.05,
+                oversampling=oversampling,
+                steps_per_sensor_sample=steps,
+            ),
+        )
+        levels.append(
+            20 * np.log10(features.transform(signals["A2_y"][None, None], fs_hz=5120.0)[0])
+        )
     strong = levels[1] > levels[1].max() - 60.0
     assert np.abs(levels[0] - levels[1])[strong].max() < 1.0
 
@@ -450,7 +609,9 @@ def test_step_refinement_divides_the_step_the_run_would_take():
     flexible = GearDrivetrainParameters(speed_rpm=775.0, shaft_model="flexible")
     drivetrain = Drivetrain(flexible)
     chosen = steps_per_sensor_sample(drivetrain, SimulationSettings())
-    assert chosen > SimulationSettings().steps_per_sensor_sample  # the flexible shafts' modes chose it
+    assert (
+        chosen > SimulationSettings().steps_per_sensor_sample
+    )  # the flexible shafts' modes chose it
     assert steps_per_sensor_sample(drivetrain, SimulationSettings(step_refinement=4)) == 4 * chosen
 
 
@@ -461,24 +622,37 @@ def test_the_mesh_force_is_continuous_where_pairs_close_and_open():
     read 30 dB), and the steady damping grows in from zero as a pair closes (a viscous force that
     jumps at contact onset makes RK4 first order)."""
     z1, z2 = 20, 30
-    p = GearDrivetrainParameters(geometry=GearGeometry(teeth_pinion=z1, teeth_gear=z2, helix_angle_deg=0.0),
-                                 speed_rpm=775.0, load_torque=2.0, transmission_error=0.0, contact_exponent=1.2,
-                                 pitch_errors_pinion=[2.0e-5] + [0.0] * (z1 - 1), pitch_errors_gear=[0.0] * z2,
-                                 restitution=1.0)  # no impact damping: the steady damping alone
+    p = GearDrivetrainParameters(
+        geometry=GearGeometry(teeth_pinion=z1, teeth_gear=z2, helix_angle_deg=0.0),
+        speed_rpm=775.0,
+        load_torque=2.0,
+        transmission_error=0.0,
+        contact_exponent=1.2,
+        pitch_errors_pinion=[2.0e-5] + [0.0] * (z1 - 1),
+        pitch_errors_gear=[0.0] * z2,
+        restitution=1.0,
+    )  # no impact damping: the steady damping alone
     mesh = MeshForce(p, damping=50.0)
     assert mesh.extended
     deflections = np.linspace(-3.0e-5, 1.5e-5, 4501)  # 10 nm apart
-    for phase in np.linspace(-0.6, 1.9, 26):  # the proud pair from far before to far after its window
+    for phase in np.linspace(
+        -0.6, 1.9, 26
+    ):  # the proud pair from far before to far after its window
         t = phase / mesh.mesh_frequency
         forces = {}
-        for rate in (0.0, 0.05):  # closing at 0.05 m/s, a viscous force would jump by 2.5 N at onset
+        for rate in (
+            0.0,
+            0.05,
+        ):  # closing at 0.05 m/s, a viscous force would jump by 2.5 N at onset
             forces[rate] = np.array([mesh(t, d, rate) for d in deflections])
             steps = np.abs(np.diff(forces[rate]))
             # a continuous force's increments change gradually; a jump is one far above both neighbours
             neighbours = np.maximum(steps[:-2], steps[2:])
             jumps = np.flatnonzero(steps[1:-1] > 4.0 * neighbours + 1e-9)
-            assert not jumps.size, (f"the force jumps at phase {phase:.2f}, {rate} m/s, deflection "
-                                    f"{deflections[jumps[0] + 1] * 1e6:.2f} um: {steps[jumps[0] + 1]:.3g} N")
+            assert not jumps.size, (
+                f"the force jumps at phase {phase:.2f}, {rate} m/s, deflection "
+                f"{deflections[jumps[0] + 1] * 1e6:.2f} um: {steps[jumps[0] + 1]:.3g} N"
+            )
         first_contact = np.flatnonzero(forces[0.0] > 0.0)[0]
         damping_force = forces[0.05][first_contact] - forces[0.0][first_contact]
         assert damping_force < 0.01 * 50.0 * 0.05, f"the damping jumps in at phase {phase:.2f}"
@@ -495,24 +669,42 @@ def test_the_compiled_mesh_force_is_the_python_one():
     spur = GearGeometry(teeth_pinion=20, teeth_gear=30, helix_angle_deg=0.0)
     meshes = {
         "helical": GearDrivetrainParameters(
-            speed_rpm=775.0, pitch_errors_pinion=rng.normal(0, 3e-6, 29).tolist(),
-            pitch_errors_gear=rng.normal(0, 3e-6, 44).tolist(), runout_pinion=5e-6, runout_gear=3e-6,
-            speed_fluctuation=0.002),
+            speed_rpm=775.0,
+            pitch_errors_pinion=rng.normal(0, 3e-6, 29).tolist(),
+            pitch_errors_gear=rng.normal(0, 3e-6, 44).tolist(),
+            runout_pinion=5e-6,
+            runout_gear=3e-6,
+            speed_fluctuation=0.002,
+        ),
         "spur, spall": GearDrivetrainParameters(
-            geometry=spur, speed_rpm=775.0, load_torque=2.0, health_state="spall", spall_depth=1e-4,
-            pitch_errors_pinion=rng.normal(0, 2e-5, 20).tolist(), pitch_errors_gear=rng.normal(0, 2e-5, 30).tolist()),
+            geometry=spur,
+            speed_rpm=775.0,
+            load_torque=2.0,
+            health_state="spall",
+            spall_depth=1e-4,
+            pitch_errors_pinion=rng.normal(0, 2e-5, 20).tolist(),
+            pitch_errors_gear=rng.normal(0, 2e-5, 30).tolist(),
+        ),
         SIMPLE: GearDrivetrainParameters(
-            mesh_stiffness_model=SIMPLE, speed_rpm=450.0, transmission_error=3e-7, runout_pinion=5e-6,
-            pitch_errors_pinion=rng.normal(0, 3e-6, 29).tolist(), pitch_errors_gear=rng.normal(0, 3e-6, 44).tolist()),
+            mesh_stiffness_model=SIMPLE,
+            speed_rpm=450.0,
+            transmission_error=3e-7,
+            runout_pinion=5e-6,
+            pitch_errors_pinion=rng.normal(0, 3e-6, 29).tolist(),
+            pitch_errors_gear=rng.normal(0, 3e-6, 44).tolist(),
+        ),
     }
     for name, p in meshes.items():
         mesh = MeshForce(p, damping=300.0)
         loaded = 0
-        for t, deflection, rate in zip(rng.uniform(0, 2, 3000), rng.uniform(-3e-6, 3e-5, 3000),
-                                       rng.uniform(-0.05, 0.05, 3000)):
+        for t, deflection, rate in zip(
+            rng.uniform(0, 2, 3000), rng.uniform(-3e-6, 3e-5, 3000), rng.uniform(-0.05, 0.05, 3000)
+        ):
             compiled = mesh.steady_force(t, deflection, rate)
             python = mesh.tracked_force(t, deflection, rate)
-            mesh.separated = False  # the Python path remembers contact; each state here stands alone
+            mesh.separated = (
+                False  # the Python path remembers contact; each state here stands alone
+            )
             assert compiled == pytest.approx(python, rel=1e-12, abs=1e-9), f"{name} at t = {t}"
             loaded += python > 0
         assert loaded > 2000, f"{name}: too few states in contact to compare"
@@ -528,7 +720,9 @@ def test_the_callbacks_gate_follows_the_impacts_python_tracks(model):
     Python path while the mesh is out of contact or an impact is tracked: a run of calls through
     the callback that loses contact, hits again and settles gives, call by call, the force and the
     impact state of a twin mesh that takes every call in Python (to rounding)."""
-    p = GearDrivetrainParameters(mesh_stiffness_model=model, speed_rpm=775.0, contact_law="flores", restitution=0.7)
+    p = GearDrivetrainParameters(
+        mesh_stiffness_model=model, speed_rpm=775.0, contact_law="flores", restitution=0.7
+    )
     callback, python = MeshForce(p, damping=300.0), MeshForce(p, damping=300.0)
     t = np.linspace(0.0, 0.02, 4000)
     deflection = 2e-6 * np.cos(2 * np.pi * 150.0 * t) + 1e-6  # in and out of contact
@@ -538,7 +732,10 @@ def test_the_callbacks_gate_follows_the_impacts_python_tracks(model):
         tracked += bool(callback.impacts) or callback.separated
         force = callback.spring_force(None, time, 0, d, d_t, 0.0, 0.0, 0.0)
         assert force == pytest.approx(python.tracked_force(time, d, d_t), rel=1e-12, abs=1e-9), time
-        assert callback.impacts.keys() == python.impacts.keys() and callback.separated == python.separated
+        assert (
+            callback.impacts.keys() == python.impacts.keys()
+            and callback.separated == python.separated
+        )
     assert tracked > 100 and tracked < len(t) - 100  # both paths taken
 
 
@@ -550,8 +747,16 @@ def test_the_stiffness_for_a_deflection_carries_the_load_there(exponent):
 
     p = GearDrivetrainParameters()
     stiffness = stiffness_for_deflection(p, 0.6e-6, exponent)
-    assert operating_deflection(p.replace(mesh_stiffness=stiffness, contact_exponent=exponent)) == pytest.approx(0.6e-6)
-    assert operating_deflection(p.replace(mesh_stiffness=stiffness, contact_exponent=exponent,
-                                          load_torque=p.load_torque / 2)) < 0.6e-6
+    assert operating_deflection(
+        p.replace(mesh_stiffness=stiffness, contact_exponent=exponent)
+    ) == pytest.approx(0.6e-6)
+    assert (
+        operating_deflection(
+            p.replace(
+                mesh_stiffness=stiffness, contact_exponent=exponent, load_torque=p.load_torque / 2
+            )
+        )
+        < 0.6e-6
+    )
     with pytest.raises(ValueError, match="must be positive"):
         stiffness_for_deflection(p, 0.0, exponent)

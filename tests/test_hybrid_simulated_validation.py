@@ -1,10 +1,9 @@
 """hybrid.simulated_validation_share: the held-out simulated records in the split table, training
 without them, their metrics apart from the measured ones, the config check and the scripts."""
+
 import json
-import logging
 import math
 import runpy
-import sys
 from types import SimpleNamespace
 
 import numpy as np
@@ -17,11 +16,21 @@ from sklearn.base import BaseEstimator
 from conftest import SCRIPTS, config_of
 from condmon import train
 from condmon.config import ConfigError
-from condmon.hybrid import (SIMULATED_VALIDATION, SplitError, n_validation_records,
-                            read_split_table, simulated_validation_records, write_split_table)
+from condmon.hybrid import (
+    SIMULATED_VALIDATION,
+    SplitError,
+    n_validation_records,
+    read_split_table,
+    simulated_validation_records,
+    write_split_table,
+)
 from condmon.protocols import make_splits
-from condmon.train import (METRIC_COLUMNS, SIMULATED_VALIDATION_COLUMNS, fit_and_evaluate,
-                           run_protocol)
+from condmon.train import (
+    METRIC_COLUMNS,
+    SIMULATED_VALIDATION_COLUMNS,
+    fit_and_evaluate,
+    run_protocol,
+)
 
 CLASSES = ("healthy", "surface_fault", "missing_tooth")
 SPEEDS = (450.0, 775.0)
@@ -39,10 +48,18 @@ def features(source, n_records, n_segments=2, seed=0):
                 for segment in range(n_segments):
                     centre = np.zeros(len(FEATURES))
                     centre[index] = 8.0
-                    rows.append({"record_id": f"{source}_{label}_{int(speed)}_{k:02d}",
-                                 "segment": segment, "source": source, "health_state": label,
-                                 "speed_rpm": speed, "load": 1.0, "fs_hz": 5120.0,
-                                 **dict(zip(FEATURES, centre + rng.normal(size=len(FEATURES))))})
+                    rows.append(
+                        {
+                            "record_id": f"{source}_{label}_{int(speed)}_{k:02d}",
+                            "segment": segment,
+                            "source": source,
+                            "health_state": label,
+                            "speed_rpm": speed,
+                            "load": 1.0,
+                            "fs_hz": 5120.0,
+                            **dict(zip(FEATURES, centre + rng.normal(size=len(FEATURES)))),
+                        }
+                    )
     frame = pd.DataFrame(rows)
     return frame.astype({f: np.float32 for f in FEATURES})
 
@@ -53,23 +70,32 @@ ID = ["record_id", "segment", "health_state", "speed_rpm"]
 
 
 def splits(protocol="record_split", share=0.3, seed=11, simulated=SIMULATED, **kwargs):
-    return make_splits(MEASURED[ID], protocol, measured_percent=kwargs.pop("percents", [0, 50]),
-                       repeats=kwargs.pop("repeats", 2), seed=seed,
-                       simulated_records=None if simulated is None else simulated[ID],
-                       simulated_validation_share=share, **kwargs)
+    return make_splits(
+        MEASURED[ID],
+        protocol,
+        measured_percent=kwargs.pop("percents", [0, 50]),
+        repeats=kwargs.pop("repeats", 2),
+        seed=seed,
+        simulated_records=None if simulated is None else simulated[ID],
+        simulated_validation_share=share,
+        **kwargs,
+    )
 
 
 def held_out(table):
     """{(percent, repeat, holdout): held-out simulated ids} of a split table."""
     chosen = table[table.role == SIMULATED_VALIDATION]
-    return {key: set(group.record_id) for key, group in
-            chosen.groupby(["measured_percent", "repeat", "holdout"])}
+    return {
+        key: set(group.record_id)
+        for key, group in chosen.groupby(["measured_percent", "repeat", "holdout"])
+    }
 
 
 # -- the held-out records ----------------------------------------------------------------------
 def test_share_zero_gives_the_measured_split_table_unchanged():
-    plain = make_splits(MEASURED[ID], "condition_holdout", measured_percent=[0, 50], repeats=2,
-                        seed=11)
+    plain = make_splits(
+        MEASURED[ID], "condition_holdout", measured_percent=[0, 50], repeats=2, seed=11
+    )
     pd.testing.assert_frame_equal(splits("condition_holdout", share=0.0), plain)
     pd.testing.assert_frame_equal(splits("condition_holdout", share=0.0, simulated=None), plain)
     assert simulated_validation_records(SIMULATED[ID], 0.0, seed=11) == []
@@ -96,9 +122,12 @@ def test_same_seed_same_records_other_seed_other_records_larger_share_a_superset
 
 def test_the_same_records_in_every_split_and_protocol():
     expected = set(simulated_validation_records(SIMULATED[ID], 0.3, seed=11))
-    for protocol, kwargs in (("record_split", {}), ("condition_holdout", {}),
-                             ("segment_share", {}), ("unseen_fault",
-                                                     {"measured_classes": ["healthy"]})):
+    for protocol, kwargs in (
+        ("record_split", {}),
+        ("condition_holdout", {}),
+        ("segment_share", {}),
+        ("unseen_fault", {"measured_classes": ["healthy"]}),
+    ):
         table = splits(protocol, percents=[0, 50, 100], repeats=3, **kwargs)
         keys = table[["measured_percent", "repeat", "holdout"]].drop_duplicates()
         sets = held_out(table)
@@ -113,12 +142,27 @@ def test_the_same_records_in_every_split_and_protocol():
 
 
 def test_a_share_that_empties_a_stratum_names_the_key_and_the_stratum():
-    lonely = pd.concat([SIMULATED[ID], pd.DataFrame(
-        [{"record_id": "simulated_crack_775_00", "segment": 0, "health_state": "crack",
-          "speed_rpm": 775.0}])])
+    lonely = pd.concat(
+        [
+            SIMULATED[ID],
+            pd.DataFrame(
+                [
+                    {
+                        "record_id": "simulated_crack_775_00",
+                        "segment": 0,
+                        "health_state": "crack",
+                        "speed_rpm": 775.0,
+                    }
+                ]
+            ),
+        ]
+    )
     # 0.5 of one record rounds to one: nothing of the crack stratum would train
-    with pytest.raises(SplitError, match=r"hybrid\.simulated_validation_share = 0\.5 .*"
-                                         r"health_state=crack, speed_rpm=775"):
+    with pytest.raises(
+        SplitError,
+        match=r"hybrid\.simulated_validation_share = 0\.5 .*"
+        r"health_state=crack, speed_rpm=775",
+    ):
         simulated_validation_records(lonely, 0.5, seed=11)
     with pytest.raises(SplitError, match="health_state=crack, speed_rpm=775"):
         splits(share=0.5, simulated=lonely)
@@ -138,14 +182,21 @@ def test_split_table_roundtrip_and_errors(tmp_path):
     with pytest.raises(SplitError, match="both measured and simulated"):
         splits(simulated=MEASURED)
     with pytest.raises(SplitError, match="needs the simulated records"):
-        make_splits(MEASURED[ID], "record_split", measured_percent=[0], repeats=1, seed=0,
-                    simulated_validation_share=0.3)
+        make_splits(
+            MEASURED[ID],
+            "record_split",
+            measured_percent=[0],
+            repeats=1,
+            seed=0,
+            simulated_validation_share=0.3,
+        )
 
 
 # -- training without them, evaluating on them -------------------------------------------------
 class Recorder(BaseEstimator):
     """A classifier that remembers the record ids it was fitted on and predicts the class of the
     largest feature (the clusters' centres), so its accuracy is known."""
+
     fitted_on: list = []
     __metadata_request__fit = {"groups": True}  # as the CNN: the training loop passes them
 
@@ -206,8 +257,9 @@ def test_share_zero_trains_on_every_simulated_record_and_has_no_validation():
     assert (result.metrics.n_train_simulated == len(SIMULATED)).all()
     predictions, metrics, _ = run_protocol("svm", {}, SIMULATED, MEASURED, table, FEATURES, 0)
     pd.testing.assert_frame_equal(predictions, result.predictions)
-    pd.testing.assert_frame_equal(metrics.drop(columns="fit_seconds"),
-                                  result.metrics.drop(columns="fit_seconds"))
+    pd.testing.assert_frame_equal(
+        metrics.drop(columns="fit_seconds"), result.metrics.drop(columns="fit_seconds")
+    )
 
 
 def test_measured_only_baseline_ignores_the_simulated_validation_rows():
@@ -226,28 +278,18 @@ def test_held_out_record_missing_from_the_simulated_features_is_named():
 # -- config -----------------------------------------------------------------------------------
 def test_config_default_and_range():
     assert config_of()["hybrid"]["simulated_validation_share"] == 0.0
-    assert config_of(changes={"hybrid": {"simulated_validation_share": 0.3}})[
-        "hybrid"]["simulated_validation_share"] == 0.3
+    assert (
+        config_of(changes={"hybrid": {"simulated_validation_share": 0.3}})["hybrid"][
+            "simulated_validation_share"
+        ]
+        == 0.3
+    )
     for bad in (1.0, -0.1, "0.3"):
         with pytest.raises(ConfigError, match=r"hybrid\.simulated_validation_share"):
             config_of(changes={"hybrid": {"simulated_validation_share": bad}})
 
 
 # -- the hybrid and train scripts ----------------------------------------------------------------
-@pytest.fixture
-def isolated_logging(monkeypatch):
-    """The scripts reconfigure logging and sys.excepthook; put both back afterwards."""
-    monkeypatch.setattr(sys, "excepthook", sys.excepthook)
-    root = logging.getLogger()
-    handlers, level = root.handlers[:], root.level
-    yield
-    for handler in root.handlers:
-        if handler not in handlers:
-            handler.close()
-    root.handlers[:], root.level = handlers, level
-    logging.captureWarnings(False)
-
-
 def run_script(name, **attributes):
     fake = SimpleNamespace(rule=name.removesuffix(".py"), **attributes)
     runpy.run_path(str(SCRIPTS / name), init_globals={"snakemake": fake})
@@ -255,49 +297,85 @@ def run_script(name, **attributes):
 
 def write_features(frame, path):
     table = pa.Table.from_pandas(frame[ID_COLUMNS + FEATURES], preserve_index=False)
-    meta = {b"condmon.feature_names": json.dumps(FEATURES).encode(),
-            b"condmon.feature_kind": b"spectrum"}
+    meta = {
+        b"condmon.feature_names": json.dumps(FEATURES).encode(),
+        b"condmon.feature_kind": b"spectrum",
+    }
     pq.write_table(table.replace_schema_metadata(meta), path)
 
 
 def test_scripts_hold_out_write_and_keep_share_zero_as_before(tmp_path, isolated_logging):
     write_features(SIMULATED, tmp_path / "simulated.parquet")
     write_features(MEASURED, tmp_path / "measured.parquet")
-    hybrid_params = dict(protocol="record_split", measured_percent=[0, 50], repeats=2, seed=11,
-                         min_test_records=1, healthy_state="healthy", reserve={})
+    hybrid_params = dict(
+        protocol="record_split",
+        measured_percent=[0, 50],
+        repeats=2,
+        seed=11,
+        min_test_records=1,
+        healthy_state="healthy",
+        reserve={},
+    )
     log = [str(tmp_path / "log.txt")]
-    records = MEASURED[["record_id", "health_state", "speed_rpm"]].drop_duplicates().assign(status="kept")
+    records = (
+        MEASURED[["record_id", "health_state", "speed_rpm"]].drop_duplicates().assign(status="kept")
+    )
     records.to_csv(tmp_path / "records.csv", index=False)  # the measured stage's record list
-    run_script("hybrid.py", input=SimpleNamespace(features=tmp_path / "measured.parquet",
-                                                  records=tmp_path / "records.csv"),
-               output=SimpleNamespace(splits=tmp_path / "plain.parquet"),
-               params=SimpleNamespace(**hybrid_params), log=log)
-    both = SimpleNamespace(features=tmp_path / "measured.parquet", records=tmp_path / "records.csv",
-                           simulated=tmp_path / "simulated.parquet")
+    run_script(
+        "hybrid.py",
+        input=SimpleNamespace(
+            features=tmp_path / "measured.parquet", records=tmp_path / "records.csv"
+        ),
+        output=SimpleNamespace(splits=tmp_path / "plain.parquet"),
+        params=SimpleNamespace(**hybrid_params),
+        log=log,
+    )
+    both = SimpleNamespace(
+        features=tmp_path / "measured.parquet",
+        records=tmp_path / "records.csv",
+        simulated=tmp_path / "simulated.parquet",
+    )
     for name, share in (("zero.parquet", 0.0), ("held.parquet", 0.3)):
-        run_script("hybrid.py", input=both, output=SimpleNamespace(splits=tmp_path / name),
-                   params=SimpleNamespace(**hybrid_params, simulated_validation_share=share),
-                   log=log)
+        run_script(
+            "hybrid.py",
+            input=both,
+            output=SimpleNamespace(splits=tmp_path / name),
+            params=SimpleNamespace(**hybrid_params, simulated_validation_share=share),
+            log=log,
+        )
     plain = read_split_table(tmp_path / "plain.parquet")
     held = read_split_table(tmp_path / "held.parquet")
     pd.testing.assert_frame_equal(read_split_table(tmp_path / "zero.parquet"), plain)
     assert set(held.record_id[held.role == SIMULATED_VALIDATION]) == set(
-        simulated_validation_records(SIMULATED[ID], 0.3, seed=11))
+        simulated_validation_records(SIMULATED[ID], 0.3, seed=11)
+    )
 
     out = tmp_path / "train"
-    run_script("train.py",
-               input=SimpleNamespace(simulated=tmp_path / "simulated.parquet",
-                                     measured=tmp_path / "measured.parquet",
-                                     splits=tmp_path / "held.parquet"),
-               output=SimpleNamespace(predictions=out / "predictions.parquet",
-                                      metrics=out / "metrics.csv", models=out / "models",
-                                      info=out / "info.json",
-                                      measured_only=out / "measured_only.csv",
-                                      measured_only_predictions=out / "measured_only_predictions.parquet",
-                                      simulated_validation=out / "simulated_validation.csv"),
-               params=SimpleNamespace(classifier="knn", classifier_params={}, seed=1,
-                                      feature_selection={"n_features": None},
-                                      measured_only_baseline=False), log=log)
+    run_script(
+        "train.py",
+        input=SimpleNamespace(
+            simulated=tmp_path / "simulated.parquet",
+            measured=tmp_path / "measured.parquet",
+            splits=tmp_path / "held.parquet",
+        ),
+        output=SimpleNamespace(
+            predictions=out / "predictions.parquet",
+            metrics=out / "metrics.csv",
+            models=out / "models",
+            info=out / "info.json",
+            measured_only=out / "measured_only.csv",
+            measured_only_predictions=out / "measured_only_predictions.parquet",
+            simulated_validation=out / "simulated_validation.csv",
+        ),
+        params=SimpleNamespace(
+            classifier="knn",
+            classifier_params={},
+            seed=1,
+            feature_selection={"n_features": None},
+            measured_only_baseline=False,
+        ),
+        log=log,
+    )
     assert pd.read_parquet(out / "measured_only_predictions.parquet").empty  # no baseline asked
     validation = pd.read_csv(out / "simulated_validation.csv")
     assert list(validation.columns) == SIMULATED_VALIDATION_COLUMNS

@@ -1,4 +1,5 @@
 """A user's measured signal table: every bad input stops ingestion, naming the file and reason."""
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -17,7 +18,12 @@ def rows(record="rig-1", health="healthy", n=1280, signal=None):
 
 
 def read(path, **overrides):
-    args = dict(health_states=["healthy", "missing_tooth"], channels=CHANNELS, fs_hz=FS, segment_seconds=SEGMENT)
+    args = dict(
+        health_states=["healthy", "missing_tooth"],
+        channels=CHANNELS,
+        fs_hz=FS,
+        segment_seconds=SEGMENT,
+    )
     args.update(overrides)
     return read_user_table(path, **args)
 
@@ -29,18 +35,21 @@ def test_a_good_table_is_read(tmp_path):
     assert set(frame["record_id"]) == {"rig-1", "rig-2"} and len(frame) == 8
 
 
-@pytest.mark.parametrize("case, message", [
-    ("missing file", "no such signal table"),
-    ("not parquet", "not a readable Parquet file"),
-    ("truncated", "not a readable Parquet file"),
-    ("unknown label", "health states ['cracked']"),
-    ("missing channel", "channels ['A1_y']"),
-    ("other rate", "sampling rate [12000.0] Hz"),
-    ("short segments", "segments have [640] samples"),
-    ("dead sensor", "record 'rig-1': channel 'A1_x' is constant"),
-    ("nan", "non-finite samples"),
-    ("simulated source", "source ['simulated']"),
-])
+@pytest.mark.parametrize(
+    "case, message",
+    [
+        ("missing file", "no such signal table"),
+        ("not parquet", "not a readable Parquet file"),
+        ("truncated", "not a readable Parquet file"),
+        ("unknown label", "health states ['cracked']"),
+        ("missing channel", "channels ['A1_y']"),
+        ("other rate", "sampling rate [12000.0] Hz"),
+        ("short segments", "segments have [640] samples"),
+        ("dead sensor", "record 'rig-1': channel 'A1_x' is constant"),
+        ("nan", "non-finite samples"),
+        ("simulated source", "source ['simulated']"),
+    ],
+)
 def test_bad_tables_name_the_file_and_the_reason(tmp_path, case, message):
     path = tmp_path / "rig.parquet"
     good = rows()
@@ -58,8 +67,13 @@ def test_bad_tables_name_the_file_and_the_reason(tmp_path, case, message):
     elif case == "short segments":
         write_signal_table(rows(n=640), path)
     elif case == "dead sensor":
-        write_signal_table([dict(r, signal=np.zeros(1280, np.float32)) if r["channel"] == "A1_x" else r
-                            for r in good], path)
+        write_signal_table(
+            [
+                dict(r, signal=np.zeros(1280, np.float32)) if r["channel"] == "A1_x" else r
+                for r in good
+            ],
+            path,
+        )
     elif case == "nan":
         frame = pd.DataFrame(good)
         frame.at[0, "signal"] = np.full(1280, np.nan, np.float32)
@@ -67,6 +81,7 @@ def test_bad_tables_name_the_file_and_the_reason(tmp_path, case, message):
         import pyarrow as pa
         import pyarrow.parquet as pq
         from condmon.signals import SCHEMA
+
         pq.write_table(pa.Table.from_pandas(frame, schema=SCHEMA, preserve_index=False), path)
     elif case == "simulated source":
         write_signal_table([dict(r, source="simulated") for r in good], path)
@@ -82,7 +97,10 @@ def write_raw(rows_, path):
     import pyarrow as pa
     import pyarrow.parquet as pq
     from condmon.signals import SCHEMA
-    pq.write_table(pa.Table.from_pandas(pd.DataFrame(rows_), schema=SCHEMA, preserve_index=False), path)
+
+    pq.write_table(
+        pa.Table.from_pandas(pd.DataFrame(rows_), schema=SCHEMA, preserve_index=False), path
+    )
 
 
 def bad_record(case):
@@ -95,11 +113,16 @@ def bad_record(case):
     if case == "shorter than one segment":
         return rows(n=640)
     if case == "dead sensor":
-        return [dict(r, signal=np.full(1280, 0.3, np.float32)) if r["channel"] == "A1_y" else r for r in good]
+        return [
+            dict(r, signal=np.full(1280, 0.3, np.float32)) if r["channel"] == "A1_y" else r
+            for r in good
+        ]
     if case in ("nan", "inf"):
         bad = np.ones(1280, np.float32)
         bad[7] = np.nan if case == "nan" else np.inf
-        return [dict(r, signal=bad) if (r["channel"], r["segment"]) == ("A1_x", 1) else r for r in good]
+        return [
+            dict(r, signal=bad) if (r["channel"], r["segment"]) == ("A1_x", 1) else r for r in good
+        ]
     if case == "channel lacks a segment":
         return [r for r in good if (r["channel"], r["segment"]) != ("A1_y", 1)]
     raise ValueError(case)
@@ -125,15 +148,18 @@ def test_a_bad_record_stops_ingestion_naming_file_record_and_reason(tmp_path, ca
     assert str(error.value).startswith(f"{path}: record 'rig-1': ")
     assert RECORD_CASES[case] in str(error.value)
     with pytest.raises(SignalTableError, match="rig-1"):
-        read_user_table_checked(path, ["healthy", "missing_tooth"], CHANNELS, FS, SEGMENT, on_bad_record="stop")
+        read_user_table_checked(
+            path, ["healthy", "missing_tooth"], CHANNELS, FS, SEGMENT, on_bad_record="stop"
+        )
 
 
 @pytest.mark.parametrize("case", RECORD_CASES)
 def test_a_bad_record_is_skipped_and_listed_with_its_reason(tmp_path, case, caplog):
     path = tmp_path / "rig.parquet"
     write_raw(bad_record(case) + rows("rig-2", "missing_tooth"), path)
-    frame, skipped = read_user_table_checked(path, ["healthy", "missing_tooth"], CHANNELS, FS, SEGMENT,
-                                             on_bad_record="skip")
+    frame, skipped = read_user_table_checked(
+        path, ["healthy", "missing_tooth"], CHANNELS, FS, SEGMENT, on_bad_record="skip"
+    )
     assert set(frame["record_id"]) == {"rig-2"} and len(frame) == 4
     assert list(skipped.columns) == ["record_id", "health_state", "speed_rpm", "load", "reason"]
     assert list(skipped["record_id"]) == ["rig-1"] and skipped.loc[0, "health_state"] == "healthy"
@@ -146,16 +172,21 @@ def test_a_bad_record_is_skipped_and_listed_with_its_reason(tmp_path, case, capl
 def test_skip_with_no_record_left_is_an_error(tmp_path):
     path = tmp_path / "rig.parquet"
     write_raw(bad_record("dead sensor") + rows("rig-2", signal=np.zeros(2560)), path)
-    with pytest.raises(SignalTableError, match=r"every record is bad.*'rig-1'.*constant.*'rig-2'.*constant"):
+    with pytest.raises(
+        SignalTableError, match=r"every record is bad.*'rig-1'.*constant.*'rig-2'.*constant"
+    ):
         read(path, on_bad_record="skip")
 
 
-@pytest.mark.parametrize("case, message", [
-    ("missing file", "no such signal table"),
-    ("truncated", "not a readable Parquet file"),
-    ("unknown label", "health states ['cracked']"),
-    ("simulated source", "source ['simulated']"),
-])
+@pytest.mark.parametrize(
+    "case, message",
+    [
+        ("missing file", "no such signal table"),
+        ("truncated", "not a readable Parquet file"),
+        ("unknown label", "health states ['cracked']"),
+        ("simulated source", "source ['simulated']"),
+    ],
+)
 def test_file_level_problems_stop_even_with_skip(tmp_path, case, message):
     path = tmp_path / "rig.parquet"
     if case == "truncated":
@@ -173,8 +204,9 @@ def test_file_level_problems_stop_even_with_skip(tmp_path, case, message):
 def test_a_good_table_skips_nothing_and_bad_settings_are_refused(tmp_path):
     path = tmp_path / "rig.parquet"
     write_signal_table(rows() + rows("rig-2", "missing_tooth"), path)
-    frame, skipped = read_user_table_checked(path, ["healthy", "missing_tooth"], CHANNELS, FS, SEGMENT,
-                                             on_bad_record="skip")
+    frame, skipped = read_user_table_checked(
+        path, ["healthy", "missing_tooth"], CHANNELS, FS, SEGMENT, on_bad_record="skip"
+    )
     assert len(frame) == 8 and skipped.empty
     with pytest.raises(ValueError, match="on_bad_record"):
         read(path, on_bad_record="ignore")

@@ -1,9 +1,16 @@
 """The config checks of a gear table against its rate: where its mesh lines lie, and the TSA grid (issue 73, item 4)."""
+
 import numpy as np
 import pytest
 
 from condmon.signals import make_rows, write_signal_table
-from condmon.systems.gear.mesh_lines import implied_rate, line_to_floor, mesh_line_problems, power_spectrum
+from conftest import ROOT
+from condmon.systems.gear.mesh_lines import (
+    implied_rate,
+    line_to_floor,
+    mesh_line_problems,
+    power_spectrum,
+)
 
 FS, TEETH, RPM = 5120.0, 29, 450.0
 
@@ -13,7 +20,10 @@ def gear_record(rng, seconds=4.0, fs=FS, rpm=RPM, teeth=TEETH):
     in coloured noise (a housing resonance near 1.5 kHz) at `fs` samples per second."""
     t = np.arange(int(seconds * fs)) / fs
     shaft, mesh = rpm / 60, teeth * rpm / 60
-    lines = sum(a * np.sin(2 * np.pi * k * mesh * t + rng.uniform(0, 6)) for k, a in ((1, 1.0), (2, 0.5), (3, 0.3)))
+    lines = sum(
+        a * np.sin(2 * np.pi * k * mesh * t + rng.uniform(0, 6))
+        for k, a in ((1, 1.0), (2, 0.5), (3, 0.3))
+    )
     signal = lines * (1 + 0.2 * np.sin(2 * np.pi * shaft * t))
     noise = np.convolve(rng.normal(0, 1.0, t.size), np.hanning(7), "same")
     return signal + noise
@@ -24,8 +34,16 @@ def table(tmp_path, declared_fs, records=2):
     rng = np.random.default_rng(3)
     rows = []
     for r in range(records):
-        rows += make_rows(f"h{r}", "measured", "healthy", RPM, 0.0, declared_fs,
-                          {"a1": gear_record(rng), "a2": gear_record(rng)}, segment_length=int(FS))
+        rows += make_rows(
+            f"h{r}",
+            "measured",
+            "healthy",
+            RPM,
+            0.0,
+            declared_fs,
+            {"a1": gear_record(rng), "a2": gear_record(rng)},
+            segment_length=int(FS),
+        )
     path = tmp_path / "rig.parquet"
     write_signal_table(rows, path)
     return path
@@ -37,7 +55,7 @@ def test_a_line_stands_above_its_floor_and_noise_does_not():
     mesh = TEETH * RPM / 60
     assert line_to_floor(freqs, power, mesh) > 100
     assert line_to_floor(freqs, power, 1.17 * mesh) < 4  # between the lines: the floor
-    assert line_to_floor(freqs, power, FS) == 0.0        # beyond the spectrum
+    assert line_to_floor(freqs, power, FS) == 0.0  # beyond the spectrum
 
 
 def test_the_right_rate_passes(tmp_path):
@@ -61,11 +79,9 @@ def test_no_clear_evidence_refuses_nothing():
 def test_the_gear_config_check_names_the_rate(tmp_path):
     """The default rig (a 29-tooth pinion, 450 rpm among its speeds) over a table at a wrong rate:
     refused when the config is read, before any job."""
-    from pathlib import Path
-
     from condmon.config import ConfigError, load_schema, validate_config
 
-    schema = load_schema(Path(__file__).parents[1] / "config" / "schema.yaml")
+    schema = load_schema(ROOT / "config" / "schema.yaml")
     with pytest.raises(ConfigError, match=r"fs_hz 5632 Hz.*imply a rate of 51[0-9][0-9] Hz"):
         validate_config({"measured_table": str(table(tmp_path, 1.1 * FS))}, schema)
 
@@ -73,14 +89,19 @@ def test_the_gear_config_check_names_the_rate(tmp_path):
 def test_an_angular_grid_that_folds_is_refused_when_the_config_is_read():
     """The residual's TSA grid against the rate, for the widest window `auto` can give: found by
     the config check (before any job), not by the features job after the simulation."""
-    from pathlib import Path
-
     from condmon.config import ConfigError, load_schema, validate_config
 
-    schema = load_schema(Path(__file__).parents[1] / "config" / "schema.yaml")
-    config = {"features": {"kind": "residual", "residual": {"samples_per_revolution": 400},
-                           "healthy_reference": {"enabled": True}}}
-    with pytest.raises(ConfigError, match=r"samples_per_revolution: 400 per revolution of the pinion at 450 rpm"):
+    schema = load_schema(ROOT / "config" / "schema.yaml")
+    config = {
+        "features": {
+            "kind": "residual",
+            "residual": {"samples_per_revolution": 400},
+            "healthy_reference": {"enabled": True},
+        }
+    }
+    with pytest.raises(
+        ConfigError, match=r"samples_per_revolution: 400 per revolution of the pinion at 450 rpm"
+    ):
         validate_config(config, schema)
     config["features"]["residual"]["samples_per_revolution"] = 1024
     validate_config(config, schema)

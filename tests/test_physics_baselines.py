@@ -1,6 +1,7 @@
 """The system's training-free physics baselines: the bearing's envelope rule names an outer-race
 fault in a simulated outer-race record, takes its healthy threshold from calibration segments
 only, and is evaluated on the test sets of the splits (condmon.baselines)."""
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -16,32 +17,62 @@ from condmon.systems.bearing import BearingSystem
 SPEED = 1797.0
 FS = 12000.0
 # config/cwru.yaml's features
-STATISTICAL = {"names": ["env_ratio_bpfo", "env_ratio_bpfi", "env_ratio_bsf", "env_ratio_bsf_x2",
-                         "kurtosis", "std_frequency"],
-               "log_names": ["env_ratio_bpfo", "env_ratio_bpfi", "env_ratio_bsf",
-                             "env_ratio_bsf_x2", "kurtosis"],
-               "band_hz": [2000.0, 5000.0], "highpass_hz": 10.0}
+STATISTICAL = {
+    "names": [
+        "env_ratio_bpfo",
+        "env_ratio_bpfi",
+        "env_ratio_bsf",
+        "env_ratio_bsf_x2",
+        "kurtosis",
+        "std_frequency",
+    ],
+    "log_names": [
+        "env_ratio_bpfo",
+        "env_ratio_bpfi",
+        "env_ratio_bsf",
+        "env_ratio_bsf_x2",
+        "kurtosis",
+    ],
+    "band_hz": [2000.0, 5000.0],
+    "highpass_hz": 10.0,
+}
 
 
 def bearing_system(task="location", quantile=0.95):
     """The bearing system as the baselines job sees it (job_config("baselines"))."""
-    return BearingSystem({"bearing": {"health_states": None, "healthy_state": "normal",
-                                      "envelope_rule": {"quantile": quantile}},
-                          "cwru": {"task": task}})
+    return BearingSystem(
+        {
+            "bearing": {
+                "health_states": None,
+                "healthy_state": "normal",
+                "envelope_rule": {"quantile": quantile},
+            },
+            "cwru": {"task": task},
+        }
+    )
 
 
-def simulated_features(kind, record_id, seconds=2.0, seed=3):
+def simulated_features(kind, record_id, seconds=2.0, seed=3, with_signals=False):
     """The statistical features of a simulated record of the rig model (its default noise and
-    machine background; an outer-race defect at 6:00), segments of 4096 samples."""
+    machine background; an outer-race defect at 6:00), segments of 4096 samples; `with_signals`:
+    its signal table instead."""
     params = BearingRigParameters(speed_rpm=SPEED, defect_kind=kind)
-    signal = simulate_rig(params, RigSettings(duration=seconds, settle_time=0.1),
-                          np.random.default_rng(seed))["DE"]
+    signal = simulate_rig(
+        params, RigSettings(duration=seconds, settle_time=0.1), np.random.default_rng(seed)
+    )["DE"]
     label = {"none": "normal"}.get(kind, kind)
-    rows = make_rows(record_id, "simulated", label, SPEED, 0.0, FS, {"DE": signal},
-                     segment_length=4096)
+    rows = make_rows(
+        record_id, "simulated", label, SPEED, 0.0, FS, {"DE": signal}, segment_length=4096
+    )
+    if with_signals:
+        return pd.DataFrame(rows)
     # the envelope lines where the bearing system puts them (its geometry, SKF 6205)
-    return statistical_feature_table(pd.DataFrame(rows), ["DE"], STATISTICAL,
-                                     system_of(".test/config/cwru-smoke.yaml").defect_orders())
+    return statistical_feature_table(
+        pd.DataFrame(rows),
+        ["DE"],
+        STATISTICAL,
+        system_of(".test/config/cwru-smoke.yaml").defect_orders(),
+    )
 
 
 @pytest.fixture(scope="module")
@@ -60,7 +91,8 @@ def test_the_envelope_rule_says_outer_race_on_a_simulated_outer_race_record(reco
     ratios = rule.line_ratios(outer)
     assert (ratios["bpfo"] > rule.threshold_).all()
     assert rule.threshold_ == pytest.approx(
-        np.quantile(rule.line_ratios(healthy).max(axis=1), 0.95))
+        np.quantile(rule.line_ratios(healthy).max(axis=1), 0.95)
+    )
     assert "calibration" in rule.describe()["threshold_from"]
 
 
@@ -80,10 +112,17 @@ def test_the_threshold_comes_from_calibration_segments_only(records):
     reserve = {"records": [], "calibration_segments": 2, "guard_segments": 1, "blocks": 1}
     # a second faulty record, so the split has something to test besides the healthy block
     measured = pd.concat([measured, outer.assign(record_id="outer2", load=0.0)], ignore_index=True)
-    splits = make_splits(measured[["record_id", "segment", "health_state", "load"]],
-                         "unseen_fault", measured_percent=[0], repeats=1, seed=0, condition="load",
-                         measured_classes=["normal"],
-                         healthy_state="normal", reserve=reserve)
+    splits = make_splits(
+        measured[["record_id", "segment", "health_state", "load"]],
+        "unseen_fault",
+        measured_percent=[0],
+        repeats=1,
+        seed=0,
+        condition="load",
+        measured_classes=["normal"],
+        healthy_state="normal",
+        reserve=reserve,
+    )
     names = [c for c in measured.columns if c.startswith("DE_")]
     rules = bearing_system().physics_baselines(names)
     predictions, info = physics_predictions(rules, measured, splits)
@@ -92,7 +131,10 @@ def test_the_threshold_comes_from_calibration_segments_only(records):
     expected = {(r, s) for r, s in zip(measured.record_id, measured.segment) if r in whole}
     expected |= set(zip(tested.record_id[tested.segment >= 0], tested.segment[tested.segment >= 0]))
     assert set(zip(predictions.record_id, predictions.segment)) == expected
-    assert not set(zip(predictions.record_id, predictions.segment)) & {("healthy", 0), ("healthy", 1)}
+    assert not set(zip(predictions.record_id, predictions.segment)) & {
+        ("healthy", 0),
+        ("healthy", 1),
+    }
     calibration = healthy[healthy.segment < 2]
     expected = np.quantile(rules["envelope_rule"].line_ratios(calibration).max(axis=1), 0.95)
     assert info["envelope_rule"]["threshold"] == pytest.approx(expected)
@@ -118,4 +160,54 @@ def test_a_fault_record_whose_line_stays_at_the_healthy_level_does_not_show_it(r
     lines = {row["record_id"]: row for row in rule.fault_lines(pd.concat([healthy, outer, quiet]))}
     assert set(lines) == {"outer", "quiet"}  # healthy records have no defect line
     assert lines["outer"]["shows_line"] and not lines["quiet"]["shows_line"]
-    assert lines["quiet"]["median_ratio"] <= rule.threshold_ < lines["outer"]["median_ratio"]
+    assert (
+        lines["quiet"]["median_ratio"]
+        <= rule.thresholds_["features"]
+        < lines["outer"]["median_ratio"]
+    )
+    assert lines["outer"]["shown_by"] == "features" and not lines["outer"]["no_line_why"]
+    assert (
+        not lines["quiet"]["shown_by"]
+        and "no analysis lifts the median bpfo ratio" in lines["quiet"]["no_line_why"]
+    )
+
+
+@pytest.mark.slow
+def test_the_rule_consults_every_analysis_of_the_measured_signals(records):
+    """With the measured signals the rule reads `bearing.envelope_rule.line_analyses` beside the
+    features' analysis: each analysis's ratios over its healthy median, the largest per line; a
+    fault record names the analyses that show its line."""
+    healthy, outer = records
+    signals = pd.concat(
+        [
+            simulated_features("none", "healthy", with_signals=True),
+            simulated_features("outer_race", "outer", with_signals=True),
+        ],
+        ignore_index=True,
+    )
+    analyses = ["fixed", "kurtogram", "prewhitened_fixed", "prewhitened_kurtogram"]
+    system = BearingSystem(
+        {
+            "bearing": {
+                "health_states": None,
+                "healthy_state": "normal",
+                "envelope_rule": {"quantile": 0.95, "line_analyses": analyses},
+                "geometry": system_of(".test/config/cwru-smoke.yaml").bearing["geometry"],
+            },
+            "cwru": {"task": "location"},
+            "features": {"statistical": STATISTICAL},
+        }
+    )
+    names = [c for c in outer.columns if c.startswith("DE_")]
+    rule = system.physics_baselines(names, signals)["envelope_rule"].fit(healthy)
+    assert rule.analyses() == ["features", *analyses]
+    assert set(rule.describe()["analysis_thresholds"]) == {"features", *analyses}
+    assert list(rule.predict(outer)) == ["outer_race"] * len(outer)
+    # the features' own analysis (the fixed band) and the line table's agree on the fixed band
+    ratios = rule.analysis_ratios(outer)
+    assert np.allclose(ratios["features"]["bpfo"], ratios["fixed"]["bpfo"])
+    line = {row["record_id"]: row for row in rule.fault_lines(pd.concat([healthy, outer]))}["outer"]
+    assert line["shows_line"] and "fixed" in line["shown_by"].split(", ")
+    assert set(line["median_ratios"]) == {"features", *analyses}
+    with pytest.raises(ValueError, match="no line ratios of segment"):
+        rule.predict(outer.assign(record_id="elsewhere"))

@@ -1,6 +1,7 @@
 """README.md is a user's manual that works as written: short, undated, its two main commands as
 CI runs them, and every command in it runs in a fresh copy of the project (Snakemake ones as a dry
 run, the others as far as they run without a finished run: `--help`)."""
+
 import os
 import re
 import shlex
@@ -46,7 +47,7 @@ def check_of(step: str) -> list[str] | None:
     if words[0] == "snakemake":
         if "--report" in words:
             at = words.index("--report")
-            del words[at:at + 2]
+            del words[at : at + 2]
         return [sys.executable, "-m", "snakemake", "-n", "--quiet", "rules", *words[1:]]
     if words[:3] == ["python3", "-m", "pytest"]:
         return None
@@ -56,15 +57,21 @@ def check_of(step: str) -> list[str] | None:
         return [words[0], words[1], "--help"]
     if words[0] == "condmon-compare":
         return [words[0], "--help"]
-    raise AssertionError(f"README command {step!r}: no test knows how to run it (add it to check_of)")
+    raise AssertionError(
+        f"README command {step!r}: no test knows how to run it (add it to check_of)"
+    )
 
 
 def test_the_readme_is_short_undated_and_reaches_predict_early():
     text = README.read_text()
     lines = text.splitlines()
     assert len(lines) <= 200
-    assert not re.search(r"\b20\d\d-\d\d-\d\d\b", text), "a date in README.md: history goes to docs/experiments/"
-    predict = next(n for n, line in enumerate(lines, 1) if line.startswith("#") and "predict" in line)
+    assert not re.search(r"\b20\d\d-\d\d-\d\d\b", text), (
+        "a date in README.md: history goes to docs/experiments/"
+    )
+    predict = next(
+        n for n, line in enumerate(lines, 1) if line.startswith("#") and "predict" in line
+    )
     assert predict < 120
     assert "before" not in " ".join(line.lower() for line in lines if line.startswith("|"))
 
@@ -72,7 +79,11 @@ def test_the_readme_is_short_undated_and_reaches_predict_early():
 def test_the_two_main_commands_are_as_ci_runs_them():
     commands = readme_commands(README.read_text())
     assert MAIN_RUN in commands and TEST_RUN in commands
-    ci = [line for line in (ROOT / ".ci" / "run").read_text().splitlines() if line and not line.startswith("#")]
+    ci = [
+        line
+        for line in (ROOT / ".ci" / "run").read_text().splitlines()
+        if line and not line.startswith("#")
+    ]
     assert ci[-1] == TEST_RUN
 
 
@@ -89,7 +100,12 @@ def broken_links(page: Path) -> list[str]:
 
 
 def test_the_pages_link_to_files_that_exist(tmp_path):
-    pages = [README, ROOT / "CHANGELOG.md", ROOT / "config" / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    pages = [
+        README,
+        ROOT / "CHANGELOG.md",
+        ROOT / "config" / "README.md",
+        *sorted((ROOT / "docs").rglob("*.md")),
+    ]
     assert {str(p.relative_to(ROOT)): broken_links(p) for p in pages if broken_links(p)} == {}
     page = tmp_path / "a.md"
     page.write_text("[here](b.md), [web](https://example.org), [there](a.md#top)")
@@ -99,8 +115,13 @@ def test_the_pages_link_to_files_that_exist(tmp_path):
 def fresh_copy(folder: Path) -> Path:
     """The project's files as a fresh clone has them (tracked, and new files not ignored), with the
     shared data beside it where this machine has them, and the user's own files made empty."""
-    listed = subprocess.run(["git", "ls-files", "--cached", "--others", "--exclude-standard", "-z"],
-                            cwd=ROOT, capture_output=True, text=True, check=True).stdout.split("\0")
+    listed = subprocess.run(
+        ["git", "ls-files", "--cached", "--others", "--exclude-standard", "-z"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split("\0")
     copy = folder / "condmon"
     for name in filter(None, listed):
         source = ROOT / name
@@ -129,5 +150,7 @@ def test_every_readme_command_runs_in_a_fresh_copy(tmp_path):
                 continue
             result = subprocess.run(check, cwd=copy, capture_output=True, text=True, env=env)
             if result.returncode:
-                failures.append(f"{step}\n  -> {' '.join(check)}\n{(result.stdout + result.stderr)[-1500:]}")
+                failures.append(
+                    f"{step}\n  -> {' '.join(check)}\n{(result.stdout + result.stderr)[-1500:]}"
+                )
     assert not failures, "\n\n".join(failures)

@@ -1,6 +1,7 @@
 """The classifier and feature-family registries: a new classifier and a new feature family are
 each one small piece of code plus one registry line; the config then accepts them (their own
 sections and defaults, a bad value named), and the train and features stages use them."""
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -26,8 +27,12 @@ class NearestMean(ClassifierMixin, BaseEstimator):
         X, y = np.asarray(X, float), np.asarray(y)
         self.classes_ = np.unique(y)
         centre = X.mean(axis=0)
-        self.means_ = np.array([(1 - self.shrink) * X[y == c].mean(axis=0) + self.shrink * centre
-                                for c in self.classes_])
+        self.means_ = np.array(
+            [
+                (1 - self.shrink) * X[y == c].mean(axis=0) + self.shrink * centre
+                for c in self.classes_
+            ]
+        )
         return self
 
     def predict(self, X):
@@ -38,8 +43,10 @@ class NearestMean(ClassifierMixin, BaseEstimator):
 @pytest.fixture
 def nearest_mean():
     classifiers.register_classifier(
-        "nearest_mean", lambda params, seed: NearestMean(**params),
-        {"shrink": {"type": "number", "minimum": 0, "maximum": 1, "default": 0.0}})
+        "nearest_mean",
+        lambda params, seed: NearestMean(**params),
+        {"shrink": {"type": "number", "minimum": 0, "maximum": 1, "default": 0.0}},
+    )
     yield "nearest_mean"
     del classifiers.CLASSIFIERS["nearest_mean"]
 
@@ -55,9 +62,15 @@ def peak_to_peak_table(signal_frame, channels, params, defect_orders=None):
 @pytest.fixture
 def peak_to_peak():
     features.register_feature_family(
-        "peak_to_peak", peak_to_peak_table,
-        {"type": "object", "additionalProperties": False, "default": {},
-         "properties": {"gain": {"type": "number", "exclusiveMinimum": 0, "default": 1.0}}})
+        "peak_to_peak",
+        peak_to_peak_table,
+        {
+            "type": "object",
+            "additionalProperties": False,
+            "default": {},
+            "properties": {"gain": {"type": "number", "exclusiveMinimum": 0, "default": 1.0}},
+        },
+    )
     yield "peak_to_peak"
     del features.FEATURE_FAMILIES["peak_to_peak"]
 
@@ -69,7 +82,10 @@ def test_the_config_accepts_a_registered_classifier_with_its_defaults(nearest_me
     assert {"svm", "knn", "cnn"} < set(config["classifiers"])  # beside the built-in ones
     with pytest.raises(ConfigError, match=r"classifiers\.nearest_mean\.shrink: 2 is greater than"):
         config_of(changes={"classifiers": {"nearest_mean": {"shrink": 2}}})
-    with pytest.raises(ConfigError, match=r"unknown key classifiers\.nearest_mean\.shrnk; allowed keys here: \['enabled', 'shrink'\]"):
+    with pytest.raises(
+        ConfigError,
+        match=r"unknown key classifiers\.nearest_mean\.shrnk; allowed keys here: \['enabled', 'shrink'\]",
+    ):
         config_of(changes={"classifiers": {"nearest_mean": {"shrnk": 0.5}}})
 
 
@@ -86,7 +102,10 @@ def test_the_config_accepts_a_registered_feature_family_with_its_defaults(peak_t
 
 
 def test_an_unregistered_family_is_refused_naming_the_registered_ones():
-    with pytest.raises(ConfigError, match=r"'peak_to_peak' is not a feature family.*built in: spectrum, statistical"):
+    with pytest.raises(
+        ConfigError,
+        match=r"'peak_to_peak' is not a feature family.*built in: spectrum, statistical",
+    ):
         config_of(changes={"features": {"kind": "spectrum+peak_to_peak"}})
 
 
@@ -98,17 +117,35 @@ def test_a_registered_classifier_is_validated_built_and_trained(nearest_mean):
     with pytest.raises(ValueError, match="already registered"):
         classifiers.register_classifier(nearest_mean, NearestMean, {})
     rng = np.random.default_rng(0)
-    rows = [{"record_id": f"{source}_{label}_{r}", "segment": s, "source": source,
-             "health_state": label, "speed_rpm": 600.0, "load": 1.0, "fs_hz": 1000.0,
-             "f0": rng.normal(10.0 * k), "f1": rng.normal(-10.0 * k)}
-            for source in ("simulated", "measured") for k, label in enumerate(("healthy", "fault"))
-            for r in range(4) for s in range(3)]
+    rows = [
+        {
+            "record_id": f"{source}_{label}_{r}",
+            "segment": s,
+            "source": source,
+            "health_state": label,
+            "speed_rpm": 600.0,
+            "load": 1.0,
+            "fs_hz": 1000.0,
+            "f0": rng.normal(10.0 * k),
+            "f1": rng.normal(-10.0 * k),
+        }
+        for source in ("simulated", "measured")
+        for k, label in enumerate(("healthy", "fault"))
+        for r in range(4)
+        for s in range(3)
+    ]
     table = pd.DataFrame(rows)
     simulated, measured = table[table.source == "simulated"], table[table.source == "measured"]
-    splits = make_splits(measured[["record_id", "segment", "health_state", "speed_rpm"]],
-                         "record_split", measured_percent=[0, 50], repeats=1, seed=0)
-    predictions, metrics, models = run_protocol(nearest_mean, {"shrink": 0.1}, simulated, measured,
-                                                splits, ["f0", "f1"], seed=0)
+    splits = make_splits(
+        measured[["record_id", "segment", "health_state", "speed_rpm"]],
+        "record_split",
+        measured_percent=[0, 50],
+        repeats=1,
+        seed=0,
+    )
+    predictions, metrics, models = run_protocol(
+        nearest_mean, {"shrink": 0.1}, simulated, measured, splits, ["f0", "f1"], seed=0
+    )
     assert set(metrics["classifier"]) == {nearest_mean}
     assert all(isinstance(model, NearestMean) and model.shrink == 0.1 for model in models.values())
     assert (metrics["accuracy"] == 1.0).all()  # classes 14 standard deviations apart
@@ -118,14 +155,31 @@ def test_a_registered_family_is_computed_beside_the_built_in_ones(peak_to_peak, 
     fs, rows = 1000.0, []
     for record, amplitude in (("r1", 1.0), ("r2", 3.0)):
         t = np.arange(2000) / fs
-        rows += make_rows(record, "measured", "healthy", 600.0, 1.0, fs,
-                          {"A1_x": amplitude * np.sin(2 * np.pi * 50 * t)}, segment_length=1000)
+        rows += make_rows(
+            record,
+            "measured",
+            "healthy",
+            600.0,
+            1.0,
+            fs,
+            {"A1_x": amplitude * np.sin(2 * np.pi * 50 * t)},
+            segment_length=1000,
+        )
     path = tmp_path / "signals.parquet"
     write_signal_table(rows, path)
-    spectrum = {"f_min_hz": 0.0, "f_max_hz": 100.0, "resolution_hz": 10.0, "scale": "linear",
-                "band_statistic": "mean"}
+    spectrum = {
+        "f_min_hz": 0.0,
+        "f_max_hz": 100.0,
+        "resolution_hz": 10.0,
+        "scale": "linear",
+        "band_statistic": "mean",
+    }
     frame = features.compute_feature_table_from_files(
-        [path], ["A1_x"], "spectrum+peak_to_peak", {"spectrum": spectrum, "peak_to_peak": {"gain": 0.5}})
+        [path],
+        ["A1_x"],
+        "spectrum+peak_to_peak",
+        {"spectrum": spectrum, "peak_to_peak": {"gain": 0.5}},
+    )
     columns = [c for c in frame.columns if c not in ID_COLUMNS]
     assert columns[:10] == [f"fft_A1_x_{f:07.1f}Hz" for f in range(5, 100, 10)]
     assert columns[10:] == ["ptp_A1_x"]

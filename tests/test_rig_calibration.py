@@ -1,4 +1,5 @@
 """Calibration of the bearing rig: the study's feature cost, and a folder without a healthy record."""
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -11,32 +12,68 @@ from condmon.signals import make_rows
 from condmon.models.bearing.rig import simulate_rig
 
 NUMERICS = {"output_rate_hz": 12000.0, "oversampling": 4, "settle_time": 0.05}
-SPECTRUM = {"f_min_hz": 0.0, "f_max_hz": 6000.0, "resolution_hz": 50.0, "scale": "log",
-            "band_statistic": "rms"}
-CALIBRATION = {"parameters": {"noise_rms": {"low": 0.05, "high": 2.0, "log": True}},
-               "population": 4, "generations": 2, "sigma0": 0.3, "sim_seconds": 0.35,
-               "resolution_hz": 50.0, "seed": 3, "cost": "features_eq6"}
+SPECTRUM = {
+    "f_min_hz": 0.0,
+    "f_max_hz": 6000.0,
+    "resolution_hz": 50.0,
+    "scale": "log",
+    "band_statistic": "rms",
+}
+CALIBRATION = {
+    "parameters": {"noise_rms": {"low": 0.05, "high": 2.0, "log": True}},
+    "population": 4,
+    "generations": 2,
+    "sigma0": 0.3,
+    "sim_seconds": 0.35,
+    "resolution_hz": 50.0,
+    "seed": 3,
+    "cost": "features_eq6",
+}
 SEGMENT = 2048
 
 
 def rig(model=None):
     """The bearing system with these numerics, segments and nominal `bearing.model` values."""
-    return system_of(".test/config/cwru-smoke.yaml", {"bearing": {
-        "segment_length": SEGMENT, "numerics": {"oversampling": 4, "settle_time": 0.05}, "model": model or {}}})
+    return system_of(
+        ".test/config/cwru-smoke.yaml",
+        {
+            "bearing": {
+                "segment_length": SEGMENT,
+                "numerics": {"oversampling": 4, "settle_time": 0.05},
+                "model": model or {},
+            }
+        },
+    )
 
 
 def rig_table(health_state, noise_rms, seconds=0.7, seed=0):
     """A 'measured' table made by the rig itself at a known sensor noise."""
     params = build_rig_parameters({}, "normal", 1797.0, noise_rms=noise_rms)
-    signal = simulate_rig(params, rig_settings(NUMERICS, seconds), np.random.default_rng(seed))["DE"]
-    return pd.DataFrame(make_rows("rec", "measured", health_state, 1796.0, 0.0, 12000.0,
-                                  {"DE": signal}, segment_length=SEGMENT))
+    signal = simulate_rig(params, rig_settings(NUMERICS, seconds), np.random.default_rng(seed))[
+        "DE"
+    ]
+    return pd.DataFrame(
+        make_rows(
+            "rec",
+            "measured",
+            health_state,
+            1796.0,
+            0.0,
+            12000.0,
+            {"DE": signal},
+            segment_length=SEGMENT,
+        )
+    )
 
 
 def test_feature_cost_is_relative_per_feature():
     measured = np.array([[[1.0, 100.0]]])
-    assert spectrum_cost(np.array([[[1.1, 100.0]]]), measured, "features_eq6", COSTS) == pytest.approx(0.01)
-    assert spectrum_cost(np.array([[[1.0, 110.0]]]), measured, "features_eq6", COSTS) == pytest.approx(0.01)
+    assert spectrum_cost(
+        np.array([[[1.1, 100.0]]]), measured, "features_eq6", COSTS
+    ) == pytest.approx(0.01)
+    assert spectrum_cost(
+        np.array([[[1.0, 110.0]]]), measured, "features_eq6", COSTS
+    ) == pytest.approx(0.01)
     # the bearing system declares it; the shared calibration knows only the spectral costs
     with pytest.raises(ValueError, match="unknown calibration cost 'features_eq6'"):
         spectrum_cost(measured, measured, "features_eq6")
@@ -61,5 +98,9 @@ def test_without_a_healthy_record_the_nominal_parameters_stay_and_say_why():
     assert result["parameters"] == {"noise_rms": 0.3} and result["evaluations"] == 0
     assert spectra["measured"].isna().all() and spectra["calibrated"].gt(0).all()
     with pytest.raises(ValueError, match="not bearing.model parameters"):
-        calibrate_rig(rig(), frame, dict(CALIBRATION, parameters={"mesh_stiffness": {
-            "low": 1.0, "high": 2.0}}), SPECTRUM)
+        calibrate_rig(
+            rig(),
+            frame,
+            dict(CALIBRATION, parameters={"mesh_stiffness": {"low": 1.0, "high": 2.0}}),
+            SPECTRUM,
+        )

@@ -1,5 +1,6 @@
 """Sequential backward selection as a Pipeline step: it finds informative features and its choice
 comes from the training data of each fit only."""
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -28,9 +29,13 @@ def blobs(informative, n_per_class=40, n_features=8, n_classes=3, seed=0, scale=
 
 def pipeline(**kwargs):
     kwargs.setdefault("cv", 3)  # short test runs
-    return Pipeline([("scale", StandardScaler()),
-                     ("sbs", SequentialBackwardSelector(**kwargs)),
-                     ("knn", KNeighborsClassifier(n_neighbors=5))])
+    return Pipeline(
+        [
+            ("scale", StandardScaler()),
+            ("sbs", SequentialBackwardSelector(**kwargs)),
+            ("knn", KNeighborsClassifier(n_neighbors=5)),
+        ]
+    )
 
 
 def test_selects_the_informative_features_inside_a_pipeline():
@@ -53,11 +58,14 @@ def test_choice_depends_on_the_training_data_only():
     Xb, yb = blobs([5, 6, 7], seed=2)
     X, y = np.vstack([Xa, Xb]), np.concatenate([ya, yb])
     half = np.arange(len(X)) < len(Xa)
-    folds = [(np.flatnonzero(half), np.flatnonzero(~half)),
-             (np.flatnonzero(~half), np.flatnonzero(half))]
+    folds = [
+        (np.flatnonzero(half), np.flatnonzero(~half)),
+        (np.flatnonzero(~half), np.flatnonzero(half)),
+    ]
     result = cross_validate(pipeline(), X, y, cv=folds, return_estimator=True)
-    chosen = [list(np.flatnonzero(est.named_steps["sbs"].get_support()))
-              for est in result["estimator"]]
+    chosen = [
+        list(np.flatnonzero(est.named_steps["sbs"].get_support())) for est in result["estimator"]
+    ]
     assert chosen == [[0, 1, 2], [5, 6, 7]]  # each fold picks what its training half says
     # selected inside the pipeline, the test half cannot help: chance-level accuracy there
     assert max(result["test_score"]) < 0.6
@@ -146,14 +154,17 @@ def records_of(y, per_record=10):
 
 def candidates(n_features):
     from condmon.selection import SelectionByInnerCV, select_then_classify
+
     knn = Pipeline([("scale", StandardScaler()), ("knn", KNeighborsClassifier(n_neighbors=5))])
-    selected = select_then_classify(SequentialBackwardSelector(n_features=n_features, cv=3),
-                                    clone(knn))
+    selected = select_then_classify(
+        SequentialBackwardSelector(n_features=n_features, cv=3), clone(knn)
+    )
     return SelectionByInnerCV(knn, selected, cv=3)
 
 
 def test_the_baseline_keeps_all_features_when_they_score_better():
     from condmon.selection import ALL_FEATURES
+
     # every feature carries a little of the class: selecting one of six loses
     rng = np.random.default_rng(0)
     y = np.repeat(np.arange(2), 60)
@@ -167,6 +178,7 @@ def test_the_baseline_keeps_all_features_when_they_score_better():
 @pytest.mark.slow
 def test_the_baseline_selects_when_its_own_records_say_so():
     from condmon.selection import BACKWARD
+
     rng = np.random.default_rng(3)
     y = np.repeat(np.arange(2), 60)
     X = rng.normal(size=(120, 12))
@@ -178,6 +190,7 @@ def test_the_baseline_selects_when_its_own_records_say_so():
 
 def test_too_few_records_for_an_inner_cv_means_no_selection():
     from condmon.selection import ALL_FEATURES
+
     X, y = blobs([0, 1, 2], n_per_class=20, n_features=8, n_classes=2)
     one_record_per_class = np.where(y == 0, "a", "b")
     model = candidates(3).fit(X, y, groups=one_record_per_class)

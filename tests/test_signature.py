@@ -1,5 +1,6 @@
 """How the simulated faults move the features against the measured faults (condmon.signature),
 and the report's summary.json `fault_signatures` and plot."""
+
 import json
 
 import numpy as np
@@ -8,8 +9,14 @@ import pytest
 
 import fake_train_outputs as fake
 from condmon.features import read_feature_table, write_feature_table
-from condmon.signature import (COVERAGE_TOLERANCE, fault_signatures, outside_simulation,
-                               pooled_coverage, signature_table, simulation_coverage)
+from condmon.signature import (
+    COVERAGE_TOLERANCE,
+    fault_signatures,
+    outside_simulation,
+    pooled_coverage,
+    signature_table,
+    simulation_coverage,
+)
 from condmon.train_tables import ReportInputError
 
 NAMES = [f"f{i}" for i in range(8)]
@@ -23,8 +30,15 @@ def segments(rng, source, shifts: dict, speeds=(450.0,), n=200):
         for state, shift in {"healthy": np.zeros(len(NAMES)), **shifts}.items():
             values = rng.normal(0.0, 1.0, (n, len(NAMES))) + np.asarray(shift, float)
             for k, row in enumerate(values):
-                rows.append({"record_id": f"{source}-{state}-{speed:g}-{k // 4}", "segment": k % 4,
-                             "health_state": state, "speed_rpm": speed, **dict(zip(NAMES, row))})
+                rows.append(
+                    {
+                        "record_id": f"{source}-{state}-{speed:g}-{k // 4}",
+                        "segment": k % 4,
+                        "health_state": state,
+                        "speed_rpm": speed,
+                        **dict(zip(NAMES, row)),
+                    }
+                )
     return pd.DataFrame(rows)
 
 
@@ -36,25 +50,37 @@ def test_shifts_in_healthy_spreads_and_their_direction():
     measured = segments(rng, "bench", {"missing_tooth": along, "surface_fault": -0.3 * along})
     out = fault_signatures(measured, simulated, NAMES, "healthy", "speed_rpm")
     rows = out["per_condition"]["450"]["classes"]
-    simulated_rms = np.sqrt(np.mean(along ** 2))  # 1.5 spreads
+    simulated_rms = np.sqrt(np.mean(along**2))  # 1.5 spreads
     assert rows["missing_tooth"]["simulated_shift"] == pytest.approx(simulated_rms, rel=0.1)
     assert rows["missing_tooth"]["measured_shift"] == pytest.approx(simulated_rms, rel=0.1)
     assert rows["missing_tooth"]["direction_correlation"] > 0.9
     assert rows["surface_fault"]["measured_shift"] < 0.5 * simulated_rms
     assert rows["surface_fault"]["direction_correlation"] < -0.5
-    assert rows["missing_tooth"]["features"] == len(NAMES) and rows["missing_tooth"]["measured_records"] == 50
+    assert (
+        rows["missing_tooth"]["features"] == len(NAMES)
+        and rows["missing_tooth"]["measured_records"] == 50
+    )
     table = signature_table(out)
-    assert list(table["health_state"]) == ["missing_tooth", "surface_fault"] and set(table["condition"]) == {"450"}
+    assert list(table["health_state"]) == ["missing_tooth", "surface_fault"] and set(
+        table["condition"]
+    ) == {"450"}
 
 
 def test_each_measured_condition_takes_the_nearest_simulated_one_and_skips_what_it_cannot_compare():
     rng = np.random.default_rng(1)
     simulated = segments(rng, "sim", {"missing_tooth": np.full(8, 2.0)}, speeds=(450.0, 1100.0))
     simulated.loc[:, "f7"] = 1.0  # no healthy spread: left out
-    measured = segments(rng, "bench", {"missing_tooth": np.full(8, 2.0), "spall": np.full(8, 2.0)},
-                        speeds=(460.0, 1090.0))
+    measured = segments(
+        rng,
+        "bench",
+        {"missing_tooth": np.full(8, 2.0), "spall": np.full(8, 2.0)},
+        speeds=(460.0, 1090.0),
+    )
     out = fault_signatures(measured, simulated, NAMES, "healthy", "speed_rpm")
-    assert {k: v["simulated_at"] for k, v in out["per_condition"].items()} == {"460": 450.0, "1090": 1100.0}
+    assert {k: v["simulated_at"] for k, v in out["per_condition"].items()} == {
+        "460": 450.0,
+        "1090": 1100.0,
+    }
     for entry in out["per_condition"].values():
         assert list(entry["classes"]) == ["missing_tooth"]  # spall was never simulated
         assert entry["classes"]["missing_tooth"]["features"] == 7
@@ -66,8 +92,13 @@ def test_each_measured_condition_takes_the_nearest_simulated_one_and_skips_what_
 
 def test_outside_simulation_marks_the_segments_no_simulated_example_covers():
     simulated = pd.DataFrame({"record_id": "sim", "a": [0.0, 1.0, 2.0], "b": [10.0, 20.0, 30.0]})
-    measured = pd.DataFrame({"record_id": ["in", "in", "low", "low", "both"],
-                             "a": [0.0, 2.0, -0.1, 1.0, 3.0], "b": [10.0, 30.0, 15.0, 15.0, 5.0]})
+    measured = pd.DataFrame(
+        {
+            "record_id": ["in", "in", "low", "low", "both"],
+            "a": [0.0, 2.0, -0.1, 1.0, 3.0],
+            "b": [10.0, 30.0, 15.0, 15.0, 5.0],
+        }
+    )
     out = outside_simulation(measured, simulated, ["a", "b"]).set_index("record_id")
     assert out["outside_simulation"].to_dict() == {"both": 1.0, "in": 0.0, "low": 0.5}
     assert out["features_outside_simulation"].to_dict() == {"both": "a, b", "in": "", "low": "a"}
@@ -78,9 +109,28 @@ def test_outside_simulation_marks_the_segments_no_simulated_example_covers():
 
 
 def _coverage(rows):
-    return pd.DataFrame([dict(zip(["classifier", "protocol", "measured_percent", "repeat", "holdout",
-                                   "record_id", "n_segments", "outside_training",
-                                   "features_outside_training", "features"], row)) for row in rows])
+    return pd.DataFrame(
+        [
+            dict(
+                zip(
+                    [
+                        "classifier",
+                        "protocol",
+                        "measured_percent",
+                        "repeat",
+                        "holdout",
+                        "record_id",
+                        "n_segments",
+                        "outside_training",
+                        "features_outside_training",
+                        "features",
+                    ],
+                    row,
+                )
+            )
+            for row in rows
+        ]
+    )
 
 
 def test_simulation_coverage_judges_the_design_records_at_the_lowest_share():
@@ -115,40 +165,51 @@ def test_simulation_coverage_judges_the_design_records_at_the_lowest_share():
     assert not entry["covers_design_records"] and entry["design_segments_outside"] is None
 
 
-@pytest.fixture(scope="module")
-def train_outputs(tmp_path_factory):
-    root = tmp_path_factory.mktemp("results") / "demo"
-    # one classifier: the signatures and the records' shares outside the simulation are the
-    # features', and the report's plots per classifier (most of its time) add nothing here
-    return root, fake.build(root, classifiers={"knn": {"n_neighbors": 3}})
-
-
-def test_the_report_gives_the_signatures_and_their_plot(train_outputs, tmp_path):
-    _, paths = train_outputs
+def test_the_report_gives_the_signatures_and_their_plot(knn_train_outputs, tmp_path):
+    _, paths = knn_train_outputs
     out = tmp_path / "report"
-    summary = fake.write_sections(paths, out, ["fault_signatures", "recall_per_record"],
-                                  evaluation={"measured_features": paths["features_measured"],
-                                              "simulated_features": paths["features_simulated"]},
-                                  outputs={"recall_per_record": out / "recall_per_record.csv"})
+    summary = fake.write_sections(
+        paths,
+        out,
+        ["fault_signatures", "recall_per_record"],
+        evaluation={
+            "measured_features": paths["features_measured"],
+            "simulated_features": paths["features_simulated"],
+        },
+        outputs={"recall_per_record": out / "recall_per_record.csv"},
+    )
     signatures = json.loads((out / "summary.json").read_text())["fault_signatures"]
     assert signatures == summary["fault_signatures"] and signatures["condition"] == "speed_rpm"
     measured, names = read_feature_table(paths["features_measured"])
     simulated, _ = read_feature_table(paths["features_simulated"])
-    assert signatures == json.loads(json.dumps(fault_signatures(measured, simulated, names, "healthy", "speed_rpm")))
+    assert signatures == json.loads(
+        json.dumps(fault_signatures(measured, simulated, names, "healthy", "speed_rpm"))
+    )
     assert signatures["per_condition"] and "fault_signatures.png" in summary["plots"]
     assert (out / "plots" / "fault_signatures.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # each record's share of segments outside the simulated range stands beside its recall
     per_record = pd.read_csv(out / "recall_per_record.csv", keep_default_na=False)
     outside = outside_simulation(measured, simulated, names).set_index("record_id")
     for _, row in per_record.iterrows():
-        assert row["outside_simulation"] == pytest.approx(outside.loc[row["record_id"], "outside_simulation"])
+        assert row["outside_simulation"] == pytest.approx(
+            outside.loc[row["record_id"], "outside_simulation"]
+        )
 
 
-def test_simulated_features_of_other_names_are_refused_with_the_file_named(train_outputs, tmp_path):
-    _, paths = train_outputs
+def test_simulated_features_of_other_names_are_refused_with_the_file_named(
+    knn_train_outputs, tmp_path
+):
+    _, paths = knn_train_outputs
     simulated, names = read_feature_table(paths["features_simulated"])
     other = tmp_path / "simulated.parquet"
     write_feature_table(simulated.drop(columns=names[-1]), names[:-1], other)
     with pytest.raises(ReportInputError, match="simulated.parquet: its features differ"):
-        fake.write_sections(paths, tmp_path / "report", ["fault_signatures"],
-                            evaluation={"measured_features": paths["features_measured"], "simulated_features": other})
+        fake.write_sections(
+            paths,
+            tmp_path / "report",
+            ["fault_signatures"],
+            evaluation={
+                "measured_features": paths["features_measured"],
+                "simulated_features": other,
+            },
+        )

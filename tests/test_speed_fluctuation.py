@@ -1,4 +1,5 @@
 """The speed fluctuation read off healthy records (`model.variability.speed_fluctuation_source`)."""
+
 import math
 
 import numpy as np
@@ -10,7 +11,9 @@ from condmon.systems.gear.parameters import measured_fluctuation_fields
 FS, TEETH = 5120.0, 29
 
 
-def mesh_records(amplitude, frequency_hz, speed_rpm=775.0, segments=2, seconds=1.5, noise=0.05, seed=0):
+def mesh_records(
+    amplitude, frequency_hz, speed_rpm=775.0, segments=2, seconds=1.5, noise=0.05, seed=0
+):
     """Segments (n, 4 channels, samples) of a mesh line on a shaft whose speed is
     speed x (1 + amplitude sin(2 pi f t + phase)), each channel its own gain and noise."""
     rng = np.random.default_rng(seed)
@@ -20,10 +23,13 @@ def mesh_records(amplitude, frequency_hz, speed_rpm=775.0, segments=2, seconds=1
     for _ in range(segments):
         phase = rng.uniform(0, 2 * math.pi)
         # the angle (revolutions) of speed shaft_hz (1 + a sin(2 pi f t + phase))
-        angle = shaft_hz * t + shaft_hz * amplitude * (math.cos(phase) - np.cos(2 * math.pi * frequency_hz * t + phase)) \
-            / (2 * math.pi * frequency_hz)
+        angle = shaft_hz * t + shaft_hz * amplitude * (
+            math.cos(phase) - np.cos(2 * math.pi * frequency_hz * t + phase)
+        ) / (2 * math.pi * frequency_hz)
         line = np.sin(2 * math.pi * TEETH * angle) + 0.3 * np.sin(4 * math.pi * TEETH * angle)
-        out.append([gain * line + noise * rng.standard_normal(len(t)) for gain in (1.0, 0.6, 0.8, 0.4)])
+        out.append(
+            [gain * line + noise * rng.standard_normal(len(t)) for gain in (1.0, 0.6, 0.8, 0.4)]
+        )
     return np.array(out)
 
 
@@ -39,8 +45,13 @@ def test_the_tracked_speed_of_healthy_records_gives_the_fluctuation(amplitude, f
     estimate = speed_fluctuation(mesh_records(amplitude, frequency_hz), FS, 775.0, TEETH)
     low, high = estimate["amplitude"]
     assert 0.85 * amplitude <= low <= high <= 1.15 * amplitude
-    assert estimate["frequency_hz"][0] >= frequency_hz - 0.2 and estimate["frequency_hz"][1] <= frequency_hz + 0.2
-    assert estimate["segments"] == 2 and estimate["band_hz"] == pytest.approx(0.3 * 775 / 60, abs=1e-3)
+    assert (
+        estimate["frequency_hz"][0] >= frequency_hz - 0.2
+        and estimate["frequency_hz"][1] <= frequency_hz + 0.2
+    )
+    assert estimate["segments"] == 2 and estimate["band_hz"] == pytest.approx(
+        0.3 * 775 / 60, abs=1e-3
+    )
 
 
 def test_a_fluctuation_faster_than_the_tracking_band_is_not_read():
@@ -51,16 +62,27 @@ def test_a_fluctuation_faster_than_the_tracking_band_is_not_read():
     # shorter than the filter's two edges: nothing left to read
     assert speed_fluctuation(mesh_records(0.002, 1.5, seconds=0.15), FS, 775.0, TEETH) is None
     # no mesh line to follow at all
-    assert speed_fluctuation(np.random.default_rng(1).standard_normal((2, 4, 7680)), FS, 775.0, TEETH) is None
+    assert (
+        speed_fluctuation(np.random.default_rng(1).standard_normal((2, 4, 7680)), FS, 775.0, TEETH)
+        is None
+    )
 
 
 def test_samples_draw_within_the_measured_fluctuation_of_the_nearest_speed():
-    measured = {"450": None, "775": {"amplitude": [0.0030, 0.0035], "frequency_hz": [2.4, 2.6]},
-                "1100": {"amplitude": [0.0038, 0.0040], "frequency_hz": [2.5, 2.5]}}
+    measured = {
+        "450": None,
+        "775": {"amplitude": [0.0030, 0.0035], "frequency_hz": [2.4, 2.6]},
+        "1100": {"amplitude": [0.0038, 0.0040], "frequency_hz": [2.5, 2.5]},
+    }
     fields = [measured_fluctuation_fields(measured, 450.0, seed) for seed in range(20)]
-    assert all(0.0030 <= f["speed_fluctuation"] <= 0.0035 and 2.4 <= f["speed_fluctuation_hz"] <= 2.6 for f in fields)
+    assert all(
+        0.0030 <= f["speed_fluctuation"] <= 0.0035 and 2.4 <= f["speed_fluctuation_hz"] <= 2.6
+        for f in fields
+    )
     assert measured_fluctuation_fields(measured, 1000.0, 3)["speed_fluctuation"] >= 0.0038
-    assert measured_fluctuation_fields(measured, 450.0, 3) == measured_fluctuation_fields(measured, 450.0, 3)
+    assert measured_fluctuation_fields(measured, 450.0, 3) == measured_fluctuation_fields(
+        measured, 450.0, 3
+    )
     assert len({f["speed_fluctuation"] for f in fields}) == 20
     assert measured_fluctuation_fields({"450": None}, 450.0, 3) == {}
 

@@ -4,13 +4,16 @@ in benchmarks/throughput_baseline.json; fails when one grew more than GROWTH_LIM
 A ratio, never an absolute time: a slower or faster machine moves both alike. Remeasure the
 baseline (`python3 benchmarks/throughput_guard.py --write`) after a change that is meant to cost
 more, and say so in the commit."""
+
 import importlib.util
 
 import pytest
 
 from conftest import ROOT
 
-spec = importlib.util.spec_from_file_location("throughput_guard", ROOT / "benchmarks" / "throughput_guard.py")
+spec = importlib.util.spec_from_file_location(
+    "throughput_guard", ROOT / "benchmarks" / "throughput_guard.py"
+)
 guard = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(guard)
 

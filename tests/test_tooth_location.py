@@ -1,6 +1,7 @@
 """How a gear fault is spread over the teeth and which tooth it sits on (residual_features:
 `damaged_pitches`, `teeth_features`, `located_tooth`, the machine's tooth frame) and the report's
 scoring of it (report/fault_location.py)."""
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -29,10 +30,12 @@ def test_a_broken_tooth_and_a_pitted_band_of_equal_energy_are_told_apart():
     teeth = 29
     broken = tooth_event(teeth, 7, 1.0)
     pitted = sum(tooth_event(teeth, 7 + k, 1.0) for k in range(4))
-    pitted *= np.sqrt(np.sum(broken ** 2) / np.sum(pitted ** 2))  # the same residual energy
+    pitted *= np.sqrt(np.sum(broken**2) / np.sum(pitted**2))  # the same residual energy
     floor = 1e-3 * np.random.default_rng(0).normal(size=(1, P))  # a floor for the median pitch
-    found = {name: rf.teeth_features(rf.damaged_pitches(signal + floor, teeth))
-             for name, signal in (("broken", broken), ("pitted", pitted))}
+    found = {
+        name: rf.teeth_features(rf.damaged_pitches(signal + floor, teeth))
+        for name, signal in (("broken", broken), ("pitted", pitted))
+    }
     assert found["broken"]["participation"] < 1.5 < 3.0 < found["pitted"]["participation"] < 5.0
     assert found["broken"]["share1"] > 0.6 > 0.35 > found["pitted"]["share1"]
     assert found["pitted"]["share3"] > 0.65  # three of its four teeth
@@ -52,8 +55,9 @@ def test_the_tooth_frame_turns_a_pattern_to_its_machines_reference():
     reference = np.fft.irfft(spectrum, n=P)[None, :]
     later = rf.shifted(reference, 0.25 * P)  # starts a quarter turn in
     np.testing.assert_allclose(rf.in_reference_frame(later, 0.25), reference, atol=1e-9)
-    frames = rf.reference_frames({450.0: [reference], 775.0: [rf.shifted(reference, 0.2 * P)]},
-                                 [("pinion", 1.0, 29)], [87])
+    frames = rf.reference_frames(
+        {450.0: [reference], 775.0: [rf.shifted(reference, 0.2 * P)]}, [("pinion", 1.0, 29)], [87]
+    )
     assert frames[450.0][0] == pytest.approx(0.0, abs=1e-6)
     assert frames[775.0][0] % 1.0 == pytest.approx(0.2, abs=1e-3)
 
@@ -69,36 +73,94 @@ def test_a_missing_tooth_is_located_on_its_tooth_on_a_pair_with_grade_6_errors()
     g = base.geometry
     errors = {}
     for name, teeth in (("pinion", g.teeth_pinion), ("gear", g.teeth_gear)):
-        gear = draw_gear_errors(rng, 6.0, teeth, g.normal_module, 2 * g.pitch_radius(teeth), g.face_width, 0.8)
-        errors.update({f"pitch_errors_{name}": gear.pitch_deviations, f"runout_{name}": gear.eccentricity,
-                       f"runout_phase_{name}": gear.eccentricity_phase})
-    settings = SimulationSettings(duration=2.6, output_rate=5120.0, oversampling=6)  # a hunting cycle and more
+        gear = draw_gear_errors(
+            rng, 6.0, teeth, g.normal_module, 2 * g.pitch_radius(teeth), g.face_width, 0.8
+        )
+        errors.update(
+            {
+                f"pitch_errors_{name}": gear.pitch_deviations,
+                f"runout_{name}": gear.eccentricity,
+                f"runout_phase_{name}": gear.eccentricity_phase,
+            }
+        )
+    settings = SimulationSettings(
+        duration=2.6, output_rate=5120.0, oversampling=6
+    )  # a hunting cycle and more
     rows, fs = [], settings.output_rate
     half = int(1.3 * fs)
-    records = [("vb-healthy-1100rpm-r00", "healthy", 3.3, 0), ("vb-healthy-1100rpm-r01", "healthy", 21.9, 0)]
-    records += [(f"vb-missing_tooth-1100rpm-r{k:02d}", "missing_tooth", start, tooth)
-                for k, (start, tooth) in enumerate([(40.7, 3), (7.2, 17), (1000.4, 25)])]
+    records = [
+        ("vb-healthy-1100rpm-r00", "healthy", 3.3, 0),
+        ("vb-healthy-1100rpm-r01", "healthy", 21.9, 0),
+    ]
+    records += [
+        (f"vb-missing_tooth-1100rpm-r{k:02d}", "missing_tooth", start, tooth)
+        for k, (start, tooth) in enumerate([(40.7, 3), (7.2, 17), (1000.4, 25)])
+    ]
     for record, state, start, tooth in records:
-        params = base.replace(health_state=state, faulty_tooth=tooth, start_mesh_phase=start, **errors)
+        params = base.replace(
+            health_state=state, faulty_tooth=tooth, start_mesh_phase=start, **errors
+        )
         signals = simulate(params, settings)
-        truth = {"mesh_phase": mesh_phase_at(params, settings.settle_time),
-                 "damaged_teeth": [tooth] if state != "healthy" else []}
-        rows += make_rows(record, "virtual_bench", state, 1100.0, params.load_torque, fs,
-                          {k: v[:2 * half] for k, v in signals.items() if k in ("A1_x", "A1_y")},
-                          segment_length=half, params=truth)
+        truth = {
+            "mesh_phase": mesh_phase_at(params, settings.settle_time),
+            "damaged_teeth": [tooth] if state != "healthy" else [],
+        }
+        rows += make_rows(
+            record,
+            "virtual_bench",
+            state,
+            1100.0,
+            params.load_torque,
+            fs,
+            {k: v[: 2 * half] for k, v in signals.items() if k in ("A1_x", "A1_y")},
+            segment_length=half,
+            params=truth,
+        )
     frame = pd.DataFrame(rows)
-    reserve = {"records": [], "healthy_records": 1, "calibration_segments": 4, "guard_segments": 1, "blocks": 2}
-    spec = {"source": "measured", "healthy_state": "healthy", "condition": "speed_rpm", "reserve": reserve}
-    table = rf.residual_feature_table(frame, ["A1_x", "A1_y"], {
-        "shafts": [["pinion", 1.0, g.teeth_pinion], ["gear", g.teeth_pinion / g.teeth_gear, g.teeth_gear]],
-        "damaged_shafts": ["pinion"], "contact_ratio": g.total_contact_ratio, "against": spec, "samples_per_revolution": P, "bands_per_mesh": 4,
-        "mesh_harmonics": 3, "shaft_orders": 2, "phase_harmonic": 1, "phase_band_orders": 0.3,
-        "phase_min_snr": 5.0})
-    located = record_locations(table.attrs["fault_locations"].query("health_state == 'missing_tooth'"))
+    reserve = {
+        "records": [],
+        "healthy_records": 1,
+        "calibration_segments": 4,
+        "guard_segments": 1,
+        "blocks": 2,
+    }
+    spec = {
+        "source": "measured",
+        "healthy_state": "healthy",
+        "condition": "speed_rpm",
+        "reserve": reserve,
+    }
+    table = rf.residual_feature_table(
+        frame,
+        ["A1_x", "A1_y"],
+        {
+            "shafts": [
+                ["pinion", 1.0, g.teeth_pinion],
+                ["gear", g.teeth_pinion / g.teeth_gear, g.teeth_gear],
+            ],
+            "damaged_shafts": ["pinion"],
+            "contact_ratio": g.total_contact_ratio,
+            "against": spec,
+            "samples_per_revolution": P,
+            "bands_per_mesh": 4,
+            "mesh_harmonics": 3,
+            "shaft_orders": 2,
+            "phase_harmonic": 1,
+            "phase_band_orders": 0.3,
+            "phase_min_snr": 5.0,
+        },
+    )
+    located = record_locations(
+        table.attrs["fault_locations"].query("health_state == 'missing_tooth'")
+    )
     ratio = g.total_contact_ratio
     for row in located.itertuples():
         assert row.agreement == 1.0 and row.share > 0.4
         assert row.named_right, (row.position, row.true_positions)
         # a pitch beyond those the tooth meshes over is not this one
-        assert not named_right((row.position + int(ratio) + 2) % g.teeth_pinion, row.true_positions,
-                               g.teeth_pinion, ratio)
+        assert not named_right(
+            (row.position + int(ratio) + 2) % g.teeth_pinion,
+            row.true_positions,
+            g.teeth_pinion,
+            ratio,
+        )

@@ -1,6 +1,7 @@
 """MLflow tracking against a temporary SQLite store: structure, values, models and their metrics,
 datasets, parent summaries, two configs compared through mlflow.search_runs, reruns counted once
 at query time, condmon-compare, a dead server."""
+
 import json
 import os
 import re
@@ -22,10 +23,12 @@ N_RUNS = 2 * len(fake.PERCENTS) * len(fake.REPEATS) * 3  # record_split + two he
 
 
 def log(paths, uri, config_hash, config, **options):
-    run = tracking.TrackedRun("demo", config_hash, "virtual_bench", config=config,
-                              healthy_state="healthy")
-    return tracking.log_pipeline_run(uri, run, fake.train_dirs(paths), fake.datasets(paths),
-                                     **options)
+    run = tracking.TrackedRun(
+        "demo", config_hash, "virtual_bench", config=config, healthy_state="healthy"
+    )
+    return tracking.log_pipeline_run(
+        uri, run, fake.train_dirs(paths), fake.datasets(paths), **options
+    )
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +39,9 @@ def logged(tmp_path_factory):
     paths_a = fake.build(root / "a", classifiers=CONFIG_A["classifiers"])
     paths_b = fake.build(root / "b", classifiers=CONFIG_B["classifiers"])
     uri = f"sqlite:///{root / 'mlflow.db'}"
-    first = log(paths_a, uri, "hash-a", CONFIG_A, log_models={"measured_percent": [50], "repeat": [1]})
+    first = log(
+        paths_a, uri, "hash-a", CONFIG_A, log_models={"measured_percent": [50], "repeat": [1]}
+    )
     second = log(paths_a, uri, "hash-a", CONFIG_A, log_models="first_repeat")
     other = log(paths_b, uri, "hash-b", CONFIG_B, log_models="none")
     return uri, paths_a, first, second, other
@@ -45,15 +50,18 @@ def logged(tmp_path_factory):
 def nested_runs(uri, parent_id):
     client = mlflow.MlflowClient(uri)
     parent = client.get_run(parent_id)
-    children = client.search_runs([parent.info.experiment_id],
-                                  f"tags.mlflow.parentRunId = '{parent_id}'", max_results=1000)
+    children = client.search_runs(
+        [parent.info.experiment_id], f"tags.mlflow.parentRunId = '{parent_id}'", max_results=1000
+    )
     return parent, children
 
 
 def run_key(run):
     tags = run.data.tags
-    return f"{tags['classifier']}/{tags['protocol']}/p{tags['measured_percent']}/r{tags['repeat']}" + (
-        f"/{tags['holdout']}" if tags["holdout"] else "")
+    return (
+        f"{tags['classifier']}/{tags['protocol']}/p{tags['measured_percent']}/r{tags['repeat']}"
+        + (f"/{tags['holdout']}" if tags["holdout"] else "")
+    )
 
 
 def metrics_of(paths, classifier, protocol):
@@ -77,15 +85,19 @@ def test_parent_nested_runs_params_and_datasets(logged):
     assert parent.data.params["classifiers.svm.C"] == "1.0"  # the config, flattened
     # the signal and feature tables as inputs, digests of their files
     datasets = {d.dataset.name: d for d in parent.inputs.dataset_inputs}
-    assert set(datasets) == set(first["datasets"]) == {"measured_signals", "simulated_signals",
-                                                       "measured_features", "simulated_features"}
+    assert (
+        set(datasets)
+        == set(first["datasets"])
+        == {"measured_signals", "simulated_signals", "measured_features", "simulated_features"}
+    )
     assert {name: d.dataset.digest for name, d in datasets.items()} == first["datasets"]
     assert json.loads(datasets["simulated_signals"].dataset.profile)["files"] == len(fake.LABELS)
     assert json.loads(datasets["measured_features"].dataset.profile)["rows"] == len(
-        pd.read_parquet(paths["features_measured"]))
+        pd.read_parquet(paths["features_measured"])
+    )
     assert {d.tags[0].value for d in datasets.values()} == {"training", "training_and_test"}
     # a SQLite store on a local disk is switched to write-ahead logging
-    with sqlite3.connect(uri[len("sqlite:///"):]) as db:
+    with sqlite3.connect(uri[len("sqlite:///") :]) as db:
         assert db.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
 
 
@@ -107,27 +119,40 @@ def test_nested_run_values_model_and_its_linked_metrics(logged):
     assert run.data.tags["leaky"] == "false"  # "true" only on segment_share runs
     # the model file the train job's info.json lists for this run
     info = json.loads(next(p for p in paths["info"] if "svm/record_split" in str(p)).read_text())
-    listed = next(m["file"] for m in info["models"] if (m["measured_percent"], m["repeat"]) == (50, 1))
+    listed = next(
+        m["file"] for m in info["models"] if (m["measured_percent"], m["repeat"]) == (50, 1)
+    )
     assert run.data.tags["model_file"].endswith(f"svm/record_split/models/{listed}")
 
     # its confusion matrix, in the parent's table of them
     client = mlflow.MlflowClient(uri)
-    confusion = pd.read_csv(client.download_artifacts(first["parent_run_id"], "confusion_matrices.csv"))
+    confusion = pd.read_csv(
+        client.download_artifacts(first["parent_run_id"], "confusion_matrices.csv")
+    )
     assert list(confusion.columns) == [*tracking.KEYS, "true_label", *fake.LABELS]
-    counts = confusion.query("classifier == 'svm' and protocol == 'record_split' and measured_percent == 50 "
-                             "and repeat == 1")
-    assert list(counts.true_label) == fake.LABELS and counts[fake.LABELS].to_numpy().sum() == overall.n_test
+    counts = confusion.query(
+        "classifier == 'svm' and protocol == 'record_split' and measured_percent == 50 "
+        "and repeat == 1"
+    )
+    assert (
+        list(counts.true_label) == fake.LABELS
+        and counts[fake.LABELS].to_numpy().sum() == overall.n_test
+    )
     # its LoggedModel: loads and predicts; the run's metrics are linked to it, on the measured features
     mlflow.set_tracking_uri(uri)
-    models = mlflow.search_logged_models(experiment_ids=[first["experiment_id"]],
-                                         filter_string=f"source_run_id = '{run.info.run_id}'",
-                                         output_format="list")
+    models = mlflow.search_logged_models(
+        experiment_ids=[first["experiment_id"]],
+        filter_string=f"source_run_id = '{run.info.run_id}'",
+        output_format="list",
+    )
     assert len(models) == 1
     linked = {m.key: m for m in models[0].metrics}
     assert linked["accuracy"].value == pytest.approx(overall.accuracy)
     assert linked["accuracy"].dataset_name == "measured_features"
     assert linked["accuracy"].dataset_digest == first["datasets"]["measured_features"]
-    assert models[0].params["classifier.C"] == "1.0" and models[0].tags["protocol"] == "record_split"
+    assert (
+        models[0].params["classifier.C"] == "1.0" and models[0].tags["protocol"] == "record_split"
+    )
     loaded = mlflow.sklearn.load_model(models[0].model_uri)
     example = pd.read_parquet(paths["features_measured"]).iloc[:2][fake.FEATURES].to_numpy()
     assert len(loaded.predict(example)) == 2
@@ -139,14 +164,21 @@ def test_the_config_chooses_which_models_are_logged(logged):
     uri, _, first, second, other = logged
     assert other["n_models_logged"] == 0
     assert second["n_models_logged"] == N_RUNS // len(fake.REPEATS)  # first_repeat
-    models = mlflow.search_logged_models(experiment_ids=[first["experiment_id"]], output_format="list")
-    for info, expected in [(first, lambda r: r.data.tags["measured_percent"] == "50" and r.data.tags["repeat"] == "1"),
-                           (second, lambda r: r.data.tags["repeat"] == "0")]:
+    models = mlflow.search_logged_models(
+        experiment_ids=[first["experiment_id"]], output_format="list"
+    )
+    for info, expected in [
+        (first, lambda r: r.data.tags["measured_percent"] == "50" and r.data.tags["repeat"] == "1"),
+        (second, lambda r: r.data.tags["repeat"] == "0"),
+    ]:
         _, children = nested_runs(uri, info["parent_run_id"])
         with_model = {m.source_run_id for m in models}
         assert {r.info.run_id for r in children if r.info.run_id in with_model} == {
-            r.info.run_id for r in children if expected(r)}
-        assert all(os.path.exists(r.data.tags["model_file"]) for r in children)  # every run names its file
+            r.info.run_id for r in children if expected(r)
+        }
+        assert all(
+            os.path.exists(r.data.tags["model_file"]) for r in children
+        )  # every run names its file
 
 
 @pytest.mark.slow
@@ -157,8 +189,12 @@ def test_parent_summary_metrics_are_the_means_over_repeats(logged):
     for percent in fake.PERCENTS:
         at = overall[overall.measured_percent == percent]
         expected = at.groupby("repeat")["accuracy"].mean().mean()  # holdouts averaged first
-        assert parent.data.metrics[f"accuracy.knn.condition_holdout.p{percent:03d}"] == pytest.approx(expected)
-    assert len([m for m in parent.data.metrics if m.startswith("accuracy.")]) == 2 * 2 * len(fake.PERCENTS)
+        assert parent.data.metrics[
+            f"accuracy.knn.condition_holdout.p{percent:03d}"
+        ] == pytest.approx(expected)
+    assert len([m for m in parent.data.metrics if m.startswith("accuracy.")]) == 2 * 2 * len(
+        fake.PERCENTS
+    )
 
 
 @pytest.mark.slow
@@ -173,7 +209,10 @@ def test_two_configs_differing_in_svm_C_compared_through_search_runs(logged):
     assert set(runs["run_id"]) == {second["parent_run_id"], other["parent_run_id"]}
     assert runs.loc["hash-a", "params.classifiers.svm.C"] == "1.0"
     assert runs.loc["hash-b", "params.classifiers.svm.C"] == "0.02"
-    assert runs.loc["hash-a", "params.classifiers.knn.n_neighbors"] == runs.loc["hash-b", "params.classifiers.knn.n_neighbors"]
+    assert (
+        runs.loc["hash-a", "params.classifiers.knn.n_neighbors"]
+        == runs.loc["hash-b", "params.classifiers.knn.n_neighbors"]
+    )
     summary = [c for c in runs.columns if c.startswith("metrics.accuracy.svm.")]
     assert len(summary) == 2 * len(fake.PERCENTS) and runs[summary].notna().all().all()
     assert (runs.loc["hash-a", summary] != runs.loc["hash-b", summary]).any()
@@ -190,7 +229,10 @@ def test_a_rerun_rewrites_nothing_and_counts_once(logged, capsys):
     out, _, differing = capsys.readouterr().out.strip().partition("\n\n")
     lines = out.splitlines()
     # and the config key that differs between the two configs listed, with each one's value
-    assert differing.splitlines()[0] == "config keys that differ between these 2 runs: classifiers.svm.C"
+    assert (
+        differing.splitlines()[0]
+        == "config keys that differ between these 2 runs: classifiers.svm.C"
+    )
     keys = differing.splitlines()[1:]
     assert keys[0].split() == ["parent_run_id", "config_hash", "classifiers.svm.C"]
     assert sorted(line.split()[1:] for line in keys[1:]) == [["hash-a", "1.0"], ["hash-b", "0.02"]]
@@ -201,18 +243,26 @@ def test_a_rerun_rewrites_nothing_and_counts_once(logged, capsys):
     assert sum(second["parent_run_id"] in row for row in rows) == 4
     # the numbers: mean over repeats (held-out conditions averaged first)
     mlflow.set_tracking_uri(uri)
-    table = compare.comparison_table(mlflow.search_runs(experiment_names=["demo"]),
-                                     {first["experiment_id"]: "demo"}, [0])
-    overall = metrics_of(paths, "knn", "condition_holdout").query("measured_percent == 0 and speed_rpm != speed_rpm")
-    row = table[(table.parent_run_id == second["parent_run_id"]) & (table.classifier == "knn")
-                & (table.protocol == "condition_holdout")].iloc[0]
+    table = compare.comparison_table(
+        mlflow.search_runs(experiment_names=["demo"]), {first["experiment_id"]: "demo"}, [0]
+    )
+    overall = metrics_of(paths, "knn", "condition_holdout").query(
+        "measured_percent == 0 and speed_rpm != speed_rpm"
+    )
+    row = table[
+        (table.parent_run_id == second["parent_run_id"])
+        & (table.classifier == "knn")
+        & (table.protocol == "condition_holdout")
+    ].iloc[0]
     assert row.accuracy_mean == pytest.approx(overall.groupby("repeat")["accuracy"].mean().mean())
     assert row.n_repeats == 2
     # --all: every invocation
     assert compare.main(["--tracking-uri", uri, "--all"]) == 0
     rows = capsys.readouterr().out.strip().partition("\n\n")[0].splitlines()[1:]
     assert len(rows) == 3 * 2 * len(fake.PROTOCOL_HOLDOUTS) * len(fake.PERCENTS)
-    assert sum(first["parent_run_id"] in row and " no " in row for row in rows) == 8  # not the latest
+    assert (
+        sum(first["parent_run_id"] in row and " no " in row for row in rows) == 8
+    )  # not the latest
 
 
 @pytest.mark.slow
@@ -234,15 +284,31 @@ def test_each_run_is_one_log_batch_and_mlflow_splits_large_ones(tmp_path, monkey
     """A nested run's params and metrics (a CNN run's mean training curves among them) go in one
     log_batch call; the parent's 250 config params in one log_params call, which MLflow splits
     into requests of its limit (100)."""
-    history = pd.DataFrame([{"member": m, "epoch": e, "train_loss": 1 / (e + 1), "val_loss": 1.0,
-                             "train_accuracy": 0.5, "val_accuracy": 0.5}
-                            for m in range(3) for e in range(25 - 5 * m)])
+    history = pd.DataFrame(
+        [
+            {
+                "member": m,
+                "epoch": e,
+                "train_loss": 1 / (e + 1),
+                "val_loss": 1.0,
+                "train_accuracy": 0.5,
+                "val_accuracy": 0.5,
+            }
+            for m in range(3)
+            for e in range(25 - 5 * m)
+        ]
+    )
     paths = fake.build(tmp_path / "demo")
     models = fake.train_dirs(paths)[0] / "models"  # knn/record_split
-    history.assign(measured_percent=0, repeat=0, holdout="").to_parquet(models / tracking.HISTORY_FILE)
+    history.assign(measured_percent=0, repeat=0, holdout="").to_parquet(
+        models / tracking.HISTORY_FILE
+    )
     calls, original = [], mlflow.MlflowClient.log_batch
-    monkeypatch.setattr(mlflow.MlflowClient, "log_batch",
-                        lambda self, run_id, **kw: calls.append(run_id) or original(self, run_id, **kw))
+    monkeypatch.setattr(
+        mlflow.MlflowClient,
+        "log_batch",
+        lambda self, run_id, **kw: calls.append(run_id) or original(self, run_id, **kw),
+    )
     config = {"section": {f"key{k:03d}": k for k in range(250)}}
     info = log(paths, f"sqlite:///{tmp_path / 'mlflow.db'}", "h", config, log_models="none")
     parent, children = nested_runs(info["tracking_uri"], info["parent_run_id"])
@@ -252,7 +318,9 @@ def test_each_run_is_one_log_batch_and_mlflow_splits_large_ones(tmp_path, monkey
     client = mlflow.MlflowClient(info["tracking_uri"])
     loss = client.get_metric_history(run.info.run_id, "train_loss")
     assert [m.step for m in loss] == list(range(25))
-    assert loss[0].value == 1.0 and loss[-1].value == pytest.approx(1 / 25)  # the members still running
+    assert loss[0].value == 1.0 and loss[-1].value == pytest.approx(
+        1 / 25
+    )  # the members still running
     assert run.data.metrics["epochs_run_mean"] == pytest.approx((24 + 19 + 14) / 3)
     members = pd.read_csv(client.download_artifacts(run.info.run_id, "training_history.csv"))
     pd.testing.assert_frame_equal(members, history[members.columns.tolist()])
@@ -263,8 +331,10 @@ def test_a_dataset_inserted_meanwhile_by_another_pipeline_is_logged_again(monkey
     (experiment, name, digest) row: the loser logs its inputs again; other errors pass through."""
     from mlflow.exceptions import MlflowException
 
-    race = MlflowException("BAD_REQUEST: (sqlite3.IntegrityError) UNIQUE constraint failed: "
-                           "datasets.experiment_id, datasets.name, datasets.digest")
+    race = MlflowException(
+        "BAD_REQUEST: (sqlite3.IntegrityError) UNIQUE constraint failed: "
+        "datasets.experiment_id, datasets.name, datasets.digest"
+    )
     outcomes, calls = [race, None], []
 
     def log_inputs(datasets, **options):
@@ -288,7 +358,9 @@ def test_run_info_file(logged, tmp_path):
     _, _, first, _, _ = logged
     tracking.write_run_info(first, tmp_path / "mlflow_run.json")
     info = json.loads((tmp_path / "mlflow_run.json").read_text())
-    assert {"parent_run_id", "experiment_id", "tracking_uri", "n_nested_runs", "datasets"} <= set(info)
+    assert {"parent_run_id", "experiment_id", "tracking_uri", "n_nested_runs", "datasets"} <= set(
+        info
+    )
 
 
 def test_unreachable_server_fails_fast_naming_the_uri(tmp_path):
@@ -316,6 +388,7 @@ def test_relative_sqlite_uri_is_relative_to_the_working_directory(tmp_path):
 def closed_port() -> int:
     """A local port nothing listens on (bound, then released)."""
     import socket
+
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return sock.getsockname()[1]
@@ -326,6 +399,7 @@ def http_server():
     """Start a local HTTP server answering every GET with the given status; yields its URI."""
     import http.server
     import threading
+
     servers = []
 
     def start(status):
@@ -337,17 +411,23 @@ def http_server():
 
             def log_message(self, *args):
                 pass
+
         server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
-        threading.Thread(target=server.serve_forever, kwargs=dict(poll_interval=0.05), daemon=True).start()
+        threading.Thread(
+            target=server.serve_forever, kwargs=dict(poll_interval=0.05), daemon=True
+        ).start()
         servers.append(server)
         return f"http://127.0.0.1:{server.server_address[1]}"
+
     yield start
     for server in servers:
         server.shutdown()
         server.server_close()
 
 
-@pytest.mark.parametrize("status, reachable", [(200, True), (401, True), (502, False), (503, False)])
+@pytest.mark.parametrize(
+    "status, reachable", [(200, True), (401, True), (502, False), (503, False)]
+)
 def test_probe_accepts_any_answer_but_a_gateway_error(http_server, status, reachable):
     uri = http_server(status)
     if reachable:
@@ -359,6 +439,7 @@ def test_probe_accepts_any_answer_but_a_gateway_error(http_server, status, reach
 
 def test_a_server_that_accepts_but_never_answers_fails_after_the_probe_timeout():
     import socket
+
     with socket.socket() as sock:  # listens (the kernel completes connections) but never replies
         sock.bind(("127.0.0.1", 0))
         sock.listen(4)
@@ -377,8 +458,14 @@ def test_track_script_fails_in_seconds_naming_a_dead_server(tmp_path):
     paths = fake.build(tmp_path / "demo")
     env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_HTTP_REQUEST")}
     started = time.perf_counter()
-    result = subprocess.run(fake.track_job(paths, uri, tmp_path), cwd=tmp_path, env=env,
-                            capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        fake.track_job(paths, uri, tmp_path),
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     elapsed = time.perf_counter() - started
     log_text = (tmp_path / "track.log").read_text()
     assert result.returncode == 1, result.stderr[-2000:]
@@ -393,8 +480,10 @@ def test_parent_runs_have_readable_names_with_the_changed_keys(logged):
     config than the experiment's previous parent names the keys that changed."""
     uri, _, first, second, other = logged
     client = mlflow.MlflowClient(uri)
-    names = {info["config_hash"] + str(i): client.get_run(info["parent_run_id"]).info.run_name
-             for i, info in enumerate((first, second, other))}
+    names = {
+        info["config_hash"] + str(i): client.get_run(info["parent_run_id"]).info.run_name
+        for i, info in enumerate((first, second, other))
+    }
     stamp = r"demo \d{4}-\d\d-\d\d \d\d:\d\d"
     assert re.fullmatch(stamp, names["hash-a0"])  # the experiment's first parent
     assert re.fullmatch(stamp, names["hash-a1"])  # a rerun of the same config

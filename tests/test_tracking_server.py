@@ -3,6 +3,7 @@ started on loopback (a free port) by the tests. Track jobs of several configs lo
 (workflow/scripts/track.py as the rule runs it, on small fake train outputs: the pipelines before
 it add nothing here); the server dying mid-logging fails the job naming it, and a rerun after the
 restart completes the logging."""
+
 import json
 import os
 import signal
@@ -20,7 +21,9 @@ from condmon import compare
 
 pytestmark = pytest.mark.slow  # a live MLflow server and several track jobs: minutes
 N_PIPELINES = 3
-N_RUNS = 2 * len(fake.PERCENTS) * len(fake.REPEATS) * 3  # classifiers x ... x (record split + 2 held-out speeds)
+N_RUNS = (
+    2 * len(fake.PERCENTS) * len(fake.REPEATS) * 3
+)  # classifiers x ... x (record split + 2 held-out speeds)
 
 
 def free_port() -> int:
@@ -40,10 +43,27 @@ class Server:
     def start(self, timeout=180):
         log = open(self.root / "server.log", "a")
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "mlflow", "server", "--host", "127.0.0.1", "--port", str(self.port),
-             "--backend-store-uri", f"sqlite:///{self.root / 'server.db'}",
-             "--artifacts-destination", str(self.root / "artifacts"), "--workers", "2"],
-            cwd=self.root, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+            [
+                sys.executable,
+                "-m",
+                "mlflow",
+                "server",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(self.port),
+                "--backend-store-uri",
+                f"sqlite:///{self.root / 'server.db'}",
+                "--artifacts-destination",
+                str(self.root / "artifacts"),
+                "--workers",
+                "2",
+            ],
+            cwd=self.root,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             assert self.process.poll() is None, (self.root / "server.log").read_text()[-3000:]
@@ -72,8 +92,13 @@ def track(paths, server, workdir, config_hash, run_name="team", log_models="none
     """A track job (a fresh Python) logging to the server; returns its Popen."""
     workdir.mkdir(parents=True, exist_ok=True)
     config = {"run_name": run_name, "tracking": {"uri": server.uri}, "hash": config_hash}
-    return subprocess.Popen(fake.track_job(paths, server.uri, workdir, config_hash, run_name, config, log_models),
-                            cwd=workdir, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    return subprocess.Popen(
+        fake.track_job(paths, server.uri, workdir, config_hash, run_name, config, log_models),
+        cwd=workdir,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
 
 
 def parents_and_children(uri, experiment):
@@ -81,8 +106,10 @@ def parents_and_children(uri, experiment):
     experiment_id = client.get_experiment_by_name(experiment).experiment_id
     runs = client.search_runs([experiment_id], max_results=5000)
     parents = [r for r in runs if "mlflow.parentRunId" not in r.data.tags]
-    children = {p.info.run_id: [r for r in runs if r.data.tags.get("mlflow.parentRunId") == p.info.run_id]
-                for p in parents}
+    children = {
+        p.info.run_id: [r for r in runs if r.data.tags.get("mlflow.parentRunId") == p.info.run_id]
+        for p in parents
+    }
     return parents, children
 
 
@@ -90,21 +117,35 @@ def test_concurrent_track_jobs_of_several_configs_log_every_run_once(server, tmp
     # different configs: the SVM's C differs, so do the fitted models and metrics
     jobs = []
     for i in range(N_PIPELINES):
-        paths = fake.build(tmp_path / f"p{i}" / "results", classifiers={"svm": {"C": 0.5 * 2 ** i},
-                                                                        "knn": {"n_neighbors": 3}})
+        paths = fake.build(
+            tmp_path / f"p{i}" / "results",
+            classifiers={"svm": {"C": 0.5 * 2**i}, "knn": {"n_neighbors": 3}},
+        )
         # all into one experiment at once: its creation races too
-        jobs.append(track(paths, server, tmp_path / f"p{i}", f"hash-{i}", log_models="first_repeat"))
+        jobs.append(
+            track(paths, server, tmp_path / f"p{i}", f"hash-{i}", log_models="first_repeat")
+        )
     for job in jobs:
         output = job.communicate(timeout=600)[0]
         assert job.returncode == 0, output[-3000:]
     parents, children = parents_and_children(server.uri, "team")
-    assert sorted(p.data.tags["config_hash"] for p in parents) == [f"hash-{i}" for i in range(N_PIPELINES)]
+    assert sorted(p.data.tags["config_hash"] for p in parents) == [
+        f"hash-{i}" for i in range(N_PIPELINES)
+    ]
     for parent in parents:
         assert parent.info.status == "FINISHED"
         nested = children[parent.info.run_id]
         assert len(nested) == N_RUNS and {r.info.status for r in nested} == {"FINISHED"}
-        keys = {(r.data.tags["classifier"], r.data.tags["protocol"], r.data.tags["measured_percent"],
-                 r.data.tags["repeat"], r.data.tags["holdout"]) for r in nested}
+        keys = {
+            (
+                r.data.tags["classifier"],
+                r.data.tags["protocol"],
+                r.data.tags["measured_percent"],
+                r.data.tags["repeat"],
+                r.data.tags["holdout"],
+            )
+            for r in nested
+        }
         assert len(keys) == N_RUNS  # none twice, none lost
         assert len({d.dataset.name for d in parent.inputs.dataset_inputs}) == 4
     mlflow.set_tracking_uri(server.uri)
@@ -116,7 +157,9 @@ def test_concurrent_track_jobs_of_several_configs_log_every_run_once(server, tmp
     assert any((server.root / "artifacts").rglob("MLmodel"))
 
 
-def test_the_server_dying_mid_logging_fails_the_job_naming_it_and_a_rerun_completes(server, tmp_path):
+def test_the_server_dying_mid_logging_fails_the_job_naming_it_and_a_rerun_completes(
+    server, tmp_path
+):
     # a set large enough that its logging (every model) takes seconds
     paths = fake.build(tmp_path / "results", percents=list(range(0, 101, 20)))
     n_runs = N_RUNS // len(fake.PERCENTS) * 6
@@ -147,7 +190,10 @@ def test_the_server_dying_mid_logging_fails_the_job_naming_it_and_a_rerun_comple
     info = json.loads((tmp_path / "job" / "mlflow_run.json").read_text())
     parents, children = parents_and_children(server.uri, "crash")
     assert len(parents) == 2  # the unfinished one stays as it was, and is never counted
-    assert {p.info.status for p in parents if p.info.run_id != info["parent_run_id"]} <= {"RUNNING", "FAILED"}
+    assert {p.info.status for p in parents if p.info.run_id != info["parent_run_id"]} <= {
+        "RUNNING",
+        "FAILED",
+    }
     assert len(children[info["parent_run_id"]]) == n_runs
     mlflow.set_tracking_uri(server.uri)
     latest = compare.latest_parents(mlflow.search_runs(experiment_names=["crash"]))

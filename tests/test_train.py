@@ -1,8 +1,8 @@
 """Classifier registry, run_protocol on synthetic features, outputs, and the three scripts."""
+
 import json
 import logging
 import runpy
-import sys
 from types import SimpleNamespace
 
 import joblib
@@ -20,8 +20,14 @@ from condmon.hybrid import read_split_table
 from condmon.protocols import make_splits
 from condmon.signals import ID_COLUMNS, make_rows, write_signal_table
 from condmon.selection import selected_features
-from condmon.train import (METRIC_COLUMNS, PREDICTION_COLUMNS, model_filename, run_protocol,
-                           write_metrics, write_models)
+from condmon.train import (
+    METRIC_COLUMNS,
+    PREDICTION_COLUMNS,
+    model_filename,
+    run_protocol,
+    write_metrics,
+    write_models,
+)
 
 CLASSES = ("healthy", "surface_fault", "missing_tooth")
 SPEEDS = (450.0, 775.0)
@@ -37,9 +43,17 @@ def synthetic_features(source, n_records, n_segments, seed, separable=True):
         for speed in SPEEDS:
             for r in range(n_records):
                 for segment in range(n_segments):
-                    rows.append({"record_id": f"{source}_{label}_{int(speed)}_{r:02d}",
-                                 "segment": segment, "source": source, "health_state": label,
-                                 "speed_rpm": speed, "load": 1.0, "fs_hz": 5120.0})
+                    rows.append(
+                        {
+                            "record_id": f"{source}_{label}_{int(speed)}_{r:02d}",
+                            "segment": segment,
+                            "source": source,
+                            "health_state": label,
+                            "speed_rpm": speed,
+                            "load": 1.0,
+                            "fs_hz": 5120.0,
+                        }
+                    )
                     centre = np.zeros(N_FEATURES)
                     if separable:
                         centre[label_index] = 8.0
@@ -54,8 +68,14 @@ MEASURED = synthetic_features("measured", n_records=6, n_segments=4, seed=2)
 
 
 def splits_for(measured, protocol="record_split", percents=(0, 50), repeats=2, seed=0, **kwargs):
-    return make_splits(measured[["record_id", "segment", "health_state", "speed_rpm"]], protocol,
-                       measured_percent=list(percents), repeats=repeats, seed=seed, **kwargs)
+    return make_splits(
+        measured[["record_id", "segment", "health_state", "speed_rpm"]],
+        protocol,
+        measured_percent=list(percents),
+        repeats=repeats,
+        seed=seed,
+        **kwargs,
+    )
 
 
 # -- classifiers -----------------------------------------------------------------------------
@@ -83,8 +103,9 @@ def test_unknown_classifier_and_parameter_are_named():
 # -- run_protocol ----------------------------------------------------------------------------
 def test_separable_data_is_classified_perfectly_with_per_speed_rows():
     splits = splits_for(MEASURED)
-    predictions, metrics, models = run_protocol("svm", {}, SIMULATED, MEASURED, splits,
-                                                FEATURES, seed=0)
+    predictions, metrics, models = run_protocol(
+        "svm", {}, SIMULATED, MEASURED, splits, FEATURES, seed=0
+    )
     assert list(metrics.columns) == METRIC_COLUMNS
     assert list(predictions.columns) == PREDICTION_COLUMNS
     assert (metrics.accuracy == 1.0).all() and (metrics.macro_f1 == 1.0).all()
@@ -94,14 +115,20 @@ def test_separable_data_is_classified_perfectly_with_per_speed_rows():
         per_speed = group[group.speed_rpm.notna()]
         assert len(overall) == 1 and sorted(per_speed.speed_rpm) == list(SPEEDS)
         assert per_speed.n_test.sum() == overall.n_test.iloc[0]
-        test_ids = set(splits.record_id[(splits.measured_percent == percent)
-                                        & (splits.repeat == repeat) & (splits.role == "test")])
+        test_ids = set(
+            splits.record_id[
+                (splits.measured_percent == percent)
+                & (splits.repeat == repeat)
+                & (splits.role == "test")
+            ]
+        )
         n_test_segments = MEASURED.record_id.isin(test_ids).sum()
         assert overall.n_test.iloc[0] == n_test_segments
         assert overall.n_train_simulated.iloc[0] == len(SIMULATED)
         assert overall.n_train_measured.iloc[0] == len(MEASURED) - n_test_segments
-        got = predictions[(predictions.measured_percent == percent)
-                          & (predictions.repeat == repeat)]
+        got = predictions[
+            (predictions.measured_percent == percent) & (predictions.repeat == repeat)
+        ]
         assert set(got.record_id) == test_ids and len(got) == n_test_segments
     assert (metrics.n_train_measured[metrics.measured_percent == 0] == 0).all()
     assert (metrics.n_train_measured[metrics.measured_percent == 50] > 0).all()
@@ -116,18 +143,19 @@ def test_shuffled_labels_give_chance_accuracy():
         record_labels = frame.groupby("record_id").health_state.first()[records]
         labels = dict(zip(records, rng.permutation(record_labels)))
         frame["health_state"] = frame.record_id.map(labels)
-    _, metrics, _ = run_protocol("svm", {}, sim, meas, splits_for(meas, percents=[0], repeats=1),
-                                 FEATURES, seed=0)
+    _, metrics, _ = run_protocol(
+        "svm", {}, sim, meas, splits_for(meas, percents=[0], repeats=1), FEATURES, seed=0
+    )
     overall = metrics[metrics.speed_rpm.isna()].accuracy.iloc[0]
     assert abs(overall - 1 / 3) < 0.2
 
 
 def test_condition_holdout_evaluates_only_the_held_out_speed():
     splits = splits_for(MEASURED, "condition_holdout", percents=[0, 100], repeats=1)
-    predictions, metrics, models = run_protocol("knn", {"n_neighbors": 3}, SIMULATED, MEASURED,
-                                                splits, FEATURES, seed=0)
-    assert set(models) == {(p, 0, h) for p in (0, 100)
-                           for h in ("speed_rpm=450", "speed_rpm=775")}
+    predictions, metrics, models = run_protocol(
+        "knn", {"n_neighbors": 3}, SIMULATED, MEASURED, splits, FEATURES, seed=0
+    )
+    assert set(models) == {(p, 0, h) for p in (0, 100) for h in ("speed_rpm=450", "speed_rpm=775")}
     for holdout, group in metrics.groupby("holdout"):
         held_out = float(holdout.split("=")[1])
         assert sorted(group.speed_rpm.dropna().unique()) == [held_out]
@@ -164,8 +192,9 @@ def test_results_are_deterministic():
     first = run_protocol("svm", {}, SIMULATED, MEASURED, splits, FEATURES, seed=4)
     second = run_protocol("svm", {}, SIMULATED, MEASURED, splits, FEATURES, seed=4)
     pd.testing.assert_frame_equal(first[0], second[0])
-    pd.testing.assert_frame_equal(first[1].drop(columns="fit_seconds"),
-                                  second[1].drop(columns="fit_seconds"))
+    pd.testing.assert_frame_equal(
+        first[1].drop(columns="fit_seconds"), second[1].drop(columns="fit_seconds")
+    )
 
 
 def test_model_files_and_metrics_csv(tmp_path):
@@ -173,9 +202,16 @@ def test_model_files_and_metrics_csv(tmp_path):
     _, metrics, models = run_protocol("knn", {}, SIMULATED, MEASURED, splits, FEATURES, 0)
     entries = write_models(models, tmp_path / "models", FEATURES)
     assert sorted(p.name for p in (tmp_path / "models").iterdir()) == [
-        "p050_r0_h0.joblib", "p050_r0_h1.joblib"]
-    assert entries[1] == {"file": "p050_r0_h1.joblib", "measured_percent": 50, "repeat": 0,
-                          "holdout": "speed_rpm=775", "holdout_index": 1}
+        "p050_r0_h0.joblib",
+        "p050_r0_h1.joblib",
+    ]
+    assert entries[1] == {
+        "file": "p050_r0_h1.joblib",
+        "measured_percent": 50,
+        "repeat": 0,
+        "holdout": "speed_rpm=775",
+        "holdout_index": 1,
+    }
     model = joblib.load(tmp_path / "models" / "p050_r0_h1.joblib")
     assert model.predict(MEASURED[FEATURES].to_numpy()[:1])[0] == "healthy"
     assert model_filename(0, 3) == "p000_r3.joblib"
@@ -187,26 +223,12 @@ def test_model_files_and_metrics_csv(tmp_path):
 
 # -- the Snakemake scripts, with a stand-in snakemake object --------------------------------
 class FakeSnakemake(SimpleNamespace):
-    """Enough of Snakemake's script object: rule, input, output, params, log."""
+    """Enough of Snakemake's script object: rule, input, output, params, log, threads."""
 
 
 def run_script(name, **attributes):
-    fake = FakeSnakemake(rule=name.removesuffix(".py"), **attributes)
+    fake = FakeSnakemake(rule=name.removesuffix(".py"), threads=1, **attributes)
     runpy.run_path(str(SCRIPTS / name), init_globals={"snakemake": fake})
-
-
-@pytest.fixture
-def isolated_logging(monkeypatch):
-    """The scripts reconfigure logging and sys.excepthook; put both back afterwards."""
-    monkeypatch.setattr(sys, "excepthook", sys.excepthook)
-    root = logging.getLogger()
-    handlers, level = root.handlers[:], root.level
-    yield
-    for handler in root.handlers:
-        if handler not in handlers:
-            handler.close()
-    root.handlers[:], root.level = handlers, level
-    logging.captureWarnings(False)
 
 
 def write_signals(path, source, n_records, seed):
@@ -219,10 +241,20 @@ def write_signals(path, source, n_records, seed):
         for speed in SPEEDS:
             for r in range(n_records):
                 tone = np.sin(2 * np.pi * 100 * (k + 1) * t)
-                channels = {"A1_x": tone + 0.05 * rng.normal(size=n),
-                            "A1_y": 0.5 * tone + 0.05 * rng.normal(size=n)}
-                rows += make_rows(f"{source}_{label}_{int(speed)}_{r}", source, label, speed,
-                                  1.0, fs, channels, segment_length=1024)
+                channels = {
+                    "A1_x": tone + 0.05 * rng.normal(size=n),
+                    "A1_y": 0.5 * tone + 0.05 * rng.normal(size=n),
+                }
+                rows += make_rows(
+                    f"{source}_{label}_{int(speed)}_{r}",
+                    source,
+                    label,
+                    speed,
+                    1.0,
+                    fs,
+                    channels,
+                    segment_length=1024,
+                )
     write_signal_table(rows, path)
 
 
@@ -238,46 +270,77 @@ def test_scripts_run_end_to_end(tmp_path, isolated_logging):
     frame["record_id"] = frame.record_id + "_b"
     write_signal_table(frame, tmp_path / "sim_b.parquet")
 
-    for name, inputs in (("simulated", [tmp_path / "sim_a.parquet", tmp_path / "sim_b.parquet"]),
-                         ("measured", str(tmp_path / "measured.parquet"))):
-        run_script("features.py", input=SimpleNamespace(signals=inputs),
-                   output=SimpleNamespace(features=tmp_path / f"features/{name}.parquet"),
-                   params=SimpleNamespace(channels=channels, spectrum=spectrum,
-                                         system={"name": "gear", "config": {}}),
-                   log=[str(tmp_path / f"logs/features_{name}.log")])
+    for name, inputs in (
+        ("simulated", [tmp_path / "sim_a.parquet", tmp_path / "sim_b.parquet"]),
+        ("measured", str(tmp_path / "measured.parquet")),
+    ):
+        run_script(
+            "features.py",
+            input=SimpleNamespace(signals=inputs),
+            output=SimpleNamespace(features=tmp_path / f"features/{name}.parquet"),
+            params=SimpleNamespace(
+                channels=channels, spectrum=spectrum, system={"name": "gear", "config": {}}
+            ),
+            log=[str(tmp_path / f"logs/features_{name}.log")],
+        )
     simulated, names = read_feature_table(tmp_path / "features/simulated.parquet")
     assert len(simulated) == 3 * 2 * 3 * 2 and len(names) == 8
-    assert list(simulated.columns[:len(ID_COLUMNS)]) == ID_COLUMNS
+    assert list(simulated.columns[: len(ID_COLUMNS)]) == ID_COLUMNS
 
     measured, _ = read_feature_table(tmp_path / "features/measured.parquet")
-    records = measured[["record_id", "health_state", "speed_rpm"]].drop_duplicates().assign(status="kept")
+    records = (
+        measured[["record_id", "health_state", "speed_rpm"]].drop_duplicates().assign(status="kept")
+    )
     records.to_csv(tmp_path / "records.csv", index=False)  # the measured stage's record list
-    run_script("hybrid.py", input=SimpleNamespace(features=tmp_path / "features/measured.parquet",
-                                                  records=tmp_path / "records.csv"),
-               output=SimpleNamespace(splits=tmp_path / "hybrid/record_split.parquet"),
-               params=SimpleNamespace(protocol="record_split", measured_percent=[0, 50],
-                                      repeats=2, seed=1, min_test_records=1, healthy_state="healthy",
-                                      reserve={}),
-               log=[str(tmp_path / "logs/hybrid.log")])
+    run_script(
+        "hybrid.py",
+        input=SimpleNamespace(
+            features=tmp_path / "features/measured.parquet", records=tmp_path / "records.csv"
+        ),
+        output=SimpleNamespace(splits=tmp_path / "hybrid/record_split.parquet"),
+        params=SimpleNamespace(
+            protocol="record_split",
+            measured_percent=[0, 50],
+            repeats=2,
+            seed=1,
+            min_test_records=1,
+            healthy_state="healthy",
+            reserve={},
+        ),
+        log=[str(tmp_path / "logs/hybrid.log")],
+    )
     splits = read_split_table(tmp_path / "hybrid/record_split.parquet")
     # every record in every (percentage, repeat); the healthy calibration set is never a test record
     assert splits.groupby(["measured_percent", "repeat"]).record_id.nunique().eq(18).all()
-    assert (splits.role == "calibration").any() and len(splits.groupby(["measured_percent", "repeat"])) == 2 * 2
+    assert (splits.role == "calibration").any() and len(
+        splits.groupby(["measured_percent", "repeat"])
+    ) == 2 * 2
 
     out = tmp_path / "train/svm/record_split"
-    run_script("train.py",
-               input=SimpleNamespace(simulated=tmp_path / "features/simulated.parquet",
-                                     measured=tmp_path / "features/measured.parquet",
-                                     splits=tmp_path / "hybrid/record_split.parquet"),
-               output=SimpleNamespace(predictions=out / "predictions.parquet",
-                                      metrics=out / "metrics.csv", models=out / "models",
-                                      info=out / "info.json",
-                                      measured_only=out / "measured_only.csv",
-                                      measured_only_predictions=out / "measured_only_predictions.parquet"),
-               params=SimpleNamespace(classifier="svm", classifier_params={"C": 1.2}, seed=1,
-                                      feature_selection={"n_features": None},
-                                      measured_only_baseline=True),
-               log=[str(tmp_path / "logs/train.log")])
+    run_script(
+        "train.py",
+        input=SimpleNamespace(
+            simulated=tmp_path / "features/simulated.parquet",
+            measured=tmp_path / "features/measured.parquet",
+            splits=tmp_path / "hybrid/record_split.parquet",
+        ),
+        output=SimpleNamespace(
+            predictions=out / "predictions.parquet",
+            metrics=out / "metrics.csv",
+            models=out / "models",
+            info=out / "info.json",
+            measured_only=out / "measured_only.csv",
+            measured_only_predictions=out / "measured_only_predictions.parquet",
+        ),
+        params=SimpleNamespace(
+            classifier="svm",
+            classifier_params={"C": 1.2},
+            seed=1,
+            feature_selection={"n_features": None},
+            measured_only_baseline=True,
+        ),
+        log=[str(tmp_path / "logs/train.log")],
+    )
     metrics = pd.read_csv(out / "metrics.csv")
     assert (metrics.accuracy == 1.0).all() and len(metrics) == 4 * 3
     # the baseline: nothing measured trains at 0 %, so only the 50 % splits have one
@@ -287,10 +350,17 @@ def test_scripts_run_end_to_end(tmp_path, isolated_logging):
     alone = pd.read_parquet(out / "measured_only_predictions.parquet")
     hybrid = pd.read_parquet(out / "predictions.parquet")
     key = ["repeat", "holdout", "record_id", "segment"]
-    assert (alone.sort_values(key)[key].reset_index(drop=True)
-            .equals(hybrid[hybrid.measured_percent == 50].sort_values(key)[key].reset_index(drop=True)))
+    assert (
+        alone.sort_values(key)[key]
+        .reset_index(drop=True)
+        .equals(hybrid[hybrid.measured_percent == 50].sort_values(key)[key].reset_index(drop=True))
+    )
     assert sorted(p.name for p in (out / "models").iterdir()) == [
-        "p000_r0.joblib", "p000_r1.joblib", "p050_r0.joblib", "p050_r1.joblib"]
+        "p000_r0.joblib",
+        "p000_r1.joblib",
+        "p050_r0.joblib",
+        "p050_r1.joblib",
+    ]
     info = json.loads((out / "info.json").read_text())
     assert info["labels"] == sorted(CLASSES) and info["n_features"] == 8
     assert info["classifier_params"] == {"C": 1.2, "gamma": "scale", "class_weight": None}
@@ -312,22 +382,33 @@ def test_segment_share_trains_and_tests_single_segments():
 
 
 def test_unseen_fault_measured_only_baseline_predicts_the_one_class_it_saw():
-    splits = splits_for(MEASURED, "unseen_fault", percents=(0, 50), repeats=1,
-                        measured_classes=["healthy"])
+    splits = splits_for(
+        MEASURED, "unseen_fault", percents=(0, 50), repeats=1, measured_classes=["healthy"]
+    )
     _, metrics, _ = run_protocol("svm", {}, SIMULATED, MEASURED, splits, FEATURES, seed=0)
     _, baseline, models = run_protocol("svm", {}, None, MEASURED, splits, FEATURES, seed=0)
     assert set(baseline.measured_percent) == {50}  # nothing measured trains at 0 %
     overall = baseline[baseline.speed_rpm.isna()].iloc[0]
-    n_healthy_test = ((MEASURED.health_state == "healthy").sum() - overall.n_train_measured)
+    n_healthy_test = (MEASURED.health_state == "healthy").sum() - overall.n_train_measured
     assert overall.accuracy == pytest.approx(n_healthy_test / overall.n_test)
-    assert list(models[(50, 0, "")].predict(MEASURED[FEATURES].to_numpy())) == ["healthy"] * len(MEASURED)
+    assert list(models[(50, 0, "")].predict(MEASURED[FEATURES].to_numpy())) == ["healthy"] * len(
+        MEASURED
+    )
     assert (metrics[metrics.speed_rpm.isna()].accuracy == 1.0).all()
 
 
 def test_backward_selection_inside_each_fit_keeps_the_informative_features(tmp_path):
     splits = splits_for(MEASURED, percents=(0,), repeats=1)
-    _, metrics, models = run_protocol("svm", {}, SIMULATED, MEASURED, splits, FEATURES, seed=0,
-                                      feature_selection={"n_features": 3, "cv": 3})
+    _, metrics, models = run_protocol(
+        "svm",
+        {},
+        SIMULATED,
+        MEASURED,
+        splits,
+        FEATURES,
+        seed=0,
+        feature_selection={"n_features": 3, "cv": 3},
+    )
     model = models[(0, 0, "")]
     chosen = selected_features(model, FEATURES)
     # two of the three class-bearing columns already separate three classes
@@ -351,11 +432,13 @@ def test_the_measured_only_baseline_is_never_forced_through_the_selection(tmp_pa
 
     splits = splits_for(MEASURED, percents=(50,), repeats=1)
     selection = {"n_features": 3, "cv": 3}
-    _, _, hybrid = run_protocol("knn", {}, SIMULATED, MEASURED, splits, FEATURES, seed=0,
-                                feature_selection=selection)
+    _, _, hybrid = run_protocol(
+        "knn", {}, SIMULATED, MEASURED, splits, FEATURES, seed=0, feature_selection=selection
+    )
     assert len(selected_features(hybrid[(50, 0, "")], FEATURES)) == 3
-    _, baseline, models = run_protocol("knn", {}, None, MEASURED, splits, FEATURES, seed=0,
-                                       feature_selection=selection)
+    _, baseline, models = run_protocol(
+        "knn", {}, None, MEASURED, splits, FEATURES, seed=0, feature_selection=selection
+    )
     model = models[(50, 0, "")]
     assert isinstance(model, SelectionByInnerCV) and model.choice_ == ALL_FEATURES
     assert selected_features(model.model_, FEATURES) is None  # no selection step at all

@@ -1,4 +1,5 @@
 """Stage logic of the condition-monitoring pipeline, importable without Snakemake."""
+
 import platform
 import sys
 
@@ -12,6 +13,8 @@ def python_version_error() -> str | None:
     if sys.version_info[:2] in SUPPORTED_PYTHONS:
         return None
     supported = ", ".join(".".join(map(str, v)) for v in SUPPORTED_PYTHONS)
-    return (f"condmon needs Python {supported} (environment.txt is pinned for them); this is Python "
-            f"{platform.python_version()} at {sys.executable}. Make the virtual environment with one "
-            f"of them (README.md, Set-up).")
+    return (
+        f"condmon needs Python {supported} (environment.txt is pinned for them); this is Python "
+        f"{platform.python_version()} at {sys.executable}. Make the virtual environment with one "
+        f"of them (README.md, Set-up)."
+    )

@@ -1,5 +1,6 @@
 """Atomic file writes: a temporary file in the same folder, then a rename, so a job killed
 mid-write never leaves a file that a later stage could take as complete."""
+
 from __future__ import annotations
 
 import json

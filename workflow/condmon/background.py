@@ -27,6 +27,7 @@ segment, averaged), on the grid `numpy.fft.rfftfreq(segment_length, 1 / rate)`. 
 windows of `coherence_window` samples, half overlapping, within each segment (enough averages for
 the cross-spectral matrix to be inverted), on that window's grid.
 """
+
 from __future__ import annotations
 
 import logging
@@ -51,9 +52,13 @@ def segment_psd(segments: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndar
     PSD is shaped (n_channels, n // 2 + 1)."""
     segments = np.asarray(segments, dtype=float)
     if segments.ndim != 3 or segments.shape[0] == 0:
-        raise ValueError(f"segment_psd needs segments shaped (n_segments, n_channels, n), got {segments.shape}")
+        raise ValueError(
+            f"segment_psd needs segments shaped (n_segments, n_channels, n), got {segments.shape}"
+        )
     n = segments.shape[-1]
-    freqs, psd = welch(segments, fs=fs_hz, window="hann", nperseg=n, noverlap=0, scaling="density", axis=-1)
+    freqs, psd = welch(
+        segments, fs=fs_hz, window="hann", nperseg=n, noverlap=0, scaling="density", axis=-1
+    )
     return freqs, psd.mean(0)
 
 
@@ -66,30 +71,42 @@ def coherence_window(segment_length: int) -> int:
     return 2 ** int(np.floor(np.log2(max(segment_length // 4, 2))))
 
 
-def incoherent_psd(segments: np.ndarray, fs_hz: float, window: int) -> tuple[np.ndarray, np.ndarray]:
+def incoherent_psd(
+    segments: np.ndarray, fs_hz: float, window: int
+) -> tuple[np.ndarray, np.ndarray]:
     """(frequencies, per channel the part of its PSD no other channel explains) of segments shaped
     (n_segments, n_channels, n): 1 / [G^-1(f)]_ii of the cross-spectral matrix G averaged over
     half-overlapping Hann windows of `window` samples (mean removed), times d / (d - q) for d
     averages and q other channels (the estimate's bias). Shaped (n_channels, window // 2 + 1)."""
     segments = np.asarray(segments, dtype=float)
     if segments.ndim != 3 or segments.shape[0] == 0:
-        raise ValueError(f"incoherent_psd needs segments shaped (n_segments, n_channels, n), got {segments.shape}")
+        raise ValueError(
+            f"incoherent_psd needs segments shaped (n_segments, n_channels, n), got {segments.shape}"
+        )
     channels, n = segments.shape[1], segments.shape[2]
     if channels < 2:
-        raise ValueError("incoherent_psd: the part no other channel explains needs two or more channels")
+        raise ValueError(
+            "incoherent_psd: the part no other channel explains needs two or more channels"
+        )
     if n < window:
-        raise ValueError(f"incoherent_psd: segments of {n} samples are shorter than the {window}-sample window")
+        raise ValueError(
+            f"incoherent_psd: segments of {n} samples are shorter than the {window}-sample window"
+        )
     taper = np.hanning(window)
     starts = range(0, n - window + 1, window // 2)
-    pieces = np.stack([segment[:, start:start + window] for segment in segments for start in starts])
+    pieces = np.stack(
+        [segment[:, start : start + window] for segment in segments for start in starts]
+    )
     pieces = pieces - pieces.mean(axis=-1, keepdims=True)
-    spectra = np.fft.rfft(pieces * taper, axis=-1)                        # (d, channels, f)
+    spectra = np.fft.rfft(pieces * taper, axis=-1)  # (d, channels, f)
     averages = len(pieces)
     if averages <= channels:
-        raise ValueError(f"incoherent_psd: {averages} windows cannot resolve {channels} channels; "
-                         "the background needs more healthy segments")
+        raise ValueError(
+            f"incoherent_psd: {averages} windows cannot resolve {channels} channels; "
+            "the background needs more healthy segments"
+        )
     # one-sided density scaling of a Hann periodogram (as scipy.signal.welch's)
-    scale = 2.0 / (fs_hz * (taper ** 2).sum())
+    scale = 2.0 / (fs_hz * (taper**2).sum())
     cross = np.einsum("dif,djf->fij", spectra, spectra.conj()) / averages * scale
     conditioned = 1.0 / np.real(np.einsum("fii->if", np.linalg.inv(cross)))
     conditioned *= averages / (averages - (channels - 1))
@@ -103,14 +120,20 @@ def background_psd(measured: np.ndarray, model: np.ndarray) -> np.ndarray:
     return np.maximum(np.asarray(measured, dtype=float) - np.asarray(model, dtype=float), 0.0)
 
 
-def synthesise(freqs: np.ndarray, psd: np.ndarray, n: int, fs_hz: float, rng: np.random.Generator) -> np.ndarray:
+def synthesise(
+    freqs: np.ndarray, psd: np.ndarray, n: int, fs_hz: float, rng: np.random.Generator
+) -> np.ndarray:
     """A Gaussian signal of `n` samples whose one-sided PSD is `psd` on `freqs` (linearly
     interpolated onto the signal's own frequency grid): complex Gaussian Fourier coefficients
     (Rayleigh amplitudes, uniform phases) of variance fs n S(f) / 2, no mean."""
     grid = np.fft.rfftfreq(n, 1.0 / fs_hz)
     density = np.interp(grid, freqs, psd, left=0.0, right=0.0)
     scale = np.sqrt(density * fs_hz * n / 2.0)
-    coefficients = scale * (rng.standard_normal(len(grid)) + 1j * rng.standard_normal(len(grid))) / np.sqrt(2.0)
+    coefficients = (
+        scale
+        * (rng.standard_normal(len(grid)) + 1j * rng.standard_normal(len(grid)))
+        / np.sqrt(2.0)
+    )
     coefficients[0] = 0.0
     if n % 2 == 0:  # the Nyquist coefficient of a real signal is real, and holds its power once
         coefficients[-1] = scale[-1] * np.sqrt(2.0) * rng.standard_normal()
@@ -131,7 +154,9 @@ def _model_run(task):
     speed, seed = task
     w = _WORKER
     try:
-        return w["system"].simulate_healthy(w["variant"], w["values"], speed, w["duration"], seed), ""
+        return w["system"].simulate_healthy(
+            w["variant"], w["values"], speed, w["duration"], seed
+        ), ""
     except SimulationError as exc:
         return None, str(exc)
 
@@ -141,8 +166,17 @@ def run_seeds(seed: int, runs: int) -> list[int]:
     return [int(s) for s in np.random.SeedSequence([int(seed), 0xBAC6]).generate_state(runs)]
 
 
-def estimate_background(system, frame: pd.DataFrame, calibrated: dict, channels, runs: int, sim_seconds: float,
-                        seed: int, processes: int = 1, method: str = "incoherent") -> pd.DataFrame:
+def estimate_background(
+    system,
+    frame: pd.DataFrame,
+    calibrated: dict,
+    channels,
+    runs: int,
+    sim_seconds: float,
+    seed: int,
+    processes: int = 1,
+    method: str = "incoherent",
+) -> pd.DataFrame:
     """Per speed of the measured healthy records (those among the system's simulated speeds) and
     channel: the measured, the model's and the background PSD (`COLUMNS`, long form; with
     `method` incoherent, measured and model are the parts no other channel explains). The model's
@@ -155,59 +189,105 @@ def estimate_background(system, frame: pd.DataFrame, calibrated: dict, channels,
         raise ValueError(f"calibration.background_method: {method!r} is not one of {list(METHODS)}")
     if method == "incoherent":
         if len(channels) < 2:
-            raise ValueError(f"calibration.background_method incoherent: the part no other channel explains "
-                             f"needs two or more channels (features.channels: {channels}); use deficit")
+            raise ValueError(
+                f"calibration.background_method incoherent: the part no other channel explains "
+                f"needs two or more channels (features.channels: {channels}); use deficit"
+            )
         window = coherence_window(n)
 
         def spectrum(segments):
             return incoherent_psd(segments, fs, window)
     else:
+
         def spectrum(segments):
             return segment_psd(segments, fs)
+
     healthy = frame[frame["health_state"] == system.healthy_state]
     simulated = [float(s) for s in system.speeds_rpm]
     speeds = sorted(float(s) for s in healthy["speed_rpm"].unique() if float(s) in simulated)
     if not speeds:
-        return pd.DataFrame({c: pd.Series(dtype=object if c == "channel" else float) for c in COLUMNS})
+        return pd.DataFrame(
+            {c: pd.Series(dtype=object if c == "channel" else float) for c in COLUMNS}
+        )
     if int(sim_seconds * fs + 1e-9) < n:
-        raise ValueError(f"calibration.sim_seconds: {sim_seconds} s is shorter than one segment "
-                         f"({n} samples at {fs:g} Hz)")
+        raise ValueError(
+            f"calibration.sim_seconds: {sim_seconds} s is shorter than one segment "
+            f"({n} samples at {fs:g} Hz)"
+        )
     tasks = [(speed, s) for speed in speeds for s in run_seeds(seed, runs)]
-    pool = ProcessPoolExecutor(max(1, min(processes, len(tasks))), mp_context=multiprocessing.get_context("fork"),
-                               initializer=_init_worker,
-                               initargs=(system, calibrated["model_variant"], dict(calibrated["parameters"]),
-                                         float(sim_seconds)))
+    pool = ProcessPoolExecutor(
+        max(1, min(processes, len(tasks))),
+        mp_context=multiprocessing.get_context("fork"),
+        initializer=_init_worker,
+        initargs=(
+            system,
+            calibrated["model_variant"],
+            dict(calibrated["parameters"]),
+            float(sim_seconds),
+        ),
+    )
     try:
         results = list(pool.map(_model_run, tasks))
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
     parts = []
     for speed in speeds:
-        done = [signals for (s, _), (signals, _) in zip(tasks, results) if s == speed and signals is not None]
+        done = [
+            signals
+            for (s, _), (signals, _) in zip(tasks, results)
+            if s == speed and signals is not None
+        ]
         for (s, run_seed), (signals, error) in zip(tasks, results):
             if s == speed and signals is None:
-                log.warning("background: the model's healthy run at %g rpm (seed %d) failed: %s", speed, run_seed,
-                            error)
+                log.warning(
+                    "background: the model's healthy run at %g rpm (seed %d) failed: %s",
+                    speed,
+                    run_seed,
+                    error,
+                )
         if not done:
-            raise SimulationError(f"background: every healthy run of the calibrated model at {speed:g} rpm failed")
+            raise SimulationError(
+                f"background: every healthy run of the calibrated model at {speed:g} rpm failed"
+            )
         model_segments = np.concatenate([_segments(signals, channels, n) for signals in done])
         freqs, model = spectrum(model_segments)
-        _, measured_segments = to_arrays(healthy[healthy["speed_rpm"].astype(float) == speed], channels)
+        _, measured_segments = to_arrays(
+            healthy[healthy["speed_rpm"].astype(float) == speed], channels
+        )
         _, measured = spectrum(measured_segments)
         background = background_psd(measured, model)
         for j, channel in enumerate(channels):
-            parts.append(pd.DataFrame(dict(speed_rpm=speed, channel=channel, freq_hz=freqs, measured_psd=measured[j],
-                                           model_psd=model[j], background_psd=background[j])))
-        log.info("background (%s) at %g rpm from %d measured and %d model segments: rms %s m/s^2", method,
-                 speed, len(measured_segments), len(model_segments),
-                 {c: round(float(np.sqrt(background[j].sum() * (freqs[1] - freqs[0]))), 6)
-                  for j, c in enumerate(channels)})
+            parts.append(
+                pd.DataFrame(
+                    dict(
+                        speed_rpm=speed,
+                        channel=channel,
+                        freq_hz=freqs,
+                        measured_psd=measured[j],
+                        model_psd=model[j],
+                        background_psd=background[j],
+                    )
+                )
+            )
+        log.info(
+            "background (%s) at %g rpm from %d measured and %d model segments: rms %s m/s^2",
+            method,
+            speed,
+            len(measured_segments),
+            len(model_segments),
+            {
+                c: round(float(np.sqrt(background[j].sum() * (freqs[1] - freqs[0]))), 6)
+                for j, c in enumerate(channels)
+            },
+        )
     return pd.concat(parts, ignore_index=True)[COLUMNS]
 
 
 def _segments(signals: dict, channels, n: int) -> np.ndarray:
     count = len(signals[channels[0]]) // n
-    return np.stack([[np.asarray(signals[c][k * n:(k + 1) * n]) for c in channels] for k in range(count)])
+    return np.stack(
+        [[np.asarray(signals[c][k * n : (k + 1) * n]) for c in channels] for k in range(count)]
+    )
 
 
 def background_rms(table: pd.DataFrame) -> dict:
@@ -215,7 +295,9 @@ def background_rms(table: pd.DataFrame) -> dict:
     out = {}
     for (speed, channel), rows in table.groupby(["speed_rpm", "channel"], sort=True):
         df = float(np.diff(rows["freq_hz"].to_numpy()[:2])[0])
-        out.setdefault(f"{speed:g}", {})[channel] = float(np.sqrt(rows["background_psd"].sum() * df))
+        out.setdefault(f"{speed:g}", {})[channel] = float(
+            np.sqrt(rows["background_psd"].sum() * df)
+        )
     return out
 
 
@@ -229,8 +311,10 @@ class Background:
         missing = sorted(set(COLUMNS) - set(table.columns))
         if missing:
             raise ValueError(f"background table: missing columns {missing}")
-        self.psd = {(float(speed), channel): (rows["freq_hz"].to_numpy(), rows["background_psd"].to_numpy())
-                    for (speed, channel), rows in table.groupby(["speed_rpm", "channel"], sort=True)}
+        self.psd = {
+            (float(speed), channel): (rows["freq_hz"].to_numpy(), rows["background_psd"].to_numpy())
+            for (speed, channel), rows in table.groupby(["speed_rpm", "channel"], sort=True)
+        }
         self.speeds = sorted({speed for speed, _ in self.psd})
 
     def __bool__(self) -> bool:
@@ -240,7 +324,9 @@ class Background:
         """The measured speed whose background a simulated speed takes: the nearest."""
         return min(self.speeds, key=lambda s: (abs(s - float(speed_rpm)), s))
 
-    def add(self, signals: dict, speed_rpm: float, fs_hz: float, rng: np.random.Generator) -> tuple[dict, list]:
+    def add(
+        self, signals: dict, speed_rpm: float, fs_hz: float, rng: np.random.Generator
+    ) -> tuple[dict, list]:
         """`signals` plus a realisation of the background of each channel (channels in a fixed
         order, so the draw is reproducible); returns (signals, channels without a background)."""
         source = self.source_speed(speed_rpm)

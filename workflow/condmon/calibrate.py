@@ -11,6 +11,7 @@ and any of its own); this module knows none but these.
 The model variant is categorical (`System.model_variants`): `catcma` searches it jointly with the
 continuous parameters (CatCMA), `per_law` runs one CMA-ES per variant and keeps the best.
 """
+
 from __future__ import annotations
 
 import logging
@@ -36,7 +37,7 @@ FAILED_COST = 1.0e3  # a diverged candidate is a bad candidate, not a crash of t
 
 def cfrp_eq4(simulated: np.ndarray, measured: np.ndarray) -> float:
     """Normalised least squares per (speed, channel), averaged: arrays (n_speeds, n_channels, n_bins)."""
-    return float(np.mean(((simulated - measured) ** 2).sum(-1) / (measured ** 2).sum(-1)))
+    return float(np.mean(((simulated - measured) ** 2).sum(-1) / (measured**2).sum(-1)))
 
 
 def helical_eq14(simulated: np.ndarray, measured: np.ndarray) -> float:
@@ -59,13 +60,17 @@ def cost_function(kind, costs: dict | None = None):
     return costs[kind]
 
 
-def spectrum_cost(simulated: np.ndarray, measured: np.ndarray, kind="cfrp_eq4", costs: dict | None = None) -> float:
+def spectrum_cost(
+    simulated: np.ndarray, measured: np.ndarray, kind="cfrp_eq4", costs: dict | None = None
+) -> float:
     """Cost `kind` (a name among `costs`, default the spectral ones, or a callable) between
     arrays of shape (n_speeds, n_channels, n_bins)."""
     return float(cost_function(kind, costs)(simulated, measured))
 
 
-def estimate_sensor_noise(measured: np.ndarray, segment_length: int, floor_quantile: float = 0.1) -> float:
+def estimate_sensor_noise(
+    measured: np.ndarray, segment_length: int, floor_quantile: float = 0.1
+) -> float:
     """RMS (m/s^2) of white sensor noise: the floor of the measured spectra.
 
     White noise lies under every band at one level, so a low quantile (`floor_quantile`) of the
@@ -78,8 +83,10 @@ def estimate_sensor_noise(measured: np.ndarray, segment_length: int, floor_quant
     spectrum of white noise of RMS sigma has E|X_k|^2 = 6 sigma^2 / N per bin.
     """
     if not 0.0 < floor_quantile < 1.0:
-        raise ValueError(f"calibration.noise_floor_quantile must lie in (0, 1), got {floor_quantile}")
-    floor_power = np.quantile(measured ** 2, floor_quantile)
+        raise ValueError(
+            f"calibration.noise_floor_quantile must lie in (0, 1), got {floor_quantile}"
+        )
+    floor_power = np.quantile(measured**2, floor_quantile)
     return float(np.sqrt(floor_power * segment_length / 6.0))
 
 
@@ -87,7 +94,7 @@ def with_sensor_noise(spectra: np.ndarray, sensor_noise: float, segment_length: 
     """The expected RMS band spectra of a model's signals plus white sensor noise of RMS
     `sensor_noise`: powers add, and the noise puts 6 sigma^2 / N in every bin (see
     `estimate_sensor_noise`). What a noise-free model's spectra look like once measured."""
-    return np.sqrt(spectra ** 2 + 6.0 * sensor_noise ** 2 / segment_length)
+    return np.sqrt(spectra**2 + 6.0 * sensor_noise**2 / segment_length)
 
 
 @dataclass
@@ -101,7 +108,9 @@ class Bound:
         # a value outside the range (a nominal 0 under a log range) maps to the nearest bound
         value = min(max(value, self.low), self.high)
         if self.log:
-            return (math.log(value) - math.log(self.low)) / (math.log(self.high) - math.log(self.low))
+            return (math.log(value) - math.log(self.low)) / (
+                math.log(self.high) - math.log(self.low)
+            )
         return (value - self.low) / (self.high - self.low)
 
     def from_unit(self, z: float) -> float:
@@ -124,42 +133,76 @@ class SpectrumModel:
     n_bands), RMS bands of `calibration_spectrum`. Every run is `sim_seconds` long and cut into
     the system's segments; `seed` makes a model with randomness repeatable."""
 
-    def __init__(self, system, speeds, channels, spectrum: dict, resolution_hz: float, sim_seconds: float,
-                 seed: int = 1):
+    def __init__(
+        self,
+        system,
+        speeds,
+        channels,
+        spectrum: dict,
+        resolution_hz: float,
+        sim_seconds: float,
+        seed: int = 1,
+    ):
         self.system, self.speeds, self.channels = system, [float(s) for s in speeds], list(channels)
         self.sim_seconds, self.seed = float(sim_seconds), int(seed)
         self.output_rate = system.output_rate_hz
         self.segment_length = system.segment_length
         if int(round(self.sim_seconds * self.output_rate)) < self.segment_length:
-            raise ValueError(f"calibration.sim_seconds: {sim_seconds} s is shorter than one segment "
-                             f"({self.segment_length} samples at {self.output_rate:g} Hz)")
-        self.spectrum = SpectrumFeatures(channels=self.channels, **calibration_spectrum(spectrum, resolution_hz))
+            raise ValueError(
+                f"calibration.sim_seconds: {sim_seconds} s is shorter than one segment "
+                f"({self.segment_length} samples at {self.output_rate:g} Hz)"
+            )
+        self.spectrum = SpectrumFeatures(
+            channels=self.channels, **calibration_spectrum(spectrum, resolution_hz)
+        )
 
     def mean_spectra(self, signals_by_speed) -> np.ndarray:
         out = []
         for signals in signals_by_speed:
             n_seg = len(signals[self.channels[0]]) // self.segment_length
-            stack = np.stack([[signals[c][k * self.segment_length:(k + 1) * self.segment_length]
-                               for c in self.channels] for k in range(n_seg)])
+            stack = np.stack(
+                [
+                    [
+                        signals[c][k * self.segment_length : (k + 1) * self.segment_length]
+                        for c in self.channels
+                    ]
+                    for k in range(n_seg)
+                ]
+            )
             features = self.spectrum.transform(stack, self.output_rate)
             out.append(features.mean(0).reshape(len(self.channels), -1))
         return np.stack(out)
 
     def __call__(self, variant: str, values: dict) -> np.ndarray:
-        return self.mean_spectra([self.system.simulate_healthy(variant, values, speed, self.sim_seconds,
-                                                               self.seed)
-                                  for speed in self.speeds])
+        return self.mean_spectra(
+            [
+                self.system.simulate_healthy(variant, values, speed, self.sim_seconds, self.seed)
+                for speed in self.speeds
+            ]
+        )
 
 
-def measured_spectra(frame: pd.DataFrame, speeds, channels, spectrum: dict, resolution_hz: float,
-                     fs_hz: float, label: str = "healthy", tolerance_rpm: float = 0.0) -> np.ndarray:
+def measured_spectra(
+    frame: pd.DataFrame,
+    speeds,
+    channels,
+    spectrum: dict,
+    resolution_hz: float,
+    fs_hz: float,
+    label: str = "healthy",
+    tolerance_rpm: float = 0.0,
+) -> np.ndarray:
     """Mean amplitude spectra of the measured `label` segments per speed (records within
     `tolerance_rpm` of it): (speeds, channels, bands), the calibration target."""
-    transformer = SpectrumFeatures(channels=list(channels), **calibration_spectrum(spectrum, resolution_hz))
+    transformer = SpectrumFeatures(
+        channels=list(channels), **calibration_spectrum(spectrum, resolution_hz)
+    )
     out = []
     for speed in speeds:
-        rows = frame[(frame["health_state"] == label)
-                     & ((frame["speed_rpm"] - float(speed)).abs() <= tolerance_rpm)]
+        rows = frame[
+            (frame["health_state"] == label)
+            & ((frame["speed_rpm"] - float(speed)).abs() <= tolerance_rpm)
+        ]
         if rows.empty:
             raise ValueError(f"no measured {label!r} records at {speed:g} rpm to calibrate on")
         _, arrays = to_arrays(rows, list(channels))
@@ -167,8 +210,15 @@ def measured_spectra(frame: pd.DataFrame, speeds, channels, spectrum: dict, reso
     return np.stack(out)
 
 
-def calibrate_on_spectra(system, frame: pd.DataFrame, calibration: dict, spectrum: dict, channels,
-                         nominal: dict, processes: int = 1):
+def calibrate_on_spectra(
+    system,
+    frame: pd.DataFrame,
+    calibration: dict,
+    spectrum: dict,
+    channels,
+    nominal: dict,
+    processes: int = 1,
+):
     """The spectral calibration of a system on its healthy measured records at its simulated
     speeds: CMA-ES over `calibration.parameters` (and the system's `model_variants()`) from the
     `nominal` values and its `nominal_variant`, by the system's cost `calibration.cost`, then the
@@ -179,40 +229,96 @@ def calibrate_on_spectra(system, frame: pd.DataFrame, calibration: dict, spectru
     healthy = frame.loc[frame["health_state"] == system.healthy_state, "speed_rpm"].unique()
     speeds = sorted(float(s) for s in healthy if float(s) in [float(x) for x in system.speeds_rpm])
     if not speeds:
-        raise ValueError(f"no measured {system.healthy_state!r} records at the simulated speeds "
-                         f"{system.speeds_rpm} rpm to calibrate on")
-    target = measured_spectra(frame, speeds, channels, spectrum, calibration["resolution_hz"], fs,
-                              label=system.healthy_state)
-    spectrum_model = SpectrumModel(system, speeds, channels, spectrum, calibration["resolution_hz"],
-                                   calibration["sim_seconds"], seed=calibration["seed"])
-    bounds = [Bound(name, b["low"], b["high"], b.get("log", False))
-              for name, b in calibration["parameters"].items()]
+        raise ValueError(
+            f"no measured {system.healthy_state!r} records at the simulated speeds "
+            f"{system.speeds_rpm} rpm to calibrate on"
+        )
+    target = measured_spectra(
+        frame,
+        speeds,
+        channels,
+        spectrum,
+        calibration["resolution_hz"],
+        fs,
+        label=system.healthy_state,
+    )
+    spectrum_model = SpectrumModel(
+        system,
+        speeds,
+        channels,
+        spectrum,
+        calibration["resolution_hz"],
+        calibration["sim_seconds"],
+        seed=calibration["seed"],
+    )
+    bounds = [
+        Bound(name, b["low"], b["high"], b.get("log", False))
+        for name, b in calibration["parameters"].items()
+    ]
     cost = cost_function(calibration["cost"], system.calibration_costs())
-    calibrator = Calibrator(bounds, system.model_variants(calibration), strategy=calibration["strategy"],
-                            population=calibration["population"], generations=calibration["generations"],
-                            sigma0=calibration["sigma0"], seed=calibration["seed"], processes=processes,
-                            initial={b.name: nominal[b.name] for b in bounds})
-    log.info("calibrating %s of the %s system on %d healthy speeds %s, %d processes",
-             [b.name for b in bounds], system.name, len(speeds), speeds, processes)
+    calibrator = Calibrator(
+        bounds,
+        system.model_variants(calibration),
+        strategy=calibration["strategy"],
+        population=calibration["population"],
+        generations=calibration["generations"],
+        sigma0=calibration["sigma0"],
+        seed=calibration["seed"],
+        processes=processes,
+        initial={b.name: nominal[b.name] for b in bounds},
+    )
+    log.info(
+        "calibrating %s of the %s system on %d healthy speeds %s, %d processes",
+        [b.name for b in bounds],
+        system.name,
+        len(speeds),
+        speeds,
+        processes,
+    )
     best, history = calibrator.run(spectrum_model, target, cost)
     nominal_values = {b.name: nominal[b.name] for b in bounds}
     nominal_cost = cost(spectrum_model(system.nominal_variant, nominal_values), target)
     calibrated = spectrum_model(best["model_variant"], best["parameters"])
     freqs = spectrum_model.spectrum.band_centres()
-    sensor_noise = estimate_sensor_noise(target, spectrum_model.segment_length, calibration["noise_floor_quantile"])
+    sensor_noise = estimate_sensor_noise(
+        target, spectrum_model.segment_length, calibration["noise_floor_quantile"]
+    )
     # What simulated records look like: the model plus the estimated sensor noise (6 sigma^2 / N per bin).
     with_noise = with_sensor_noise(calibrated, sensor_noise, spectrum_model.segment_length)
-    rows = [pd.DataFrame(dict(speed_rpm=speed, channel=channel, freq_hz=freqs, measured=target[i, j],
-                              calibrated=with_noise[i, j], model_only=calibrated[i, j]))
-            for i, speed in enumerate(speeds) for j, channel in enumerate(channels)]
-    result = dict(best, nominal_cost=nominal_cost, sensor_noise=sensor_noise,
-                  strategy=calibration["strategy"], cost_function=calibration["cost"], speeds_rpm=speeds,
-                  seconds=round(time.perf_counter() - start, 1),
-                  seconds_per_evaluation=float(history["seconds"].mean()),
-                  failed_evaluations=int((history["error"] != "").sum()))
-    log.info("best %s cost %.4g (nominal %.4g) after %d evaluations: %s; sensor noise %.3g",
-             best["model_variant"], best["cost"], nominal_cost, best["evaluations"], best["parameters"],
-             sensor_noise)
+    rows = [
+        pd.DataFrame(
+            dict(
+                speed_rpm=speed,
+                channel=channel,
+                freq_hz=freqs,
+                measured=target[i, j],
+                calibrated=with_noise[i, j],
+                model_only=calibrated[i, j],
+            )
+        )
+        for i, speed in enumerate(speeds)
+        for j, channel in enumerate(channels)
+    ]
+    result = dict(
+        best,
+        nominal_cost=nominal_cost,
+        sensor_noise=sensor_noise,
+        strategy=calibration["strategy"],
+        cost_function=calibration["cost"],
+        speeds_rpm=speeds,
+        seconds=round(time.perf_counter() - start, 1),
+        seconds_per_evaluation=float(history["seconds"].mean()),
+        failed_evaluations=int((history["error"] != "").sum()),
+    )
+    log.info(
+        "best %s cost %.4g (nominal %.4g) after %d evaluations: %s; sensor noise %.3g",
+        best["model_variant"],
+        best["cost"],
+        nominal_cost,
+        best["evaluations"],
+        best["parameters"],
+        sensor_noise,
+    )
     return result, history, pd.concat(rows, ignore_index=True)
 
 
@@ -243,8 +349,12 @@ def change_fit(simulated_change: np.ndarray, measured_change: np.ndarray) -> dic
     flat = np.std(simulated) == 0 or np.std(measured) == 0
     correlation = 0.0 if flat else float(np.corrcoef(simulated, measured)[0, 1])
     explained = 1.0 - cost / no_change if no_change > 0 else 0.0
-    return {"no_change_cost": no_change, "explained_share": explained, "change_correlation": correlation,
-            "identified": bool(correlation > 3.0 / math.sqrt(measured.size))}
+    return {
+        "no_change_cost": no_change,
+        "explained_share": explained,
+        "change_correlation": correlation,
+        "identified": bool(correlation > 3.0 / math.sqrt(measured.size)),
+    }
 
 
 class StateSpectrumModel(SpectrumModel):
@@ -252,22 +362,49 @@ class StateSpectrumModel(SpectrumModel):
     its healthy twin (the same seed: the same manufacturing scatter and fluctuations), per speed.
     The model runs at the healthy calibration `calibrated` (params.json)."""
 
-    def __init__(self, system, state, calibrated, speeds, channels, spectrum, resolution_hz, sim_seconds, seed=1):
+    def __init__(
+        self,
+        system,
+        state,
+        calibrated,
+        speeds,
+        channels,
+        spectrum,
+        resolution_hz,
+        sim_seconds,
+        seed=1,
+    ):
         super().__init__(system, speeds, channels, spectrum, resolution_hz, sim_seconds, seed)
         self.state, self.calibrated = state, calibrated
         self.healthy = self._spectra(system.healthy_state, None)
 
     def _spectra(self, state, state_model) -> np.ndarray:
-        return self.mean_spectra([self.system.simulate_state(self.calibrated, state, state_model, speed,
-                                                             self.sim_seconds, self.seed)
-                                  for speed in self.speeds]) + SPECTRUM_FLOOR
+        return (
+            self.mean_spectra(
+                [
+                    self.system.simulate_state(
+                        self.calibrated, state, state_model, speed, self.sim_seconds, self.seed
+                    )
+                    for speed in self.speeds
+                ]
+            )
+            + SPECTRUM_FLOOR
+        )
 
     def __call__(self, variant: str, values: dict) -> np.ndarray:
         return self._spectra(self.state, {"variant": variant, "parameters": values}) / self.healthy
 
 
-def calibrate_state(system, frame: pd.DataFrame, state: str, calibrated: dict, calibration: dict,
-                    spectrum: dict, channels, processes: int = 1):
+def calibrate_state(
+    system,
+    frame: pd.DataFrame,
+    state: str,
+    calibrated: dict,
+    calibration: dict,
+    spectrum: dict,
+    channels,
+    processes: int = 1,
+):
     """Per-state calibration (the CFRP study's "optimal damaged MBD models"): CMA-ES over the
     fault's form and severities (`System.state_calibration_space`) so that the model's change of
     the spectrum from healthy to `state` matches the measured one, `frame` holding the calibration
@@ -276,47 +413,105 @@ def calibrate_state(system, frame: pd.DataFrame, state: str, calibrated: dict, c
     start = time.perf_counter()
     settings = calibration["per_state"]
     fs = system.output_rate_hz
-    at = {label: {float(s) for s in frame.loc[frame["health_state"] == label, "speed_rpm"].unique()}
-          for label in (state, system.healthy_state)}
+    at = {
+        label: {float(s) for s in frame.loc[frame["health_state"] == label, "speed_rpm"].unique()}
+        for label in (state, system.healthy_state)
+    }
     speeds = sorted(at[state] & at[system.healthy_state] & {float(s) for s in system.speeds_rpm})
     if not speeds:
-        raise ValueError(f"calibration.per_state: no speed of {system.speeds_rpm} rpm has both calibration "
-                         f"records of {state!r} ({sorted(at[state])}) and healthy ones "
-                         f"({sorted(at[system.healthy_state])})")
+        raise ValueError(
+            f"calibration.per_state: no speed of {system.speeds_rpm} rpm has both calibration "
+            f"records of {state!r} ({sorted(at[state])}) and healthy ones "
+            f"({sorted(at[system.healthy_state])})"
+        )
     resolution = calibration["resolution_hz"]
-    target = (measured_spectra(frame, speeds, channels, spectrum, resolution, fs, label=state) + SPECTRUM_FLOOR) / (
-        measured_spectra(frame, speeds, channels, spectrum, resolution, fs, label=system.healthy_state)
-        + SPECTRUM_FLOOR)
+    target = (
+        measured_spectra(frame, speeds, channels, spectrum, resolution, fs, label=state)
+        + SPECTRUM_FLOOR
+    ) / (
+        measured_spectra(
+            frame, speeds, channels, spectrum, resolution, fs, label=system.healthy_state
+        )
+        + SPECTRUM_FLOOR
+    )
     variants, bounds = system.state_calibration_space(state)
-    model = StateSpectrumModel(system, state, calibrated, speeds, channels, spectrum, resolution,
-                               calibration["sim_seconds"], seed=calibration["seed"])
-    calibrator = Calibrator(bounds, variants, strategy="catcma", population=settings["population"],
-                            generations=settings["generations"], sigma0=calibration["sigma0"],
-                            seed=calibration["seed"], processes=processes)
-    log.info("calibrating the %s model (%s; %s) on %d speeds %s, %d processes", state, variants,
-             [b.name for b in bounds], len(speeds), speeds, processes)
+    model = StateSpectrumModel(
+        system,
+        state,
+        calibrated,
+        speeds,
+        channels,
+        spectrum,
+        resolution,
+        calibration["sim_seconds"],
+        seed=calibration["seed"],
+    )
+    calibrator = Calibrator(
+        bounds,
+        variants,
+        strategy="catcma",
+        population=settings["population"],
+        generations=settings["generations"],
+        sigma0=calibration["sigma0"],
+        seed=calibration["seed"],
+        processes=processes,
+    )
+    log.info(
+        "calibrating the %s model (%s; %s) on %d speeds %s, %d processes",
+        state,
+        variants,
+        [b.name for b in bounds],
+        len(speeds),
+        speeds,
+        processes,
+    )
     best, history = calibrator.run(model, target, fault_change_cost)
     records = sorted(frame.loc[frame["health_state"] == state, "record_id"].astype(str).unique())
     parameters = system.state_parameters(best["model_variant"], best["parameters"])
     # the same seed: the best candidate's change again, to say how much of the measured one it explains
     fit = change_fit(model(best["model_variant"], best["parameters"]), target)
-    at_bounds = sorted(b.name for b in bounds if b.name in parameters  # the chosen variant's only
-                       and not 0.01 < b.to_unit(best["parameters"][b.name]) < 0.99)
-    result = dict(state=state, model_variant=best["model_variant"], parameters=parameters, cost=best["cost"],
-                  cost_function="fault_change_cost (decades^2)", spread=float(settings["spread"]),
-                  speeds_rpm=speeds, records=records, evaluations=best["evaluations"],
-                  bounds={b.name: [b.low, b.high] for b in bounds}, **fit, at_bounds=at_bounds,
-                  seconds=round(time.perf_counter() - start, 1))
-    log.info("%s: %s %s, cost %.4g after %d evaluations (records %s); no fault: %.4g, explained share %.2f, "
-             "correlation %.2f", state, best["model_variant"], parameters, best["cost"], best["evaluations"],
-             records, fit["no_change_cost"], fit["explained_share"], fit["change_correlation"])
+    at_bounds = sorted(
+        b.name
+        for b in bounds
+        if b.name in parameters  # the chosen variant's only
+        and not 0.01 < b.to_unit(best["parameters"][b.name]) < 0.99
+    )
+    result = dict(
+        state=state,
+        model_variant=best["model_variant"],
+        parameters=parameters,
+        cost=best["cost"],
+        cost_function="fault_change_cost (decades^2)",
+        spread=float(settings["spread"]),
+        speeds_rpm=speeds,
+        records=records,
+        evaluations=best["evaluations"],
+        bounds={b.name: [b.low, b.high] for b in bounds},
+        **fit,
+        at_bounds=at_bounds,
+        seconds=round(time.perf_counter() - start, 1),
+    )
+    log.info(
+        "%s: %s %s, cost %.4g after %d evaluations (records %s); no fault: %.4g, explained share %.2f, "
+        "correlation %.2f",
+        state,
+        best["model_variant"],
+        parameters,
+        best["cost"],
+        best["evaluations"],
+        records,
+        fit["no_change_cost"],
+        fit["explained_share"],
+        fit["change_correlation"],
+    )
     if not fit["identified"]:
         bound_note = f" ({', '.join(at_bounds)} at a bound of its range)" if at_bounds else ""
         result["warning"] = (
             f"the {state} model's change of the spectrum is not its records' (correlation "
             f"{fit['change_correlation']:.2f}, it explains {fit['explained_share']:.0%} of it): the records do "
             f"not identify its severities, the search settles where the model changes least{bound_note}; "
-            "its simulated samples take them all the same")
+            "its simulated samples take them all the same"
+        )
         log.warning("%s", result["warning"])
     return result, history
 
@@ -347,8 +542,18 @@ class Calibrator:
     """CMA-ES over the unit cube of the bounded parameters (log scale where configured) and the
     categorical model `variants` (a system's model_variants)."""
 
-    def __init__(self, bounds: list[Bound], variants, strategy="catcma", population=8,
-                 generations=10, sigma0=0.3, seed=1, processes=1, initial=None):
+    def __init__(
+        self,
+        bounds: list[Bound],
+        variants,
+        strategy="catcma",
+        population=8,
+        generations=10,
+        sigma0=0.3,
+        seed=1,
+        processes=1,
+        initial=None,
+    ):
         if strategy not in ("catcma", "per_law"):
             raise ValueError(f"unknown calibration strategy {strategy!r}; choose catcma or per_law")
         self.bounds, self.variants = bounds, list(variants)
@@ -360,8 +565,12 @@ class Calibrator:
         return {b.name: b.from_unit(float(zi)) for b, zi in zip(self.bounds, z)}
 
     def _mean0(self) -> np.ndarray:
-        return np.array([b.to_unit(self.initial[b.name]) if b.name in self.initial else 0.5
-                         for b in self.bounds])
+        return np.array(
+            [
+                b.to_unit(self.initial[b.name]) if b.name in self.initial else 0.5
+                for b in self.bounds
+            ]
+        )
 
     def run(self, spectrum_model, target, cost="cfrp_eq4"):
         """Returns (best dict, history DataFrame). `cost`: a name of `SPECTRAL_COSTS` or a
@@ -371,19 +580,35 @@ class Calibrator:
         unit_bounds = np.tile([0.0, 1.0], (len(self.bounds), 1))
         # an executor, not multiprocessing.Pool: a worker that dies breaks it with an error
         # instead of leaving its task unanswered for ever
-        pool = ProcessPoolExecutor(self.processes, mp_context=multiprocessing.get_context("fork"),
-                                   initializer=_init_worker, initargs=(spectrum_model, target, cost))
+        pool = ProcessPoolExecutor(
+            self.processes,
+            mp_context=multiprocessing.get_context("fork"),
+            initializer=_init_worker,
+            initargs=(spectrum_model, target, cost),
+        )
         try:
+
             def evaluate(generation, candidates):
                 tasks = [(variant, self._values(z)) for variant, z in candidates]
                 try:
                     results = list(pool.map(_evaluate, tasks))
                 except BrokenProcessPool as exc:
-                    raise RuntimeError(f"calibration generation {generation}: a worker process died "
-                                          f"while evaluating {len(tasks)} candidates ({exc})") from None
+                    raise RuntimeError(
+                        f"calibration generation {generation}: a worker process died "
+                        f"while evaluating {len(tasks)} candidates ({exc})"
+                    ) from None
                 for (variant, values), (cost, error, seconds) in zip(tasks, results):
-                    history.append(dict(generation=generation, evaluation=len(history), model_variant=variant,
-                                        cost=cost, seconds=seconds, error=error, **values))
+                    history.append(
+                        dict(
+                            generation=generation,
+                            evaluation=len(history),
+                            model_variant=variant,
+                            cost=cost,
+                            seconds=seconds,
+                            error=error,
+                            **values,
+                        )
+                    )
                 return [r[0] for r in results]
 
             started = time.perf_counter()
@@ -391,12 +616,26 @@ class Calibrator:
             def progress(done, total, costs, variant=None):
                 best = min(h["cost"] for h in history)
                 left = (time.perf_counter() - started) / done * (total - done)
-                log.info("%sgeneration %d of %d: best %.4g (so far %.4g), %d evaluations, about %.0f s left",
-                         f"{variant} " if variant else "", done, total, min(costs), best, len(history), left)
+                log.info(
+                    "%sgeneration %d of %d: best %.4g (so far %.4g), %d evaluations, about %.0f s left",
+                    f"{variant} " if variant else "",
+                    done,
+                    total,
+                    min(costs),
+                    best,
+                    len(history),
+                    left,
+                )
 
             if self.strategy == "catcma" and len(self.variants) > 1:
-                optimizer = CatCMA(mean=self._mean0(), sigma=self.sigma0, cat_num=np.array([len(self.variants)]),
-                                   bounds=unit_bounds, seed=self.seed, population_size=self.population)
+                optimizer = CatCMA(
+                    mean=self._mean0(),
+                    sigma=self.sigma0,
+                    cat_num=np.array([len(self.variants)]),
+                    bounds=unit_bounds,
+                    seed=self.seed,
+                    population_size=self.population,
+                )
                 for generation in range(self.generations):
                     asked = [optimizer.ask() for _ in range(optimizer.population_size)]
                     candidates = [(self.variants[int(np.argmax(c[0]))], x) for x, c in asked]
@@ -405,22 +644,36 @@ class Calibrator:
                     progress(generation + 1, self.generations, costs)
             else:
                 for variant_index, variant in enumerate(self.variants):
-                    optimizer = CMA(mean=self._mean0(), sigma=self.sigma0, bounds=unit_bounds,
-                                    seed=self.seed + variant_index, population_size=self.population)
+                    optimizer = CMA(
+                        mean=self._mean0(),
+                        sigma=self.sigma0,
+                        bounds=unit_bounds,
+                        seed=self.seed + variant_index,
+                        population_size=self.population,
+                    )
                     for generation in range(self.generations):
                         asked = [optimizer.ask() for _ in range(optimizer.population_size)]
                         costs = evaluate(generation, [(variant, x) for x in asked])
                         optimizer.tell(list(zip(asked, costs)))
-                        progress(variant_index * self.generations + generation + 1,
-                                 len(self.variants) * self.generations, costs, variant)
+                        progress(
+                            variant_index * self.generations + generation + 1,
+                            len(self.variants) * self.generations,
+                            costs,
+                            variant,
+                        )
         finally:
             # after an error or SIGTERM only the evaluations already running finish
             pool.shutdown(wait=True, cancel_futures=True)
         frame = pd.DataFrame(history)
         best = frame.loc[frame["cost"].idxmin()]
         if best["cost"] >= FAILED_COST:
-            raise SimulationError("calibration: every candidate simulation failed; first error: "
-                                  + frame["error"].iloc[0])
-        return {"model_variant": best["model_variant"], "cost": float(best["cost"]),
-                "parameters": {b.name: float(best[b.name]) for b in self.bounds},
-                "evaluations": len(frame)}, frame
+            raise SimulationError(
+                "calibration: every candidate simulation failed; first error: "
+                + frame["error"].iloc[0]
+            )
+        return {
+            "model_variant": best["model_variant"],
+            "cost": float(best["cost"]),
+            "parameters": {b.name: float(best[b.name]) for b in self.bounds},
+            "evaluations": len(frame),
+        }, frame

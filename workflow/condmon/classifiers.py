@@ -13,6 +13,7 @@ params_schema)``. The config then accepts ``classifiers.<name>`` (``condmon.conf
 entry's section schema into the shared one, as it does a system's) and the train stage builds it
 by name.
 """
+
 from __future__ import annotations
 
 import copy
@@ -29,9 +30,13 @@ SELECTION_KEYS = ("enabled", "measured_percent", "repeats")
 DEFINITIONS = {"positive": {"type": "number", "exclusiveMinimum": 0}}
 # train on fewer measured percentages and repeats than hybrid lists (a costly classifier); null = all
 SUBSET_PROPERTIES = {
-    "measured_percent": {"type": ["array", "null"], "minItems": 1, "uniqueItems": True,
-                         "items": {"type": "integer", "minimum": 0, "maximum": 100},
-                         "default": None},
+    "measured_percent": {
+        "type": ["array", "null"],
+        "minItems": 1,
+        "uniqueItems": True,
+        "items": {"type": "integer", "minimum": 0, "maximum": 100},
+        "default": None,
+    },
     "repeats": {"type": ["integer", "null"], "minimum": 1, "default": None},
 }
 
@@ -39,10 +44,11 @@ SUBSET_PROPERTIES = {
 @dataclass(frozen=True)
 class ClassifierSpec:
     """One registry entry: how to build the classifier and what its config section accepts."""
+
     build: Callable[[dict, int], Any]  # (complete params, seed) -> unfitted estimator
-    params_schema: dict                # {parameter: JSON schema with its default}
-    enabled: bool = True               # classifiers.<name>.enabled's default
-    subset: bool = False               # classifiers.<name> may name measured_percent / repeats
+    params_schema: dict  # {parameter: JSON schema with its default}
+    enabled: bool = True  # classifiers.<name>.enabled's default
+    subset: bool = False  # classifiers.<name> may name measured_percent / repeats
 
     @property
     def defaults(self) -> dict:
@@ -51,10 +57,17 @@ class ClassifierSpec:
 
     def section_schema(self) -> dict:
         """The JSON schema of the config section classifiers.<name>."""
-        properties = {"enabled": {"type": "boolean", "default": self.enabled},
-                      **(SUBSET_PROPERTIES if self.subset else {}), **self.params_schema}
-        return {"type": "object", "additionalProperties": False, "default": {},
-                "properties": properties}
+        properties = {
+            "enabled": {"type": "boolean", "default": self.enabled},
+            **(SUBSET_PROPERTIES if self.subset else {}),
+            **self.params_schema,
+        }
+        return {
+            "type": "object",
+            "additionalProperties": False,
+            "default": {},
+            "properties": properties,
+        }
 
 
 def _svm(params: dict, seed: int):
@@ -64,8 +77,13 @@ def _svm(params: dict, seed: int):
 
     # No probability estimates: predict() does not need them, and SVC(probability=...) is
     # deprecated from scikit-learn 1.9 on. random_state then has no effect; kept for clarity.
-    svc = SVC(kernel="rbf", C=params["C"], gamma=params["gamma"],
-              class_weight=params["class_weight"], random_state=seed)
+    svc = SVC(
+        kernel="rbf",
+        C=params["C"],
+        gamma=params["gamma"],
+        class_weight=params["class_weight"],
+        random_state=seed,
+    )
     return Pipeline([("scale", StandardScaler()), ("svm", svc)])
 
 
@@ -87,8 +105,13 @@ def _cnn(params: dict, seed: int):
 
 SVM_PARAMS = {
     "C": {"$ref": "#/definitions/positive", "default": 1.2},
-    "gamma": {"oneOf": [{"type": "string", "enum": ["scale", "auto"]},
-                        {"$ref": "#/definitions/positive"}], "default": "scale"},
+    "gamma": {
+        "oneOf": [
+            {"type": "string", "enum": ["scale", "auto"]},
+            {"$ref": "#/definitions/positive"},
+        ],
+        "default": "scale",
+    },
     # balanced: weights inversely proportional to class frequencies (sklearn's SVC)
     "class_weight": {"type": ["string", "null"], "enum": ["balanced", None], "default": None},
 }
@@ -113,8 +136,10 @@ CNN_PARAMS = {
     "standardize": {"type": "string", "enum": ["channel", "feature"], "default": "channel"},
     "validation_fraction": {**_SHARE, "default": 0.2},
     "patience": {**_COUNT, "default": 5},
-    "input_channels": {"oneOf": [{"type": "string", "enum": ["auto"]}, dict(_COUNT)],
-                       "default": "auto"},
+    "input_channels": {
+        "oneOf": [{"type": "string", "enum": ["auto"]}, dict(_COUNT)],
+        "default": "auto",
+    },
     "device": {"type": "string", "enum": ["auto", "cpu", "cuda"], "default": "auto"},
     "threads": {**_COUNT, "default": 1},
 }
@@ -126,8 +151,13 @@ CLASSIFIERS: dict[str, ClassifierSpec] = {
 }
 
 
-def register_classifier(name: str, build: Callable[[dict, int], Any], params_schema: dict,
-                        enabled: bool = False, subset: bool = False) -> ClassifierSpec:
+def register_classifier(
+    name: str,
+    build: Callable[[dict, int], Any],
+    params_schema: dict,
+    enabled: bool = False,
+    subset: bool = False,
+) -> ClassifierSpec:
     """Add a classifier to the registry (an existing name is an error, not a silent override).
     ``params_schema``: {parameter: JSON schema with its default}; ``enabled``: whether a config
     that does not mention it trains it."""
@@ -143,15 +173,22 @@ def register_classifier(name: str, build: Callable[[dict, int], Any], params_sch
 def config_schema() -> dict:
     """The schema fragment of every registered classifier's section, to merge into the shared
     schema (condmon.schema.merge_schema)."""
-    return {"properties": {"classifiers": {"properties": {
-        name: spec.section_schema() for name, spec in CLASSIFIERS.items()}}}}
+    return {
+        "properties": {
+            "classifiers": {
+                "properties": {name: spec.section_schema() for name, spec in CLASSIFIERS.items()}
+            }
+        }
+    }
 
 
 # a tuple is as good an array as a list (scikit-learn's and PyTorch's own parameters are tuples)
 _VALIDATOR = jsonschema.validators.extend(
     jsonschema.Draft202012Validator,
     type_checker=jsonschema.Draft202012Validator.TYPE_CHECKER.redefine(
-        "array", lambda checker, instance: isinstance(instance, (list, tuple))))
+        "array", lambda checker, instance: isinstance(instance, (list, tuple))
+    ),
+)
 
 
 def classifier_params(name: str, params: dict | None = None) -> dict:
@@ -162,14 +199,19 @@ def classifier_params(name: str, params: dict | None = None) -> dict:
     spec = CLASSIFIERS[name]
     unknown = sorted(set(params or {}) - set(spec.params_schema))
     if unknown:
-        raise ValueError(f"unknown parameter(s) {unknown} for classifier {name!r}; "
-                         f"allowed: {sorted(spec.params_schema)}")
+        raise ValueError(
+            f"unknown parameter(s) {unknown} for classifier {name!r}; "
+            f"allowed: {sorted(spec.params_schema)}"
+        )
     complete = {**spec.defaults, **(params or {})}
     schema = {"definitions": DEFINITIONS, "type": "object", "properties": spec.params_schema}
     errors = sorted(_VALIDATOR(schema).iter_errors(complete), key=lambda e: list(map(str, e.path)))
     if errors:
-        raise ValueError("; ".join(f"classifiers.{name}.{'.'.join(map(str, e.path))}: {e.message}"
-                                   for e in errors))
+        raise ValueError(
+            "; ".join(
+                f"classifiers.{name}.{'.'.join(map(str, e.path))}: {e.message}" for e in errors
+            )
+        )
     return complete
 
 

@@ -37,6 +37,7 @@ cross-entropy). ``CNNEnsembleClassifier`` is that classifier as a scikit-learn e
   with joblib like the sklearn pipelines; ``to_torch_module`` gives one ``nn.Module`` with the
   standardisation folded in (raw features in, mean probabilities out) for MLflow.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -65,8 +66,7 @@ EPOCH_LOG_SECONDS = 10.0
 FEATURE_NAME = re.compile(r"fft_(?P<channel>.+)_(?P<band>[0-9.]+)Hz")
 ORDER_NAME = re.compile(r"ord_(?P<channel>.+)_(?P<band>[0-9.]+)x")
 RESIDUAL_NAME = re.compile(r"res_(?P<channel>.+)_b(?P<band>[0-9]+)")
-HISTORY_COLUMNS = ["member", "epoch", "train_loss", "train_accuracy", "val_loss",
-                   "val_accuracy"]
+HISTORY_COLUMNS = ["member", "epoch", "train_loss", "train_accuracy", "val_loss", "val_accuracy"]
 DEVICES = ("auto", "cpu", "cuda")
 STANDARDIZE = ("channel", "feature")
 
@@ -77,6 +77,7 @@ class CNNConfigError(ValueError):
 
 # --------------------------------------------------------------------------- network
 
+
 class SpectrumCNN(nn.Module):
     """One member: (N, channels, bands) -> class logits (N, n_classes).
 
@@ -84,17 +85,26 @@ class SpectrumCNN(nn.Module):
     training can pool the inputs once instead of in every step.
     """
 
-    def __init__(self, in_channels: int, length: int, n_classes: int, conv_channels,
-                 kernel_size: int, pool_size: int, input_pool: int, dense_units,
-                 dropout: float, batch_norm: bool = False):
+    def __init__(
+        self,
+        in_channels: int,
+        length: int,
+        n_classes: int,
+        conv_channels,
+        kernel_size: int,
+        pool_size: int,
+        input_pool: int,
+        dense_units,
+        dropout: float,
+        batch_norm: bool = False,
+    ):
         super().__init__()
         layers, in_length = [], length
         self.prepare = nn.AvgPool1d(input_pool) if input_pool > 1 else nn.Identity()
         length //= input_pool
         channels = in_channels
         for out_channels in conv_channels:
-            layers.append(nn.Conv1d(channels, out_channels, kernel_size,
-                                    padding=kernel_size // 2))
+            layers.append(nn.Conv1d(channels, out_channels, kernel_size, padding=kernel_size // 2))
             if batch_norm:
                 layers.append(nn.BatchNorm1d(out_channels))
             layers += [nn.ReLU(), nn.MaxPool1d(pool_size)]
@@ -104,7 +114,8 @@ class SpectrumCNN(nn.Module):
             if length < 1:
                 raise CNNConfigError(
                     f"the spectrum of {in_length} bands per channel is pooled away: input_pool "
-                    "x pool_size^(number of conv layers) must not exceed the bands per channel")
+                    "x pool_size^(number of conv layers) must not exceed the bands per channel"
+                )
         layers.append(nn.Flatten())
         width = channels * length
         for units in dense_units:
@@ -128,7 +139,9 @@ class EnsembleModule(nn.Module):
         super().__init__()
         self.members = nn.ModuleList(members)
         # the spectrum columns among the raw features (None: all of them)
-        self.register_buffer("columns", None if columns is None else torch.as_tensor(columns, dtype=torch.long))
+        self.register_buffer(
+            "columns", None if columns is None else torch.as_tensor(columns, dtype=torch.long)
+        )
         self.register_buffer("mean", torch.as_tensor(mean, dtype=torch.float32))
         self.register_buffer("scale", torch.as_tensor(scale, dtype=torch.float32))
         self.input_shape = tuple(int(n) for n in input_shape)
@@ -144,12 +157,19 @@ class EnsembleModule(nn.Module):
 
 # --------------------------------------------------------------------------- helpers
 
+
 def band_pattern(feature_names):
     """The band-spectrum names among `feature_names`: the Hz bands if there are any, else the
     order bands if any, else the residual bands."""
     names = [str(name) for name in feature_names]
-    return next((pattern for pattern in (FEATURE_NAME, ORDER_NAME) if any(pattern.fullmatch(n) for n in names)),
-                RESIDUAL_NAME)
+    return next(
+        (
+            pattern
+            for pattern in (FEATURE_NAME, ORDER_NAME)
+            if any(pattern.fullmatch(n) for n in names)
+        ),
+        RESIDUAL_NAME,
+    )
 
 
 def channels_from_feature_names(feature_names) -> int | None:
@@ -180,7 +200,9 @@ def spectrum_columns(feature_names) -> np.ndarray | None:
         return None
     names = [str(name) for name in feature_names]
     pattern = band_pattern(names)
-    columns = np.array([i for i, name in enumerate(names) if pattern.fullmatch(name)], dtype=np.int64)
+    columns = np.array(
+        [i for i, name in enumerate(names) if pattern.fullmatch(name)], dtype=np.int64
+    )
     if len(columns) in (0, len(names)):
         return None
     return columns
@@ -240,6 +262,7 @@ def validation_split(y_codes: np.ndarray, groups, fraction: float, rng: np.rando
 
 # --------------------------------------------------------------------------- estimator
 
+
 class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
     """Ensemble of 1D-CNNs on concatenated spectra; see the module docstring.
 
@@ -248,13 +271,30 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
     whole in the validation split. Both are requested for ``fit`` (sklearn metadata routing),
     so a Pipeline or the training loop passes them on.
     """
+
     __metadata_request__fit = {"feature_names": True, "groups": True}
 
-    def __init__(self, members=10, epochs=25, batch_size=64, learning_rate=0.002,
-                 conv_channels=(4, 8), kernel_size=7, pool_size=4, input_pool=2,
-                 dense_units=(16,), dropout=0.3, batch_norm=True, standardize="channel",
-                 validation_fraction=0.2, patience=5, input_channels="auto", device="auto",
-                 threads=1, random_state=0):
+    def __init__(
+        self,
+        members=10,
+        epochs=25,
+        batch_size=64,
+        learning_rate=0.002,
+        conv_channels=(4, 8),
+        kernel_size=7,
+        pool_size=4,
+        input_pool=2,
+        dense_units=(16,),
+        dropout=0.3,
+        batch_norm=True,
+        standardize="channel",
+        validation_fraction=0.2,
+        patience=5,
+        input_channels="auto",
+        device="auto",
+        threads=1,
+        random_state=0,
+    ):
         self.members = members
         self.epochs = epochs
         self.batch_size = batch_size
@@ -276,62 +316,90 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
 
     # -- checks ---------------------------------------------------------------------------
     def _check_params(self) -> None:
-        positive = {"members": self.members, "epochs": self.epochs,
-                    "batch_size": self.batch_size, "kernel_size": self.kernel_size,
-                    "pool_size": self.pool_size, "input_pool": self.input_pool,
-                    "patience": self.patience, "threads": self.threads}
+        positive = {
+            "members": self.members,
+            "epochs": self.epochs,
+            "batch_size": self.batch_size,
+            "kernel_size": self.kernel_size,
+            "pool_size": self.pool_size,
+            "input_pool": self.input_pool,
+            "patience": self.patience,
+            "threads": self.threads,
+        }
         for name, value in positive.items():
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise CNNConfigError(f"cnn parameter {name}={value!r}: must be an integer >= 1")
         for name in ("conv_channels", "dense_units"):
             values = list(getattr(self, name))
-            if any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1
-                   for v in values):
-                raise CNNConfigError(f"cnn parameter {name}={values!r}: must be a list of "
-                                     "integers >= 1")
+            if any(
+                isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1 for v in values
+            ):
+                raise CNNConfigError(
+                    f"cnn parameter {name}={values!r}: must be a list of integers >= 1"
+                )
         if not list(self.conv_channels):
-            raise CNNConfigError("cnn parameter conv_channels is empty: a CNN needs at least "
-                                 "one convolution layer")
+            raise CNNConfigError(
+                "cnn parameter conv_channels is empty: a CNN needs at least one convolution layer"
+            )
         if not (self.learning_rate > 0):
-            raise CNNConfigError(f"cnn parameter learning_rate={self.learning_rate!r}: must be "
-                                 "positive")
+            raise CNNConfigError(
+                f"cnn parameter learning_rate={self.learning_rate!r}: must be positive"
+            )
         if not (0 <= self.dropout < 1):
             raise CNNConfigError(f"cnn parameter dropout={self.dropout!r}: must be in [0, 1)")
         if self.standardize not in STANDARDIZE:
-            raise CNNConfigError(f"cnn parameter standardize={self.standardize!r}: choose one "
-                                 f"of {STANDARDIZE}")
+            raise CNNConfigError(
+                f"cnn parameter standardize={self.standardize!r}: choose one of {STANDARDIZE}"
+            )
         if not (0 <= self.validation_fraction < 1):
-            raise CNNConfigError(f"cnn parameter validation_fraction={self.validation_fraction!r}"
-                                 ": must be in [0, 1)")
+            raise CNNConfigError(
+                f"cnn parameter validation_fraction={self.validation_fraction!r}: must be in [0, 1)"
+            )
         if self.input_channels != "auto" and (
-                isinstance(self.input_channels, bool)
-                or not isinstance(self.input_channels, (int, np.integer))
-                or self.input_channels < 1):
-            raise CNNConfigError(f"cnn parameter input_channels={self.input_channels!r}: "
-                                 "'auto' or an integer >= 1")
+            isinstance(self.input_channels, bool)
+            or not isinstance(self.input_channels, (int, np.integer))
+            or self.input_channels < 1
+        ):
+            raise CNNConfigError(
+                f"cnn parameter input_channels={self.input_channels!r}: 'auto' or an integer >= 1"
+            )
         resolve_device(self.device)
 
     def _input_shape(self, n_features: int, feature_names) -> tuple[int, int]:
         if self.input_channels == "auto":
-            channels = (channels_from_feature_names(feature_names)
-                        if feature_names is not None else None)
+            channels = (
+                channels_from_feature_names(feature_names) if feature_names is not None else None
+            )
             if channels is None:
                 channels = 1  # unknown layout: the whole vector is one sequence
-                log.info("input_channels=auto: no band-spectrum feature names per channel, "
-                         "treating the %d features as one channel", n_features)
+                log.info(
+                    "input_channels=auto: no band-spectrum feature names per channel, "
+                    "treating the %d features as one channel",
+                    n_features,
+                )
         else:
             channels = int(self.input_channels)
         if n_features % channels:
-            raise CNNConfigError(f"cnn parameter input_channels={channels}: {n_features} "
-                                 "features do not split into that many equal channel blocks")
+            raise CNNConfigError(
+                f"cnn parameter input_channels={channels}: {n_features} "
+                "features do not split into that many equal channel blocks"
+            )
         return channels, n_features // channels
 
     # -- fitting --------------------------------------------------------------------------
     def _new_member(self, n_classes: int) -> SpectrumCNN:
-        return SpectrumCNN(self.input_shape_[0], self.input_shape_[1], n_classes,
-                           list(self.conv_channels), int(self.kernel_size),
-                           int(self.pool_size), int(self.input_pool), list(self.dense_units),
-                           float(self.dropout), bool(self.batch_norm))
+        return SpectrumCNN(
+            self.input_shape_[0],
+            self.input_shape_[1],
+            n_classes,
+            list(self.conv_channels),
+            int(self.kernel_size),
+            int(self.pool_size),
+            int(self.input_pool),
+            list(self.dense_units),
+            float(self.dropout),
+            bool(self.batch_norm),
+        )
 
     def fit(self, X, y, feature_names=None, groups=None):
         self._check_params()
@@ -351,9 +419,17 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
         self.n_features_in_ = X.shape[1]
         self.feature_columns_ = spectrum_columns(feature_names)
         if self.feature_columns_ is not None:
-            others = [str(feature_names[i]) for i in sorted(set(range(X.shape[1])) - set(self.feature_columns_))]
-            log.info("CNN: reads the %d band-spectrum features (per channel) and leaves out the %d "
-                     "others (%s ...)", len(self.feature_columns_), len(others), ", ".join(others[:3]))
+            others = [
+                str(feature_names[i])
+                for i in sorted(set(range(X.shape[1])) - set(self.feature_columns_))
+            ]
+            log.info(
+                "CNN: reads the %d band-spectrum features (per channel) and leaves out the %d "
+                "others (%s ...)",
+                len(self.feature_columns_),
+                len(others),
+                ", ".join(others[:3]),
+            )
             X = X[:, self.feature_columns_]
             feature_names = [feature_names[i] for i in self.feature_columns_]
         self.input_shape_ = self._input_shape(X.shape[1], feature_names)
@@ -382,14 +458,18 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
                 rng = np.random.default_rng(seed)
                 val = validation_split(codes, groups, float(self.validation_fraction), rng)
                 state, history, info = self._fit_member(
-                    member, seed, x_all[~val], y_all[~val], x_all[val], y_all[val], device)
+                    member, seed, x_all[~val], y_all[~val], x_all[val], y_all[val], device
+                )
                 self.members_.append(state)
                 self.history_ += history
                 self.member_info_.append(info)
         self.fit_seconds_ = time.perf_counter() - started
         # where it trained (logged with the MLflow run): "cpu", or "cuda:<n> (<GPU name>)"
-        self.device_ = (f"cuda:{device.index or 0} ({torch.cuda.get_device_name(device)})"
-                        if device.type == "cuda" else "cpu")
+        self.device_ = (
+            f"cuda:{device.index or 0} ({torch.cuda.get_device_name(device)})"
+            if device.type == "cuda"
+            else "cpu"
+        )
         self._modules = None
         return self
 
@@ -410,7 +490,7 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
             order = torch.randperm(len(y_train), generator=generator).to(device)
             loss_sum, correct = 0.0, 0
             for start in range(0, len(order), int(self.batch_size)):
-                batch = order[start:start + int(self.batch_size)]
+                batch = order[start : start + int(self.batch_size)]
                 optimiser.zero_grad()
                 logits = net.body(x_train[batch])
                 loss = loss_fn(logits, y_train[batch])
@@ -418,10 +498,14 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
                 optimiser.step()
                 loss_sum += loss.item() * len(batch)
                 correct += int((logits.argmax(dim=1) == y_train[batch]).sum())
-            row = {"member": member, "epoch": epoch,
-                   "train_loss": loss_sum / len(y_train),
-                   "train_accuracy": correct / len(y_train),
-                   "val_loss": np.nan, "val_accuracy": np.nan}
+            row = {
+                "member": member,
+                "epoch": epoch,
+                "train_loss": loss_sum / len(y_train),
+                "train_accuracy": correct / len(y_train),
+                "val_loss": np.nan,
+                "val_accuracy": np.nan,
+            }
             if has_val:
                 net.eval()
                 with torch.no_grad():
@@ -431,9 +515,17 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
             history.append(row)
             if time.perf_counter() - last_logged >= EPOCH_LOG_SECONDS:
                 last_logged = time.perf_counter()
-                log.info("CNN member %d of %d, epoch %d of at most %d: train loss %.4g, validation loss %.4g, "
-                         "validation accuracy %.3f", member + 1, int(self.members), epoch, int(self.epochs),
-                         row["train_loss"], row["val_loss"], row["val_accuracy"])
+                log.info(
+                    "CNN member %d of %d, epoch %d of at most %d: train loss %.4g, validation loss %.4g, "
+                    "validation accuracy %.3f",
+                    member + 1,
+                    int(self.members),
+                    epoch,
+                    int(self.epochs),
+                    row["train_loss"],
+                    row["val_loss"],
+                    row["val_accuracy"],
+                )
             if not has_val:
                 continue
             if row["val_loss"] < best[0]:
@@ -445,13 +537,23 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
         if best[2] is not None:
             net.load_state_dict(best[2])
         state = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
-        info = {"member": member, "seed": seed, "epochs_run": len(history),
-                "best_epoch": best[1] if has_val else len(history),
-                "best_val_loss": float(best[0]) if has_val else None,
-                "n_train": int(len(y_train)), "n_val": int(len(y_val))}
-        log.info("CNN member %d of %d: %d epochs (best epoch %s, validation loss %s)", member + 1, int(self.members),
-                 len(history), info["best_epoch"],
-                 "n/a" if info["best_val_loss"] is None else f"{info['best_val_loss']:.4g}")
+        info = {
+            "member": member,
+            "seed": seed,
+            "epochs_run": len(history),
+            "best_epoch": best[1] if has_val else len(history),
+            "best_val_loss": float(best[0]) if has_val else None,
+            "n_train": int(len(y_train)),
+            "n_val": int(len(y_val)),
+        }
+        log.info(
+            "CNN member %d of %d: %d epochs (best epoch %s, validation loss %s)",
+            member + 1,
+            int(self.members),
+            len(history),
+            info["best_epoch"],
+            "n/a" if info["best_val_loss"] is None else f"{info['best_val_loss']:.4g}",
+        )
         return state, history, info
 
     # -- prediction -----------------------------------------------------------------------
@@ -470,16 +572,16 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
         check_is_fitted(self, "members_")
         X = np.asarray(X, dtype=np.float32)
         if X.ndim != 2 or X.shape[1] != self.n_features_in_:
-            raise CNNConfigError(f"X has shape {X.shape}; the ensemble was fitted on "
-                                 f"{self.n_features_in_} features")
+            raise CNNConfigError(
+                f"X has shape {X.shape}; the ensemble was fitted on {self.n_features_in_} features"
+            )
         columns = getattr(self, "feature_columns_", None)  # absent in models fitted before it
         if columns is not None:
             X = X[:, columns]
         x = torch.from_numpy((X - self.mean_) / self.scale_).reshape(-1, *self.input_shape_)
         # prediction on the CPU: cheap, and the same numbers wherever the model was trained
         with torch_settings(self.threads, torch.device("cpu")), torch.no_grad():
-            return np.stack([torch.softmax(m(x), dim=1).numpy()
-                             for m in self._member_modules()])
+            return np.stack([torch.softmax(m(x), dim=1).numpy() for m in self._member_modules()])
 
     def predict_proba(self, X) -> np.ndarray:
         return self.member_proba(X).mean(axis=0)
@@ -499,8 +601,14 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
     def to_torch_module(self) -> EnsembleModule:
         """The ensemble (standardisation included) as one eval-mode nn.Module."""
         check_is_fitted(self, "members_")
-        return EnsembleModule(copy.deepcopy(self._member_modules()), self.mean_, self.scale_,
-                              self.input_shape_, self.classes_, getattr(self, "feature_columns_", None)).eval()
+        return EnsembleModule(
+            copy.deepcopy(self._member_modules()),
+            self.mean_,
+            self.scale_,
+            self.input_shape_,
+            self.classes_,
+            getattr(self, "feature_columns_", None),
+        ).eval()
 
     def __getstate__(self):
         state = dict(super().__getstate__())  # a copy: object.__getstate__ gives __dict__

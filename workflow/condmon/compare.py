@@ -9,6 +9,7 @@ parents (a job killed, a server gone mid-way) never count. ``--all`` shows every
 
     condmon-compare --tracking-uri sqlite:///results/mlflow.db --experiment default --percent 0
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,29 +18,47 @@ import sys
 import pandas as pd
 
 from condmon.labels import protocol_title
-from condmon.tracking import DEFAULT_TRACKING_URI, TrackingError, check_tracking_server, existing_store
+from condmon.tracking import (
+    DEFAULT_TRACKING_URI,
+    TrackingError,
+    check_tracking_server,
+    existing_store,
+)
 
 KEYS = ["classifier", "protocol", "measured_percent"]
 
 
 def parse_args(argv=None):
     parser = argparse.ArgumentParser(prog="condmon-compare", description=__doc__.split("\n")[0])
-    parser.add_argument("--tracking-uri", default=DEFAULT_TRACKING_URI,
-                        help=f"MLflow tracking URI (default {DEFAULT_TRACKING_URI}; relative "
-                             "sqlite paths are relative to the working directory)")
-    parser.add_argument("--experiment", nargs="+", default=None,
-                        help="experiment (= pipeline run) names; default: all")
-    parser.add_argument("--percent", type=int, nargs="+", default=None,
-                        help="only these measured percentages")
-    parser.add_argument("--all", action="store_true",
-                        help="every invocation, also older ones of the same config and unfinished "
-                             "ones (columns status, latest)")
+    parser.add_argument(
+        "--tracking-uri",
+        default=DEFAULT_TRACKING_URI,
+        help=f"MLflow tracking URI (default {DEFAULT_TRACKING_URI}; relative "
+        "sqlite paths are relative to the working directory)",
+    )
+    parser.add_argument(
+        "--experiment",
+        nargs="+",
+        default=None,
+        help="experiment (= pipeline run) names; default: all",
+    )
+    parser.add_argument(
+        "--percent", type=int, nargs="+", default=None, help="only these measured percentages"
+    )
+    parser.add_argument(
+        "--all",
+        action="store_true",
+        help="every invocation, also older ones of the same config and unfinished "
+        "ones (columns status, latest)",
+    )
     return parser.parse_args(argv)
 
 
 def _column(frame: pd.DataFrame, name: str) -> pd.Series:
     """A search_runs column that may be absent when no run has that tag/param."""
-    return frame[name] if name in frame.columns else pd.Series(None, index=frame.index, dtype=object)
+    return (
+        frame[name] if name in frame.columns else pd.Series(None, index=frame.index, dtype=object)
+    )
 
 
 def pipeline_parents(runs: pd.DataFrame) -> pd.DataFrame:
@@ -60,41 +79,60 @@ def latest_parents(runs: pd.DataFrame) -> pd.DataFrame:
     return parents[parents["latest"]].drop(columns="latest")
 
 
-def comparison_table(runs: pd.DataFrame, experiment_names: dict, percents=None,
-                     every_invocation: bool = False) -> pd.DataFrame:
+def comparison_table(
+    runs: pd.DataFrame, experiment_names: dict, percents=None, every_invocation: bool = False
+) -> pd.DataFrame:
     """Aggregate the ``mlflow.search_runs`` frame of parents and nested runs into the table."""
-    columns = ["experiment", "parent_run_id", "started_utc", "config_hash",
-               *(["status", "latest"] if every_invocation else []),
-               *KEYS, "n_repeats", "accuracy_mean", "macro_f1_mean"]
+    columns = [
+        "experiment",
+        "parent_run_id",
+        "started_utc",
+        "config_hash",
+        *(["status", "latest"] if every_invocation else []),
+        *KEYS,
+        "n_repeats",
+        "accuracy_mean",
+        "macro_f1_mean",
+    ]
     if runs.empty:
         return pd.DataFrame(columns=columns)
     parents = pipeline_parents(runs)
     if not every_invocation:
         parents = parents[parents["latest"]]
-    parents = pd.DataFrame({
-        "parent_run_id": parents["run_id"],
-        "experiment": parents["experiment_id"].map(experiment_names),
-        "started_utc": parents["start_time"].dt.strftime("%Y-%m-%d %H:%M:%S"),
-        "config_hash": parents["tags.config_hash"], "status": parents["status"],
-        "latest": parents["latest"].map({True: "yes", False: "no"})})
+    parents = pd.DataFrame(
+        {
+            "parent_run_id": parents["run_id"],
+            "experiment": parents["experiment_id"].map(experiment_names),
+            "started_utc": parents["start_time"].dt.strftime("%Y-%m-%d %H:%M:%S"),
+            "config_hash": parents["tags.config_hash"],
+            "status": parents["status"],
+            "latest": parents["latest"].map({True: "yes", False: "no"}),
+        }
+    )
     children = runs[_column(runs, "tags.mlflow.parentRunId").isin(parents["parent_run_id"])]
     if children.empty:
         return pd.DataFrame(columns=columns)
-    nested = pd.DataFrame({
-        "parent_run_id": children["tags.mlflow.parentRunId"],
-        "classifier": children["params.classifier"],
-        "protocol": children["params.protocol"].map(protocol_title),  # leaky ones say so
-        "measured_percent": children["params.measured_percent"].astype(int),
-        "repeat": children["params.repeat"].astype(int),
-        "accuracy": children["metrics.accuracy"],
-        "macro_f1": children["metrics.macro_f1"]})
+    nested = pd.DataFrame(
+        {
+            "parent_run_id": children["tags.mlflow.parentRunId"],
+            "classifier": children["params.classifier"],
+            "protocol": children["params.protocol"].map(protocol_title),  # leaky ones say so
+            "measured_percent": children["params.measured_percent"].astype(int),
+            "repeat": children["params.repeat"].astype(int),
+            "accuracy": children["metrics.accuracy"],
+            "macro_f1": children["metrics.macro_f1"],
+        }
+    )
     if percents:
         nested = nested[nested["measured_percent"].isin(percents)]
     per_repeat = nested.groupby(["parent_run_id", *KEYS, "repeat"], as_index=False)[
-        ["accuracy", "macro_f1"]].mean()
-    table = (per_repeat.groupby(["parent_run_id", *KEYS], as_index=False)
-             .agg(n_repeats=("repeat", "nunique"), accuracy_mean=("accuracy", "mean"),
-                  macro_f1_mean=("macro_f1", "mean")))
+        ["accuracy", "macro_f1"]
+    ].mean()
+    table = per_repeat.groupby(["parent_run_id", *KEYS], as_index=False).agg(
+        n_repeats=("repeat", "nunique"),
+        accuracy_mean=("accuracy", "mean"),
+        macro_f1_mean=("macro_f1", "mean"),
+    )
     table = parents.merge(table, on="parent_run_id")
     return table[columns].sort_values(["experiment", "started_utc", *KEYS]).reset_index(drop=True)
 
@@ -106,7 +144,7 @@ def differing_keys(runs: pd.DataFrame, parent_ids) -> pd.DataFrame:
     parents = runs[runs["run_id"].isin(list(parent_ids))].set_index("run_id")
     params = parents[[c for c in parents.columns if c.startswith("params.")]]
     differing = [c for c in params.columns if params[c].nunique(dropna=False) > 1]
-    table = params[differing].rename(columns=lambda c: c[len("params."):])
+    table = params[differing].rename(columns=lambda c: c[len("params.") :])
     table.insert(0, "config_hash", parents["tags.config_hash"])
     return table.rename_axis("parent_run_id").reset_index()
 
@@ -145,8 +183,10 @@ def main(argv=None) -> int:
         if len(parents) > 1:
             keys = differing_keys(runs, parents)
             names = list(keys.columns[2:])
-            print(f"\nconfig keys that differ between these {len(parents)} runs: "
-                  + (", ".join(names) if names else "none (reruns of one config)"))
+            print(
+                f"\nconfig keys that differ between these {len(parents)} runs: "
+                + (", ".join(names) if names else "none (reruns of one config)")
+            )
             if names:
                 print(keys.fillna("").to_string(index=False))
     return 0

@@ -1,5 +1,6 @@
 """Config validation before any job runs: the JSON schema (types, ranges, defaults, no unknown
 keys) and the cross-field checks a schema cannot express. Every message names the key path."""
+
 from __future__ import annotations
 
 import copy
@@ -30,8 +31,11 @@ def _describe(error: jsonschema.ValidationError) -> str:
     if error.validator == "enum":
         return f"{key}: {error.instance!r} is not allowed; allowed values: {error.validator_value}"
     if error.validator == "type" and isinstance(error.instance, str) and _is_number(error.instance):
-        hint = ("YAML 1.1 reads an exponent without a sign as text, write e.g. 4.0e+8"
-                if re.search(r"[eE]\d", error.instance) else "write it without quotes")
+        hint = (
+            "YAML 1.1 reads an exponent without a sign as text, write e.g. 4.0e+8"
+            if re.search(r"[eE]\d", error.instance)
+            else "write it without quotes"
+        )
         return f"{key}: {error.instance!r} is text, not a number; {hint}"
     if error.validator == "oneOf" and "gamma" in key:
         return f"{key}: {error.instance!r} must be 'scale', 'auto' or a positive number"
@@ -108,36 +112,57 @@ def cross_field_problems(config: dict) -> list[str]:
         problems.append("calibration.parameters: bound at least one parameter to calibrate")
     for name, bound in config["calibration"].get("parameters", {}).items():
         if not bound["low"] < bound["high"]:
-            problems.append(f"calibration.parameters.{name}: low ({bound['low']}) must be below "
-                            f"high ({bound['high']})")
+            problems.append(
+                f"calibration.parameters.{name}: low ({bound['low']}) must be below "
+                f"high ({bound['high']})"
+            )
         if bound.get("log") and bound["low"] <= 0:
             problems.append(f"calibration.parameters.{name}: a log-scaled bound needs low > 0")
     calibration = config["calibration"]
-    if (calibration.get("background") and calibration.get("background_method") == "incoherent"
-            and len(config["features"]["channels"]) < 2):
-        problems.append("calibration.background_method: incoherent (the part of each channel no other channel "
-                        "explains) needs two or more features.channels; use deficit with one")
+    if (
+        calibration.get("background")
+        and calibration.get("background_method") == "incoherent"
+        and len(config["features"]["channels"]) < 2
+    ):
+        problems.append(
+            "calibration.background_method: incoherent (the part of each channel no other channel "
+            "explains) needs two or more features.channels; use deficit with one"
+        )
     if not any(c["enabled"] for c in config["classifiers"].values()):
         problems.append("classifiers: enable at least one classifier")
-    disabled = [c for c in config["joined"]["classifiers"]
-                if not config["classifiers"].get(c, {}).get("enabled")]
+    disabled = [
+        c
+        for c in config["joined"]["classifiers"]
+        if not config["classifiers"].get(c, {}).get("enabled")
+    ]
     if disabled:
         problems.append(f"joined.classifiers: {disabled} not among the enabled classifiers")
     families = config["features"]["kind"].split("+")
     if len(set(families)) != len(families):
         problems.append(f"features.kind: {config['features']['kind']!r} names a family twice")
-    if (config["classifiers"]["cnn"]["enabled"] and not {"spectrum", "order", "residual"} & set(families)
-            and families != ["statistical"]):
-        problems.append(f"classifiers.cnn: the CNN reads band spectra (Hz, orders or residual orders) and features.kind "
-                        f"{config['features']['kind']!r} has none; add spectrum (e.g. spectrum+{families[0]}) "
-                        "or disable the CNN")
+    if (
+        config["classifiers"]["cnn"]["enabled"]
+        and not {"spectrum", "order", "residual"} & set(families)
+        and families != ["statistical"]
+    ):
+        problems.append(
+            f"classifiers.cnn: the CNN reads band spectra (Hz, orders or residual orders) and features.kind "
+            f"{config['features']['kind']!r} has none; add spectrum (e.g. spectrum+{families[0]}) "
+            "or disable the CNN"
+        )
     names = config["features"]["statistical"]["names"]
     n_features = config["features"]["selection"]["n_features"]
     n_channels = len(config["features"]["channels"])
-    if (config["features"]["kind"] == "statistical" and n_features is not None and names is not None
-            and n_features >= len(names) * n_channels):
-        problems.append(f"features.selection.n_features: {n_features} must be below the number of "
-                        f"candidate features ({len(names) * n_channels})")
+    if (
+        config["features"]["kind"] == "statistical"
+        and n_features is not None
+        and names is not None
+        and n_features >= len(names) * n_channels
+    ):
+        problems.append(
+            f"features.selection.n_features: {n_features} must be below the number of "
+            f"candidate features ({len(names) * n_channels})"
+        )
     return problems
 
 
@@ -145,6 +170,7 @@ def cross_field_problems(config: dict) -> list[str]:
 # Snakemake reads a nested `--config classifiers='{svm: {C: 3}}'` with YAML's BaseLoader: every
 # value inside it is text ("3", "true", "null"). The schema says what each key is, so such text is
 # read as the schema's type here, before validation; values of config files are never touched.
+
 
 def _schemas_at(schema: dict, root: dict) -> list[dict]:
     """The schema alternatives a value must match ($ref resolved, oneOf/anyOf flattened)."""
@@ -186,7 +212,11 @@ def _typed(text: str, schemas: list[dict]):
     if "number" in types:
         try:
             number = float(word)
-            return int(number) if number.is_integer() and "." not in word and "e" not in word else number
+            return (
+                int(number)
+                if number.is_integer() and "." not in word and "e" not in word
+                else number
+            )
         except ValueError:
             pass
     return text
@@ -199,10 +229,18 @@ def _coerce(value, schema: dict, root: dict):
     if isinstance(value, dict):
         out = {}
         for key, item in value.items():
-            sub = next((s["properties"][key] for s in schemas if key in s.get("properties", {})), None)
+            sub = next(
+                (s["properties"][key] for s in schemas if key in s.get("properties", {})), None
+            )
             if sub is None:
-                sub = next((s["additionalProperties"] for s in schemas
-                            if isinstance(s.get("additionalProperties"), dict)), None)
+                sub = next(
+                    (
+                        s["additionalProperties"]
+                        for s in schemas
+                        if isinstance(s.get("additionalProperties"), dict)
+                    ),
+                    None,
+                )
             out[key] = item if sub is None else _coerce(item, sub, root)
         return out
     if isinstance(value, list):
@@ -252,7 +290,9 @@ def dotted_overrides(text) -> dict:
     for assignment in NEXT_ASSIGNMENT.split(str(text).strip()):
         key, _, value = assignment.partition("=")
         if not re.fullmatch(DOTTED_KEY, key) or "=" not in assignment:
-            raise ConfigError(f"invalid config:\n  set: {assignment!r} is no dotted key=value ({SET_EXAMPLE})")
+            raise ConfigError(
+                f"invalid config:\n  set: {assignment!r} is no dotted key=value ({SET_EXAMPLE})"
+            )
         *sections, leaf = key.split(".")
         target = nested
         for section in sections:
@@ -305,11 +345,15 @@ def missing_run_message(run_name: str, results="results", project=".") -> str:
             except (yaml.YAMLError, AttributeError):
                 continue  # not a run config (the schema is a dict too, without run_name)
             files.setdefault(name, []).append(str(path.relative_to(project)))
-    made = "; ".join(f"{run} (the run_name of {', '.join(files[run])})" if run in files else run for run in runs)
-    return (f"no finished run {run_name!r} to report ({Path(results) / run_name / 'report' / 'pages'} "
-            "is missing): give the --configfile(s) the run was made with, e.g. snakemake --report "
-            "report.html --configfile .test/config/smoke.yaml"
-            + (f"; finished runs: {made}" if runs else "; no run has finished here yet"))
+    made = "; ".join(
+        f"{run} (the run_name of {', '.join(files[run])})" if run in files else run for run in runs
+    )
+    return (
+        f"no finished run {run_name!r} to report ({Path(results) / run_name / 'report' / 'pages'} "
+        "is missing): give the --configfile(s) the run was made with, e.g. snakemake --report "
+        "report.html --configfile .test/config/smoke.yaml"
+        + (f"; finished runs: {made}" if runs else "; no run has finished here yet")
+    )
 
 
 # -- layered config files ------------------------------------------------------------------------
@@ -318,6 +362,81 @@ def missing_run_message(run_name: str, results="results", project=".") -> str:
 # --configfile (dicts key by key, anything else replaced). So `--configfile .test/config/smoke.yaml`
 # alone is the whole smoke run, and an edit of the base reaches it.
 BASE_KEY = "base"
+DEFAULT_CONFIG = "config/config.yaml"  # the run of a command line that names no --configfile
+SCHEMA_FILE = "config/schema.yaml"
+
+
+def read_config(paths, overrides: dict | None = None, project=".") -> dict:
+    """The unvalidated config of a run, as Snakemake and the Snakefile build it.
+
+    Parameters
+    ----------
+    paths : list of str or Path
+        Config files, merged in order (dicts key by key, anything else replaced), as several
+        ``--configfile`` are; a relative path is taken from ``project``.
+    overrides : dict, optional
+        The ``--config`` entries (or a caller's changes), merged over the files.
+    project : str or Path
+        The project folder, from which a relative path and a file's `base` are read.
+
+    Returns
+    -------
+    dict
+        The merged files and overrides over the `base` they name (`base` dropped); no defaults,
+        no typing, no checks: :func:`load_config` adds those.
+    """
+    import yaml
+
+    config: dict = {}
+    for path in paths:
+        path = Path(project) / path
+        if not path.is_file():
+            raise ConfigError(f"invalid config:\n  --configfile: no config file {path}")
+        _merge(config, yaml.safe_load(path.read_text()) or {})
+    _merge(config, copy.deepcopy(overrides or {}))
+    return apply_base(config, project)
+
+
+def load_config(
+    paths,
+    overrides: dict | None = None,
+    project=".",
+    schema: dict | None = None,
+    changes: dict | None = None,
+) -> dict:
+    """The validated config of a run, exactly as the workflow sees it (the Snakefile calls this).
+
+    Parameters
+    ----------
+    paths : list of str or Path
+        Config files, merged in order as several ``--configfile`` are (each may name its `base`;
+        the Snakefile passes ``DEFAULT_CONFIG`` when the command line names none).
+    overrides : dict, optional
+        ``--config`` entries: nested dicts merged key by key, text read as the schema's types,
+        dotted keys under ``set`` (``{"set": "classifiers.svm.C=3"}``).
+    project : str or Path
+        The project folder (config files, bases and the schema are read from it).
+    schema : dict, optional
+        The shared schema, if the caller has it loaded; else ``config/schema.yaml``.
+    changes : dict, optional
+        A caller's own values, merged last as they are (not read as text), before validation.
+
+    Returns
+    -------
+    dict
+        The config with every default filled in and every check passed.
+
+    Raises
+    ------
+    ConfigError
+        A missing file or base, or a key that breaks the schema or a cross-field rule, by name.
+    """
+    schema = load_schema(Path(project) / SCHEMA_FILE) if schema is None else schema
+    config = read_config(paths, overrides, project)
+    apply_typed_overrides(config, overrides or {}, schema)
+    apply_dotted_overrides(config, schema)
+    _merge(config, copy.deepcopy(changes or {}))
+    return validate_config(config, schema)
 
 
 def apply_base(config: dict, project=".") -> dict:
@@ -330,7 +449,9 @@ def apply_base(config: dict, project=".") -> dict:
 
     path = Path(project) / str(name)
     if not path.is_file():
-        raise ConfigError(f"invalid config:\n  base: no config file {path} (a path from the project folder)")
+        raise ConfigError(
+            f"invalid config:\n  base: no config file {path} (a path from the project folder)"
+        )
     layer = copy.deepcopy(config)
     config.clear()
     config.update(apply_base(yaml.safe_load(path.read_text()) or {}, project))

@@ -22,6 +22,7 @@ distinct test segments (a segment tested again by another repeat or holdout is n
 identical repeats do not narrow them), and how many repeats differ (identical repeats are one
 repeat, and said so).
 """
+
 from __future__ import annotations
 
 import warnings
@@ -38,20 +39,41 @@ SMALL_TEST_SET = 30  # segments: fewer, and an accuracy says little
 ALL = "all"
 UNMODELLED = "unmodelled"  # the records side of specimens the model does not describe
 EVALUATION_COLUMNS = KEYS + [
-    "condition", "records", "n_test", "accuracy", "accuracy_ci_low", "accuracy_ci_high",
-    "n_records", "record_accuracy", "record_accuracy_ci_low", "record_accuracy_ci_high",
-    "balanced_accuracy", "n_healthy", "false_alarm_rate", "false_alarm_ci_low",
-    "false_alarm_ci_high", "small_test_set", "leaky", "chance", "majority_class",
-    "measured_only_best", "physics_baseline", "physics_baseline_accuracy", "strongest_baseline",
-    "strongest_baseline_accuracy", "gain_vs_strongest"]
+    "condition",
+    "records",
+    "n_test",
+    "accuracy",
+    "accuracy_ci_low",
+    "accuracy_ci_high",
+    "n_records",
+    "record_accuracy",
+    "record_accuracy_ci_low",
+    "record_accuracy_ci_high",
+    "balanced_accuracy",
+    "n_healthy",
+    "false_alarm_rate",
+    "false_alarm_ci_low",
+    "false_alarm_ci_high",
+    "small_test_set",
+    "leaky",
+    "chance",
+    "majority_class",
+    "measured_only_best",
+    "physics_baseline",
+    "physics_baseline_accuracy",
+    "strongest_baseline",
+    "strongest_baseline_accuracy",
+    "gain_vs_strongest",
+]
 
 
 def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
     """The Wilson score interval of a proportion `successes / n` (NaN for n = 0)."""
     if n <= 0:
         return float("nan"), float("nan")
-    interval = binomtest(int(successes), int(n)).proportion_ci(confidence_level=confidence,
-                                                                method="wilson")
+    interval = binomtest(int(successes), int(n)).proportion_ci(
+        confidence_level=confidence, method="wilson"
+    )
     return round(float(interval.low), 4), round(float(interval.high), 4)
 
 
@@ -59,8 +81,9 @@ def record_votes(test: pd.DataFrame) -> pd.DataFrame:
     """Per record: its true label and the majority vote of its predicted segments (ties: the
     alphabetically first of the most voted labels, so the vote is deterministic)."""
     counts = test.groupby(["record_id", "true_label", "predicted_label"]).size().rename("n")
-    counts = counts.reset_index().sort_values(["record_id", "n", "predicted_label"],
-                                              ascending=[True, False, True])
+    counts = counts.reset_index().sort_values(
+        ["record_id", "n", "predicted_label"], ascending=[True, False, True]
+    )
     return counts.drop_duplicates("record_id")[["record_id", "true_label", "predicted_label"]]
 
 
@@ -81,15 +104,22 @@ def test_set_figures(test: pd.DataFrame, healthy_state: str | None) -> dict:
     low, high = wilson_interval(hits, len(test))
     record_low, record_high = wilson_interval(record_hits, len(votes))
     alarm_low, alarm_high = wilson_interval(alarms, len(healthy))
-    return {"n_test": len(test), "accuracy": hits / len(test), "accuracy_ci_low": low,
-            "accuracy_ci_high": high, "n_records": len(votes),
-            "record_accuracy": record_hits / len(votes), "record_accuracy_ci_low": record_low,
-            "record_accuracy_ci_high": record_high,
-            "balanced_accuracy": balanced_accuracy(test),
-            "n_healthy": len(healthy),
-            "false_alarm_rate": alarms / len(healthy) if len(healthy) else np.nan,
-            "false_alarm_ci_low": alarm_low, "false_alarm_ci_high": alarm_high,
-            "small_test_set": len(test) < SMALL_TEST_SET}
+    return {
+        "n_test": len(test),
+        "accuracy": hits / len(test),
+        "accuracy_ci_low": low,
+        "accuracy_ci_high": high,
+        "n_records": len(votes),
+        "record_accuracy": record_hits / len(votes),
+        "record_accuracy_ci_low": record_low,
+        "record_accuracy_ci_high": record_high,
+        "balanced_accuracy": balanced_accuracy(test),
+        "n_healthy": len(healthy),
+        "false_alarm_rate": alarms / len(healthy) if len(healthy) else np.nan,
+        "false_alarm_ci_low": alarm_low,
+        "false_alarm_ci_high": alarm_high,
+        "small_test_set": len(test) < SMALL_TEST_SET,
+    }
 
 
 def with_conditions(predictions: pd.DataFrame, conditions: dict, condition: str) -> pd.DataFrame:
@@ -97,7 +127,9 @@ def with_conditions(predictions: pd.DataFrame, conditions: dict, condition: str)
     records that have none)."""
     predictions = predictions.assign(
         _condition=predictions["record_id"].map(
-            lambda r: f"{condition}={format_speed(conditions[r])}" if r in conditions else ""))
+            lambda r: f"{condition}={format_speed(conditions[r])}" if r in conditions else ""
+        )
+    )
     missing = sorted(set(predictions.loc[predictions["_condition"] == "", "record_id"]))
     if missing:
         raise ValueError(f"record(s) {missing[:5]} have no {condition} in the measured features")
@@ -108,8 +140,7 @@ def record_side(record_ids: pd.Series, design: set, apart: set = frozenset()) ->
     """Per record: "design", UNMODELLED (a record of a specimen the model does not describe, `apart`) or
     "evaluation" (every other record)."""
     ids = record_ids.astype(str)
-    return np.where(ids.isin(apart), UNMODELLED,
-                    np.where(ids.isin(design), "design", "evaluation"))
+    return np.where(ids.isin(apart), UNMODELLED, np.where(ids.isin(design), "design", "evaluation"))
 
 
 def subsets(test: pd.DataFrame, design: set, apart: set = frozenset()):
@@ -126,12 +157,18 @@ def subsets(test: pd.DataFrame, design: set, apart: set = frozenset()):
                 yield ALL, name, test[side == name]
 
 
-def evaluation_table(predictions: pd.DataFrame, healthy_state: str | None, labels,
-                     conditions: dict, condition: str, design_records=(),
-                     measured_only: pd.DataFrame | None = None,
-                     physics: pd.DataFrame | None = None,
-                     measured_only_predictions: pd.DataFrame | None = None,
-                     apart_records=()) -> pd.DataFrame:
+def evaluation_table(
+    predictions: pd.DataFrame,
+    healthy_state: str | None,
+    labels,
+    conditions: dict,
+    condition: str,
+    design_records=(),
+    measured_only: pd.DataFrame | None = None,
+    physics: pd.DataFrame | None = None,
+    measured_only_predictions: pd.DataFrame | None = None,
+    apart_records=(),
+) -> pd.DataFrame:
     """One row per evaluation and subset (columns EVALUATION_COLUMNS).
 
     `conditions`: {record_id: value of `condition`}; `labels`: the task's classes (chance);
@@ -150,23 +187,37 @@ def evaluation_table(predictions: pd.DataFrame, healthy_state: str | None, label
     best_alone = _best_measured_only(measured_only)
     by_rule = _physics_accuracy(physics, design, apart)
     # the best measured-only classifier per split and side: the same bookkeeping as the rules'
-    alone_by_records = {key: {records: max(by_classifier.values())
-                              for records, by_classifier in sides.items()}
-                        for key, sides in _physics_accuracy(measured_only_predictions,
-                                                            design, apart).items()}
+    alone_by_records = {
+        key: {records: max(by_classifier.values()) for records, by_classifier in sides.items()}
+        for key, sides in _physics_accuracy(measured_only_predictions, design, apart).items()
+    }
     rows = []
     for key, test in predictions.groupby(KEYS, sort=True):
         for condition_label, records, part in subsets(test, design, apart):
-            row = dict(zip(KEYS, key), condition=condition_label, records=records,
-                       **test_set_figures(part, healthy_state),
-                       leaky=key[1] in LEAKY_PROTOCOLS)
+            row = dict(
+                zip(KEYS, key),
+                condition=condition_label,
+                records=records,
+                **test_set_figures(part, healthy_state),
+                leaky=key[1] in LEAKY_PROTOCOLS,
+            )
             if condition_label == ALL:
                 # the measured-only baseline on all records from its metrics (as always), on the
                 # design and evaluation records from its predictions where given
-                alone = (best_alone.get(key[1:]) if records == ALL else
-                         alone_by_records.get(key[1:], {}).get(records))
-                row.update(_baselines(part, row["accuracy"], len(labels), alone,
-                                      by_rule.get(key[1:], {}).get(records, {})))
+                alone = (
+                    best_alone.get(key[1:])
+                    if records == ALL
+                    else alone_by_records.get(key[1:], {}).get(records)
+                )
+                row.update(
+                    _baselines(
+                        part,
+                        row["accuracy"],
+                        len(labels),
+                        alone,
+                        by_rule.get(key[1:], {}).get(records, {}),
+                    )
+                )
             rows.append(row)
     return pd.DataFrame(rows, columns=EVALUATION_COLUMNS)
 
@@ -180,67 +231,97 @@ def _best_measured_only(measured_only: pd.DataFrame | None) -> dict:
     return {(p, int(m), int(r), h): float(a) for (p, m, r, h), a in best.items()}
 
 
-def _physics_accuracy(physics: pd.DataFrame | None, design: set = frozenset(),
-                      apart: set = frozenset()) -> dict:
+def _physics_accuracy(
+    physics: pd.DataFrame | None, design: set = frozenset(), apart: set = frozenset()
+) -> dict:
     """{(protocol, percent, repeat, holdout): {records: {rule: accuracy}}}: on that split's whole
     test set (records `all`) and, with design or unmodelled records, on its design, evaluation
     and unmodelled records.
     Any predictions with a `classifier` column (the rule, or a measured-only classifier)."""
     if physics is None or physics.empty:
         return {}
-    hits = physics.assign(_hit=physics["true_label"] == physics["predicted_label"],
-                          _records=record_side(physics["record_id"], design, apart))
+    hits = physics.assign(
+        _hit=physics["true_label"] == physics["predicted_label"],
+        _records=record_side(physics["record_id"], design, apart),
+    )
     found = {}
-    for by_records in ([False, True] if design or apart else [False]):
+    for by_records in [False, True] if design or apart else [False]:
         group = ["classifier"] + KEYS[1:] + (["_records"] if by_records else [])
         for key, value in hits.groupby(group)["_hit"].mean().items():
             rule, protocol, percent, repeat, holdout = key[:5]
             records = key[5] if by_records else ALL
             found.setdefault((protocol, int(percent), int(repeat), holdout), {}).setdefault(
-                records, {})[rule] = float(value)
+                records, {}
+            )[rule] = float(value)
     return found
 
 
-def _baselines(test: pd.DataFrame, accuracy: float, n_labels: int, measured_only,
-               physics: dict | None = None) -> dict:
+def _baselines(
+    test: pd.DataFrame, accuracy: float, n_labels: int, measured_only, physics: dict | None = None
+) -> dict:
     """Chance, majority class of the test set, best measured-only, the best physics baseline
     ({rule: accuracy}); the strongest of all and the gain against it."""
-    candidates = {"chance": 1.0 / n_labels,
-                  "majority_class": float(test["true_label"].value_counts(normalize=True).max())}
+    candidates = {
+        "chance": 1.0 / n_labels,
+        "majority_class": float(test["true_label"].value_counts(normalize=True).max()),
+    }
     if measured_only is not None:
         candidates["measured_only_best"] = measured_only
     best_rule = max(physics, key=physics.get) if physics else None
     if best_rule is not None:
         candidates[best_rule] = physics[best_rule]
     strongest = max(candidates, key=candidates.get)
-    return {"chance": candidates["chance"], "majority_class": candidates["majority_class"],
-            "measured_only_best": measured_only if measured_only is not None else np.nan,
-            "physics_baseline": best_rule or "",
-            "physics_baseline_accuracy": physics[best_rule] if best_rule else np.nan,
-            "strongest_baseline": strongest,
-            "strongest_baseline_accuracy": candidates[strongest],
-            "gain_vs_strongest": accuracy - candidates[strongest]}
+    return {
+        "chance": candidates["chance"],
+        "majority_class": candidates["majority_class"],
+        "measured_only_best": measured_only if measured_only is not None else np.nan,
+        "physics_baseline": best_rule or "",
+        "physics_baseline_accuracy": physics[best_rule] if best_rule else np.nan,
+        "strongest_baseline": strongest,
+        "strongest_baseline_accuracy": candidates[strongest],
+        "gain_vs_strongest": accuracy - candidates[strongest],
+    }
 
 
 def distinct_repeats(predictions: pd.DataFrame) -> pd.Series:
     """Per (classifier, protocol, measured_percent): how many repeats predicted differently
     (1: the repeats are one repeat, whatever `hybrid.repeats` says)."""
+
     def fingerprint(rows):
         ordered = rows.sort_values(["holdout", "record_id", "segment"])
-        return hash(tuple(ordered["record_id"]) + tuple(ordered["segment"])
-                    + tuple(ordered["predicted_label"]))
-    prints = (predictions.groupby(["classifier", "protocol", "measured_percent", "repeat"])
-              .apply(fingerprint, include_groups=False))
+        return hash(
+            tuple(ordered["record_id"])
+            + tuple(ordered["segment"])
+            + tuple(ordered["predicted_label"])
+        )
+
+    prints = predictions.groupby(["classifier", "protocol", "measured_percent", "repeat"]).apply(
+        fingerprint, include_groups=False
+    )
     return prints.groupby(level=[0, 1, 2]).nunique().rename("distinct_repeats")
 
 
-SUMMARY_MEANS = ["accuracy", "record_accuracy", "balanced_accuracy", "false_alarm_rate",
-                 "majority_class", "measured_only_best", "physics_baseline_accuracy",
-                 "strongest_baseline_accuracy", "gain_vs_strongest"]
+SUMMARY_MEANS = [
+    "accuracy",
+    "record_accuracy",
+    "balanced_accuracy",
+    "false_alarm_rate",
+    "majority_class",
+    "measured_only_best",
+    "physics_baseline_accuracy",
+    "strongest_baseline_accuracy",
+    "gain_vs_strongest",
+]
 
 
-def distinct_tested(predictions: pd.DataFrame, healthy_state: str | None, conditions: dict,
-                    condition: str, design_records=(), apart_records=()) -> pd.DataFrame:
+def distinct_tested(
+    predictions: pd.DataFrame,
+    healthy_state: str | None,
+    conditions: dict,
+    condition: str,
+    design_records=(),
+    apart_records=(),
+) -> pd.DataFrame:
     """Per (classifier, protocol, measured_percent, repeat, condition, records): how many distinct
     segments, records and healthy segments the repeat tested over all its holdouts (a healthy
     record tested in every holdout counts once)."""
@@ -251,15 +332,22 @@ def distinct_tested(predictions: pd.DataFrame, healthy_state: str | None, condit
         for condition_label, records, part in subsets(test, design, apart):
             segments = part[["record_id", "segment"]].drop_duplicates()
             healthy = part.loc[part["true_label"] == healthy_state, ["record_id", "segment"]]
-            rows.append(dict(zip(KEYS[:4], key), condition=condition_label, records=records,
-                             distinct_segments=len(segments),
-                             distinct_records=segments["record_id"].nunique(),
-                             distinct_healthy=len(healthy.drop_duplicates())))
+            rows.append(
+                dict(
+                    zip(KEYS[:4], key),
+                    condition=condition_label,
+                    records=records,
+                    distinct_segments=len(segments),
+                    distinct_records=segments["record_id"].nunique(),
+                    distinct_healthy=len(healthy.drop_duplicates()),
+                )
+            )
     return pd.DataFrame(rows)
 
 
-def _pooled_interval(per_repeat: pd.DataFrame, successes: str, tested: str,
-                     distinct: str) -> tuple[float, float]:
+def _pooled_interval(
+    per_repeat: pd.DataFrame, successes: str, tested: str, distinct: str
+) -> tuple[float, float]:
     """Wilson interval of one repeat's worth of data: per repeat the rate pooled over its
     holdouts times the distinct units it tested, averaged over repeats. Repeats (identical or
     not) and holdouts that test the same segments again add no independent data, so they do not
@@ -271,47 +359,69 @@ def _pooled_interval(per_repeat: pd.DataFrame, successes: str, tested: str,
     return wilson_interval(round((rate * per_repeat[distinct]).mean()), round(n))
 
 
-def summarise(table: pd.DataFrame, predictions: pd.DataFrame, healthy_state: str | None,
-              conditions: dict, condition: str, design_records=(),
-              apart_records=()) -> pd.DataFrame:
+def summarise(
+    table: pd.DataFrame,
+    predictions: pd.DataFrame,
+    healthy_state: str | None,
+    conditions: dict,
+    condition: str,
+    design_records=(),
+    apart_records=(),
+) -> pd.DataFrame:
     """Per (classifier, protocol, measured_percent, condition, records): means over repeats and
     holdouts, Wilson intervals on one repeat's distinct test segments (records, healthy
     segments; see _pooled_interval), the number of repeats and of distinct ones, the strongest
     baseline named."""
     group = ["classifier", "protocol", "measured_percent", "condition", "records"]
-    table = table.assign(_hits=(table["accuracy"] * table["n_test"]).round(),
-                         _record_hits=(table["record_accuracy"] * table["n_records"]).round(),
-                         _alarms=(table["false_alarm_rate"].fillna(0) * table["n_healthy"]).round())
-    per_repeat = (table.groupby(group + ["repeat"], sort=True)
-                  [["_hits", "n_test", "_record_hits", "n_records", "_alarms", "n_healthy"]].sum()
-                  .reset_index()
-                  .merge(distinct_tested(predictions, healthy_state, conditions, condition,
-                                         design_records, apart_records),
-                         on=group + ["repeat"], how="left"))
+    table = table.assign(
+        _hits=(table["accuracy"] * table["n_test"]).round(),
+        _record_hits=(table["record_accuracy"] * table["n_records"]).round(),
+        _alarms=(table["false_alarm_rate"].fillna(0) * table["n_healthy"]).round(),
+    )
+    per_repeat = (
+        table.groupby(group + ["repeat"], sort=True)[
+            ["_hits", "n_test", "_record_hits", "n_records", "_alarms", "n_healthy"]
+        ]
+        .sum()
+        .reset_index()
+        .merge(
+            distinct_tested(
+                predictions, healthy_state, conditions, condition, design_records, apart_records
+            ),
+            on=group + ["repeat"],
+            how="left",
+        )
+    )
     per_repeat = {key: part for key, part in per_repeat.groupby(group, sort=True)}
     rows = []
     for key, part in table.groupby(group, sort=True):
         repeats = per_repeat[key]
-        row = dict(zip(group, key), n_repeats=int(part["repeat"].nunique()),
-                   n_evaluations=len(part), n_test_per_evaluation=part["n_test"].mean(),
-                   n_test_distinct=repeats["distinct_segments"].mean(),
-                   **{f"{c}_mean": part[c].mean() for c in SUMMARY_MEANS},
-                   accuracy_std=part.groupby("repeat")["accuracy"].mean().std(),
-                   physics_baseline=",".join(sorted(set(part["physics_baseline"].dropna()) - {""})),
-                   strongest_baseline=",".join(sorted(set(part["strongest_baseline"].dropna()))))
+        row = dict(
+            zip(group, key),
+            n_repeats=int(part["repeat"].nunique()),
+            n_evaluations=len(part),
+            n_test_per_evaluation=part["n_test"].mean(),
+            n_test_distinct=repeats["distinct_segments"].mean(),
+            **{f"{c}_mean": part[c].mean() for c in SUMMARY_MEANS},
+            accuracy_std=part.groupby("repeat")["accuracy"].mean().std(),
+            physics_baseline=",".join(sorted(set(part["physics_baseline"].dropna()) - {""})),
+            strongest_baseline=",".join(sorted(set(part["strongest_baseline"].dropna()))),
+        )
         row["accuracy_ci_low"], row["accuracy_ci_high"] = _pooled_interval(
-            repeats, "_hits", "n_test", "distinct_segments")
+            repeats, "_hits", "n_test", "distinct_segments"
+        )
         row["record_accuracy_ci_low"], row["record_accuracy_ci_high"] = _pooled_interval(
-            repeats, "_record_hits", "n_records", "distinct_records")
+            repeats, "_record_hits", "n_records", "distinct_records"
+        )
         row["false_alarm_ci_low"], row["false_alarm_ci_high"] = _pooled_interval(
-            repeats, "_alarms", "n_healthy", "distinct_healthy")
+            repeats, "_alarms", "n_healthy", "distinct_healthy"
+        )
         row["small_test_set"] = row["n_test_per_evaluation"] < SMALL_TEST_SET
         row["leaky"] = bool(part["leaky"].any())
         rows.append(row)
     summary = pd.DataFrame(rows)
     distinct = distinct_repeats(predictions).reset_index()
-    summary = summary.merge(distinct, on=["classifier", "protocol", "measured_percent"],
-                            how="left")
+    summary = summary.merge(distinct, on=["classifier", "protocol", "measured_percent"], how="left")
     # identical repeats are one repeat: no spread to report
     summary.loc[summary["distinct_repeats"] < 2, "accuracy_std"] = np.nan
     return summary

@@ -26,6 +26,7 @@ Simulated validation (the CFRP study's 70/30 split of the simulated data): per s
 repeat and holdout (and a larger share holds out a superset). Every stratum must keep at least
 one simulated training record.
 """
+
 from __future__ import annotations
 
 import logging
@@ -51,15 +52,17 @@ SHARE_KEY = "hybrid.simulated_validation_share"
 # measured segments that calibrate the model: never trained on, never tested
 CALIBRATION = "calibration"
 ROLES = ("train", "test", "unused", SIMULATED_VALIDATION, CALIBRATION)
-SPLIT_SCHEMA = pa.schema([
-    ("protocol", pa.string()),
-    ("measured_percent", pa.int32()),
-    ("repeat", pa.int32()),
-    ("holdout", pa.string()),
-    ("record_id", pa.string()),
-    ("segment", pa.int32()),  # WHOLE_RECORD, or one segment (segment_share)
-    ("role", pa.string()),
-])
+SPLIT_SCHEMA = pa.schema(
+    [
+        ("protocol", pa.string()),
+        ("measured_percent", pa.int32()),
+        ("repeat", pa.int32()),
+        ("holdout", pa.string()),
+        ("record_id", pa.string()),
+        ("segment", pa.int32()),  # WHOLE_RECORD, or one segment (segment_share)
+        ("role", pa.string()),
+    ]
+)
 SPLIT_COLUMNS = SPLIT_SCHEMA.names
 
 
@@ -73,8 +76,9 @@ def n_train_records(n_records: int, percent: float, min_test_records: int) -> in
     return max(0, min(wanted, n_records - min_test_records))
 
 
-def unique_records(records: pd.DataFrame, condition: str = "speed_rpm",
-                   what: str = "measured") -> pd.DataFrame:
+def unique_records(
+    records: pd.DataFrame, condition: str = "speed_rpm", what: str = "measured"
+) -> pd.DataFrame:
     """One row per record_id (per-segment rows are fine) with its health_state and condition
     (renamed `condition`); each record has one of each. `what` names the records in errors."""
     if condition not in CONDITIONS:
@@ -85,12 +89,14 @@ def unique_records(records: pd.DataFrame, condition: str = "speed_rpm",
     records = records[["record_id", "health_state", condition]].drop_duplicates()
     mixed = records["record_id"][records["record_id"].duplicated()]
     if len(mixed):
-        raise SplitError(f"record(s) {sorted(set(mixed))[:5]} have several health_state or "
-                         f"{condition} values")
+        raise SplitError(
+            f"record(s) {sorted(set(mixed))[:5]} have several health_state or {condition} values"
+        )
     if records.empty:
         raise SplitError(f"no {what} records to split")
     records = records.rename(columns={condition: "condition"}).astype(
-        {"record_id": str, "health_state": str, "condition": float})
+        {"record_id": str, "health_state": str, "condition": float}
+    )
     return records.sort_values("record_id").reset_index(drop=True)
 
 
@@ -99,8 +105,13 @@ RESERVE_KEY = "calibration.reserve"
 BLOCK_MARK = "@block"  # the split unit of a record's time block: "<record_id>@block<k>"
 
 
-def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition: str,
-                    reserve: dict, segment_samples: tuple[int, int] | None = None) -> pd.DataFrame:
+def measured_layout(
+    segments: pd.DataFrame,
+    healthy_state: str | None,
+    condition: str,
+    reserve: dict,
+    segment_samples: tuple[int, int] | None = None,
+) -> pd.DataFrame:
     """Per measured segment: the split unit it belongs to and a fixed role.
 
     Columns record_id, segment, health_state, condition, unit, fixed_role: CALIBRATION (the
@@ -122,19 +133,24 @@ def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition
       or more at every condition it has, so the others test.
     The same table rows in, the same layout out: the calibrate and hybrid jobs agree.
     """
-    missing = [c for c in ("record_id", "segment", "health_state", condition)
-               if c not in segments.columns]
+    missing = [
+        c for c in ("record_id", "segment", "health_state", condition) if c not in segments.columns
+    ]
     if missing:
         raise SplitError(f"{RESERVE_KEY}: the measured records lack column(s) {missing}")
-    frame = (segments[["record_id", "segment", "health_state", condition]]
-             .drop_duplicates(["record_id", "segment"])
-             .rename(columns={condition: "condition"})
-             .astype({"record_id": str, "segment": int, "health_state": str,
-                      "condition": float})
-             .sort_values(["record_id", "segment"]).reset_index(drop=True))
+    frame = (
+        segments[["record_id", "segment", "health_state", condition]]
+        .drop_duplicates(["record_id", "segment"])
+        .rename(columns={condition: "condition"})
+        .astype({"record_id": str, "segment": int, "health_state": str, "condition": float})
+        .sort_values(["record_id", "segment"])
+        .reset_index(drop=True)
+    )
     frame["unit"] = frame["record_id"]
     frame["fixed_role"] = ""
-    _reserve_fault_records(frame, [str(s) for s in reserve.get("fault_states") or []], healthy_state)
+    _reserve_fault_records(
+        frame, [str(s) for s in reserve.get("fault_states") or []], healthy_state
+    )
     listed = [str(r) for r in reserve.get("records") or []]
     if listed:
         unknown = sorted(set(listed) - set(frame["record_id"]))
@@ -143,8 +159,10 @@ def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition
         labels = frame.drop_duplicates("record_id").set_index("record_id")["health_state"]
         faulty = [r for r in listed if labels[r] != healthy_state]
         if faulty:
-            raise SplitError(f"{RESERVE_KEY}.records: {faulty} are not {healthy_state!r} "
-                             "records; only healthy records calibrate")
+            raise SplitError(
+                f"{RESERVE_KEY}.records: {faulty} are not {healthy_state!r} "
+                "records; only healthy records calibrate"
+            )
         frame.loc[frame["record_id"].isin(listed), "fixed_role"] = CALIBRATION
         return frame
     if healthy_state is None:
@@ -158,34 +176,47 @@ def measured_layout(segments: pd.DataFrame, healthy_state: str | None, condition
     calibrating = []
     for _, group in healthy.groupby("condition", sort=True)["record_id"]:
         records = sorted(group.unique())
-        calibrating += records[:min(per_condition, len(records) - 1)]
+        calibrating += records[: min(per_condition, len(records) - 1)]
     if not calibrating and len(ids) > 1:
         calibrating = ids[:1]
     if calibrating:  # calibrate on whole records, test healthy data on the others
         frame.loc[frame["record_id"].isin(calibrating), "fixed_role"] = CALIBRATION
     elif ids:
         rows = healthy.index  # sorted by segment
-        units, roles = time_blocks(ids[0], len(rows), int(reserve["calibration_segments"]),
-                                   int(reserve["guard_segments"]), int(reserve["blocks"]),
-                                   segment_samples)
+        units, roles = time_blocks(
+            ids[0],
+            len(rows),
+            int(reserve["calibration_segments"]),
+            int(reserve["guard_segments"]),
+            int(reserve["blocks"]),
+            segment_samples,
+        )
         frame.loc[rows, "unit"] = units
         frame.loc[rows, "fixed_role"] = roles
     return frame
 
 
-def _reserve_fault_records(frame: pd.DataFrame, states: list[str], healthy_state: str | None) -> None:
+def _reserve_fault_records(
+    frame: pd.DataFrame, states: list[str], healthy_state: str | None
+) -> None:
     """Give the first record (by id) of each of `states` per condition the calibration role, in place."""
     for state in states:
         if state == healthy_state:
-            raise SplitError(f"calibration.per_state.states: {state!r} is the healthy state; list fault states")
+            raise SplitError(
+                f"calibration.per_state.states: {state!r} is the healthy state; list fault states"
+            )
         rows = frame[frame["health_state"] == state]
         if rows.empty:
-            raise SplitError(f"calibration.per_state.states: no measured {state!r} records to tune its model on")
+            raise SplitError(
+                f"calibration.per_state.states: no measured {state!r} records to tune its model on"
+            )
         for condition, ids in rows.groupby("condition", sort=True)["record_id"]:
             ids = sorted(ids.unique())
             if len(ids) < 2:
-                raise SplitError(f"calibration.per_state.states: {state!r} has one record at condition "
-                                 f"{condition:g} ({ids[0]}); tuning its model on it would leave none to test")
+                raise SplitError(
+                    f"calibration.per_state.states: {state!r} has one record at condition "
+                    f"{condition:g} ({ids[0]}); tuning its model on it would leave none to test"
+                )
             frame.loc[frame["record_id"] == ids[0], "fixed_role"] = CALIBRATION
 
 
@@ -195,9 +226,14 @@ def guard_gap_samples(guard: int, segment_length: int, segment_hop: int) -> int:
     return (int(guard) + 1) * int(segment_hop) - int(segment_length)
 
 
-def time_blocks(record_id: str, n_segments: int, calibration: int, guard: int,
-                blocks: int, segment_samples: tuple[int, int] | None = None
-                ) -> tuple[list[str], list[str]]:
+def time_blocks(
+    record_id: str,
+    n_segments: int,
+    calibration: int,
+    guard: int,
+    blocks: int,
+    segment_samples: tuple[int, int] | None = None,
+) -> tuple[list[str], list[str]]:
     """(unit, fixed role) of each segment of a lone healthy record, in time order:
     `calibration` segments, then `blocks` equal blocks, each after `guard` unused segments;
     segments left over at the end are unused. With `segment_samples` (length, hop): a guard gap
@@ -212,12 +248,15 @@ def time_blocks(record_id: str, n_segments: int, calibration: int, guard: int,
                 f"{RESERVE_KEY}.guard_segments {guard}: record {record_id!r} is split in time "
                 f"with a guard gap of {gap} samples between its calibration block and the next "
                 f"block (segments of {length} samples every {hop}), shorter than one segment; "
-                f"use guard_segments >= {need}")
+                f"use guard_segments >= {need}"
+            )
     size = (n_segments - calibration - blocks * guard) // blocks
     if size < 1:
-        raise SplitError(f"{RESERVE_KEY}: record {record_id!r} has {n_segments} segments, too "
-                         f"few for {calibration} calibration segments and {blocks} blocks after "
-                         f"guard gaps of {guard}; lower them, or list reserved records")
+        raise SplitError(
+            f"{RESERVE_KEY}: record {record_id!r} has {n_segments} segments, too "
+            f"few for {calibration} calibration segments and {blocks} blocks after "
+            f"guard gaps of {guard}; lower them, or list reserved records"
+        )
     units, roles = [record_id] * calibration, [CALIBRATION] * calibration
     for k in range(blocks):
         units += [record_id] * guard + [f"{record_id}{BLOCK_MARK}{k}"] * size
@@ -231,16 +270,16 @@ def calibration_segments(layout: pd.DataFrame) -> pd.DataFrame:
     return layout.loc[layout["fixed_role"] == CALIBRATION, ["record_id", "segment"]]
 
 
-def calibration_frame(frame: pd.DataFrame, healthy_state: str, condition: str,
-                      reserve: dict, states=None) -> pd.DataFrame:
+def calibration_frame(
+    frame: pd.DataFrame, healthy_state: str, condition: str, reserve: dict, states=None
+) -> pd.DataFrame:
     """The rows of a measured table (signals or features) in the calibration set of `states`
     (default the healthy state; per-state calibration adds fault records to the set): all the
     calibrate jobs may see, and what no split ever trains on or tests."""
     layout = measured_layout(frame, healthy_state, condition, reserve)
     layout = layout[layout["health_state"].isin(states or [healthy_state])]
     chosen = pd.MultiIndex.from_frame(calibration_segments(layout))
-    keys = pd.MultiIndex.from_arrays([frame["record_id"].astype(str),
-                                      frame["segment"].astype(int)])
+    keys = pd.MultiIndex.from_arrays([frame["record_id"].astype(str), frame["segment"].astype(int)])
     return frame[keys.isin(chosen)]
 
 
@@ -249,8 +288,9 @@ def n_validation_records(n_records: int, share: float) -> int:
     return math.floor(share * n_records + 0.5)
 
 
-def simulated_validation_records(records: pd.DataFrame, share: float, seed: int,
-                                 condition: str = "speed_rpm") -> list[str]:
+def simulated_validation_records(
+    records: pd.DataFrame, share: float, seed: int, condition: str = "speed_rpm"
+) -> list[str]:
     """The simulated record ids held out of training as the simulated validation set, sorted.
 
     `records`: record_id, health_state and the `condition` column of the simulated features
@@ -270,14 +310,22 @@ def simulated_validation_records(records: pd.DataFrame, share: float, seed: int,
         n_held = n_validation_records(len(ids), share)
         stratum = f"health_state={health}, {condition}={format_speed(value)}"
         if n_held >= len(ids):
-            raise SplitError(f"{SHARE_KEY} = {share} holds out all {len(ids)} simulated "
-                             f"record(s) of stratum {stratum}: none of them would train; lower "
-                             "the share or simulate more samples (simulation.samples_per_state)")
+            raise SplitError(
+                f"{SHARE_KEY} = {share} holds out all {len(ids)} simulated "
+                f"record(s) of stratum {stratum}: none of them would train; lower "
+                "the share or simulate more samples (simulation.samples_per_state)"
+            )
         if n_held == 0:
-            log.warning("%s = %s: stratum %s (%d simulated records) has no simulated validation "
-                        "record", SHARE_KEY, share, stratum, len(ids))
-        rng = np.random.default_rng(derive_seed(
-            seed, stable_int(SIMULATED_VALIDATION, health, format_speed(value))))
+            log.warning(
+                "%s = %s: stratum %s (%d simulated records) has no simulated validation record",
+                SHARE_KEY,
+                share,
+                stratum,
+                len(ids),
+            )
+        rng = np.random.default_rng(
+            derive_seed(seed, stable_int(SIMULATED_VALIDATION, health, format_speed(value)))
+        )
         held_out += [ids[i] for i in rng.permutation(len(ids))[:n_held]]
     return sorted(held_out)
 
@@ -296,15 +344,21 @@ def segment_roles(split: pd.DataFrame, measured_features: pd.DataFrame) -> np.nd
     """The role of every measured feature row in one split: by record, or by (record, segment)
     where the split lists single segments; rows the split does not name get None."""
     whole = split[split["segment"] < 0]
-    roles = measured_features["record_id"].astype(str).map(
-        dict(zip(whole["record_id"], whole["role"]))).to_numpy(object)
+    roles = (
+        measured_features["record_id"]
+        .astype(str)
+        .map(dict(zip(whole["record_id"], whole["role"])))
+        .to_numpy(object)
+    )
     single = split[split["segment"] >= 0]
     if len(single):
-        keys = pd.MultiIndex.from_arrays([measured_features["record_id"].astype(str),
-                                          measured_features["segment"].astype(int)])
-        by_segment = pd.Series(single["role"].to_numpy(),
-                               index=pd.MultiIndex.from_arrays([single["record_id"],
-                                                                single["segment"].astype(int)]))
+        keys = pd.MultiIndex.from_arrays(
+            [measured_features["record_id"].astype(str), measured_features["segment"].astype(int)]
+        )
+        by_segment = pd.Series(
+            single["role"].to_numpy(),
+            index=pd.MultiIndex.from_arrays([single["record_id"], single["segment"].astype(int)]),
+        )
         found = keys.isin(by_segment.index)
         roles[found] = by_segment.reindex(keys[found]).to_numpy()
     return roles
@@ -314,14 +368,25 @@ def typed_splits(splits: pd.DataFrame) -> pd.DataFrame:
     order = {label: i for i, label in enumerate(sorted_holdouts(splits["holdout"]))}
     if "segment" not in splits.columns:  # split tables written before segment_share
         splits = splits.assign(segment=WHOLE_RECORD)
-    splits = (splits.assign(_h=splits["holdout"].map(order))
-              .sort_values(["measured_percent", "repeat", "_h", "record_id", "segment"])
-              .drop(columns="_h").reset_index(drop=True))
+    splits = (
+        splits.assign(_h=splits["holdout"].map(order))
+        .sort_values(["measured_percent", "repeat", "_h", "record_id", "segment"])
+        .drop(columns="_h")
+        .reset_index(drop=True)
+    )
     # `reason` (condmon.protocols.make_splits(reasons=True)) is kept, never written
     columns = SPLIT_COLUMNS + [c for c in ("reason",) if c in splits.columns]
-    return splits.astype({"protocol": str, "measured_percent": "int32", "repeat": "int32",
-                          "holdout": str, "record_id": str, "segment": "int32",
-                          "role": str})[columns]
+    return splits.astype(
+        {
+            "protocol": str,
+            "measured_percent": "int32",
+            "repeat": "int32",
+            "holdout": str,
+            "record_id": str,
+            "segment": "int32",
+            "role": str,
+        }
+    )[columns]
 
 
 def validate_splits(splits: pd.DataFrame, where: str = "split table") -> None:
@@ -338,21 +403,24 @@ def validate_splits(splits: pd.DataFrame, where: str = "split table") -> None:
     if "segment" in splits.columns:
         cut = splits[(splits["role"] == SIMULATED_VALIDATION) & (splits["segment"] != WHOLE_RECORD)]
         if len(cut):
-            raise SplitError(f"{where}: simulated validation record {cut['record_id'].iloc[0]!r} "
-                             "is listed by segment; it must be a whole record (segment -1)")
+            raise SplitError(
+                f"{where}: simulated validation record {cut['record_id'].iloc[0]!r} "
+                "is listed by segment; it must be a whole record (segment -1)"
+            )
     keys = ["measured_percent", "repeat", "holdout", "record_id"]
     dup = splits.duplicated(keys + ["segment"] if "segment" in splits.columns else keys)
     if dup.any():
         first = splits.loc[dup].iloc[0]
-        raise SplitError(f"{where}: record {first.record_id!r} listed twice in split "
-                         f"(measured_percent={first.measured_percent}, repeat={first.repeat}, "
-                         f"holdout={first.holdout!r})")
+        raise SplitError(
+            f"{where}: record {first.record_id!r} listed twice in split "
+            f"(measured_percent={first.measured_percent}, repeat={first.repeat}, "
+            f"holdout={first.holdout!r})"
+        )
 
 
 def write_split_table(splits: pd.DataFrame, path) -> None:
     validate_splits(splits, str(path))
-    table = pa.Table.from_pandas(typed_splits(splits), schema=SPLIT_SCHEMA,
-                                 preserve_index=False)
+    table = pa.Table.from_pandas(typed_splits(splits), schema=SPLIT_SCHEMA, preserve_index=False)
     write_table(table, path)
 
 
@@ -365,8 +433,9 @@ def read_split_table(path) -> pd.DataFrame:
     return typed_splits(splits)
 
 
-def training_range(simulated: pd.DataFrame, measured: pd.DataFrame, split: pd.DataFrame,
-                   names) -> dict:
+def training_range(
+    simulated: pd.DataFrame, measured: pd.DataFrame, split: pd.DataFrame, names
+) -> dict:
     """The range (minimum, maximum) of every feature of `names` over a fit's training segments:
     the simulated ones the split does not hold out for validation and the measured ones it
     trains on (`SignalModel.training_range`; the joined method's support). Here beside the split
@@ -375,5 +444,8 @@ def training_range(simulated: pd.DataFrame, measured: pd.DataFrame, split: pd.Da
     simulated = simulated[~simulated["record_id"].astype(str).isin(simulated_validation_ids(split))]
     trained = measured[segment_roles(measured_rows(split), measured) == "train"]
     rows = pd.concat([simulated[names], trained[names]], ignore_index=True)
-    return {"features": names, "low": rows.min().astype(float).tolist(),
-            "high": rows.max().astype(float).tolist()}
+    return {
+        "features": names,
+        "low": rows.min().astype(float).tolist(),
+        "high": rows.max().astype(float).tolist(),
+    }

@@ -2,15 +2,25 @@
 rule with a `benchmark:` directive (columns `s`, `max_rss` in MB, `cpu_time`, ...), and the run's
 elapsed time against its CPU work: a benchmark file is written when its job ends, so its
 modification time less the job's wall seconds is when the job started."""
+
 from __future__ import annotations
 
 from pathlib import Path
 
 import pandas as pd
 
-COLUMNS = ["rule", "jobs", "wall_seconds_total", "wall_seconds_median", "wall_seconds_max", "cpu_seconds_total",
-           "peak_rss_mb_max"]
-RUN_ROW = "run"  # the row of the whole run: its elapsed seconds, CPU seconds and parallel efficiency
+COLUMNS = [
+    "rule",
+    "jobs",
+    "wall_seconds_total",
+    "wall_seconds_median",
+    "wall_seconds_max",
+    "cpu_seconds_total",
+    "peak_rss_mb_max",
+]
+RUN_ROW = (
+    "run"  # the row of the whole run: its elapsed seconds, CPU seconds and parallel efficiency
+)
 RUN_COLUMNS = ["cores", "cpu_seconds_per_core", "parallel_efficiency"]
 
 
@@ -24,7 +34,11 @@ def read_benchmarks(files_by_rule: dict) -> pd.DataFrame:
             frame = pd.read_csv(path, sep="\t")
             if not frame.empty:
                 rows.append(frame.assign(rule=rule, job=path.stem, end=path.stat().st_mtime))
-    return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=["rule", "job", "s", "max_rss"])
+    return (
+        pd.concat(rows, ignore_index=True)
+        if rows
+        else pd.DataFrame(columns=["rule", "job", "s", "max_rss"])
+    )
 
 
 def summarise(files_by_rule: dict, cores: int | None = None) -> pd.DataFrame:
@@ -33,14 +47,25 @@ def summarise(files_by_rule: dict, cores: int | None = None) -> pd.DataFrame:
     jobs = read_benchmarks(files_by_rule)
     if jobs.empty:
         return pd.DataFrame(columns=COLUMNS)
-    numeric = {c: pd.to_numeric(jobs[c], errors="coerce") for c in ("s", "max_rss", "cpu_time") if c in jobs}
+    numeric = {
+        c: pd.to_numeric(jobs[c], errors="coerce")
+        for c in ("s", "max_rss", "cpu_time")
+        if c in jobs
+    }
     jobs = jobs.assign(**numeric)
     if "cpu_time" not in jobs:
         jobs["cpu_time"] = float("nan")
     grouped = jobs.groupby("rule", sort=True)
-    out = pd.DataFrame({"jobs": grouped.size(), "wall_seconds_total": grouped["s"].sum(),
-                        "wall_seconds_median": grouped["s"].median(), "wall_seconds_max": grouped["s"].max(),
-                        "cpu_seconds_total": grouped["cpu_time"].sum(), "peak_rss_mb_max": grouped["max_rss"].max()})
+    out = pd.DataFrame(
+        {
+            "jobs": grouped.size(),
+            "wall_seconds_total": grouped["s"].sum(),
+            "wall_seconds_median": grouped["s"].median(),
+            "wall_seconds_max": grouped["s"].max(),
+            "cpu_seconds_total": grouped["cpu_time"].sum(),
+            "peak_rss_mb_max": grouped["max_rss"].max(),
+        }
+    )
     out = out.reset_index()[COLUMNS]
     if cores:
         out = pd.concat([out, run_row(jobs, cores)], ignore_index=True)
@@ -55,8 +80,19 @@ def run_row(jobs: pd.DataFrame, cores: int) -> pd.DataFrame:
     start, end = (jobs["end"] - jobs["s"]).min(), jobs["end"].max()
     elapsed, cpu = float(end - start), float(jobs["cpu_time"].sum())
     per_core = cpu / cores
-    return pd.DataFrame([{"rule": RUN_ROW, "jobs": len(jobs), "wall_seconds_total": elapsed,
-                          "wall_seconds_median": float("nan"), "wall_seconds_max": elapsed,
-                          "cpu_seconds_total": cpu, "peak_rss_mb_max": float(jobs["max_rss"].max()),
-                          "cores": cores, "cpu_seconds_per_core": per_core,
-                          "parallel_efficiency": per_core / elapsed if elapsed > 0 else float("nan")}])
+    return pd.DataFrame(
+        [
+            {
+                "rule": RUN_ROW,
+                "jobs": len(jobs),
+                "wall_seconds_total": elapsed,
+                "wall_seconds_median": float("nan"),
+                "wall_seconds_max": elapsed,
+                "cpu_seconds_total": cpu,
+                "peak_rss_mb_max": float(jobs["max_rss"].max()),
+                "cores": cores,
+                "cpu_seconds_per_core": per_core,
+                "parallel_efficiency": per_core / elapsed if elapsed > 0 else float("nan"),
+            }
+        ]
+    )

@@ -17,6 +17,7 @@ report scores it as any classifier beside its parts (the classifier and the rule
 same test sets. A split without the rule's predictions (no calibration segment to set its
 threshold) keeps the classifier's call, said in the log and counted in `info.json`.
 """
+
 from __future__ import annotations
 
 import logging
@@ -32,8 +33,18 @@ log = logging.getLogger(__name__)
 PREFIX = "joined_"  # joined_<classifier>: its name in every table and plot
 SEGMENT_KEYS = ["measured_percent", "repeat", "holdout", "record_id", "segment"]
 # coverage.csv: per split and tested record, how much of it lies outside the fit's training range
-COVERAGE_COLUMNS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "record_id",
-                    "n_segments", "outside_training", "features_outside_training", "features"]
+COVERAGE_COLUMNS = [
+    "classifier",
+    "protocol",
+    "measured_percent",
+    "repeat",
+    "holdout",
+    "record_id",
+    "n_segments",
+    "outside_training",
+    "features_outside_training",
+    "features",
+]
 
 
 def joined_name(classifier: str) -> str:
@@ -53,18 +64,32 @@ def coverage_rows(split_key: dict, tested: pd.DataFrame, outside: pd.DataFrame) 
     record = tested["record_id"].astype(str).to_numpy()
     per_feature = outside.set_axis(record).groupby(level=0).mean()
     share = outside.any(axis=1).set_axis(record).groupby(level=0).mean()
-    leaving = [", ".join(row[row > 0].sort_values(ascending=False, kind="stable").index)
-               for _, row in per_feature.iterrows()]
-    return pd.DataFrame({**split_key, "record_id": share.index, "n_segments":
-                         pd.Series(record).value_counts().reindex(share.index).to_numpy(),
-                         "outside_training": share.to_numpy(float),
-                         "features_outside_training": leaving,
-                         "features": ", ".join(outside.columns)})
+    leaving = [
+        ", ".join(row[row > 0].sort_values(ascending=False, kind="stable").index)
+        for _, row in per_feature.iterrows()
+    ]
+    return pd.DataFrame(
+        {
+            **split_key,
+            "record_id": share.index,
+            "n_segments": pd.Series(record).value_counts().reindex(share.index).to_numpy(),
+            "outside_training": share.to_numpy(float),
+            "features_outside_training": leaving,
+            "features": ", ".join(outside.columns),
+        }
+    )
 
 
-def joined_predictions(classifier: str, predictions: pd.DataFrame, rule: pd.DataFrame,
-                       models: list[dict], simulated: pd.DataFrame, measured: pd.DataFrame,
-                       splits: pd.DataFrame, names) -> tuple[pd.DataFrame, dict, pd.DataFrame]:
+def joined_predictions(
+    classifier: str,
+    predictions: pd.DataFrame,
+    rule: pd.DataFrame,
+    models: list[dict],
+    simulated: pd.DataFrame,
+    measured: pd.DataFrame,
+    splits: pd.DataFrame,
+    names,
+) -> tuple[pd.DataFrame, dict, pd.DataFrame]:
     """(predictions, info, coverage) of the joined method on every split the classifier was
     tested on.
 
@@ -85,55 +110,94 @@ def joined_predictions(classifier: str, predictions: pd.DataFrame, rule: pd.Data
     for (percent, repeat, holdout), tested in predictions.groupby(keys, sort=True):
         model = by_fit.get((int(percent), int(repeat), holdout))
         if model is None:
-            raise ValueError(f"joined {classifier}: no model listed for split ({percent} %, repeat "
-                             f"{repeat}, holdout {holdout!r}) in its info.json")
-        split = splits[(splits["measured_percent"] == percent) & (splits["repeat"] == repeat)
-                       & (splits["holdout"] == holdout)]
+            raise ValueError(
+                f"joined {classifier}: no model listed for split ({percent} %, repeat "
+                f"{repeat}, holdout {holdout!r}) in its info.json"
+            )
+        split = splits[
+            (splits["measured_percent"] == percent)
+            & (splits["repeat"] == repeat)
+            & (splits["holdout"] == holdout)
+        ]
         span = training_range(simulated, measured, split, model.get("selected_features") or names)
         features = tested[["record_id", "segment"]].merge(
-            measured.astype({"record_id": str}), on=["record_id", "segment"], how="left")
+            measured.astype({"record_id": str}), on=["record_id", "segment"], how="left"
+        )
         out_by_feature = outside_features(features, span)
         outside = out_by_feature.any(axis=1).to_numpy()
-        coverage.append(coverage_rows(
-            {"classifier": classifier, "protocol": str(tested["protocol"].iloc[0]),
-             "measured_percent": int(percent), "repeat": int(repeat), "holdout": holdout},
-            tested, out_by_feature))
-        calls = tested.merge(rule[SEGMENT_KEYS + ["predicted_label"]].rename(
-            columns={"predicted_label": "_rule"}), on=SEGMENT_KEYS, how="left")
+        coverage.append(
+            coverage_rows(
+                {
+                    "classifier": classifier,
+                    "protocol": str(tested["protocol"].iloc[0]),
+                    "measured_percent": int(percent),
+                    "repeat": int(repeat),
+                    "holdout": holdout,
+                },
+                tested,
+                out_by_feature,
+            )
+        )
+        calls = tested.merge(
+            rule[SEGMENT_KEYS + ["predicted_label"]].rename(columns={"predicted_label": "_rule"}),
+            on=SEGMENT_KEYS,
+            how="left",
+        )
         if calls["_rule"].isna().all():
             without_rule.append((int(percent), int(repeat), holdout))
         use_rule = outside & calls["_rule"].notna().to_numpy()
-        frames.append(tested.assign(
-            predicted_label=np.where(use_rule, calls["_rule"].to_numpy(object),
-                                     tested["predicted_label"].to_numpy(object)).astype(str),
-            outside_training=outside))
+        frames.append(
+            tested.assign(
+                predicted_label=np.where(
+                    use_rule,
+                    calls["_rule"].to_numpy(object),
+                    tested["predicted_label"].to_numpy(object),
+                ).astype(str),
+                outside_training=outside,
+            )
+        )
     if without_rule:
-        log.warning("joined %s: %d split(s) without the rule's predictions keep the classifier's "
-                    "calls: %s", classifier, len(without_rule), without_rule[:5])
+        log.warning(
+            "joined %s: %d split(s) without the rule's predictions keep the classifier's calls: %s",
+            classifier,
+            len(without_rule),
+            without_rule[:5],
+        )
     joined = pd.concat(frames, ignore_index=True)
-    info = {"classifier": joined_name(classifier), "parts": [classifier, *rules],
-            "rule": rules[0] if rules else None,
-            "method": (f"{classifier} where a segment's features (the fit's own) lie inside its "
-                       f"training range, the physics rule {rules[0] if rules else '(none)'} "
-                       "outside it"),
-            "outside_training_share": float(joined["outside_training"].mean()),
-            "splits_without_rule": [list(k) for k in without_rule]}
+    info = {
+        "classifier": joined_name(classifier),
+        "parts": [classifier, *rules],
+        "rule": rules[0] if rules else None,
+        "method": (
+            f"{classifier} where a segment's features (the fit's own) lie inside its "
+            f"training range, the physics rule {rules[0] if rules else '(none)'} "
+            "outside it"
+        ),
+        "outside_training_share": float(joined["outside_training"].mean()),
+        "splits_without_rule": [list(k) for k in without_rule],
+    }
     return joined, info, pd.concat(coverage, ignore_index=True)[COVERAGE_COLUMNS]
 
 
-def joined_metrics(classifier: str, joined: pd.DataFrame,
-                   classifier_metrics: pd.DataFrame) -> pd.DataFrame:
+def joined_metrics(
+    classifier: str, joined: pd.DataFrame, classifier_metrics: pd.DataFrame
+) -> pd.DataFrame:
     """metrics.csv's rows of the joined predictions: train's figures per split (all speeds and
     each speed), the training counts and fit time the classifier's own."""
     keys = ["protocol", "measured_percent", "repeat", "holdout"]
     rows = []
     for key, tested in joined.groupby(keys, sort=True):
-        rows += metric_rows({"classifier": joined_name(classifier), **dict(zip(keys, key))},
-                            tested["true_label"], tested["predicted_label"], tested["speed_rpm"])
+        rows += metric_rows(
+            {"classifier": joined_name(classifier), **dict(zip(keys, key))},
+            tested["true_label"],
+            tested["predicted_label"],
+            tested["speed_rpm"],
+        )
     metrics = pd.DataFrame(rows)
     own = classifier_metrics[classifier_metrics["speed_rpm"].isna()]
     own = own.assign(holdout=[h if isinstance(h, str) else "" for h in own["holdout"]])[
-        keys + ["n_train_simulated", "n_train_measured", "fit_seconds"]]
+        keys + ["n_train_simulated", "n_train_measured", "fit_seconds"]
+    ]
     return metrics.merge(own, on=keys, how="left")
 
 

@@ -12,6 +12,7 @@ should have seen every condition), those with the most measured data, repeat 0; 
 classifier and protocol with the highest mean accuracy over repeats (ties: classifier, then
 protocol name).
 """
+
 from __future__ import annotations
 
 import json
@@ -50,9 +51,18 @@ def training_speeds(simulated_speeds, measured: pd.DataFrame, split: pd.DataFram
     return sorted({float(s) for s in [*simulated_speeds, *measured_speeds]})
 
 
-def build_store(directory, train_dirs, split_tables, measured_signals, simulated_features,
-                measured_features, features: dict, healthy_state: str, system: dict | None,
-                config_hash: str) -> dict:
+def build_store(
+    directory,
+    train_dirs,
+    split_tables,
+    measured_signals,
+    simulated_features,
+    measured_features,
+    features: dict,
+    healthy_state: str,
+    system: dict | None,
+    config_hash: str,
+) -> dict:
     """Package every model the train jobs wrote into ``directory`` (built aside, renamed into
     place); returns the index (also written as ``index.json``).
 
@@ -61,10 +71,13 @@ def build_store(directory, train_dirs, split_tables, measured_signals, simulated
     comes from its train folder's metrics.csv.
     """
     fs_hz, n_samples = signal_shape(measured_signals)
-    simulated_speeds = pq.read_table(simulated_features, columns=["speed_rpm"]).column(0).unique().to_pylist()
+    simulated_speeds = (
+        pq.read_table(simulated_features, columns=["speed_rpm"]).column(0).unique().to_pylist()
+    )
     names = feature_names(measured_features)
-    measured = pq.read_table(measured_features,
-                             columns=["record_id", "segment", "speed_rpm", *names]).to_pandas()
+    measured = pq.read_table(
+        measured_features, columns=["record_id", "segment", "speed_rpm", *names]
+    ).to_pandas()
     simulated = pq.read_table(simulated_features, columns=["record_id", *names]).to_pandas()
     splits = {protocol: read_split_table(path) for protocol, path in split_tables.items()}
     entries = []
@@ -77,33 +90,62 @@ def build_store(directory, train_dirs, split_tables, measured_signals, simulated
             metrics = pd.read_csv(train_dir / "metrics.csv")
             overall = metrics[metrics["speed_rpm"].isna()].fillna({"holdout": ""})
             for model in info["models"]:
-                key = {"classifier": clf, "protocol": protocol,
-                       "measured_percent": int(model["measured_percent"]), "repeat": int(model["repeat"]),
-                       "holdout": model["holdout"] or ""}
+                key = {
+                    "classifier": clf,
+                    "protocol": protocol,
+                    "measured_percent": int(model["measured_percent"]),
+                    "repeat": int(model["repeat"]),
+                    "holdout": model["holdout"] or "",
+                }
                 table = splits[protocol]
-                split = table[(table["measured_percent"] == key["measured_percent"])
-                              & (table["repeat"] == key["repeat"]) & (table["holdout"] == key["holdout"])]
-                row = overall[(overall["measured_percent"] == key["measured_percent"])
-                              & (overall["repeat"] == key["repeat"]) & (overall["holdout"] == key["holdout"])]
-                domain = {"fs_hz": fs_hz, "n_samples": n_samples, "channels": list(features["channels"]),
-                          "speeds_rpm": training_speeds(simulated_speeds, measured, split),
-                          "speed_tolerance": SPEED_TOLERANCE}
+                split = table[
+                    (table["measured_percent"] == key["measured_percent"])
+                    & (table["repeat"] == key["repeat"])
+                    & (table["holdout"] == key["holdout"])
+                ]
+                row = overall[
+                    (overall["measured_percent"] == key["measured_percent"])
+                    & (overall["repeat"] == key["repeat"])
+                    & (overall["holdout"] == key["holdout"])
+                ]
+                domain = {
+                    "fs_hz": fs_hz,
+                    "n_samples": n_samples,
+                    "channels": list(features["channels"]),
+                    "speeds_rpm": training_speeds(simulated_speeds, measured, split),
+                    "speed_tolerance": SPEED_TOLERANCE,
+                }
                 signal_model = SignalModel(
                     joblib.load(train_dir / "models" / model["file"]),
                     features={**features, "feature_names": names},
-                    domain=domain, healthy_state=healthy_state, system=system,
-                    info={**key, "config_hash": config_hash,
-                          "accuracy": float(row["accuracy"].iloc[0]) if len(row) else None},
-                    training_range=training_range(simulated, measured, split,
-                                                  model.get("selected_features") or names))
+                    domain=domain,
+                    healthy_state=healthy_state,
+                    system=system,
+                    info={
+                        **key,
+                        "config_hash": config_hash,
+                        "accuracy": float(row["accuracy"].iloc[0]) if len(row) else None,
+                    },
+                    training_range=training_range(
+                        simulated, measured, split, model.get("selected_features") or names
+                    ),
+                )
                 name = f"{clf}/{protocol}/{model['file']}"
                 (tmp / clf / protocol).mkdir(parents=True, exist_ok=True)
                 joblib.dump(signal_model, tmp / name)
-                entries.append({**key, "file": name, "digest": signal_model.digest(),
-                                "leaky": protocol in LEAKY_PROTOCOLS, "accuracy": signal_model.info["accuracy"],
-                                "classes": signal_model.classes, "domain": domain,
-                                # where it was fitted: the CNN's device, scikit-learn's CPU
-                                "device": getattr(signal_model.estimator, "device_", "cpu")})
+                entries.append(
+                    {
+                        **key,
+                        "file": name,
+                        "digest": signal_model.digest(),
+                        "leaky": protocol in LEAKY_PROTOCOLS,
+                        "accuracy": signal_model.info["accuracy"],
+                        "classes": signal_model.classes,
+                        "domain": domain,
+                        # where it was fitted: the CNN's device, scikit-learn's CPU
+                        "device": getattr(signal_model.estimator, "device_", "cpu"),
+                    }
+                )
         index = {"config_hash": config_hash, "best": best_model(entries), "models": entries}
         (tmp / INDEX_FILE).write_text(json.dumps(index, indent=1, default=float))
     return index
@@ -126,11 +168,15 @@ def best_model(entries: list[dict]) -> str | None:
         mean.setdefault((e["classifier"], e["protocol"]), []).append(e["accuracy"] or 0.0)
     first = min(e["repeat"] for e in candidates)
     chosen = max(sorted(mean), key=lambda k: np.mean(mean[k]))  # the first of equals, by name
-    return next(e["file"] for e in candidates if (e["classifier"], e["protocol"]) == chosen
-                and e["repeat"] == first)
+    return next(
+        e["file"]
+        for e in candidates
+        if (e["classifier"], e["protocol"]) == chosen and e["repeat"] == first
+    )
 
 
 # -- reading a store ----------------------------------------------------------------------------
+
 
 def read_index(directory) -> dict:
     path = Path(directory) / INDEX_FILE
@@ -149,8 +195,10 @@ def store_of_results(results) -> Path:
             return results / "models" / config_hash
     stores = sorted((results / "models").glob(f"*/{INDEX_FILE}"), key=lambda p: p.stat().st_mtime)
     if not stores:
-        raise ModelStoreError(f"{results}: no models/<config_hash>/{INDEX_FILE}; has the pipeline "
-                              "run (its track job packages the models)?")
+        raise ModelStoreError(
+            f"{results}: no models/<config_hash>/{INDEX_FILE}; has the pipeline "
+            "run (its track job packages the models)?"
+        )
     return stores[-1].parent
 
 
@@ -163,12 +211,16 @@ def select(index: dict, **key) -> dict:
         raise ModelStoreError(f"unknown model key(s) {unknown}; choose among {list(KEY_FIELDS)}")
     if not wanted:
         if index.get("best") is None:
-            raise ModelStoreError("the store names no best model; choose one by classifier, protocol, "
-                                  "measured_percent, repeat")
+            raise ModelStoreError(
+                "the store names no best model; choose one by classifier, protocol, "
+                "measured_percent, repeat"
+            )
         return next(e for e in index["models"] if e["file"] == index["best"])
     found = [e for e in index["models"] if all(str(e[k]) == str(v) for k, v in wanted.items())]
     if not found:
-        raise ModelStoreError(f"no model with {wanted}; the store has "
-                              f"{sorted({(e['classifier'], e['protocol']) for e in index['models']})}")
+        raise ModelStoreError(
+            f"no model with {wanted}; the store has "
+            f"{sorted({(e['classifier'], e['protocol']) for e in index['models']})}"
+        )
     # the most measured data and the first repeat among several matches, as for the best model
     return sorted(found, key=lambda e: (-e["measured_percent"], e["repeat"], e["holdout"]))[0]

@@ -3,6 +3,7 @@
 Every figure carries a footnote ``note`` naming the data source (e.g. "virtual bench
 (synthetic)") so a plot copied out of the report can never pass for real measurements.
 """
+
 from __future__ import annotations
 
 
@@ -59,8 +60,15 @@ def _finish(fig, title: str, note: str, legend_from=None):
         entry = 1.0 + max((len(label) for label in labels), default=0) * CHAR_WIDTH_PER_POINT * 9
         ncol = max(1, min(len(labels), 6, int((fig.get_figwidth() - 0.2) // entry)))
         rows = -(-len(labels) // ncol)
-        fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=9,
-                   bbox_to_anchor=(0.5, bottom), frameon=False)
+        fig.legend(
+            handles,
+            labels,
+            loc="lower center",
+            ncol=ncol,
+            fontsize=9,
+            bbox_to_anchor=(0.5, bottom),
+            frameon=False,
+        )
         bottom += (0.1 + 0.25 * rows) / fig.get_figheight()  # inches of legend -> figure fraction
     fig.tight_layout(rect=(0, bottom, 1, 1))
     return fig
@@ -82,24 +90,36 @@ def accuracy_vs_measured_percent(per_repeat, chance: float, note: str):
     """
     protocols = sorted(per_repeat["protocol"].unique())
     colours = _colours(sorted(per_repeat["classifier"].unique()))
-    fig, axes = plt.subplots(1, len(protocols), figsize=(5.5 * len(protocols), 4.5),
-                             sharey=True, squeeze=False)
+    fig, axes = plt.subplots(
+        1, len(protocols), figsize=(5.5 * len(protocols), 4.5), sharey=True, squeeze=False
+    )
     for ax, protocol in zip(axes[0], protocols):
         rows = per_repeat[per_repeat["protocol"] == protocol]
         for classifier, group in rows.groupby("classifier"):
             stats = group.groupby("measured_percent")["accuracy"].agg(["mean", "min", "max"])
-            ax.plot(stats.index, stats["mean"], marker="o", color=colours[classifier],
-                    label=classifier)
-            ax.fill_between(stats.index, stats["min"], stats["max"], alpha=0.2,
-                            color=colours[classifier], linewidth=0)
+            ax.plot(
+                stats.index, stats["mean"], marker="o", color=colours[classifier], label=classifier
+            )
+            ax.fill_between(
+                stats.index,
+                stats["min"],
+                stats["max"],
+                alpha=0.2,
+                color=colours[classifier],
+                linewidth=0,
+            )
         ax.axhline(chance, linestyle="--", color="0.4", label=f"chance ({chance:.2f})")
         ax.set_title(protocol_title(protocol))
         ax.set_xlabel(PERCENT_LABEL)
         ax.set_ylim(0, 1.05)
         ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel(f"{ACCURACY_LABEL} (fraction)")
-    return _finish(fig, "Accuracy vs share of measured data in training\n"
-                        "(line: mean over repeats, band: min-max)", note, legend_from=axes[0, 0])
+    return _finish(
+        fig,
+        "Accuracy vs share of measured data in training\n(line: mean over repeats, band: min-max)",
+        note,
+        legend_from=axes[0, 0],
+    )
 
 
 def simulation_gain(gain, chance: float, note: str):
@@ -111,42 +131,76 @@ def simulation_gain(gain, chance: float, note: str):
     optionally measured_only_best, physics_baseline_accuracy, majority_class."""
     protocols = sorted(gain["protocol"].unique())
     colours = _colours(sorted(gain["classifier"].unique()))
-    others = [(column, label, style) for column, label, style in (
-        ("measured_only_best", "measured only (best classifier)", "--"),
-        ("physics_baseline_accuracy", "physics baseline (no training)", "-."),
-        ("majority_class", "majority class", ":")) if column in gain.columns]
-    fig, axes = plt.subplots(2, len(protocols), figsize=(5.5 * len(protocols), 7.6),
-                             sharey="row", sharex=True, squeeze=False,
-                             gridspec_kw={"height_ratios": [3, 2]})
+    others = [
+        (column, label, style)
+        for column, label, style in (
+            ("measured_only_best", "measured only (best classifier)", "--"),
+            ("physics_baseline_accuracy", "physics baseline (no training)", "-."),
+            ("majority_class", "majority class", ":"),
+        )
+        if column in gain.columns
+    ]
+    fig, axes = plt.subplots(
+        2,
+        len(protocols),
+        figsize=(5.5 * len(protocols), 7.6),
+        sharey="row",
+        sharex=True,
+        squeeze=False,
+        gridspec_kw={"height_ratios": [3, 2]},
+    )
     for top, bottom, protocol in zip(axes[0], axes[1], protocols):
         rows = gain[gain["protocol"] == protocol]
         for column, label, style in others:
             line = rows.groupby("measured_percent")[column].mean()
             if line.notna().any():
-                top.plot(line.index, line.to_numpy(), linestyle=style, color="0.55", linewidth=1,
-                         label=label)
+                top.plot(
+                    line.index,
+                    line.to_numpy(),
+                    linestyle=style,
+                    color="0.55",
+                    linewidth=1,
+                    label=label,
+                )
         for classifier, group in rows.groupby("classifier"):
             group = group.sort_values("measured_percent")
-            top.plot(group["measured_percent"], group["hybrid"], marker="o",
-                     color=colours[classifier], label=f"{classifier}: simulated + measured")
-            top.plot(group["measured_percent"], group["strongest"], marker="x", linestyle="--",
-                     color=colours[classifier], label=f"{classifier}: strongest baseline")
-            bottom.plot(group["measured_percent"], group["gain"], marker="o",
-                        color=colours[classifier])
+            top.plot(
+                group["measured_percent"],
+                group["hybrid"],
+                marker="o",
+                color=colours[classifier],
+                label=f"{classifier}: simulated + measured",
+            )
+            top.plot(
+                group["measured_percent"],
+                group["strongest"],
+                marker="x",
+                linestyle="--",
+                color=colours[classifier],
+                label=f"{classifier}: strongest baseline",
+            )
+            bottom.plot(
+                group["measured_percent"], group["gain"], marker="o", color=colours[classifier]
+            )
         top.axhline(chance, linestyle=":", color="0.75", label=f"chance ({chance:.2f})")
         # what the protocol tests: the report's protocols table
         top.set_title(short_title(protocol_title(protocol)), fontsize=10)
         top.set_ylim(0, 1.05)
         top.grid(alpha=0.3)
         bottom.axhline(0.0, color="0.2", linewidth=1)
-        bottom.axhspan(min(-0.05, float(gain["gain"].min()) - 0.05), 0, color="tab:red",
-                       alpha=0.08)  # below 0: a baseline wins
+        bottom.axhspan(
+            min(-0.05, float(gain["gain"].min()) - 0.05), 0, color="tab:red", alpha=0.08
+        )  # below 0: a baseline wins
         bottom.set_xlabel(PERCENT_LABEL)
         bottom.grid(alpha=0.3)
     axes[0, 0].set_ylabel(f"{ACCURACY_LABEL} (fraction)")
     axes[1, 0].set_ylabel("gain vs strongest\n(red: a baseline wins)")
-    return _finish(fig, "The simulation's gain against the strongest baseline "
-                        "(a negative gain: a baseline wins)", note, legend_from=axes[0, 0])
+    return _finish(
+        fig,
+        "The simulation's gain against the strongest baseline (a negative gain: a baseline wins)",
+        note,
+        legend_from=axes[0, 0],
+    )
 
 
 def recall_per_class(recalls, note: str):
@@ -156,17 +210,28 @@ def recall_per_class(recalls, note: str):
     protocols = sorted(recalls["protocol"].unique())
     classifiers = sorted(recalls["classifier"].unique())
     colours = _colours(sorted(recalls["true_label"].unique()))
-    fig, axes = plt.subplots(len(protocols), len(classifiers),
-                             figsize=(5.0 * len(classifiers), 3.6 * len(protocols)),
-                             sharey=True, squeeze=False)
+    fig, axes = plt.subplots(
+        len(protocols),
+        len(classifiers),
+        figsize=(5.0 * len(classifiers), 3.6 * len(protocols)),
+        sharey=True,
+        squeeze=False,
+    )
     for i, protocol in enumerate(protocols):
         for j, classifier in enumerate(classifiers):
             ax = axes[i, j]
-            rows = recalls[(recalls["protocol"] == protocol) & (recalls["classifier"] == classifier)]
+            rows = recalls[
+                (recalls["protocol"] == protocol) & (recalls["classifier"] == classifier)
+            ]
             for label, group in rows.groupby("true_label"):
                 group = group.sort_values("measured_percent")
-                ax.plot(group["measured_percent"], group["recall"], marker="o",
-                        color=colours[label], label=label)
+                ax.plot(
+                    group["measured_percent"],
+                    group["recall"],
+                    marker="o",
+                    color=colours[label],
+                    label=label,
+                )
             # one or two lines; what the protocol tests: the report's protocols table
             ax.set_title(short_title(f"{classifier}, {protocol_title(protocol)}"), fontsize=10)
             ax.set_ylim(0, 1.05)
@@ -190,42 +255,66 @@ def accuracy_per_speed(speed_rows, percents, chance: float, note: str):
     speed_rpm, accuracy). Bar = mean over evaluations, whisker = min-max.
     """
     if speed_rows.empty:
-        raise ValueError("accuracy per speed: the metrics have no per-speed rows "
-                         "(speed_rpm set); the train stage should write one per tested speed")
+        raise ValueError(
+            "accuracy per speed: the metrics have no per-speed rows "
+            "(speed_rpm set); the train stage should write one per tested speed"
+        )
     protocols = sorted(speed_rows["protocol"].unique())
     classifiers = sorted(speed_rows["classifier"].unique())
     colours = _colours(classifiers)
     width = 0.8 / len(classifiers)
-    fig, axes = plt.subplots(len(protocols), len(percents),
-                             figsize=(4.8 * len(percents), 3.6 * len(protocols)),
-                             sharey=True, squeeze=False)
+    fig, axes = plt.subplots(
+        len(protocols),
+        len(percents),
+        figsize=(4.8 * len(percents), 3.6 * len(protocols)),
+        sharey=True,
+        squeeze=False,
+    )
     for i, protocol in enumerate(protocols):
         for j, percent in enumerate(percents):
             ax = axes[i, j]
-            rows = speed_rows[(speed_rows["protocol"] == protocol)
-                              & (speed_rows["measured_percent"] == percent)]
+            rows = speed_rows[
+                (speed_rows["protocol"] == protocol) & (speed_rows["measured_percent"] == percent)
+            ]
             speeds = sorted(rows["speed_rpm"].unique())
             x = np.arange(len(speeds))
             for k, classifier in enumerate(classifiers):
-                stats = (rows[rows["classifier"] == classifier]
-                         .groupby("speed_rpm")["accuracy"].agg(["mean", "min", "max"])
-                         .reindex(speeds))
-                ax.bar(x + (k - (len(classifiers) - 1) / 2) * width, stats["mean"], width,
-                       # clip: the mean of equal values can differ from them by rounding
-                       yerr=np.clip([stats["mean"] - stats["min"], stats["max"] - stats["mean"]], 0, None),
-                       color=colours[classifier], label=classifier, capsize=2,
-                       error_kw={"elinewidth": 0.8})
+                stats = (
+                    rows[rows["classifier"] == classifier]
+                    .groupby("speed_rpm")["accuracy"]
+                    .agg(["mean", "min", "max"])
+                    .reindex(speeds)
+                )
+                ax.bar(
+                    x + (k - (len(classifiers) - 1) / 2) * width,
+                    stats["mean"],
+                    width,
+                    # clip: the mean of equal values can differ from them by rounding
+                    yerr=np.clip(
+                        [stats["mean"] - stats["min"], stats["max"] - stats["mean"]], 0, None
+                    ),
+                    color=colours[classifier],
+                    label=classifier,
+                    capsize=2,
+                    error_kw={"elinewidth": 0.8},
+                )
             ax.axhline(chance, linestyle="--", color="0.4", label="chance")
             ax.set_xticks(x, [f"{s:g}" for s in speeds])
-            ax.set_title(f"{protocol_title(protocol)}, {percent} % measured in training", fontsize=10)
+            ax.set_title(
+                f"{protocol_title(protocol)}, {percent} % measured in training", fontsize=10
+            )
             ax.set_ylim(0, 1.05)
             ax.grid(axis="y", alpha=0.3)
             if i == len(protocols) - 1:
                 ax.set_xlabel("input shaft speed (rpm)")
             if j == 0:
                 ax.set_ylabel("accuracy (fraction)")
-    return _finish(fig, "Accuracy per operating speed (bar: mean, whisker: min-max over "
-                        "repeats)", note, legend_from=axes[0, 0])
+    return _finish(
+        fig,
+        "Accuracy per operating speed (bar: mean, whisker: min-max over repeats)",
+        note,
+        legend_from=axes[0, 0],
+    )
 
 
 def confusion_figure(panels, labels, title: str, note: str, colour_bar: bool = True):
@@ -252,15 +341,23 @@ def confusion_figure(panels, labels, title: str, note: str, colour_bar: bool = T
     fig = plt.figure(figsize=(width, height))
     image = None
     for i, (counts, panel_title) in enumerate(panels):
-        ax = fig.add_axes(((left + i * (side + gap)) / width, bottom / height,
-                           side / width, side / height))
+        ax = fig.add_axes(
+            ((left + i * (side + gap)) / width, bottom / height, side / width, side / height)
+        )
         totals = counts.sum(axis=1, keepdims=True)
         shares = np.where(totals > 0, counts / np.maximum(totals, 1), np.nan)
         image = ax.imshow(shares, cmap="Blues", vmin=0, vmax=1, aspect="auto")
         for r, c in np.ndindex(n, n):
             if totals[r, 0]:
-                ax.text(c, r, f"{shares[r, c]:.2f}\n({counts[r, c]})", ha="center", va="center",
-                        fontsize=7, color="white" if shares[r, c] > 0.6 else "black")
+                ax.text(
+                    c,
+                    r,
+                    f"{shares[r, c]:.2f}\n({counts[r, c]})",
+                    ha="center",
+                    va="center",
+                    fontsize=7,
+                    color="white" if shares[r, c] > 0.6 else "black",
+                )
         ax.set_xticks(range(n), labels, rotation=35, ha="right", fontsize=8)
         ax.set_yticks(range(n), labels if i == 0 else [], fontsize=8)
         ax.set_xlabel("predicted state", fontsize=8)
@@ -269,12 +366,14 @@ def confusion_figure(panels, labels, title: str, note: str, colour_bar: bool = T
         if panel_title:
             ax.set_title(panel_title, fontsize=9)
     if colour_bar:
-        colour_axes = fig.add_axes(((width - right + 0.2) / width, bottom / height,
-                                    0.15 / width, side / height))
+        colour_axes = fig.add_axes(
+            ((width - right + 0.2) / width, bottom / height, 0.15 / width, side / height)
+        )
         fig.colorbar(image, cax=colour_axes).set_label("share of true class (row)", fontsize=8)
     fig.suptitle("\n".join(title_lines), fontsize=10, y=1 - 0.1 / height, va="top")
-    fig.text(0.1 / width, 0.05 / height, "\n".join(note_lines), fontsize=7, color="0.3",
-             va="bottom")
+    fig.text(
+        0.1 / width, 0.05 / height, "\n".join(note_lines), fontsize=7, color="0.3", va="bottom"
+    )
     return fig
 
 
@@ -290,23 +389,38 @@ def condition_axis_label(condition: str) -> str:
     return "speed (rpm)" if condition == "speed_rpm" else f"operating condition: {condition}"
 
 
-def confusion_matrices(matrices: dict, labels, classifier: str, protocol: str,
-                       where: str | None, note: str):
+def confusion_matrices(
+    matrices: dict, labels, classifier: str, protocol: str, where: str | None, note: str
+):
     """One panel per measured percentage; ``matrices`` maps percent -> (counts, n_repeats);
     ``where``: the operating condition's value (condition_label; None: all conditions)."""
     panels = []
     for percent, (counts, n_repeats) in sorted(matrices.items()):
         training = "simulation only" if percent == 0 else f"{percent} % measured"
-        panels.append((counts, f"training: {training}\n{int(counts.sum())} test segments, "
-                               f"{n_repeats} repeat(s)"))
+        panels.append(
+            (
+                counts,
+                f"training: {training}\n{int(counts.sum())} test segments, {n_repeats} repeat(s)",
+            )
+        )
     where = "all conditions" if where is None else where
-    return confusion_figure(panels, labels,
-                            f"Confusion matrix: {classifier}, {protocol_title(protocol)}, {where}",
-                            note + " | counts summed over repeats")
+    return confusion_figure(
+        panels,
+        labels,
+        f"Confusion matrix: {classifier}, {protocol_title(protocol)}, {where}",
+        note + " | counts summed over repeats",
+    )
 
 
-def prediction_shares(shares, labels, classifier: str, protocol: str, percents, note: str,
-                      condition: str = "speed_rpm"):
+def prediction_shares(
+    shares,
+    labels,
+    classifier: str,
+    protocol: str,
+    percents,
+    note: str,
+    condition: str = "speed_rpm",
+):
     """The CFRP study's Fig. 9 for one classifier and protocol: a panel per (measured percentage,
     true class), in it per operating condition (speed, or e.g. load) a stacked bar of the
     percentage of that class's test segments predicted as each class (text: shares of 8 % and
@@ -319,9 +433,13 @@ def prediction_shares(shares, labels, classifier: str, protocol: str, percents, 
     colours = _colours(labels)
     n_cols = max(1, min(len(true_labels), 4))
     blocks = max(1, -(-len(true_labels) // n_cols))  # rows of panels per percentage
-    fig, axes = plt.subplots(len(percents) * blocks, n_cols,
-                             figsize=(3.3 * n_cols + 0.6, 3.1 * len(percents) * blocks + 1.4),
-                             sharey=True, squeeze=False)
+    fig, axes = plt.subplots(
+        len(percents) * blocks,
+        n_cols,
+        figsize=(3.3 * n_cols + 0.6, 3.1 * len(percents) * blocks + 1.4),
+        sharey=True,
+        squeeze=False,
+    )
     for ax in axes.flat:
         ax.set_visible(False)
     legend_ax = None
@@ -344,22 +462,42 @@ def prediction_shares(shares, labels, classifier: str, protocol: str, percents, 
             x = np.arange(len(speeds))
             bottom = np.zeros(len(speeds))
             for predicted in labels:
-                percent_of = 100 * (rows[rows["predicted_label"] == predicted]
-                                    .set_index(condition)["share"].reindex(speeds)
-                                    .fillna(0.0).to_numpy())
-                ax.bar(x, percent_of, 0.6, bottom=bottom, color=colours[predicted],
-                       label=predicted, edgecolor="white", linewidth=0.5)
+                percent_of = 100 * (
+                    rows[rows["predicted_label"] == predicted]
+                    .set_index(condition)["share"]
+                    .reindex(speeds)
+                    .fillna(0.0)
+                    .to_numpy()
+                )
+                ax.bar(
+                    x,
+                    percent_of,
+                    0.6,
+                    bottom=bottom,
+                    color=colours[predicted],
+                    label=predicted,
+                    edgecolor="white",
+                    linewidth=0.5,
+                )
                 for xi, low, value in zip(x, bottom, percent_of):
                     if value >= 8:
-                        ax.text(xi, low + value / 2, f"{value:.0f}", ha="center", va="center",
-                                fontsize=7)
+                        ax.text(
+                            xi,
+                            low + value / 2,
+                            f"{value:.0f}",
+                            ha="center",
+                            va="center",
+                            fontsize=7,
+                        )
                 bottom += percent_of
             ax.set_xticks(x, [f"{s:g}\nn={int(c)}" for s, c in zip(speeds, counts)], fontsize=7)
             ax.set_xlabel(condition_axis_label(condition), fontsize=8)
         axes[a * blocks, 0].set_ylabel("predicted as (% of true class)")
     per = "speed" if condition == "speed_rpm" else condition
-    title = (f"Prediction shares per {per}: {classifier}, {protocol_title(protocol)}\n"
-             "(bar: a true class's test segments by predicted class, pooled over repeats)")
+    title = (
+        f"Prediction shares per {per}: {classifier}, {protocol_title(protocol)}\n"
+        "(bar: a true class's test segments by predicted class, pooled over repeats)"
+    )
     return _finish(fig, title, note, legend_from=legend_ax)
 
 
@@ -373,27 +511,40 @@ def spectra_grid(spectra, note: str):
 
     With a `calibration_variant` column (several calibrations, same measured spectra) one
     calibrated line per variant."""
-    models = (list(dict.fromkeys(spectra["calibration_variant"]))
-              if "calibration_variant" in spectra.columns else [None])
+    models = (
+        list(dict.fromkeys(spectra["calibration_variant"]))
+        if "calibration_variant" in spectra.columns
+        else [None]
+    )
     model_colours = dict(zip(models, ("tab:red", "tab:blue", "tab:green", "tab:orange")))
     speeds = sorted(spectra["speed_rpm"].unique())
     channels = sorted(spectra["channel"].unique())
-    fig, axes = plt.subplots(len(speeds), len(channels),
-                             figsize=(max(4.2 * len(channels), 7.0), 2.8 * len(speeds) + 0.8),
-                             sharex=True, squeeze=False)
+    fig, axes = plt.subplots(
+        len(speeds),
+        len(channels),
+        figsize=(max(4.2 * len(channels), 7.0), 2.8 * len(speeds) + 0.8),
+        sharex=True,
+        squeeze=False,
+    )
     for i, speed in enumerate(speeds):
         for j, channel in enumerate(channels):
             ax = axes[i, j]
-            at = (spectra[(spectra["speed_rpm"] == speed) & (spectra["channel"] == channel)]
-                  .sort_values("freq_hz"))
+            at = spectra[
+                (spectra["speed_rpm"] == speed) & (spectra["channel"] == channel)
+            ].sort_values("freq_hz")
             lines = []
             for model in models:
                 rows = at if model is None else at[at["calibration_variant"] == model]
                 if model == models[0]:
                     lines.append((rows, "measured", "measured", {"color": "black", "lw": 1.0}))
-                lines.append((rows, "calibrated", "calibrated model" if len(models) == 1 else
-                              f"calibrated model ({model})",
-                              {"color": model_colours[model], "lw": 1.0, "alpha": 0.8}))
+                lines.append(
+                    (
+                        rows,
+                        "calibrated",
+                        "calibrated model" if len(models) == 1 else f"calibrated model ({model})",
+                        {"color": model_colours[model], "lw": 1.0, "alpha": 0.8},
+                    )
+                )
             for rows, column, label, style in lines:
                 # log axis: non-positive amplitudes cannot be drawn, leave gaps
                 values = rows[column].where(rows[column] > 0)
@@ -406,8 +557,9 @@ def spectra_grid(spectra, note: str):
             if j == 0:
                 ax.set_ylabel("amplitude (m/s²)")
     axes[0, -1].legend(fontsize=8, loc="upper right")
-    return _finish(fig, "Mean amplitude spectra of healthy records: measured vs calibrated model",
-                   note)
+    return _finish(
+        fig, "Mean amplitude spectra of healthy records: measured vs calibrated model", note
+    )
 
 
 def background_grid(table, note: str, method: str = "incoherent"):
@@ -416,18 +568,30 @@ def background_grid(table, note: str, method: str = "incoherent"):
     `method` incoherent, the parts of each that no other channel explains)."""
     speeds = sorted(table["speed_rpm"].unique())
     channels = list(dict.fromkeys(table["channel"]))
-    fig, axes = plt.subplots(len(speeds), len(channels),
-                             figsize=(max(4.2 * len(channels), 7.0), 2.8 * len(speeds) + 0.8),
-                             sharex=True, squeeze=False)
+    fig, axes = plt.subplots(
+        len(speeds),
+        len(channels),
+        figsize=(max(4.2 * len(channels), 7.0), 2.8 * len(speeds) + 0.8),
+        sharex=True,
+        squeeze=False,
+    )
     # the background underneath, the measured record thin on top: where they coincide the model adds nothing
     part = " (no other channel explains)" if method == "incoherent" else ""
-    styles = (("background_psd", "background (measured - model, >= 0)", {"color": "tab:cyan", "lw": 1.6}),
-              ("model_psd", f"calibrated model (mean of runs){part}", {"color": "tab:red", "lw": 0.7, "alpha": 0.8}),
-              ("measured_psd", f"measured{part}", {"color": "black", "lw": 0.5}))
+    styles = (
+        ("background_psd", "background (measured - model, >= 0)", {"color": "tab:cyan", "lw": 1.6}),
+        (
+            "model_psd",
+            f"calibrated model (mean of runs){part}",
+            {"color": "tab:red", "lw": 0.7, "alpha": 0.8},
+        ),
+        ("measured_psd", f"measured{part}", {"color": "black", "lw": 0.5}),
+    )
     for i, speed in enumerate(speeds):
         for j, channel in enumerate(channels):
             ax = axes[i, j]
-            rows = table[(table["speed_rpm"] == speed) & (table["channel"] == channel)].sort_values("freq_hz")
+            rows = table[(table["speed_rpm"] == speed) & (table["channel"] == channel)].sort_values(
+                "freq_hz"
+            )
             for column, label, style in styles:
                 # dB: a zero (clipped) background is a gap, not minus infinity
                 values = rows[column].where(rows[column] > 0)
@@ -438,8 +602,12 @@ def background_grid(table, note: str, method: str = "incoherent"):
                 ax.set_xlabel("frequency (Hz)")
             if j == 0:
                 ax.set_ylabel("PSD (dB re 1 (m/s²)²/Hz)")
-    return _finish(fig, "Background of healthy records: measured vs calibrated model PSD", note,
-                   legend_from=axes[0, 0])
+    return _finish(
+        fig,
+        "Background of healthy records: measured vs calibrated model PSD",
+        note,
+        legend_from=axes[0, 0],
+    )
 
 
 def state_fit_label(result: dict) -> str:
@@ -447,8 +615,10 @@ def state_fit_label(result: dict) -> str:
     plot's note; empty for a result without it."""
     if "explained_share" not in result:
         return ""
-    fit = (f"explains {result['explained_share']:.0%} of the measured change "
-           f"(correlation {result['change_correlation']:.2f})")
+    fit = (
+        f"explains {result['explained_share']:.0%} of the measured change "
+        f"(correlation {result['change_correlation']:.2f})"
+    )
     return fit if result.get("identified", True) else f"NOT IDENTIFIED by its records: {fit}"
 
 
@@ -469,12 +639,23 @@ def calibration_convergence(history, chosen: str, note: str, no_change_cost: flo
         best = cost.cummin().ffill()  # a failed evaluation does not break the line
         label = f"{variant} (chosen)" if variant == chosen else variant
         ax.scatter(rows["evaluation"], cost, s=6, alpha=0.25, color=colours[variant])
-        ax.step(rows["evaluation"], best, where="post", color=colours[variant], label=label,
-                linewidth=2 if variant == chosen else 1.2)
+        ax.step(
+            rows["evaluation"],
+            best,
+            where="post",
+            color=colours[variant],
+            label=label,
+            linewidth=2 if variant == chosen else 1.2,
+        )
         costs.extend(cost.dropna().tolist())
     if no_change_cost is not None:
-        ax.axhline(no_change_cost, color="0.3", linestyle="--", linewidth=1.2,
-                   label="no fault (the model changes nothing)")
+        ax.axhline(
+            no_change_cost,
+            color="0.3",
+            linestyle="--",
+            linewidth=1.2,
+            label="no fault (the model changes nothing)",
+        )
         costs.append(no_change_cost)
     positive = [c for c in costs if c > 0]
     if positive and len(positive) == len(costs) and max(positive) / min(positive) > 20:
@@ -510,24 +691,37 @@ def accuracy_per_subset(summary, column: str, chance: float, note: str, title: s
     colours = _colours(sorted(summary[column].unique()))
     styles = dict(zip(sorted(summary["classifier"].unique()), ["-", "--", ":", "-."] * 4))
     # at least 9 inches: the two-line title must fit over a single panel
-    fig, axes = plt.subplots(1, len(protocols), figsize=(max(5.5 * len(protocols), 9.0), 4.8),
-                             sharey=True, squeeze=False)
+    fig, axes = plt.subplots(
+        1, len(protocols), figsize=(max(5.5 * len(protocols), 9.0), 4.8), sharey=True, squeeze=False
+    )
     for ax, protocol in zip(axes[0], protocols):
         rows = summary[summary["protocol"] == protocol]
         for (value, classifier), group in rows.groupby([column, "classifier"], sort=True):
             group = group.sort_values("measured_percent")
             mean = group["accuracy_mean"].to_numpy()
-            error = np.clip([mean - group["accuracy_ci_low"], group["accuracy_ci_high"] - mean],
-                            0, None)
-            ax.errorbar(group["measured_percent"], mean, yerr=error, marker="o", capsize=3,
-                        color=colours[value], linestyle=styles[classifier],
-                        label=f"{value}, {classifier}")
+            error = np.clip(
+                [mean - group["accuracy_ci_low"], group["accuracy_ci_high"] - mean], 0, None
+            )
+            ax.errorbar(
+                group["measured_percent"],
+                mean,
+                yerr=error,
+                marker="o",
+                capsize=3,
+                color=colours[value],
+                linestyle=styles[classifier],
+                label=f"{value}, {classifier}",
+            )
         ax.axhline(chance, linestyle=":", color="0.4", label=f"chance ({chance:.2f})")
         ax.set(title=protocol_title(protocol), xlabel=PERCENT_LABEL, ylim=(0, 1.05))
         ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel(f"{ACCURACY_LABEL} (fraction)")
-    return _finish(fig, f"{title}\n(mean over repeats; bars: 95 % Wilson interval on one "
-                        "repeat's test segments)", note, legend_from=axes[0, 0])
+    return _finish(
+        fig,
+        f"{title}\n(mean over repeats; bars: 95 % Wilson interval on one repeat's test segments)",
+        note,
+        legend_from=axes[0, 0],
+    )
 
 
 def fault_signatures(table, condition: str, note: str):
@@ -538,30 +732,51 @@ def fault_signatures(table, condition: str, note: str):
     values = list(dict.fromkeys(table["condition"]))
     shifts = table[["measured_shift", "simulated_shift"]].to_numpy(float)
     low, high = min(np.nanmin(shifts), 1.0) / 1.5, max(np.nanmax(shifts), 1.0) * 1.8  # room for r
-    fig, axes = plt.subplots(1, len(values), figsize=(max(4.2 * len(values), 9.0), 4.8), sharey=True,
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        1, len(values), figsize=(max(4.2 * len(values), 9.0), 4.8), sharey=True, squeeze=False
+    )
     for ax, value in zip(axes[0], values):
         rows = table[table["condition"] == value].reset_index(drop=True)
         x = np.arange(len(rows))
         ax.bar(x - 0.2, rows["measured_shift"], width=0.4, color="tab:blue", label="measured fault")
-        ax.bar(x + 0.2, rows["simulated_shift"], width=0.4, color="tab:orange", label="simulated fault")
+        ax.bar(
+            x + 0.2, rows["simulated_shift"], width=0.4, color="tab:orange", label="simulated fault"
+        )
         for position, row in zip(x, rows.itertuples()):
             top = np.nanmax([row.measured_shift, row.simulated_shift])
-            text = "r n/a" if row.direction_correlation is None or np.isnan(row.direction_correlation) \
+            text = (
+                "r n/a"
+                if row.direction_correlation is None or np.isnan(row.direction_correlation)
                 else f"r {row.direction_correlation:+.2f}"
-            ax.annotate(text, (position, top), textcoords="offset points", xytext=(0, 3), ha="center",
-                        fontsize=8)
+            )
+            ax.annotate(
+                text,
+                (position, top),
+                textcoords="offset points",
+                xytext=(0, 3),
+                ha="center",
+                fontsize=8,
+            )
         ax.axhline(1.0, linestyle=":", color="0.4", label="one simulated healthy spread")
         ax.set_xticks(x, rows["health_state"], rotation=30, ha="right", fontsize=8)
         ax.set_yscale("log")
         ax.set_ylim(low, high)
-        ax.set_yticks([tick for tick in (0.05, 0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 50, 100, 200)
-                       if low <= tick <= high])
+        ax.set_yticks(
+            [
+                tick
+                for tick in (0.05, 0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 50, 100, 200)
+                if low <= tick <= high
+            ]
+        )
         ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))  # 0.5, 2: not 5 x 10^-1
         ax.yaxis.set_minor_formatter(NullFormatter())
         ax.set_title(condition_label(condition, value), fontsize=10)
         ax.grid(alpha=0.3, axis="y")
     axes[0, 0].set_ylabel("shift from healthy\n(rms over features, simulated healthy spreads)")
-    return _finish(fig, "Does the simulation move the features as the measured faults do?\n"
-                        "(bars: shift from healthy; r: correlation of the two shifts over features)",
-                   note, legend_from=axes[0, 0])
+    return _finish(
+        fig,
+        "Does the simulation move the features as the measured faults do?\n"
+        "(bars: shift from healthy; r: correlation of the two shifts over features)",
+        note,
+        legend_from=axes[0, 0],
+    )

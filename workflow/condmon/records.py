@@ -15,6 +15,7 @@ A record is one JSON object:
     date         the day it was written (UTC, ISO)
     figures      the benchmark's own figures (JSON)
 """
+
 from __future__ import annotations
 
 import datetime
@@ -34,6 +35,7 @@ RECORDS_DIR = ROOT / "benchmarks" / "records"
 
 def git_commit(root: Path = ROOT) -> str:
     """The checkout's commit, `+dirty` where tracked files differ from it; `unknown` outside git."""
+
     def git(*args):
         return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True)
 
@@ -69,8 +71,11 @@ def cpu_model(cpuinfo: str) -> str:
 def machine() -> dict:
     """What the figures were measured on: core count, processor model, Python version."""
     info = Path("/proc/cpuinfo")
-    return {"cpu_count": os.cpu_count(), "cpu": cpu_model(info.read_text() if info.exists() else ""),
-            "python": platform.python_version()}
+    return {
+        "cpu_count": os.cpu_count(),
+        "cpu": cpu_model(info.read_text() if info.exists() else ""),
+        "python": platform.python_version(),
+    }
 
 
 def command_line(script: str, argv=None) -> str:
@@ -80,15 +85,30 @@ def command_line(script: str, argv=None) -> str:
     return shlex.join(["python3", str(shown), *(sys.argv[1:] if argv is None else argv)])
 
 
-def make_record(benchmark: str, name: str, figures, *, script: str, argv=None, configfiles=(),
-                root: Path = ROOT, date: str | None = None) -> dict:
+def make_record(
+    benchmark: str,
+    name: str,
+    figures,
+    *,
+    script: str,
+    argv=None,
+    configfiles=(),
+    root: Path = ROOT,
+    date: str | None = None,
+) -> dict:
     """A record of `figures` (module docstring); `argv`: the script's arguments (default sys.argv's)."""
     configfiles = [str(p) for p in configfiles]
-    return {"benchmark": benchmark, "name": name, "command": command_line(script, argv),
-            "commit": COMMIT_AT_START if root == ROOT else git_commit(root), "configfiles": configfiles,
-            "config_hash": config_hash(configfiles, root), "machine": machine(),
-            "date": date or datetime.datetime.now(datetime.timezone.utc).date().isoformat(),
-            "figures": figures}
+    return {
+        "benchmark": benchmark,
+        "name": name,
+        "command": command_line(script, argv),
+        "commit": COMMIT_AT_START if root == ROOT else git_commit(root),
+        "configfiles": configfiles,
+        "config_hash": config_hash(configfiles, root),
+        "machine": machine(),
+        "date": date or datetime.datetime.now(datetime.timezone.utc).date().isoformat(),
+        "figures": figures,
+    }
 
 
 def record_path(record: dict, directory: Path = RECORDS_DIR) -> Path:
@@ -107,9 +127,13 @@ def write_record(record: dict, directory: Path | None = None) -> Path:
     return path
 
 
-def save_record(benchmark: str, name: str, figures, *, script: str, argv=None, configfiles=()) -> Path:
+def save_record(
+    benchmark: str, name: str, figures, *, script: str, argv=None, configfiles=()
+) -> Path:
     """Make and write a record (`make_record`, `write_record`): the call a benchmark ends with."""
-    return write_record(make_record(benchmark, name, figures, script=script, argv=argv, configfiles=configfiles))
+    return write_record(
+        make_record(benchmark, name, figures, script=script, argv=argv, configfiles=configfiles)
+    )
 
 
 def run_configfiles(run: Path) -> list[str]:

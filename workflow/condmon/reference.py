@@ -17,6 +17,7 @@ spectra and order features that is a level ratio.
 The reference itself (mean features per condition) is written beside the measured features, so a
 packaged model takes a new record against the same reference (`signal_model.SignalModel`).
 """
+
 from __future__ import annotations
 
 import logging
@@ -36,8 +37,9 @@ class ReferenceError(ValueError):
     """Segments without a healthy reference, or a reference that cannot be built."""
 
 
-def measured_reference(frame: pd.DataFrame, names, healthy_state: str, condition: str,
-                       reserve: dict) -> pd.DataFrame:
+def measured_reference(
+    frame: pd.DataFrame, names, healthy_state: str, condition: str, reserve: dict
+) -> pd.DataFrame:
     """Mean features of the calibration set per value of `condition` (index `condition`, columns
     `names`); an error names every condition of `frame` that has none."""
     chosen = calibration_frame(frame, healthy_state, condition, reserve)
@@ -47,21 +49,26 @@ def measured_reference(frame: pd.DataFrame, names, healthy_state: str, condition
         raise ReferenceError(
             f"{KEY}: no calibration records at {condition} {missing} (calibration records at "
             f"{sorted(reference.index.astype(float))}); every operating condition needs healthy records "
-            "the calibration sees, or switch the reference off")
+            "the calibration sees, or switch the reference off"
+        )
     return reference
 
 
-def reference_length_mismatches(frame: pd.DataFrame, healthy_state: str, condition: str, reserve: dict,
-                                simulated_segments: int) -> list[str]:
+def reference_length_mismatches(
+    frame: pd.DataFrame, healthy_state: str, condition: str, reserve: dict, simulated_segments: int
+) -> list[str]:
     """One message per condition whose calibration set holds another number of segments than a
     simulated twin's reference (`simulated_segments`). A reference averages its segments, so its
     own scatter falls with their number: measured and simulated segments taken against
     references of other lengths lie over other healthy floors (ARCHITECTURE.md, "Simulation")."""
     counts = calibration_frame(frame, healthy_state, condition, reserve).groupby(condition).size()
-    return [f"{KEY}: the calibration set at {condition} {value:g} holds {int(n)} segment(s), a simulated "
-            f"twin's reference {simulated_segments}: set features.healthy_reference.simulated_segments to "
-            f"{int(n)} so both are averages of as many segments" for value, n in counts.items()
-            if int(n) != int(simulated_segments)]
+    return [
+        f"{KEY}: the calibration set at {condition} {value:g} holds {int(n)} segment(s), a simulated "
+        f"twin's reference {simulated_segments}: set features.healthy_reference.simulated_segments to "
+        f"{int(n)} so both are averages of as many segments"
+        for value, n in counts.items()
+        if int(n) != int(simulated_segments)
+    ]
 
 
 def take_against(frame: pd.DataFrame, names, reference: pd.DataFrame, keys) -> pd.DataFrame:
@@ -73,26 +80,37 @@ def take_against(frame: pd.DataFrame, names, reference: pd.DataFrame, keys) -> p
     return out
 
 
-def refer_measured(frame: pd.DataFrame, names, reference: pd.DataFrame, condition: str) -> pd.DataFrame:
+def refer_measured(
+    frame: pd.DataFrame, names, reference: pd.DataFrame, condition: str
+) -> pd.DataFrame:
     """Measured segments against the reference of their condition (`measured_reference`)."""
     return take_against(frame, names, reference, frame[condition].astype(float))
 
 
-def refer_simulated(frame: pd.DataFrame, names, healthy_state: str, segments_per_sample: int) -> pd.DataFrame:
+def refer_simulated(
+    frame: pd.DataFrame, names, healthy_state: str, segments_per_sample: int
+) -> pd.DataFrame:
     """Simulated segments against their machine's healthy twin: the healthy sample's segments from
     `segments_per_sample` on are the machine's reference (mean), and are dropped."""
     machines = frame["record_id"].map(machine_of)
-    is_reference = (frame["health_state"] == healthy_state) & (frame["segment"] >= segments_per_sample)
+    is_reference = (frame["health_state"] == healthy_state) & (
+        frame["segment"] >= segments_per_sample
+    )
     if not is_reference.any():
-        raise ReferenceError(f"{KEY}: no healthy reference segments in the simulated records (healthy "
-                             f"samples of more than {segments_per_sample} segments); were they simulated "
-                             "with the reference on?")
+        raise ReferenceError(
+            f"{KEY}: no healthy reference segments in the simulated records (healthy "
+            f"samples of more than {segments_per_sample} segments); were they simulated "
+            "with the reference on?"
+        )
     reference = frame[is_reference].groupby(machines[is_reference])[list(names)].mean()
     keep = ~is_reference & machines.isin(reference.index)
     orphans = sorted(frame.loc[~is_reference & ~keep, "record_id"].unique())
     if orphans:
-        log.warning("%d simulated record(s) without a healthy twin (it failed) left out: %s", len(orphans),
-                    ", ".join(orphans[:5]) + (" ..." if len(orphans) > 5 else ""))
+        log.warning(
+            "%d simulated record(s) without a healthy twin (it failed) left out: %s",
+            len(orphans),
+            ", ".join(orphans[:5]) + (" ..." if len(orphans) > 5 else ""),
+        )
     kept = frame[keep]
     return take_against(kept, names, reference, machines[keep]).reset_index(drop=True)
 
@@ -113,5 +131,7 @@ def nearest_reference(reference: pd.DataFrame, values, tolerance: float) -> tupl
     distance = np.abs(values[:, None] - known[None, :])
     nearest = np.nan_to_num(distance, nan=np.inf).argmin(axis=1)
     # not within: a value far off, or none (NaN: a record that does not say its condition)
-    far = ~(np.abs(values - known[nearest]) <= tolerance * np.maximum(np.abs(known[nearest]), 1e-12))
+    far = ~(
+        np.abs(values - known[nearest]) <= tolerance * np.maximum(np.abs(known[nearest]), 1e-12)
+    )
     return nearest, sorted({str(v) for v in values[far]})

@@ -1,6 +1,7 @@
 """JSON-schema helpers for the config schemas (YAML files): load one, read its defaults, merge a
 system's fragment into the shared schema. Pure functions that import nothing of condmon, so the
 systems use them without importing `condmon.config` (which asks the system registry)."""
+
 from __future__ import annotations
 
 import copy

@@ -1,4 +1,5 @@
 """Reproducible random streams from the config seed and a job's wildcards, never the clock."""
+
 from __future__ import annotations
 
 import zlib

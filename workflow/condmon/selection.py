@@ -21,6 +21,7 @@ requests them) and to the classifier only if that asks for them too.
 or behind the selection, whichever an inner cross-validation over its training records scores
 higher; never forced (too few records for an inner CV: all features).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -62,8 +63,15 @@ class SequentialBackwardSelector(SelectorMixin, BaseEstimator):
     # metadata routing: a Pipeline (or any meta-estimator) passes the record ids on to fit
     __metadata_request__fit = {"groups": True}
 
-    def __init__(self, n_features: int = 3, estimator=None, cv=5, scoring="accuracy",
-                 n_jobs=None, random_state=0):
+    def __init__(
+        self,
+        n_features: int = 3,
+        estimator=None,
+        cv=5,
+        scoring="accuracy",
+        n_jobs=None,
+        random_state=0,
+    ):
         self.n_features = n_features
         self.estimator = estimator
         self.cv = cv
@@ -77,12 +85,19 @@ class SequentialBackwardSelector(SelectorMixin, BaseEstimator):
         if not (isinstance(self.n_features, (int, np.integer)) and 1 <= self.n_features):
             raise ValueError(f"n_features must be a positive integer, got {self.n_features!r}")
         if self.n_features >= n_in:
-            raise ValueError(f"n_features={self.n_features} must be smaller than the number of "
-                             f"input features ({n_in})")
+            raise ValueError(
+                f"n_features={self.n_features} must be smaller than the number of "
+                f"input features ({n_in})"
+            )
         estimator = default_estimator() if self.estimator is None else clone(self.estimator)
-        selector = SequentialFeatureSelector(estimator, n_features_to_select=int(self.n_features),
-                                             direction="backward", scoring=self.scoring,
-                                             cv=self._splits(X, y, groups), n_jobs=self.n_jobs)
+        selector = SequentialFeatureSelector(
+            estimator,
+            n_features_to_select=int(self.n_features),
+            direction="backward",
+            scoring=self.scoring,
+            cv=self._splits(X, y, groups),
+            n_jobs=self.n_jobs,
+        )
         selector.fit(X, y)
         self.selector_ = selector
         self.support_ = selector.get_support()
@@ -102,8 +117,11 @@ class SequentialBackwardSelector(SelectorMixin, BaseEstimator):
         n_splits = int(min(self.cv, counts.min()))
         if n_splits < 2:
             raise ValueError("every class needs at least 2 samples for cross-validation")
-        return list(StratifiedKFold(n_splits=n_splits, shuffle=True,
-                                    random_state=self.random_state).split(X, y))
+        return list(
+            StratifiedKFold(n_splits=n_splits, shuffle=True, random_state=self.random_state).split(
+                X, y
+            )
+        )
 
     def _get_support_mask(self):
         check_is_fitted(self, "support_")
@@ -184,8 +202,13 @@ class SelectionByInnerCV(ClassifierMixin, BaseEstimator):
             self.reason_ = "too few records for the selector's folds inside the inner CV"
         else:
             for choice, estimator in ((ALL_FEATURES, self.classifier), (BACKWARD, self.selected)):
-                scores = [np.mean(_fit(clone(estimator), X[train], y[train], groups[train])
-                                  .predict(X[test]) == y[test]) for train, test in folds]
+                scores = [
+                    np.mean(
+                        _fit(clone(estimator), X[train], y[train], groups[train]).predict(X[test])
+                        == y[test]
+                    )
+                    for train, test in folds
+                ]
                 self.inner_scores_[choice] = float(np.mean(scores))
             better = self.inner_scores_[BACKWARD] > self.inner_scores_[ALL_FEATURES]
             self.choice_ = BACKWARD if better else ALL_FEATURES

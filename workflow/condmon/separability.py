@@ -19,6 +19,7 @@ The ceiling must be right before it can excuse anything:
   recall stand above the permutation band (its `CHANCE_QUANTILE`), so that the ceiling
   measurably reads.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -39,11 +40,13 @@ MIN_RECORDS = 3
 PERMUTATIONS = 50
 CHANCE_QUANTILE = 0.95
 SEED = 0
-METHOD = ("SVM-RBF (standardised features, C 1.2, gamma scale, balanced class weights) on the measured "
-          "records alone, all features, every record held out once, one record of every class at a time; "
-          "balanced accuracy per segment; chance: "
-          f"the same with the records' classes permuted ({PERMUTATIONS} draws, mean and "
-          f"{100 * CHANCE_QUANTILE:.0f}th percentile)")
+METHOD = (
+    "SVM-RBF (standardised features, C 1.2, gamma scale, balanced class weights) on the measured "
+    "records alone, all features, every record held out once, one record of every class at a time; "
+    "balanced accuracy per segment; chance: "
+    f"the same with the records' classes permuted ({PERMUTATIONS} draws, mean and "
+    f"{100 * CHANCE_QUANTILE:.0f}th percentile)"
+)
 
 
 def too_few_records(frame: pd.DataFrame) -> str | None:
@@ -54,8 +57,9 @@ def too_few_records(frame: pd.DataFrame) -> str | None:
         return f"one class only ({', '.join(map(str, per_class.index))})"
     few = per_class[per_class < MIN_RECORDS]
     if len(few):
-        return (f"fewer than {MIN_RECORDS} records of " +
-                ", ".join(f"{state} ({count})" for state, count in few.items()))
+        return f"fewer than {MIN_RECORDS} records of " + ", ".join(
+            f"{state} ({count})" for state, count in few.items()
+        )
     return None
 
 
@@ -65,10 +69,16 @@ def record_folds(labels: np.ndarray, groups: np.ndarray) -> list[tuple[np.ndarra
     record short in training alike. Left out one at a time, a record's own class alone is short,
     and on features that hold nothing that alone calls it another class (pure noise, six classes
     of 4-5 records: 0.017 balanced against 1/6)."""
-    records = pd.DataFrame({"record": groups, "label": labels}).drop_duplicates("record").sort_values("record")
+    records = (
+        pd.DataFrame({"record": groups, "label": labels})
+        .drop_duplicates("record")
+        .sort_values("record")
+    )
     fold_of = dict(zip(records["record"], records.groupby("label").cumcount()))
     fold = np.array([fold_of[g] for g in groups])
-    return [(np.flatnonzero(fold != k), np.flatnonzero(fold == k)) for k in range(int(fold.max()) + 1)]
+    return [
+        (np.flatnonzero(fold != k), np.flatnonzero(fold == k)) for k in range(int(fold.max()) + 1)
+    ]
 
 
 def _predict(features: np.ndarray, labels: np.ndarray, groups: np.ndarray) -> np.ndarray:
@@ -82,14 +92,21 @@ def left_out_predictions(frame: pd.DataFrame, names) -> np.ndarray | None:
     (`too_few_records`)."""
     if too_few_records(frame) is not None:
         return None
-    return _predict(frame[list(names)].to_numpy(float), frame["health_state"].to_numpy(),
-                    frame["record_id"].to_numpy())
+    return _predict(
+        frame[list(names)].to_numpy(float),
+        frame["health_state"].to_numpy(),
+        frame["record_id"].to_numpy(),
+    )
 
 
 def held_out_accuracy(frame: pd.DataFrame, names) -> float | None:
     """Balanced accuracy of METHOD on `frame` (None: see left_out_predictions)."""
     predicted = left_out_predictions(frame, names)
-    return None if predicted is None else float(balanced_accuracy_score(frame["health_state"], predicted))
+    return (
+        None
+        if predicted is None
+        else float(balanced_accuracy_score(frame["health_state"], predicted))
+    )
 
 
 def permuted_labels(frame: pd.DataFrame, rng: np.random.Generator) -> np.ndarray:
@@ -100,7 +117,9 @@ def permuted_labels(frame: pd.DataFrame, rng: np.random.Generator) -> np.ndarray
     return frame["record_id"].map(shuffled).to_numpy()
 
 
-def chance_level(frame: pd.DataFrame, names, permutations: int = PERMUTATIONS, seed: int = SEED) -> dict:
+def chance_level(
+    frame: pd.DataFrame, names, permutations: int = PERMUTATIONS, seed: int = SEED
+) -> dict:
     """METHOD's balanced accuracy on `frame` with its records' classes permuted, `permutations`
     draws: their mean and CHANCE_QUANTILE-th quantile (what a classifier that reads nothing scores
     on these records, with their counts of records and segments)."""
@@ -110,8 +129,11 @@ def chance_level(frame: pd.DataFrame, names, permutations: int = PERMUTATIONS, s
     for _ in range(permutations):
         labels = permuted_labels(frame, rng)
         scores.append(balanced_accuracy_score(labels, _predict(features, labels, groups)))
-    return {"mean": float(np.mean(scores)), "upper": float(np.quantile(scores, CHANCE_QUANTILE)),
-            "permutations": int(permutations)}
+    return {
+        "mean": float(np.mean(scores)),
+        "upper": float(np.quantile(scores, CHANCE_QUANTILE)),
+        "permutations": int(permutations),
+    }
 
 
 def separability_entry(part: pd.DataFrame, names, permutations: int = PERMUTATIONS) -> dict:
@@ -119,16 +141,30 @@ def separability_entry(part: pd.DataFrame, names, permutations: int = PERMUTATIO
     classes the records cannot show (`not_shown`: recall below SHOWN_RECALL where the other
     classes' mean recall stands above the chance band), with the records per class; where the
     records cannot be left out, no figure and the reason (`refused`)."""
-    counts = {str(k): int(v) for k, v in part.groupby("health_state")["record_id"].nunique().items()}
-    entry = {"balanced_accuracy": None, "recall_per_class": None, "chance": None, "not_shown": None,
-             "reads_above_chance": None, "refused": too_few_records(part),
-             "records": int(part["record_id"].nunique()), "records_per_class": counts}
+    counts = {
+        str(k): int(v) for k, v in part.groupby("health_state")["record_id"].nunique().items()
+    }
+    entry = {
+        "balanced_accuracy": None,
+        "recall_per_class": None,
+        "chance": None,
+        "not_shown": None,
+        "reads_above_chance": None,
+        "refused": too_few_records(part),
+        "records": int(part["record_id"].nunique()),
+        "records_per_class": counts,
+    }
     if entry["refused"] is not None:
         return entry
     predicted = left_out_predictions(part, names)
     truth = part["health_state"].to_numpy()
     classes = sorted(set(truth))
-    recall = dict(zip(map(str, classes), map(float, recall_score(truth, predicted, labels=classes, average=None))))
+    recall = dict(
+        zip(
+            map(str, classes),
+            map(float, recall_score(truth, predicted, labels=classes, average=None)),
+        )
+    )
     chance = chance_level(part, names, permutations)
     balanced = float(balanced_accuracy_score(truth, predicted))
 
@@ -136,17 +172,33 @@ def separability_entry(part: pd.DataFrame, names, permutations: int = PERMUTATIO
         return float(np.mean([r for c, r in recall.items() if c != state])) > chance["upper"]
 
     reads = balanced > chance["upper"]
-    entry.update(balanced_accuracy=balanced, recall_per_class=recall, chance=chance, reads_above_chance=reads,
-                 not_shown=sorted(c for c, r in recall.items() if r < SHOWN_RECALL and reads and others_read(c)))
+    entry.update(
+        balanced_accuracy=balanced,
+        recall_per_class=recall,
+        chance=chance,
+        reads_above_chance=reads,
+        not_shown=sorted(
+            c for c, r in recall.items() if r < SHOWN_RECALL and reads and others_read(c)
+        ),
+    )
     return entry
 
 
-def measured_separability(frame: pd.DataFrame, names, condition: str, permutations: int = PERMUTATIONS) -> dict:
+def measured_separability(
+    frame: pd.DataFrame, names, condition: str, permutations: int = PERMUTATIONS
+) -> dict:
     """METHOD per value of the operating `condition` (e.g. speed_rpm, load) and over all of them
     (`separability_entry`)."""
     with np.errstate(all="ignore"):
-        return {"method": METHOD, "condition": condition, "features": len(names),
-                "min_records": MIN_RECORDS, "shown_recall": SHOWN_RECALL,
-                "all": separability_entry(frame, names, permutations),
-                "per_condition": {f"{value:g}": separability_entry(part, names, permutations)
-                                  for value, part in frame.groupby(condition)}}
+        return {
+            "method": METHOD,
+            "condition": condition,
+            "features": len(names),
+            "min_records": MIN_RECORDS,
+            "shown_recall": SHOWN_RECALL,
+            "all": separability_entry(frame, names, permutations),
+            "per_condition": {
+                f"{value:g}": separability_entry(part, names, permutations)
+                for value, part in frame.groupby(condition)
+            },
+        }

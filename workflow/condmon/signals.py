@@ -4,6 +4,7 @@ Long form, one row per record segment and channel (see ARCHITECTURE.md, "Signal 
 Writing is atomic (temporary file, then rename) so a killed job never leaves a table that a
 later stage could read as complete.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -62,9 +63,18 @@ def package_versions(names=("numpy", "scipy", "exudyn", "pyarrow", "scikit-learn
     return versions
 
 
-def make_rows(record_id, source, health_state, speed_rpm, load, fs_hz, channels: dict,
-              segment_length: int | None = None, params: dict | None = None,
-              segment_hop: int | None = None) -> list[dict]:
+def make_rows(
+    record_id,
+    source,
+    health_state,
+    speed_rpm,
+    load,
+    fs_hz,
+    channels: dict,
+    segment_length: int | None = None,
+    params: dict | None = None,
+    segment_hop: int | None = None,
+) -> list[dict]:
     """Rows for one record: `channels` maps channel name to a 1-D signal (m/s^2).
 
     With `segment_length`, each channel is cut into segments starting every `segment_hop`
@@ -81,12 +91,23 @@ def make_rows(record_id, source, health_state, speed_rpm, load, fs_hz, channels:
         if n_segments == 0:
             raise SignalTableError(
                 f"record {record_id!r} channel {channel!r}: {len(signal)} samples, "
-                f"shorter than one segment ({n})")
+                f"shorter than one segment ({n})"
+            )
         for seg in range(n_segments):
-            rows.append(dict(record_id=record_id, segment=seg, source=source,
-                             health_state=health_state, speed_rpm=float(speed_rpm),
-                             load=float(load), fs_hz=float(fs_hz), channel=channel,
-                             signal=signal[seg * hop:seg * hop + n], params=params_json))
+            rows.append(
+                dict(
+                    record_id=record_id,
+                    segment=seg,
+                    source=source,
+                    health_state=health_state,
+                    speed_rpm=float(speed_rpm),
+                    load=float(load),
+                    fs_hz=float(fs_hz),
+                    channel=channel,
+                    signal=signal[seg * hop : seg * hop + n],
+                    params=params_json,
+                )
+            )
     return rows
 
 
@@ -95,8 +116,10 @@ def write_signal_table(rows, path, config: dict | None = None) -> None:
     frame = pd.DataFrame(rows, columns=COLUMNS) if not isinstance(rows, pd.DataFrame) else rows
     validate(frame, str(path))
     table = pa.Table.from_pandas(frame[COLUMNS], schema=SCHEMA, preserve_index=False)
-    meta = {b"condmon.config_hash": config_hash(config or {}).encode(),
-            b"condmon.package_versions": json.dumps(package_versions()).encode()}
+    meta = {
+        b"condmon.config_hash": config_hash(config or {}).encode(),
+        b"condmon.package_versions": json.dumps(package_versions()).encode(),
+    }
     table = table.replace_schema_metadata({**(table.schema.metadata or {}), **meta})
     write_table(table, path)
 
@@ -122,7 +145,9 @@ def read_unvalidated(path, required=COLUMNS) -> pd.DataFrame:
     if missing:
         raise SignalTableError(f"{path}: missing signal-table columns {missing}")
     frame = table.to_pandas()
-    frame["signal"] = [np.asarray([] if s is None else s, dtype=np.float32) for s in frame["signal"]]
+    frame["signal"] = [
+        np.asarray([] if s is None else s, dtype=np.float32) for s in frame["signal"]
+    ]
     return frame
 
 
@@ -147,8 +172,10 @@ def validate(frame: pd.DataFrame, where: str, allowed_sources=SOURCES) -> None:
     dup = frame.duplicated(["record_id", "segment", "channel"])
     if dup.any():
         first = frame.loc[dup].iloc[0]
-        raise SignalTableError(f"{where}: duplicate row for record {first.record_id!r} "
-                               f"segment {first.segment} channel {first.channel!r}")
+        raise SignalTableError(
+            f"{where}: duplicate row for record {first.record_id!r} "
+            f"segment {first.segment} channel {first.channel!r}"
+        )
     for record_id, rows in frame.groupby("record_id", sort=False):
         for column in ("health_state", "speed_rpm", "fs_hz", "source"):
             if rows[column].nunique() != 1:
@@ -157,15 +184,21 @@ def validate(frame: pd.DataFrame, where: str, allowed_sources=SOURCES) -> None:
     for row in frame.itertuples(index=False):
         signal = np.asarray(row.signal)
         if signal.ndim != 1 or len(signal) == 0:
-            raise SignalTableError(f"{where}: record {row.record_id!r} channel {row.channel!r} "
-                                   f"segment {row.segment}: empty signal")
+            raise SignalTableError(
+                f"{where}: record {row.record_id!r} channel {row.channel!r} "
+                f"segment {row.segment}: empty signal"
+            )
         if not np.isfinite(signal).all():
-            raise SignalTableError(f"{where}: record {row.record_id!r} channel {row.channel!r} "
-                                   f"segment {row.segment}: non-finite samples (NaN or inf)")
+            raise SignalTableError(
+                f"{where}: record {row.record_id!r} channel {row.channel!r} "
+                f"segment {row.segment}: non-finite samples (NaN or inf)"
+            )
         lengths.add(len(signal))
     if len(lengths) > 1:
-        raise SignalTableError(f"{where}: segments differ in length {sorted(lengths)}; "
-                               "all segments of a table must have the same number of samples")
+        raise SignalTableError(
+            f"{where}: segments differ in length {sorted(lengths)}; "
+            "all segments of a table must have the same number of samples"
+        )
 
 
 def to_arrays(frame: pd.DataFrame, channels) -> tuple[pd.DataFrame, np.ndarray]:
@@ -174,8 +207,12 @@ def to_arrays(frame: pd.DataFrame, channels) -> tuple[pd.DataFrame, np.ndarray]:
     Returns the id frame and a float32 array of shape (n_segments, n_channels, n_samples),
     channels in the given order. Raises if a segment lacks a channel.
     """
-    ids = (frame[ID_COLUMNS].drop_duplicates(["record_id", "segment"])
-           .sort_values(["record_id", "segment"]).reset_index(drop=True))
+    ids = (
+        frame[ID_COLUMNS]
+        .drop_duplicates(["record_id", "segment"])
+        .sort_values(["record_id", "segment"])
+        .reset_index(drop=True)
+    )
     by_key = {(r.record_id, r.segment, r.channel): r.signal for r in frame.itertuples(index=False)}
     n_samples = len(frame["signal"].iloc[0])
     out = np.empty((len(ids), len(channels), n_samples), dtype=np.float32)
@@ -186,4 +223,3 @@ def to_arrays(frame: pd.DataFrame, channels) -> tuple[pd.DataFrame, np.ndarray]:
             except KeyError:
                 raise SignalTableError(f"record {rid!r} segment {seg}: no channel {ch!r}") from None
     return ids, out
-

@@ -1,5 +1,6 @@
 """Simulation stage: batches of one system's runs per health state and speed, each sample with
 its own draw of the parameters (perturbation or domain randomisation, the system's rule)."""
+
 from __future__ import annotations
 
 import json
@@ -17,16 +18,18 @@ class TooManyFailures(RuntimeError):
     """More simulations of a batch failed than the config tolerates."""
 
 
-def simulate_with_retry(system, parameters: dict, health_state: str, speed_rpm: float, duration_s: float,
-                        seed: int):
+def simulate_with_retry(
+    system, parameters: dict, health_state: str, speed_rpm: float, duration_s: float, seed: int
+):
     """Run one sample; if it fails, retry once at half the time step with the same seed.
 
     Returns (signals or None, list of error messages)."""
     errors = []
     for refinement in (1, 2):
         try:
-            return system.simulate_sample(parameters, health_state, speed_rpm, duration_s, seed,
-                                          step_refinement=refinement), errors
+            return system.simulate_sample(
+                parameters, health_state, speed_rpm, duration_s, seed, step_refinement=refinement
+            ), errors
         except SimulationError as exc:
             errors.append(f"time step 1/{refinement} of the configured: {exc}")
     return None, errors
@@ -41,12 +44,23 @@ def machine_of(record_id: str) -> str:
     """The machine id of a simulated record id (``sim-<health state>-<machine id>``)."""
     parts = str(record_id).rsplit("-", 3)
     if len(parts) != 4 or not parts[0].startswith("sim-") or not parts[1].endswith("rpm"):
-        raise ValueError(f"{record_id!r} is not a simulated record id (sim-<health state>-<speed>rpm-b<batch>-s<sample>)")
+        raise ValueError(
+            f"{record_id!r} is not a simulated record id (sim-<health state>-<speed>rpm-b<batch>-s<sample>)"
+        )
     return "-".join(parts[1:])
 
 
-def simulate_batch(system, calibrated: dict, health_state: str, speed_rpm: float, batch: int, samples: int,
-                   simulation: dict, background=None, reference_segments: int = 0):
+def simulate_batch(
+    system,
+    calibrated: dict,
+    health_state: str,
+    speed_rpm: float,
+    batch: int,
+    samples: int,
+    simulation: dict,
+    background=None,
+    reference_segments: int = 0,
+):
     """Signal-table rows for `samples` runs of one (health state, speed, batch), and a report
     (timings, failures with their parameters).
 
@@ -69,55 +83,108 @@ def simulate_batch(system, calibrated: dict, health_state: str, speed_rpm: float
     time with its damaged twins' samples.
     """
     paired = reference_segments > 0
-    stream = ("simulate", float(speed_rpm), batch) if paired else ("simulate", health_state, float(speed_rpm), batch)
+    stream = (
+        ("simulate", float(speed_rpm), batch)
+        if paired
+        else ("simulate", health_state, float(speed_rpm), batch)
+    )
     rng = job_rng(simulation["seed"], *stream)
     acquisition = (health_state,) if paired else ()  # paired twins: each state its own noise
     fs, segment_length = system.output_rate_hz, system.segment_length
-    segments = simulation["segments_per_sample"] + (reference_segments if health_state == system.healthy_state else 0)
+    segments = simulation["segments_per_sample"] + (
+        reference_segments if health_state == system.healthy_state else 0
+    )
     duration = segment_length * segments / fs
     sensor_noise = float(calibrated.get("sensor_noise") or 0.0)
     if background:
         source = background.source_speed(speed_rpm)
         if source != float(speed_rpm):
-            log.warning("no measured healthy records at %g rpm: its samples take the background of the nearest "
-                        "measured speed, %g rpm, as it is (its shaft-synchronous lines are not moved)",
-                        speed_rpm, source)
+            log.warning(
+                "no measured healthy records at %g rpm: its samples take the background of the nearest "
+                "measured speed, %g rpm, as it is (its shaft-synchronous lines are not moved)",
+                speed_rpm,
+                source,
+            )
         else:
             log.info("adding the calibrated background of %g rpm to every sample", source)
     elif background is not None:
-        log.info("the calibration found no measured healthy records: no background, white sensor noise only")
+        log.info(
+            "the calibration found no measured healthy records: no background, white sensor noise only"
+        )
     rows, failures, seconds = [], [], []
     for i in range(samples):
         values = system.sample_parameters(calibrated, health_state, rng, simulation)
-        sample_seed = int(rng.integers(2 ** 32))  # drawn for every sample, failed or not: streams stay aligned
+        sample_seed = int(
+            rng.integers(2**32)
+        )  # drawn for every sample, failed or not: streams stay aligned
         record_id = f"sim-{health_state}-{machine_id(speed_rpm, batch, i)}"
         start = time.perf_counter()
-        signals, errors = simulate_with_retry(system, values, health_state, float(speed_rpm), duration, sample_seed)
+        signals, errors = simulate_with_retry(
+            system, values, health_state, float(speed_rpm), duration, sample_seed
+        )
         seconds.append(time.perf_counter() - start)
         for error in errors:
             log.warning("%s: %s", record_id, error)
         if signals is None:
             failures.append({"record_id": record_id, "errors": errors, "params": values})
             continue
-        log.info("%s: %.2f s (%d of %d, about %.0f s left)", record_id, seconds[-1], i + 1, samples,
-                 sum(seconds) / (i + 1) * (samples - i - 1))
+        log.info(
+            "%s: %.2f s (%d of %d, about %.0f s left)",
+            record_id,
+            seconds[-1],
+            i + 1,
+            samples,
+            sum(seconds) / (i + 1) * (samples - i - 1),
+        )
         white = list(signals)
         if background:
-            signals, white = background.add(signals, float(speed_rpm), fs, job_rng(sample_seed, "background", *acquisition))
+            signals, white = background.add(
+                signals, float(speed_rpm), fs, job_rng(sample_seed, "background", *acquisition)
+            )
         if sensor_noise > 0 and white:
             noise = job_rng(sample_seed, "noise", *acquisition)
-            signals = {name: signal + noise.normal(0.0, sensor_noise, size=signal.shape) if name in white else signal
-                       for name, signal in signals.items()}
-        rows += make_rows(record_id, "simulated", health_state, speed_rpm, system.sample_load(speed_rpm, values),
-                          fs, signals, segment_length=segment_length, params={**values, "seed": sample_seed})
-    report = batch_report(health_state, speed_rpm, batch, samples, failures, seconds,
-                          system.settle_seconds + duration, simulation["max_failed_share"],
-                          what=f"{system.name} simulations")
+            signals = {
+                name: signal + noise.normal(0.0, sensor_noise, size=signal.shape)
+                if name in white
+                else signal
+                for name, signal in signals.items()
+            }
+        rows += make_rows(
+            record_id,
+            "simulated",
+            health_state,
+            speed_rpm,
+            system.sample_load(speed_rpm, values),
+            fs,
+            signals,
+            segment_length=segment_length,
+            params={**values, "seed": sample_seed},
+        )
+    report = batch_report(
+        health_state,
+        speed_rpm,
+        batch,
+        samples,
+        failures,
+        seconds,
+        system.settle_seconds + duration,
+        simulation["max_failed_share"],
+        what=f"{system.name} simulations",
+    )
     return rows, report
 
 
-def batch_report(health_state, speed_rpm, batch, samples, failures, seconds, simulated_seconds,
-                 max_failed_share, what="simulations") -> dict:
+def batch_report(
+    health_state,
+    speed_rpm,
+    batch,
+    samples,
+    failures,
+    seconds,
+    simulated_seconds,
+    max_failed_share,
+    what="simulations",
+) -> dict:
     """A simulation job's report (samples, failures with their parameters, wall seconds per
     sample); TooManyFailures when more than `max_failed_share` of the samples failed."""
     if len(failures) > max_failed_share * samples:
@@ -125,7 +192,15 @@ def batch_report(health_state, speed_rpm, batch, samples, failures, seconds, sim
         raise TooManyFailures(
             f"{len(failures)} of {samples} {what} of {health_state} at {speed_rpm:g} rpm batch {batch} "
             f"failed (tolerated share {max_failed_share:g}); first: {first['record_id']} "
-            f"{first['errors'][-1]} with parameters {json.dumps(first['params'], default=str)}")
-    return {"health_state": health_state, "speed_rpm": float(speed_rpm), "batch": batch, "samples": samples,
-            "succeeded": samples - len(failures), "failures": failures,
-            "simulated_seconds_per_sample": simulated_seconds, "wall_seconds": seconds}
+            f"{first['errors'][-1]} with parameters {json.dumps(first['params'], default=str)}"
+        )
+    return {
+        "health_state": health_state,
+        "speed_rpm": float(speed_rpm),
+        "batch": batch,
+        "samples": samples,
+        "succeeded": samples - len(failures),
+        "failures": failures,
+        "simulated_seconds_per_sample": simulated_seconds,
+        "wall_seconds": seconds,
+    }

@@ -1,4 +1,5 @@
 """The amplitude spectrum every feature and calibration cost is built on."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -28,8 +29,9 @@ def amplitude_spectrum(signal, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
     return np.fft.rfftfreq(n, d=1.0 / fs_hz), amplitudes
 
 
-def band_values(freqs, amplitudes, low: float, width: float, n_bands: int, statistic: str = "mean"
-                ) -> np.ndarray:
+def band_values(
+    freqs, amplitudes, low: float, width: float, n_bands: int, statistic: str = "mean"
+) -> np.ndarray:
     """Per band of `width` over [low, low + n_bands x width), the mean ("mean") or root mean square
     ("rms") of the amplitudes of the bins inside it (bands along the last axis).
 

@@ -19,6 +19,7 @@ Lei et al. (2008), Table 1 (mean of the spectrum, frequency centre, root-mean-sq
 standard deviation frequency). Envelope analysis: Randall, Antoni (2011), "Rolling element bearing
 diagnostics - a tutorial", MSSP 25, 485-520; Smith, Randall (2015), MSSP 64-65, 100-131 (CWRU).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -26,6 +27,7 @@ import scipy.stats
 from scipy.signal import butter, hilbert, periodogram, sosfiltfilt
 from sklearn.base import BaseEstimator, TransformerMixin
 
+from condmon import envelope as envelope_analysis
 from condmon.spectra import amplitude_spectrum
 
 
@@ -45,8 +47,9 @@ def highpass(x, fs_hz: float, cutoff_hz: float = 10.0, order: int = 4) -> np.nda
         raise ValueError(f"high-pass cutoff {cutoff_hz} Hz must lie in (0, fs/2 = {fs_hz / 2} Hz)")
     sos = butter(order, cutoff_hz, btype="highpass", fs=fs_hz, output="sos")
     padlen = min(x.shape[-1] - 1, int(np.ceil(3 * fs_hz / cutoff_hz)))
-    return sosfiltfilt(sos, x - x.mean(axis=-1, keepdims=True), axis=-1, padtype="even",
-                       padlen=padlen)
+    return sosfiltfilt(
+        sos, x - x.mean(axis=-1, keepdims=True), axis=-1, padtype="even", padlen=padlen
+    )
 
 
 def bandpass(x, fs_hz: float, band_hz=(2000.0, 5000.0), order: int = 4) -> np.ndarray:
@@ -155,7 +158,7 @@ def frequency_centre(x, fs_hz: float):
 def rms_frequency(x, fs_hz: float):
     """RMS frequency RMSF = sqrt(sum f_k^2 s_k / sum s_k) (Hz)."""
     f, s = _spectrum(x, fs_hz)
-    return np.sqrt((s * f ** 2).sum(axis=-1) / s.sum(axis=-1))
+    return np.sqrt((s * f**2).sum(axis=-1) / s.sum(axis=-1))
 
 
 def std_frequency(x, fs_hz: float):
@@ -203,8 +206,7 @@ def _speed_hz(speed_rpm, shape) -> np.ndarray:
     return speed
 
 
-def envelope_line_ratio(freqs, amps, line_hz, tolerance: float = 0.015,
-                        floor_halfwidth_hz=15.0):
+def envelope_line_ratio(freqs, amps, line_hz, tolerance: float = 0.015, floor_halfwidth_hz=15.0):
     """Line-over-local-floor ratio of an envelope spectrum at `line_hz` (per segment).
 
     line  = max amplitude within line_hz (1 +/- tolerance);
@@ -228,8 +230,9 @@ def envelope_line_ratio(freqs, amps, line_hz, tolerance: float = 0.015,
     return out
 
 
-def envelope_band_energy(x, fs_hz: float, line_hz, band_hz=(2000.0, 5000.0),
-                         tolerance: float = 0.015):
+def envelope_band_energy(
+    x, fs_hz: float, line_hz, band_hz=(2000.0, 5000.0), tolerance: float = 0.015
+):
     """Power of the envelope (`envelope`) within line_hz (1 +/- tolerance), widened to at least
     +/- 2 FFT bins (the Hann main lobe), per segment: the envelope's periodogram (Hann, density
     scaling, single-sided) summed over the band times the bin width. A sinusoidal envelope
@@ -260,10 +263,30 @@ def band_power(freqs, density, line_hz, tolerance):
 
 
 # -- the transformer -------------------------------------------------------------------------
-TIME_FEATURES = ("rms", "peak", "kurtosis", "crest_factor", "skewness", "impulse_factor",
-                 "shape_factor", "mean", "std", "talaf", "thikat")
+TIME_FEATURES = (
+    "rms",
+    "peak",
+    "kurtosis",
+    "crest_factor",
+    "skewness",
+    "impulse_factor",
+    "shape_factor",
+    "mean",
+    "std",
+    "talaf",
+    "thikat",
+)
 FREQUENCY_FEATURES = ("mean_frequency", "rms_frequency", "frequency_centre", "std_frequency")
 STUDY_FEATURES = TIME_FEATURES + FREQUENCY_FEATURES  # the study's 15
+# the envelope analysis of `StatisticalFeatures` (features.statistical.envelope's defaults, and the
+# sidebands the system gives: none)
+ENVELOPE_DEFAULTS = {
+    "band": "fixed",
+    "prewhiten": False,
+    "harmonics": 1,
+    "kurtogram_max_level": 3,
+    "sidebands": None,
+}
 
 
 class StatisticalFeatures(TransformerMixin, BaseEstimator):
@@ -273,9 +296,16 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
 
     Every segment is high-pass filtered first (`highpass_hz`, default 10 Hz: no DC offset or
     drift, which differ between sensors and records and would let a classifier learn the record).
-    Envelope features per defect order o (line at o x shaft speed of the segment):
-    `env_energy_<name>` (`envelope_band_energy`) and `env_ratio_<name>`
-    (`envelope_line_ratio`, floor over +/- `floor_halfwidth_orders` x shaft speed).
+    Envelope features per defect order o (line at o x shaft speed of the segment), by the
+    envelope analysis `envelope_analysis` (a dict, `ENVELOPE_DEFAULTS` for what it leaves out):
+    `band` (`fixed`: the band `band_hz`; `kurtogram`: each segment's band of largest spectral
+    kurtosis, levels to `kurtogram_max_level`), after cepstral prewhitening where `prewhiten`
+    (`condmon.envelope`); `env_ratio_<name>`: the squared envelope spectrum's summed line heights
+    over their summed local floors (`condmon.envelope.line_ratio`, floor over +/-
+    `floor_halfwidth_orders` x shaft speed) at the defect's harmonics 1..`harmonics`, each with
+    sidebands at +/- the spacing `sidebands` gives the defect ({name: order}: the system's
+    `defect_sidebands()`); `env_energy_<name>`: the power of the (plain) envelope of that band within
+    the fundamental's window (`band_power`).
     Parameters are constructor arguments; stateless (fit only checks them).
 
     transform(X, speed_rpm): X (n_segments, n_samples), speed_rpm scalar or (n_segments,) ->
@@ -284,10 +314,19 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
     `rms_ref` is RMS_0 of TALAF/THIKAT in the signal's unit.
     """
 
-    def __init__(self, fs_hz: float = 12000.0, band_hz=(2000.0, 5000.0),
-                 highpass_hz: float | None = 10.0, defect_orders: dict | None = None,
-                 line_tolerance: float = 0.015, floor_halfwidth_orders: float = 0.5,
-                 rms_ref: float = 1.0, envelope: bool = True, prefix: str = ""):
+    def __init__(
+        self,
+        fs_hz: float = 12000.0,
+        band_hz=(2000.0, 5000.0),
+        highpass_hz: float | None = 10.0,
+        defect_orders: dict | None = None,
+        line_tolerance: float = 0.015,
+        floor_halfwidth_orders: float = 0.5,
+        rms_ref: float = 1.0,
+        envelope: bool = True,
+        prefix: str = "",
+        envelope_analysis: dict | None = None,
+    ):
         self.fs_hz = fs_hz
         self.band_hz = band_hz
         self.highpass_hz = highpass_hz
@@ -297,6 +336,7 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
         self.rms_ref = rms_ref
         self.envelope = envelope
         self.prefix = prefix
+        self.envelope_analysis = envelope_analysis
 
     def _orders(self) -> dict:
         return dict(self.defect_orders or {})
@@ -325,29 +365,91 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
             raise ValueError("segments contain NaN or inf")
         fs = float(self.fs_hz)
         x = highpass(X, fs, self.highpass_hz)
-        columns = [rms(x), peak(x), kurtosis(x), crest_factor(x), skewness(x), impulse_factor(x),
-                   shape_factor(x), mean(x), std(x), talaf(x, self.rms_ref),
-                   thikat(x, self.rms_ref)]
-        columns += [mean_frequency(x, fs), rms_frequency(x, fs), frequency_centre(x, fs),
-                    std_frequency(x, fs)]
+        columns = [
+            rms(x),
+            peak(x),
+            kurtosis(x),
+            crest_factor(x),
+            skewness(x),
+            impulse_factor(x),
+            shape_factor(x),
+            mean(x),
+            std(x),
+            talaf(x, self.rms_ref),
+            thikat(x, self.rms_ref),
+        ]
+        columns += [
+            mean_frequency(x, fs),
+            rms_frequency(x, fs),
+            frequency_centre(x, fs),
+            std_frequency(x, fs),
+        ]
         if self.envelope and self._orders():
             if speed_rpm is None:
-                raise ValueError("envelope features need the shaft speed of every segment "
-                                 "(speed_rpm)")
+                raise ValueError(
+                    "envelope features need the shaft speed of every segment (speed_rpm)"
+                )
             shaft_hz = _speed_hz(speed_rpm, X.shape[:1])
             orders = self._orders()
-            env = envelope(x, fs, self.band_hz)
-            freqs, amps = _amplitude_spectrum_padded(env, fs)
-            psd_freqs, density = envelope_periodogram(env, fs)  # once for every order
-            energies = [band_power(psd_freqs, density, o * shaft_hz, self.line_tolerance)
-                        for o in orders.values()]
-            ratios = [envelope_line_ratio(freqs, amps, o * shaft_hz, self.line_tolerance,
-                                          self.floor_halfwidth_orders * shaft_hz)
-                      for o in orders.values()]
+            options = self._envelope()
+            sets = envelope_analysis.fault_line_sets(
+                orders, options["sidebands"], options["harmonics"], self.line_tolerance
+            )
+            signal, bands = envelope_analysis.demodulation_bands(
+                x,
+                fs,
+                self.analysis(),
+                self.band_hz,
+                options["kurtogram_max_level"],
+                envelope_analysis.min_bandwidth_hz(
+                    sets, shaft_hz, self.line_tolerance, self.floor_halfwidth_orders
+                ),
+            )
+            freqs, amps = envelope_analysis.squared_envelope_spectrum(signal, fs, bands)
+            env = np.abs(envelope_analysis.analytic_band(signal, fs, bands))
+            psd_freqs, density = envelope_periodogram(env - env.mean(axis=-1, keepdims=True), fs)
+            energies = [
+                band_power(psd_freqs, density, o * shaft_hz, self.line_tolerance)
+                for o in orders.values()
+            ]
+            ratios = [
+                envelope_analysis.line_ratio(
+                    freqs,
+                    amps,
+                    np.outer(shaft_hz, sets[name]),
+                    self.line_tolerance,
+                    self.floor_halfwidth_orders * shaft_hz,
+                )
+                for name in orders
+            ]
             columns += energies + ratios
         return np.column_stack(columns)
 
+    def _envelope(self) -> dict:
+        """`envelope_analysis` over `ENVELOPE_DEFAULTS`; an unknown key is an error naming it."""
+        given = dict(self.envelope_analysis or {})
+        unknown = sorted(set(given) - set(ENVELOPE_DEFAULTS))
+        if unknown:
+            raise ValueError(
+                f"envelope_analysis: unknown key(s) {unknown}; choose among {sorted(ENVELOPE_DEFAULTS)}"
+            )
+        return {**ENVELOPE_DEFAULTS, **given}
+
+    def analysis(self) -> str:
+        """The envelope analysis's name (`condmon.envelope.ANALYSES`)."""
+        options = self._envelope()
+        return ("prewhitened_" if options["prewhiten"] else "") + str(options["band"])
+
     def _check_params(self) -> None:
+        options = self._envelope()
+        if self.analysis() not in envelope_analysis.ANALYSES:
+            raise ValueError(
+                f"envelope_analysis band {options['band']!r}: choose fixed or kurtogram"
+            )
+        if not (isinstance(options["harmonics"], (int, np.integer)) and options["harmonics"] >= 1):
+            raise ValueError(
+                f"envelope_analysis harmonics must be a whole number >= 1, got {options['harmonics']!r}"
+            )
         if not self.fs_hz > 0:
             raise ValueError(f"fs_hz must be positive, got {self.fs_hz}")
         low, high = self.band_hz
@@ -367,15 +469,21 @@ class StatisticalFeatures(TransformerMixin, BaseEstimator):
 
 
 # -- features tables -------------------------------------------------------------------------
-def statistical_features_from_params(params: dict, fs_hz: float, prefix: str = "",
-                                     defect_orders: dict | None = None) -> StatisticalFeatures:
+def statistical_features_from_params(
+    params: dict, fs_hz: float, prefix: str = "", defect_orders: dict | None = None
+) -> StatisticalFeatures:
     """The extractor a `features.statistical` config section describes (band_hz, highpass_hz,
-    line_tolerance, floor_halfwidth_orders, rms_ref), with envelope lines at `defect_orders` (the
-    system's; None: none)."""
+    line_tolerance, floor_halfwidth_orders, rms_ref; its `envelope` analysis: band, prewhiten,
+    harmonics, kurtogram_max_level; `line_sidebands`, the system's, in the rules' settings: `statistical_feature_params`),
+    with envelope lines at `defect_orders` (the system's; None: none)."""
     keys = ("band_hz", "highpass_hz", "line_tolerance", "floor_halfwidth_orders", "rms_ref")
     kwargs = {k: params[k] for k in keys if k in params}
     if "band_hz" in kwargs:
         kwargs["band_hz"] = tuple(kwargs["band_hz"])
+    analysis = dict(params.get("envelope") or {})
+    if params.get("line_sidebands"):
+        analysis["sidebands"] = dict(params["line_sidebands"])
+    kwargs["envelope_analysis"] = analysis
     if defect_orders is not None:
         kwargs["defect_orders"] = dict(defect_orders)
     return StatisticalFeatures(fs_hz=fs_hz, prefix=prefix, **kwargs)

@@ -33,6 +33,7 @@ parent per config hash (``condmon.compare``). A remote server (http/https) is pr
 MLflow's HTTP retries are capped, so a server that is down, or dies mid-way, fails the job in
 seconds naming its URI; the parent it leaves unfinished never counts.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -71,9 +72,11 @@ CURVES = ("train_loss", "train_accuracy", "val_loss", "val_accuracy")
 HISTORY_FILE = "history.parquet"  # beside the models of a classifier trained by epochs (CNN)
 # Fail fast against a dead server instead of MLflow's default minutes of retries; the environment
 # can still override these.
-HTTP_ENV_DEFAULTS = {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": "1",
-                     "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
-                     "MLFLOW_HTTP_REQUEST_TIMEOUT": "30"}
+HTTP_ENV_DEFAULTS = {
+    "MLFLOW_HTTP_REQUEST_MAX_RETRIES": "1",
+    "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
+    "MLFLOW_HTTP_REQUEST_TIMEOUT": "30",
+}
 PROBE_TIMEOUT_S = 5.0
 
 
@@ -82,6 +85,7 @@ class TrackingError(RuntimeError):
 
 
 # --------------------------------------------------------------------------- tracking store
+
 
 def resolve_tracking_uri(uri: str, workdir=".") -> str:
     """Make a relative SQLite path absolute (relative to ``workdir``) and create its directory."""
@@ -107,7 +111,7 @@ def sqlite_path(uri: str, workdir=".") -> Path | None:
     """The absolute file of a SQLite URI (relative to ``workdir``), None for another store."""
     if not uri.startswith(SQLITE):
         return None
-    path = Path(uri[len(SQLITE):])
+    path = Path(uri[len(SQLITE) :])
     return path if path.is_absolute() else (Path(workdir) / path).resolve()
 
 
@@ -134,8 +138,10 @@ def check_tracking_server(uri: str, timeout_s: float = PROBE_TIMEOUT_S) -> None:
         reason = getattr(exc, "reason", exc)
     else:
         return
-    raise TrackingError(f"MLflow tracking server {uri} is unreachable ({reason}). Start the server "
-                        f"or set the tracking URI to a reachable one (e.g. {DEFAULT_TRACKING_URI})")
+    raise TrackingError(
+        f"MLflow tracking server {uri} is unreachable ({reason}). Start the server "
+        f"or set the tracking URI to a reachable one (e.g. {DEFAULT_TRACKING_URI})"
+    )
 
 
 def _sync_at_checkpoints(connection, _record) -> None:
@@ -150,12 +156,15 @@ def use_write_ahead_log(uri: str) -> None:
     SQLite's write-ahead log does not work, keep the default journal."""
     if not uri.startswith(SQLITE):
         return
-    path = Path(uri[len(SQLITE):])
+    path = Path(uri[len(SQLITE) :])
     with contextlib.suppress(OSError):  # /proc/mounts: Linux; elsewhere assume a local disk
         mounts = [line.split()[1:3] for line in Path("/proc/mounts").read_text().splitlines()]
         folder = str(path.parent.resolve())
-        fstype = max(((m, t) for m, t in mounts if folder == m or folder.startswith(m.rstrip("/") + "/")),
-                     key=lambda mount: len(mount[0]), default=("", ""))[1]
+        fstype = max(
+            ((m, t) for m, t in mounts if folder == m or folder.startswith(m.rstrip("/") + "/")),
+            key=lambda mount: len(mount[0]),
+            default=("", ""),
+        )[1]
         if re.match(r"(nfs|cifs|smb|lustre|gpfs|beegfs|ceph|gluster|fuse)", fstype):
             return
     with contextlib.closing(sqlite3.connect(path, timeout=30)) as db:
@@ -179,7 +188,7 @@ def get_or_create_experiment(client, uri: str, name: str) -> str:
     if experiment is None:
         location = None  # a server picks its own artifact root
         if uri.startswith(SQLITE):
-            location = (Path(uri[len(SQLITE):]).parent / "mlartifacts" / name).as_uri()
+            location = (Path(uri[len(SQLITE) :]).parent / "mlartifacts" / name).as_uri()
         try:
             return client.create_experiment(name, artifact_location=location, tags=EXPERIMENT_KIND)
         except MlflowException as exc:  # created meanwhile by another pipeline logging at once
@@ -201,10 +210,14 @@ def log_inputs(inputs: dict, attempts: int = 3) -> None:
     import mlflow
     from mlflow.exceptions import MlflowException
 
-    contexts = ["training" if name.startswith("simulated") else "training_and_test" for name in inputs]
+    contexts = [
+        "training" if name.startswith("simulated") else "training_and_test" for name in inputs
+    ]
     for attempt in range(attempts):
         try:
-            mlflow.log_inputs(list(inputs.values()), contexts=contexts, tags_list=[None] * len(inputs))
+            mlflow.log_inputs(
+                list(inputs.values()), contexts=contexts, tags_list=[None] * len(inputs)
+            )
             return
         except MlflowException as exc:
             message = str(exc).lower()
@@ -217,13 +230,26 @@ def log_inputs(inputs: dict, attempts: int = 3) -> None:
 
 # --------------------------------------------------------------------------- inputs
 
+
 def git_state(cwd=".") -> tuple[str, str]:
     """(commit, dirty) of the working tree, ("unknown", "unknown") outside git."""
     try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True,
-                                text=True, timeout=10, check=True).stdout.strip()
-        status = subprocess.run(["git", "status", "--porcelain"], cwd=cwd, capture_output=True,
-                                text=True, timeout=10, check=True).stdout
+        commit = subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            cwd=cwd,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
+        status = subprocess.run(
+            ["git", "status", "--porcelain"],
+            cwd=cwd,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout
     except (OSError, subprocess.SubprocessError):
         return "unknown", "unknown"
     return commit, "true" if status.strip() else "false"
@@ -245,22 +271,34 @@ def changed_keys(params: dict, earlier: dict, shown: int = 3) -> str:
     """The config keys whose values differ from an `earlier` run's params, for a run's name:
     "classifiers.svm.C=3.0" (long values by key alone), at most `shown`, then "+N more"."""
     keys = sorted(k for k in set(params) | set(earlier) if params.get(k) != earlier.get(k))
-    parts = [f"{k}={params[k]}" if k in params and len(params[k]) <= 20 else k for k in keys[:shown]]
+    parts = [
+        f"{k}={params[k]}" if k in params and len(params[k]) <= 20 else k for k in keys[:shown]
+    ]
     if len(keys) > shown:
         parts.append(f"+{len(keys) - shown} more")
     return ", ".join(parts)
 
 
-def parent_run_name(client, experiment_id: str, run_name: str, config_hash: str, params: dict,
-                    now: datetime.datetime | None = None) -> str:
+def parent_run_name(
+    client,
+    experiment_id: str,
+    run_name: str,
+    config_hash: str,
+    params: dict,
+    now: datetime.datetime | None = None,
+) -> str:
     """A parent run's name as the MLflow UI lists it: the run name and the UTC time it was logged,
     and where the experiment's newest earlier parent had another config, the keys that differ
     from it ("smoke 2026-11-25 19:40 (classifiers.svm.C=3.0)"). The config hash stays a tag."""
     now = now or datetime.datetime.now(datetime.timezone.utc)
     name = f"{run_name} {now:%Y-%m-%d %H:%M}"
     # parents only: the nested runs carry no snakemake_run_name
-    earlier = client.search_runs([experiment_id], f"tags.snakemake_run_name = '{run_name}'",
-                                 order_by=["attributes.start_time DESC"], max_results=1)
+    earlier = client.search_runs(
+        [experiment_id],
+        f"tags.snakemake_run_name = '{run_name}'",
+        order_by=["attributes.start_time DESC"],
+        max_results=1,
+    )
     previous = earlier[0] if earlier else None
     if previous is not None and previous.data.tags.get("config_hash") != config_hash:
         if changed := changed_keys(params, previous.data.params):
@@ -282,16 +320,20 @@ def file_dataset(name: str, paths):
     for path in paths:
         with path.open("rb") as file:
             digest.update(hashlib.file_digest(file, "sha256").digest())
-    profile = {"files": len(paths), "rows": sum(pq.ParquetFile(p).metadata.num_rows for p in paths),
-               "bytes": sum(p.stat().st_size for p in paths)}
+    profile = {
+        "files": len(paths),
+        "rows": sum(pq.ParquetFile(p).metadata.num_rows for p in paths),
+        "bytes": sum(p.stat().st_size for p in paths),
+    }
     source = paths[0] if len(paths) == 1 else Path(os.path.commonpath(paths))
 
     class FileDataset(MetaDataset):
         def to_dict(self):
             return {**super().to_dict(), "profile": json.dumps(profile)}
 
-    return FileDataset(LocalArtifactDatasetSource(str(source)), name=name,
-                       digest=digest.hexdigest()[:16])
+    return FileDataset(
+        LocalArtifactDatasetSource(str(source)), name=name, digest=digest.hexdigest()[:16]
+    )
 
 
 def read_train_outputs(train_dirs) -> tuple[pd.DataFrame, pd.DataFrame, dict, dict, dict]:
@@ -308,13 +350,21 @@ def read_train_outputs(train_dirs) -> tuple[pd.DataFrame, pd.DataFrame, dict, di
         clf, protocol = info["classifier"], info["protocol"]
         params[clf] = info.get("classifier_params") or {}
         for entry in info["models"]:
-            files[(clf, protocol, int(entry["measured_percent"]), int(entry["repeat"]),
-                   entry["holdout"] or "")] = d / "models" / entry["file"]
+            files[
+                (
+                    clf,
+                    protocol,
+                    int(entry["measured_percent"]),
+                    int(entry["repeat"]),
+                    entry["holdout"] or "",
+                )
+            ] = d / "models" / entry["file"]
         if (d / "models" / HISTORY_FILE).exists():
             history = pd.read_parquet(d / "models" / HISTORY_FILE)
             history["holdout"] = history["holdout"].fillna("")
             for (percent, repeat, holdout), rows in history.groupby(
-                    ["measured_percent", "repeat", "holdout"]):
+                ["measured_percent", "repeat", "holdout"]
+            ):
                 histories[(clf, protocol, int(percent), int(repeat), holdout)] = rows
     return metrics, predictions, params, files, histories
 
@@ -325,7 +375,9 @@ def feature_example(path, n_rows: int = 2) -> pd.DataFrame:
     names = json.loads((parquet.schema_arrow.metadata or {}).get(b"condmon.feature_names", b"null"))
     if not names:
         raise TrackingError(f"{path}: no condmon.feature_names metadata; not a features table")
-    return next(parquet.iter_batches(batch_size=n_rows, columns=names)).to_pandas().astype(np.float32)
+    return (
+        next(parquet.iter_batches(batch_size=n_rows, columns=names)).to_pandas().astype(np.float32)
+    )
 
 
 def wants_model(policy, key: dict) -> bool:
@@ -346,16 +398,20 @@ def pip_requirements(*extra: str) -> tuple[str, ...]:
 
 # --------------------------------------------------------------------------- logging
 
+
 def summary_metrics(metrics: pd.DataFrame) -> dict[str, float]:
     """accuracy.<classifier>.<protocol>.p<percent>: mean over repeats of the held-out mean."""
     overall = metrics[metrics["speed_rpm"].isna()]
     per_repeat = overall.groupby(KEYS[:4])["accuracy"].mean()
     means = per_repeat.groupby(level=[0, 1, 2]).mean()
-    return {f"accuracy.{c}.{p}.p{int(percent):03d}": float(v) for (c, p, percent), v in means.items()}
+    return {
+        f"accuracy.{c}.{p}.p{int(percent):03d}": float(v) for (c, p, percent), v in means.items()
+    }
 
 
-def nested_runs(metrics: pd.DataFrame, predictions: pd.DataFrame, clf_params: dict,
-                histories: dict) -> list[tuple[dict, dict, dict]]:
+def nested_runs(
+    metrics: pd.DataFrame, predictions: pd.DataFrame, clf_params: dict, histories: dict
+) -> list[tuple[dict, dict, dict]]:
     """(key, params, metrics) of every nested run, from the metrics rows (the all-speeds row and
     one per speed) and the predictions (the CNN's uncertainty)."""
     uncertainty = predictions.groupby(KEYS)["uncertainty"].mean()
@@ -366,9 +422,12 @@ def nested_runs(metrics: pd.DataFrame, predictions: pd.DataFrame, clf_params: di
         if pd.isna(row["speed_rpm"]):
             if params:
                 raise TrackingError(f"metrics for {key} have more than one all-speeds row")
-            params.update({k: str(v) for k, v in key.items()}, holdout=key["holdout"] or "none",
-                          **{k: str(row[k]) for k in ("n_train_simulated", "n_train_measured", "n_test")},
-                          **flatten_params(clf_params.get(key["classifier"], {}), "classifier"))
+            params.update(
+                {k: str(v) for k, v in key.items()},
+                holdout=key["holdout"] or "none",
+                **{k: str(row[k]) for k in ("n_train_simulated", "n_train_measured", "n_test")},
+                **flatten_params(clf_params.get(key["classifier"], {}), "classifier"),
+            )
             run.update(accuracy=row["accuracy"], macro_f1=row["macro_f1"])
             if np.isfinite(row.get("fit_seconds", np.nan)):
                 run["fit_seconds"] = row["fit_seconds"]
@@ -377,19 +436,25 @@ def nested_runs(metrics: pd.DataFrame, predictions: pd.DataFrame, clf_params: di
             run[f"macro_f1_{format_speed(row['speed_rpm'])}rpm"] = row["macro_f1"]
     for values, (key, params, run) in runs.items():
         if not params or values not in uncertainty.index:
-            raise TrackingError(f"{key}: {'no all-speeds row in metrics.csv' if not params else 'no predictions'}")
+            raise TrackingError(
+                f"{key}: {'no all-speeds row in metrics.csv' if not params else 'no predictions'}"
+            )
         if np.isfinite(uncertainty[values]):
             run["uncertainty_mean"] = uncertainty[values]
         if values in histories:
             run["epochs_run_mean"] = histories[values].groupby("member")["epoch"].max().mean()
-    return [(key, params, {k: float(v) for k, v in run.items()}) for key, params, run in runs.values()]
+    return [
+        (key, params, {k: float(v) for k, v in run.items()}) for key, params, run in runs.values()
+    ]
 
 
 def curves(history) -> list[tuple[str, float, int]]:
     """(name, value, epoch) of the members' mean training curves (a member that stopped early
     counts until its last epoch)."""
     means = history.groupby("epoch")[list(CURVES)].mean()
-    points = [(name, float(row[name]), int(epoch)) for epoch, row in means.iterrows() for name in CURVES]
+    points = [
+        (name, float(row[name]), int(epoch)) for epoch, row in means.iterrows() for name in CURVES
+    ]
     return [point for point in points if np.isfinite(point[1])]
 
 
@@ -398,6 +463,7 @@ class TrackedRun:
     """What names a pipeline invocation in MLflow: the run name (the experiment), the config's
     hash and its values (the parent's params), the data source (tags), and the healthy state
     (the confusion matrices' class order)."""
+
     run_name: str
     config_hash: str
     data_source: str
@@ -405,9 +471,261 @@ class TrackedRun:
     healthy_state: str | None = None
 
 
-def log_pipeline_run(tracking_uri: str, run: TrackedRun, train_dirs, datasets: dict,
-                     log_models="all", workdir=".", model_store=None,
-                     artifacts: dict | None = None) -> dict:
+@dataclass
+class TrackInputs:
+    """Everything `log_pipeline_run` logs, read and checked before the first MLflow call
+    (`read_track_inputs`)."""
+
+    metrics: pd.DataFrame
+    predictions: pd.DataFrame
+    histories: dict  # {run key: training history} (CNN)
+    files: dict  # {run key: the model file each nested run names}
+    datasets: dict  # {name: MLflow dataset}
+    example: pd.DataFrame  # the models' signatures (without a model store)
+    runs: list  # (key, params, metrics) of every nested run
+    confusion: pd.DataFrame
+    store: dict | None = None  # the model store's index
+    by_key: dict | None = None  # {run key: its store entry}
+
+
+def read_track_inputs(train_dirs, datasets: dict, model_store, healthy_state) -> TrackInputs:
+    """The train outputs, datasets and model store of a run, every nested run checked to have
+    its model (in info.json, and in the store where there is one)."""
+    metrics, predictions, clf_params, files, histories = read_train_outputs(train_dirs)
+    inputs = {name: file_dataset(name, paths) for name, paths in datasets.items()}
+    example = feature_example(datasets["measured_features"][0])
+    runs = nested_runs(metrics, predictions, clf_params, histories)
+    if missing := [key for key, _, _ in runs if tuple(key.values()) not in files]:
+        raise TrackingError(f"no model file in info.json for {missing[:3]}")
+    store = by_key = None
+    if model_store is not None:
+        from condmon.model_store import read_index
+
+        store = read_index(model_store)
+        by_key = {
+            (e["classifier"], e["protocol"], e["measured_percent"], e["repeat"], e["holdout"]): e
+            for e in store["models"]
+        }
+        if missing := [key for key, _, _ in runs if tuple(key.values()) not in by_key]:
+            raise TrackingError(f"{model_store}: no packaged model for {missing[:3]}")
+        files = {key: Path(model_store) / entry["file"] for key, entry in by_key.items()}
+    labels = label_order(
+        [*predictions["true_label"], *predictions["predicted_label"]], healthy_state
+    )
+    confusion = (
+        predictions.groupby([*KEYS, "true_label", "predicted_label"])
+        .size()
+        .unstack(fill_value=0)
+        .reindex(columns=labels, fill_value=0)
+    )
+    return TrackInputs(
+        metrics, predictions, histories, files, inputs, example, runs, confusion, store, by_key
+    )
+
+
+def parent_tags(run: TrackedRun, log_models, n_runs: int, workdir=".") -> dict:
+    """The parent run's tags: the commit, the config hash, the run name, the data source."""
+    commit, dirty = git_state(workdir)
+    return {
+        "git_commit": commit,
+        "git_dirty": dirty,
+        "config_hash": run.config_hash,
+        "snakemake_run_name": run.run_name,
+        "data_source": run.data_source,
+        "data_source_synthetic": str(is_synthetic(run.data_source)).lower(),
+        "models_logged": json.dumps(log_models),
+        "n_nested_runs": str(n_runs),
+    }
+
+
+def log_parent_contents(data: TrackInputs, params: dict, artifacts: dict | None) -> None:
+    """The active parent run's inputs, params, summary metrics, tables and artifacts."""
+    import mlflow
+
+    log_inputs(data.datasets)
+    mlflow.log_params(params)
+    mlflow.log_metrics(summary_metrics(data.metrics))
+    mlflow.log_text(data.metrics.to_csv(index=False), "accuracy.csv")
+    # counts per run (rows: true label, columns: predicted label)
+    mlflow.log_text(data.confusion.reset_index().to_csv(index=False), "confusion_matrices.csv")
+    for folder, path in (artifacts or {}).items():  # hidden files (Snakemake's marks) left out
+        for file in sorted(Path(path).iterdir()) if Path(path).is_dir() else [Path(path)]:
+            if file.is_file() and not file.name.startswith("."):
+                mlflow.log_artifact(str(file), folder)
+
+
+def nested_run_model(
+    data: TrackInputs,
+    run_key: tuple,
+    key: dict,
+    run_id: str,
+    name: str,
+    params: dict,
+    run_tags: dict,
+    log_models,
+    logged_digests: dict,
+) -> tuple[str | None, bool]:
+    """The model a nested run logs (its id, None if the policy logs none) and whether it was
+    linked, not logged again: the packaged SignalModel (a digest the experiment has is linked),
+    or without a store the fitted estimator."""
+    if not wants_model(log_models, key):
+        return None, False
+    if data.store:
+        digest = data.by_key[run_key]["digest"]
+        model_id = logged_digests.get(digest)
+        if model_id is not None:  # unchanged models are linked, not logged again
+            return model_id, True
+        model_id = log_signal_model(
+            data.files[run_key],
+            run_id,
+            re.sub(r"[^\w-]+", "-", name),
+            params,
+            {**run_tags, "model_digest": digest},
+        )
+        logged_digests[digest] = model_id
+        return model_id, False
+    return log_model(
+        data.files[run_key], data.example, run_id, re.sub(r"[^\w-]+", "-", name), params, run_tags
+    ), False
+
+
+def log_nested_run(
+    client,
+    experiment_id: str,
+    parent_id: str,
+    data: TrackInputs,
+    nested: tuple,
+    config_hash: str,
+    log_models,
+    logged_digests: dict,
+) -> tuple[str | None, bool]:
+    """One nested run (`nested`: key, params, metrics): created, its model, one log_batch of its
+    metrics (linked to the model) and params, terminated; returns (model id, linked)."""
+    from mlflow.entities import Metric, Param
+
+    key, params, values = nested
+    run_key = tuple(key.values())
+    name = f"{key['classifier']}/{key['protocol']}/p{key['measured_percent']}/r{key['repeat']}"
+    name += f"/{key['holdout']}" if key["holdout"] else ""
+    run_tags = {
+        **{k: str(v) for k, v in key.items()},
+        "config_hash": config_hash,
+        "leaky": str(key["protocol"] in LEAKY_PROTOCOLS).lower(),
+        "model_file": str(data.files[run_key].resolve()),
+    }
+    run_id = client.create_run(
+        experiment_id, run_name=name, tags={**run_tags, "mlflow.parentRunId": parent_id}
+    ).info.run_id
+    if data.store:  # the device it was fitted on (the CNN: cpu or cuda:<n> (<GPU>))
+        params = {**params, "device": data.by_key[run_key]["device"]}
+    model_id, linked = nested_run_model(
+        data, run_key, key, run_id, name, params, run_tags, log_models, logged_digests
+    )
+    measured, now = data.datasets["measured_features"], int(time.time() * 1000)
+    points = [
+        Metric(
+            k,
+            v,
+            now,
+            0,
+            dataset_name=measured.name,
+            dataset_digest=measured.digest,
+            model_id=model_id,
+        )
+        for k, v in values.items()
+    ]
+    if run_key in data.histories:  # the members' mean curves; every member's in an artifact
+        history = data.histories[run_key]
+        points += [Metric(k, v, now, step, model_id=model_id) for k, v, step in curves(history)]
+        client.log_text(
+            run_id,
+            history[["member", "epoch", *CURVES]].to_csv(index=False),
+            "training_history.csv",
+        )
+    client.log_batch(run_id, metrics=points, params=[Param(k, v) for k, v in params.items()])
+    client.set_terminated(run_id)
+    return model_id, linked
+
+
+def tracking_client(uri: str):
+    """MLflow pointed at `uri` (a local SQLite store switched to write-ahead logging) and its client."""
+    import mlflow
+
+    use_write_ahead_log(uri)
+    mlflow.set_tracking_uri(uri)
+    return mlflow.MlflowClient(uri)
+
+
+def log_nested_runs(
+    client,
+    experiment_id: str,
+    parent_id: str,
+    data: TrackInputs,
+    config_hash: str,
+    log_models,
+    logged_digests: dict,
+) -> tuple[list, int]:
+    """Every nested run (`log_nested_run`): the ids of the models logged or linked, and how many
+    were linked rather than logged again."""
+    model_ids, n_reused = [], 0
+    for nested in data.runs:
+        model_id, linked = log_nested_run(
+            client, experiment_id, parent_id, data, nested, config_hash, log_models, logged_digests
+        )
+        model_ids += [model_id] if wants_model(log_models, nested[0]) else []
+        n_reused += linked
+    return model_ids, n_reused
+
+
+def register_store_best(
+    client, data: TrackInputs, logged_digests: dict, run_name: str, config_hash: str
+) -> dict:
+    """The store's best model registered (`register_best`) and the parent tagged with it, where
+    this experiment logged it; {} otherwise."""
+    import mlflow
+
+    if not data.store or data.store["best"] is None:
+        return {}
+    best = next(e for e in data.store["models"] if e["file"] == data.store["best"])
+    best_id = logged_digests.get(best["digest"])
+    if best_id is None:
+        return {}
+    registered = register_best(client, best_id, run_name, config_hash, best)
+    mlflow.set_tags(
+        {
+            "best_model_id": best_id,
+            "best_model_file": str(data.files[tuple(best[k] for k in KEYS)].resolve()),
+        }
+    )
+    return registered
+
+
+def tracking_failure(uri: str, parent_id: str | None, exc: Exception) -> TrackingError | None:
+    """After a failure while logging: the parent ended as FAILED (best effort: the server may be
+    gone) and, for a remote server, the error that names it and the unfinished parent."""
+    import mlflow
+
+    with contextlib.suppress(Exception):
+        mlflow.end_run("FAILED")
+    if is_remote(uri) and not isinstance(exc, TrackingError):
+        return TrackingError(
+            f"MLflow tracking server {uri} failed while logging parent run {parent_id} "
+            f"({type(exc).__name__}: {str(exc)[:300]}). That run stays unfinished and is never "
+            "counted; rerun the track job once the server answers"
+        )
+    return None
+
+
+def log_pipeline_run(
+    tracking_uri: str,
+    run: TrackedRun,
+    train_dirs,
+    datasets: dict,
+    log_models="all",
+    workdir=".",
+    model_store=None,
+    artifacts: dict | None = None,
+) -> dict:
     """Log one pipeline invocation (see module docstring); returns the run_info dict.
 
     ``train_dirs``: the train/<classifier>/<protocol> folders; ``datasets``: name -> files, with
@@ -418,128 +736,87 @@ def log_pipeline_run(tracking_uri: str, run: TrackedRun, train_dirs, datasets: d
     (``register_best``); ``artifacts``: {artifact folder: local file or folder} of the parent
     (the report's plots). Every input is read and checked before the first MLflow call.
     """
-    run_name, config_hash, data_source = run.run_name, run.config_hash, run.data_source
-    config, healthy_state = run.config, run.healthy_state
     if not isinstance(log_models, dict) and log_models not in MODEL_POLICIES:
         raise ValueError(f"log_models={log_models!r}; expected one of {MODEL_POLICIES} or a filter")
     started = time.perf_counter()
     uri = resolve_tracking_uri(tracking_uri, workdir)
     check_tracking_server(uri)
-    metrics, predictions, clf_params, files, histories = read_train_outputs(train_dirs)
-    inputs = {name: file_dataset(name, paths) for name, paths in datasets.items()}
-    example = feature_example(datasets["measured_features"][0])
-    runs = nested_runs(metrics, predictions, clf_params, histories)
-    if missing := [key for key, _, _ in runs if tuple(key.values()) not in files]:
-        raise TrackingError(f"no model file in info.json for {missing[:3]}")
-    store = None
-    if model_store is not None:
-        from condmon.model_store import read_index
-
-        store = read_index(model_store)
-        by_key = {(e["classifier"], e["protocol"], e["measured_percent"], e["repeat"], e["holdout"]): e
-                  for e in store["models"]}
-        if missing := [key for key, _, _ in runs if tuple(key.values()) not in by_key]:
-            raise TrackingError(f"{model_store}: no packaged model for {missing[:3]}")
-        files = {key: Path(model_store) / entry["file"] for key, entry in by_key.items()}
-    labels = label_order([*predictions["true_label"], *predictions["predicted_label"]], healthy_state)
-    confusion = (predictions.groupby([*KEYS, "true_label", "predicted_label"]).size()
-                 .unstack(fill_value=0).reindex(columns=labels, fill_value=0))
-
+    data = read_track_inputs(train_dirs, datasets, model_store, run.healthy_state)
     import mlflow
-    from mlflow.entities import Metric, Param
 
-    use_write_ahead_log(uri)
-    mlflow.set_tracking_uri(uri)
-    client = mlflow.MlflowClient(uri)
-    commit, dirty = git_state(workdir)
-    tags = {"git_commit": commit, "git_dirty": dirty, "config_hash": config_hash,
-            "snakemake_run_name": run_name, "data_source": data_source,
-            "data_source_synthetic": str(is_synthetic(data_source)).lower(),
-            "models_logged": json.dumps(log_models), "n_nested_runs": str(len(runs))}
-    measured, model_ids, parent_id = inputs["measured_features"], [], None
+    client, parent_id = tracking_client(uri), None
+    tags = parent_tags(run, log_models, len(data.runs), workdir)
     try:
-        experiment_id = get_or_create_experiment(client, uri, run_name)
-        params = flatten_params(config or {})
-        name = parent_run_name(client, experiment_id, run_name, config_hash, params)
-        parent_id = mlflow.start_run(experiment_id=experiment_id, tags=tags, run_name=name).info.run_id
-        log_inputs(inputs)
-        mlflow.log_params(params)
-        mlflow.log_metrics(summary_metrics(metrics))
-        mlflow.log_text(metrics.to_csv(index=False), "accuracy.csv")
-        # counts per run (rows: true label, columns: predicted label)
-        mlflow.log_text(confusion.reset_index().to_csv(index=False), "confusion_matrices.csv")
-        for folder, path in (artifacts or {}).items():  # hidden files (Snakemake's marks) left out
-            for file in sorted(Path(path).iterdir()) if Path(path).is_dir() else [Path(path)]:
-                if file.is_file() and not file.name.startswith("."):
-                    mlflow.log_artifact(str(file), folder)
-        logged_digests = logged_model_digests(experiment_id) if store else {}
-        n_reused = 0
-        for key, params, values in runs:
-            run_key = tuple(key.values())
-            name = f"{key['classifier']}/{key['protocol']}/p{key['measured_percent']}/r{key['repeat']}"
-            name += f"/{key['holdout']}" if key["holdout"] else ""
-            run_tags = {**{k: str(v) for k, v in key.items()}, "config_hash": config_hash,
-                        "leaky": str(key["protocol"] in LEAKY_PROTOCOLS).lower(),
-                        "model_file": str(files[run_key].resolve())}
-            run_id = client.create_run(experiment_id, run_name=name,
-                                       tags={**run_tags, "mlflow.parentRunId": parent_id}).info.run_id
-            model_id = None
-            if store:  # the device it was fitted on (the CNN: cpu or cuda:<n> (<GPU>))
-                params = {**params, "device": by_key[run_key]["device"]}
-            if wants_model(log_models, key) and store:
-                digest = by_key[run_key]["digest"]
-                model_id = logged_digests.get(digest)
-                n_reused += model_id is not None
-                if model_id is None:  # unchanged models are linked, not logged again
-                    model_id = log_signal_model(files[run_key], run_id, re.sub(r"[^\w-]+", "-", name),
-                                                params, {**run_tags, "model_digest": digest})
-                    logged_digests[digest] = model_id
-                model_ids.append(model_id)
-            elif wants_model(log_models, key):
-                model_id = log_model(files[run_key], example, run_id, re.sub(r"[^\w-]+", "-", name),
-                                     params, run_tags)
-                model_ids.append(model_id)
-            now = int(time.time() * 1000)
-            points = [Metric(k, v, now, 0, dataset_name=measured.name, dataset_digest=measured.digest,
-                             model_id=model_id) for k, v in values.items()]
-            if run_key in histories:  # the members' mean curves; every member's in an artifact
-                points += [Metric(k, v, now, step, model_id=model_id) for k, v, step in curves(histories[run_key])]
-                client.log_text(run_id, histories[run_key][["member", "epoch", *CURVES]].to_csv(index=False),
-                                "training_history.csv")
-            client.log_batch(run_id, metrics=points, params=[Param(k, v) for k, v in params.items()])
-            client.set_terminated(run_id)
-        registered = {}
-        if store and store["best"] is not None:
-            best = next(e for e in store["models"] if e["file"] == store["best"])
-            best_id = logged_digests.get(best["digest"])
-            if best_id is not None:
-                registered = register_best(client, best_id, run_name, config_hash, best)
-                mlflow.set_tags({"best_model_id": best_id, "best_model_file": str(files[
-                    tuple(best[k] for k in KEYS)].resolve())})
+        experiment_id = get_or_create_experiment(client, uri, run.run_name)
+        params = flatten_params(run.config or {})
+        name = parent_run_name(client, experiment_id, run.run_name, run.config_hash, params)
+        parent_id = mlflow.start_run(
+            experiment_id=experiment_id, tags=tags, run_name=name
+        ).info.run_id
+        log_parent_contents(data, params, artifacts)
+        logged_digests = logged_model_digests(experiment_id) if data.store else {}
+        model_ids, n_reused = log_nested_runs(
+            client, experiment_id, parent_id, data, run.config_hash, log_models, logged_digests
+        )
+        registered = register_store_best(
+            client, data, logged_digests, run.run_name, run.config_hash
+        )
         mlflow.end_run()
     except Exception as exc:
-        with contextlib.suppress(Exception):  # the server may be gone: best effort
-            mlflow.end_run("FAILED")
-        if is_remote(uri) and not isinstance(exc, TrackingError):
-            raise TrackingError(
-                f"MLflow tracking server {uri} failed while logging parent run {parent_id} "
-                f"({type(exc).__name__}: {str(exc)[:300]}). That run stays unfinished and is never "
-                "counted; rerun the track job once the server answers") from exc
+        if (error := tracking_failure(uri, parent_id, exc)) is not None:
+            raise error from exc
         raise
-    elapsed = time.perf_counter() - started
-    log.info("logged %d nested runs and %d models under %s in %.1f s", len(runs), len(model_ids),
-             parent_id, elapsed)
-    return {"parent_run_id": parent_id, "experiment_id": experiment_id,
-            "experiment_name": run_name, "tracking_uri": uri, "tracking_uri_configured": tracking_uri,
-            "n_nested_runs": len(runs), "models_logged": log_models, "n_models_logged": len(model_ids),
-            "config_hash": config_hash,
-            **({"n_models_linked_not_logged": n_reused, "best_model": registered} if store else {}),
-            "datasets": {name: dataset.digest for name, dataset in inputs.items()},
-            "seconds": round(elapsed, 2)}
+    where = {
+        "parent_run_id": parent_id,
+        "experiment_id": experiment_id,
+        "tracking_uri": uri,
+        "tracking_uri_configured": tracking_uri,
+    }
+    return run_info(
+        run,
+        data,
+        log_models,
+        where,
+        (model_ids, n_reused, registered),
+        time.perf_counter() - started,
+    )
 
 
-def log_model(path: Path, features: pd.DataFrame, run_id: str, name: str, params: dict,
-              tags: dict) -> str:
+def run_info(
+    run: TrackedRun, data: TrackInputs, log_models, where: dict, models: tuple, elapsed: float
+) -> dict:
+    """What `log_pipeline_run` returns (and the track job writes as mlflow_run.json); `where`: the
+    parent run's and experiment's ids and the store's URI (resolved, configured); `models`: the
+    ids of the models logged or linked, how many were linked, the registered best."""
+    model_ids, n_reused, registered = models
+    log.info(
+        "logged %d nested runs and %d models under %s in %.1f s",
+        len(data.runs),
+        len(model_ids),
+        where["parent_run_id"],
+        elapsed,
+    )
+    return {
+        "parent_run_id": where["parent_run_id"],
+        "experiment_id": where["experiment_id"],
+        "experiment_name": run.run_name,
+        "tracking_uri": where["tracking_uri"],
+        "tracking_uri_configured": where["tracking_uri_configured"],
+        "n_nested_runs": len(data.runs),
+        "models_logged": log_models,
+        "n_models_logged": len(model_ids),
+        "config_hash": run.config_hash,
+        **(
+            {"n_models_linked_not_logged": n_reused, "best_model": registered} if data.store else {}
+        ),
+        "datasets": {name: dataset.digest for name, dataset in data.datasets.items()},
+        "seconds": round(elapsed, 2),
+    }
+
+
+def log_model(
+    path: Path, features: pd.DataFrame, run_id: str, name: str, params: dict, tags: dict
+) -> str:
     """The fitted model of ``path`` as a LoggedModel of ``run_id``, with a signature from the
     ``features`` rows. No input example: MLflow would load and run each model to check it (and
     trace the CNN into its pt2 format, seconds each); the CNN is pickled (loading it needs
@@ -558,9 +835,13 @@ def log_model(path: Path, features: pd.DataFrame, run_id: str, name: str, params
         example = features.to_numpy(np.float32).copy()
         with torch.no_grad():
             probabilities = module(torch.from_numpy(example)).numpy()
-        info = mlflow.pytorch.log_model(module, serialization_format="pickle",
-                                        signature=infer_signature(example, probabilities),
-                                        pip_requirements=list(pip_requirements("torch")), **common)
+        info = mlflow.pytorch.log_model(
+            module,
+            serialization_format="pickle",
+            signature=infer_signature(example, probabilities),
+            pip_requirements=list(pip_requirements("torch")),
+            **common,
+        )
         mlflow.MlflowClient().log_dict(run_id, {"classes": module.classes}, "model_classes.json")
         return info.model_id
     import mlflow.sklearn
@@ -569,11 +850,14 @@ def log_model(path: Path, features: pd.DataFrame, run_id: str, name: str, params
     names = getattr(model, "feature_names_in_", None)  # fitted on a named frame, or a bare array
     example = features[list(names)] if names is not None else features.to_numpy()
     info = mlflow.sklearn.log_model(
-        model, signature=infer_signature(example, model.predict(example)),
+        model,
+        signature=infer_signature(example, model.predict(example)),
         pip_requirements=list(pip_requirements()),
         # skops refuses types it does not trust on load (k-NN's KD-tree, say): these are the
         # pipeline's own outputs, so their types are listed with the model; others stay refused
-        skops_trusted_types=skops.io.get_untrusted_types(data=skops.io.dumps(model)), **common)
+        skops_trusted_types=skops.io.get_untrusted_types(data=skops.io.dumps(model)),
+        **common,
+    )
     return info.model_id
 
 
@@ -582,8 +866,11 @@ def logged_model_digests(experiment_id: str) -> dict[str, str]:
     import mlflow
 
     models = mlflow.search_logged_models(experiment_ids=[experiment_id], output_format="list")
-    return {m.tags["model_digest"]: m.model_id for m in sorted(models, key=lambda m: m.creation_timestamp)
-            if m.tags.get("model_digest") and m.status == "READY"}
+    return {
+        m.tags["model_digest"]: m.model_id
+        for m in sorted(models, key=lambda m: m.creation_timestamp)
+        if m.tags.get("model_digest") and m.status == "READY"
+    }
 
 
 def log_signal_model(path: Path, run_id: str, name: str, params: dict, tags: dict) -> str:
@@ -600,8 +887,14 @@ def log_signal_model(path: Path, run_id: str, name: str, params: dict, tags: dic
 
     # pyfunc's log_model takes no run id: the nested run is resumed for it (the parent stays active)
     with mlflow.start_run(run_id=run_id, nested=True):
-        info = log_pyfunc(path, model, name=name, params=params, tags=tags,
-                          pip_requirements=list(pip_requirements(*extra)))
+        info = log_pyfunc(
+            path,
+            model,
+            name=name,
+            params=params,
+            tags=tags,
+            pip_requirements=list(pip_requirements(*extra)),
+        )
     return info.model_id
 
 
@@ -617,22 +910,39 @@ def register_best(client, model_id: str, run_name: str, config_hash: str, entry:
 
     name = registered_model_name(run_name)
     try:
-        client.create_registered_model(name, description=f"the best model of each config of run {run_name} "
-                                                          "(condmon.model_store.best_model)")
+        client.create_registered_model(
+            name,
+            description=f"the best model of each config of run {run_name} "
+            "(condmon.model_store.best_model)",
+        )
     except MlflowException as exc:
         if exc.error_code != "RESOURCE_ALREADY_EXISTS":
             raise
     versions = client.search_model_versions(f"name = '{name}'")
-    version = next((v.version for v in versions if v.tags.get("model_digest") == entry["digest"]), None)
+    version = next(
+        (v.version for v in versions if v.tags.get("model_digest") == entry["digest"]), None
+    )
     if version is None:
-        version = mlflow.register_model(f"models:/{model_id}", name,
-                                        tags={"model_digest": entry["digest"], "config_hash": config_hash,
-                                              **{k: str(entry[k]) for k in KEYS}}).version
+        version = mlflow.register_model(
+            f"models:/{model_id}",
+            name,
+            tags={
+                "model_digest": entry["digest"],
+                "config_hash": config_hash,
+                **{k: str(entry[k]) for k in KEYS},
+            },
+        ).version
     aliases = ["best", f"config-{config_hash[:12]}"]
     for alias in aliases:
         client.set_registered_model_alias(name, alias, version)
-    return {"name": name, "version": str(version), "aliases": aliases, "model_id": model_id,
-            "uri": f"models:/{name}@best", **{k: entry[k] for k in KEYS}}
+    return {
+        "name": name,
+        "version": str(version),
+        "aliases": aliases,
+        "model_id": model_id,
+        "uri": f"models:/{name}@best",
+        **{k: entry[k] for k in KEYS},
+    }
 
 
 def write_run_info(info: dict, path) -> None:

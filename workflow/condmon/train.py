@@ -28,6 +28,7 @@ groups) get the feature names and the record ids; those with
 predictions, and those with a ``history_`` (per member and epoch) have it written to
 ``models/history.parquet`` for the tracking job.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -48,38 +49,66 @@ from sklearn.utils.metadata_routing import get_routing_for_object
 
 from condmon import classifiers
 from condmon.atomic import staging_directory, write_frame, write_table, write_text
-from condmon.hybrid import (SIMULATED_VALIDATION, measured_rows, segment_roles,
-                            simulated_validation_ids, validate_splits)
+from condmon.hybrid import (
+    SIMULATED_VALIDATION,
+    measured_rows,
+    segment_roles,
+    simulated_validation_ids,
+    validate_splits,
+)
 from condmon.labels import sorted_holdouts
 from condmon.seeds import derive_seed, stable_int
-from condmon.selection import (ALL_FEATURES, BACKWARD, SelectionByInnerCV,
-                                SequentialBackwardSelector, select_then_classify,
-                                selected_features)
+from condmon.selection import (
+    ALL_FEATURES,
+    BACKWARD,
+    SelectionByInnerCV,
+    SequentialBackwardSelector,
+    select_then_classify,
+    selected_features,
+)
 from condmon.signals import package_versions
 
 log = logging.getLogger(__name__)
 
-PREDICTION_SCHEMA = pa.schema([
-    ("protocol", pa.string()),
-    ("measured_percent", pa.int32()),
-    ("repeat", pa.int32()),
-    ("holdout", pa.string()),
-    ("record_id", pa.string()),
-    ("segment", pa.int32()),
-    ("speed_rpm", pa.float64()),
-    ("true_label", pa.string()),
-    ("predicted_label", pa.string()),
-    # optional: spread of an ensemble's members for the predicted class; null for SVM/KNN
-    ("uncertainty", pa.float64()),
-])
+PREDICTION_SCHEMA = pa.schema(
+    [
+        ("protocol", pa.string()),
+        ("measured_percent", pa.int32()),
+        ("repeat", pa.int32()),
+        ("holdout", pa.string()),
+        ("record_id", pa.string()),
+        ("segment", pa.int32()),
+        ("speed_rpm", pa.float64()),
+        ("true_label", pa.string()),
+        ("predicted_label", pa.string()),
+        # optional: spread of an ensemble's members for the predicted class; null for SVM/KNN
+        ("uncertainty", pa.float64()),
+    ]
+)
 PREDICTION_COLUMNS = PREDICTION_SCHEMA.names
-METRIC_COLUMNS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "speed_rpm",
-                  "accuracy", "macro_f1", "n_train_simulated", "n_train_measured", "n_test",
-                  "fit_seconds"]
+METRIC_COLUMNS = [
+    "classifier",
+    "protocol",
+    "measured_percent",
+    "repeat",
+    "holdout",
+    "speed_rpm",
+    "accuracy",
+    "macro_f1",
+    "n_train_simulated",
+    "n_train_measured",
+    "n_test",
+    "fit_seconds",
+]
 # measured_only.csv: the baseline's metrics plus its own selection choice (SelectionByInnerCV):
 # "all features" or "backward selection", why, the kept features and the inner CV accuracies
-BASELINE_COLUMNS = METRIC_COLUMNS + ["selection", "selection_reason", "selected_features",
-                                     "inner_cv_all_features", "inner_cv_backward_selection"]
+BASELINE_COLUMNS = METRIC_COLUMNS + [
+    "selection",
+    "selection_reason",
+    "selected_features",
+    "inner_cv_all_features",
+    "inner_cv_backward_selection",
+]
 # simulated_validation.csv: the metrics of every fit on the held-out simulated records, labelled
 SIMULATED_VALIDATION_COLUMNS = METRIC_COLUMNS[:2] + ["test_source"] + METRIC_COLUMNS[2:]
 REQUIRED_COLUMNS = ["record_id", "segment", "health_state", "speed_rpm"]
@@ -93,9 +122,12 @@ def evaluation_metrics(y_true, y_pred) -> dict:
     speed where a fault was never measured), so they are left out.
     """
     labels = sorted(set(y_true) | set(y_pred))
-    return {"accuracy": float(accuracy_score(y_true, y_pred)),
-            "macro_f1": float(f1_score(y_true, y_pred, labels=labels, average="macro",
-                                       zero_division=0))}
+    return {
+        "accuracy": float(accuracy_score(y_true, y_pred)),
+        "macro_f1": float(
+            f1_score(y_true, y_pred, labels=labels, average="macro", zero_division=0)
+        ),
+    }
 
 
 def matching_feature_names(simulated_names, measured_names) -> list[str]:
@@ -104,18 +136,22 @@ def matching_feature_names(simulated_names, measured_names) -> list[str]:
     if simulated_names != measured_names:
         only_sim = [n for n in simulated_names if n not in set(measured_names)][:5]
         only_meas = [n for n in measured_names if n not in set(simulated_names)][:5]
-        raise ValueError("simulated and measured features differ: "
-                         f"{len(simulated_names)} vs {len(measured_names)} columns, only simulated "
-                         f"{only_sim}, only measured {only_meas} (same names in another order "
-                         "if both are empty)")
+        raise ValueError(
+            "simulated and measured features differ: "
+            f"{len(simulated_names)} vs {len(measured_names)} columns, only simulated "
+            f"{only_sim}, only measured {only_meas} (same names in another order "
+            "if both are empty)"
+        )
     return simulated_names
 
 
 def _check_columns(frame: pd.DataFrame, feature_names, what: str) -> None:
     missing = [c for c in REQUIRED_COLUMNS + list(feature_names) if c not in frame.columns]
     if missing:
-        raise ValueError(f"{what} features lack column(s) {missing[:10]}"
-                         + (f" and {len(missing) - 10} more" if len(missing) > 10 else ""))
+        raise ValueError(
+            f"{what} features lack column(s) {missing[:10]}"
+            + (f" and {len(missing) - 10} more" if len(missing) > 10 else "")
+        )
     if frame.empty:
         raise ValueError(f"{what} features have no rows")
 
@@ -128,8 +164,9 @@ def _split_keys(splits: pd.DataFrame) -> list[tuple[int, int, str]]:
     return sorted(keys, key=lambda k: (k[0], k[1], holdout_order[k[2]]))
 
 
-def select_splits(splits: pd.DataFrame, classifier_name: str, measured_percent=None,
-                  repeats=None) -> pd.DataFrame:
+def select_splits(
+    splits: pd.DataFrame, classifier_name: str, measured_percent=None, repeats=None
+) -> pd.DataFrame:
     """The rows of the split table a classifier trains on: the listed measured percentages
     (None = all) and repeats 0..repeats-1 (None = all). Errors name the config key."""
     key = f"classifiers.{classifier_name}"
@@ -138,14 +175,18 @@ def select_splits(splits: pd.DataFrame, classifier_name: str, measured_percent=N
         wanted = sorted({int(p) for p in measured_percent})
         missing = [p for p in wanted if p not in available]
         if missing or not wanted:
-            raise ValueError(f"{key}.measured_percent: {missing or wanted} not among the split "
-                             f"table's measured percentages {available} (hybrid.measured_percent)")
+            raise ValueError(
+                f"{key}.measured_percent: {missing or wanted} not among the split "
+                f"table's measured percentages {available} (hybrid.measured_percent)"
+            )
         splits = splits[splits["measured_percent"].isin(wanted)]
     if repeats is not None:
         available = int(splits["repeat"].max()) + 1
         if not 1 <= int(repeats) <= available:
-            raise ValueError(f"{key}.repeats: {repeats} but the split table has {available} "
-                             "repeat(s) (hybrid.repeats); choose 1.." + str(available))
+            raise ValueError(
+                f"{key}.repeats: {repeats} but the split table has {available} "
+                "repeat(s) (hybrid.repeats); choose 1.." + str(available)
+            )
         splits = splits[splits["repeat"] < int(repeats)]
     return splits
 
@@ -165,9 +206,11 @@ def build_model(classifier_name, classifier_params, seed, feature_selection=None
     model = classifiers.make_classifier(classifier_name, classifier_params, seed)
     if not feature_selection or feature_selection.get("n_features") is None:
         return model
-    selector = SequentialBackwardSelector(n_features=int(feature_selection["n_features"]),
-                                          cv=int(feature_selection.get("cv", 3)),
-                                          random_state=seed)
+    selector = SequentialBackwardSelector(
+        n_features=int(feature_selection["n_features"]),
+        cv=int(feature_selection.get("cv", 3)),
+        random_state=seed,
+    )
     with sklearn.config_context(enable_metadata_routing=True):
         if get_routing_for_object(model).consumes("fit", ["feature_names"]):
             model.set_fit_request(feature_names=False)  # they name the columns before selection
@@ -188,17 +231,30 @@ def build_baseline_model(classifier_name, classifier_params, seed, feature_selec
 def baseline_choice(model, feature_names) -> dict:
     """What a fitted baseline estimator chose (BASELINE_COLUMNS' extra columns)."""
     if isinstance(model, SelectionByInnerCV):
-        kept = (selected_features(model.model_, feature_names) if model.choice_ == BACKWARD
-                else list(feature_names))
-        return {"selection": model.choice_, "selection_reason": model.reason_,
-                "selected_features": ";".join(kept),
-                "inner_cv_all_features": model.inner_scores_.get(ALL_FEATURES, np.nan),
-                "inner_cv_backward_selection": model.inner_scores_.get(BACKWARD, np.nan)}
-    reason = ("one measured class: predicts it" if isinstance(model, DummyClassifier)
-              else "no selection configured (features.selection.n_features)")
-    return {"selection": ALL_FEATURES, "selection_reason": reason,
-            "selected_features": ";".join(feature_names), "inner_cv_all_features": np.nan,
-            "inner_cv_backward_selection": np.nan}
+        kept = (
+            selected_features(model.model_, feature_names)
+            if model.choice_ == BACKWARD
+            else list(feature_names)
+        )
+        return {
+            "selection": model.choice_,
+            "selection_reason": model.reason_,
+            "selected_features": ";".join(kept),
+            "inner_cv_all_features": model.inner_scores_.get(ALL_FEATURES, np.nan),
+            "inner_cv_backward_selection": model.inner_scores_.get(BACKWARD, np.nan),
+        }
+    reason = (
+        "one measured class: predicts it"
+        if isinstance(model, DummyClassifier)
+        else "no selection configured (features.selection.n_features)"
+    )
+    return {
+        "selection": ALL_FEATURES,
+        "selection_reason": reason,
+        "selected_features": ";".join(feature_names),
+        "inner_cv_all_features": np.nan,
+        "inner_cv_backward_selection": np.nan,
+    }
 
 
 class ProtocolResult(NamedTuple):
@@ -209,14 +265,31 @@ class ProtocolResult(NamedTuple):
     simulated_validation: pd.DataFrame
 
 
-def run_protocol(classifier_name: str, classifier_params: dict | None,
-                 simulated_features: pd.DataFrame | None, measured_features: pd.DataFrame,
-                 splits: pd.DataFrame, feature_names, seed: int, measured_percent=None,
-                 repeats=None, feature_selection: dict | None = None):
+def run_protocol(
+    classifier_name: str,
+    classifier_params: dict | None,
+    simulated_features: pd.DataFrame | None,
+    measured_features: pd.DataFrame,
+    splits: pd.DataFrame,
+    feature_names,
+    seed: int,
+    measured_percent=None,
+    repeats=None,
+    feature_selection: dict | None = None,
+):
     """(predictions, metrics, models) of ``fit_and_evaluate``: the measured-data results."""
-    return fit_and_evaluate(classifier_name, classifier_params, simulated_features,
-                            measured_features, splits, feature_names, seed, measured_percent,
-                            repeats, feature_selection)[:3]
+    return fit_and_evaluate(
+        classifier_name,
+        classifier_params,
+        simulated_features,
+        measured_features,
+        splits,
+        feature_names,
+        seed,
+        measured_percent,
+        repeats,
+        feature_selection,
+    )[:3]
 
 
 def _predict(model, x) -> tuple[np.ndarray, np.ndarray | float]:
@@ -230,20 +303,34 @@ def _predict(model, x) -> tuple[np.ndarray, np.ndarray | float]:
 def metric_rows(common: dict, y_true, y_pred, speeds) -> list[dict]:
     """One metrics row over all speeds (speed_rpm NaN) and one per speed, each with `common`."""
     y_true, y_pred, speeds = np.asarray(y_true), np.asarray(y_pred), np.asarray(speeds, float)
-    rows = [{**common, "speed_rpm": np.nan, **evaluation_metrics(y_true, y_pred),
-             "n_test": len(y_true)}]
+    rows = [
+        {**common, "speed_rpm": np.nan, **evaluation_metrics(y_true, y_pred), "n_test": len(y_true)}
+    ]
     for speed in sorted(set(speeds)):
         at_speed = speeds == speed
-        rows.append({**common, "speed_rpm": speed,
-                     **evaluation_metrics(y_true[at_speed], y_pred[at_speed]),
-                     "n_test": int(at_speed.sum())})
+        rows.append(
+            {
+                **common,
+                "speed_rpm": speed,
+                **evaluation_metrics(y_true[at_speed], y_pred[at_speed]),
+                "n_test": int(at_speed.sum()),
+            }
+        )
     return rows
 
 
-def fit_and_evaluate(classifier_name: str, classifier_params: dict | None,
-                     simulated_features: pd.DataFrame | None, measured_features: pd.DataFrame,
-                     splits: pd.DataFrame, feature_names, seed: int, measured_percent=None,
-                     repeats=None, feature_selection: dict | None = None) -> ProtocolResult:
+def fit_and_evaluate(
+    classifier_name: str,
+    classifier_params: dict | None,
+    simulated_features: pd.DataFrame | None,
+    measured_features: pd.DataFrame,
+    splits: pd.DataFrame,
+    feature_names,
+    seed: int,
+    measured_percent=None,
+    repeats=None,
+    feature_selection: dict | None = None,
+) -> ProtocolResult:
     """Fit and evaluate one classifier on every split of a split table.
 
     ``measured_percent``/``repeats`` restrict the splits (see select_splits).
@@ -268,13 +355,16 @@ def fit_and_evaluate(classifier_name: str, classifier_params: dict | None,
     if not measured_only:
         absent = sorted(simulated_validation_ids(splits) - set(sim_records))
         if absent:
-            raise ValueError(f"split table holds out simulated record(s) {absent[:5]} absent "
-                             "from the simulated features (hybrid.simulated_validation_share): "
-                             "is the split table older than the simulated features?")
+            raise ValueError(
+                f"split table holds out simulated record(s) {absent[:5]} absent "
+                "from the simulated features (hybrid.simulated_validation_share): "
+                "is the split table older than the simulated features?"
+            )
     unknown = sorted(set(measured_rows(splits)["record_id"]) - measured_ids)
     if unknown:
-        raise ValueError(f"split table names record(s) {unknown[:5]} absent from the measured "
-                         "features")
+        raise ValueError(
+            f"split table names record(s) {unknown[:5]} absent from the measured features"
+        )
     unlisted = sorted(measured_ids - set(measured_rows(splits)["record_id"]))
     if unlisted:
         log.warning("measured record(s) %s are in no split and are never used", unlisted[:5])
@@ -290,8 +380,11 @@ def fit_and_evaluate(classifier_name: str, classifier_params: dict | None,
     holdout_index = {h: i for i, h in enumerate(sorted_holdouts(splits["holdout"]))}
     predictions, metrics, validation, models = [], [], [], {}
     for percent, repeat, holdout in _split_keys(splits):
-        split = splits[(splits["measured_percent"] == percent) & (splits["repeat"] == repeat)
-                       & (splits["holdout"] == holdout)]
+        split = splits[
+            (splits["measured_percent"] == percent)
+            & (splits["repeat"] == repeat)
+            & (splits["holdout"] == holdout)
+        ]
         role = segment_roles(measured_rows(split), measured_features)
         train, test = role == "train", role == "test"
         # the simulated records this split holds out (none for the measured-only baseline)
@@ -310,11 +403,14 @@ def fit_and_evaluate(classifier_name: str, classifier_params: dict | None,
             # what a classifier trained on one class can say: that class
             model = DummyClassifier(strategy="constant", constant=y_train[0])
         elif len(set(y_train)) < 2:
-            raise ValueError(f"{where}: training data has only class(es) {sorted(set(y_train))}; "
-                             "a classifier needs at least two")
+            raise ValueError(
+                f"{where}: training data has only class(es) {sorted(set(y_train))}; "
+                "a classifier needs at least two"
+            )
         elif measured_only:
-            model = build_baseline_model(classifier_name, classifier_params, fit_seed,
-                                         feature_selection)
+            model = build_baseline_model(
+                classifier_name, classifier_params, fit_seed, feature_selection
+            )
         else:
             model = build_model(classifier_name, classifier_params, fit_seed, feature_selection)
         start = time.perf_counter()
@@ -325,36 +421,77 @@ def fit_and_evaluate(classifier_name: str, classifier_params: dict | None,
         models[(percent, repeat, holdout)] = model
 
         test_rows = measured_features.loc[test]
-        predictions.append(pd.DataFrame({
-            "protocol": protocol, "measured_percent": percent, "repeat": repeat,
-            "holdout": holdout, "record_id": test_rows["record_id"].astype(str).to_numpy(),
-            "segment": test_rows["segment"].to_numpy(), "speed_rpm": meas_speed[test],
-            "true_label": y_true, "predicted_label": y_pred, "uncertainty": uncertainty}))
+        predictions.append(
+            pd.DataFrame(
+                {
+                    "protocol": protocol,
+                    "measured_percent": percent,
+                    "repeat": repeat,
+                    "holdout": holdout,
+                    "record_id": test_rows["record_id"].astype(str).to_numpy(),
+                    "segment": test_rows["segment"].to_numpy(),
+                    "speed_rpm": meas_speed[test],
+                    "true_label": y_true,
+                    "predicted_label": y_pred,
+                    "uncertainty": uncertainty,
+                }
+            )
+        )
 
-        common = {"classifier": classifier_name, "protocol": protocol,
-                  "measured_percent": percent, "repeat": repeat, "holdout": holdout,
-                  "n_train_simulated": int((~held_out).sum()),
-                  "n_train_measured": int(train.sum()), "fit_seconds": fit_seconds}
+        common = {
+            "classifier": classifier_name,
+            "protocol": protocol,
+            "measured_percent": percent,
+            "repeat": repeat,
+            "holdout": holdout,
+            "n_train_simulated": int((~held_out).sum()),
+            "n_train_measured": int(train.sum()),
+            "fit_seconds": fit_seconds,
+        }
         if measured_only:
             common.update(baseline_choice(model, feature_names))
         rows = metric_rows(common, y_true, y_pred, meas_speed[test])
         metrics += rows
-        log.info("%s: %d simulated + %d measured training segments, %d test segments, "
-                 "accuracy %.3f, fit %.1f s", where, (~held_out).sum(), train.sum(), len(y_true),
-                 rows[0]["accuracy"], fit_seconds)
+        log.info(
+            "%s: %d simulated + %d measured training segments, %d test segments, "
+            "accuracy %.3f, fit %.1f s",
+            where,
+            (~held_out).sum(),
+            train.sum(),
+            len(y_true),
+            rows[0]["accuracy"],
+            fit_seconds,
+        )
         if held_out.any():
             sim_pred, _ = _predict(model, x_sim[held_out])
-            rows = metric_rows({**common, "test_source": SIMULATED_VALIDATION}, y_sim[held_out],
-                               sim_pred, sim_speed[held_out])
+            rows = metric_rows(
+                {**common, "test_source": SIMULATED_VALIDATION},
+                y_sim[held_out],
+                sim_pred,
+                sim_speed[held_out],
+            )
             validation += rows
-            log.info("%s: simulated validation on %d held-out simulated segments, accuracy "
-                     "%.3f", where, held_out.sum(), rows[0]["accuracy"])
+            log.info(
+                "%s: simulated validation on %d held-out simulated segments, accuracy %.3f",
+                where,
+                held_out.sum(),
+                rows[0]["accuracy"],
+            )
 
-    predictions = (pd.concat(predictions, ignore_index=True) if predictions
-                   else pd.DataFrame(columns=PREDICTION_COLUMNS))
-    predictions = predictions.astype({"measured_percent": "int32", "repeat": "int32",
-                                      "segment": "int32", "speed_rpm": float,
-                                      "uncertainty": float})
+    predictions = (
+        pd.concat(predictions, ignore_index=True)
+        if predictions
+        else pd.DataFrame(columns=PREDICTION_COLUMNS)
+    )
+    predictions = predictions.astype(
+        {
+            "measured_percent": "int32",
+            "repeat": "int32",
+            "segment": "int32",
+            "speed_rpm": float,
+            "uncertainty": float,
+        }
+    )
     metrics = pd.DataFrame(metrics, columns=BASELINE_COLUMNS if measured_only else METRIC_COLUMNS)
     validation = pd.DataFrame(validation, columns=SIMULATED_VALIDATION_COLUMNS)
     return ProtocolResult(predictions[PREDICTION_COLUMNS], metrics, models, validation)
@@ -382,8 +519,9 @@ def training_history(models: dict) -> pd.DataFrame:
     if not frames:
         return pd.DataFrame()
     history = pd.concat(frames, ignore_index=True)
-    return history.astype({"measured_percent": "int32", "repeat": "int32", "member": "int32",
-                           "epoch": "int32"})
+    return history.astype(
+        {"measured_percent": "int32", "repeat": "int32", "member": "int32", "epoch": "int32"}
+    )
 
 
 def write_models(models: dict, directory, feature_names) -> list[dict]:
@@ -405,8 +543,13 @@ def write_models(models: dict, directory, feature_names) -> list[dict]:
             name = model_filename(percent, repeat, index)
             model = models[(percent, repeat, holdout)]
             joblib.dump(model, tmp / name)
-            entry = {"file": name, "measured_percent": percent, "repeat": repeat,
-                     "holdout": holdout, "holdout_index": index}
+            entry = {
+                "file": name,
+                "measured_percent": percent,
+                "repeat": repeat,
+                "holdout": holdout,
+                "holdout_index": index,
+            }
             if hasattr(model, "member_info_"):
                 entry["members"] = model.member_info_
             selected = selected_features(model, feature_names)
@@ -420,8 +563,12 @@ def write_models(models: dict, directory, feature_names) -> list[dict]:
 
 
 def write_predictions(predictions: pd.DataFrame, path) -> None:
-    write_table(pa.Table.from_pandas(predictions[PREDICTION_COLUMNS], schema=PREDICTION_SCHEMA,
-                                      preserve_index=False), path)
+    write_table(
+        pa.Table.from_pandas(
+            predictions[PREDICTION_COLUMNS], schema=PREDICTION_SCHEMA, preserve_index=False
+        ),
+        path,
+    )
 
 
 def write_metrics(metrics: pd.DataFrame, path, columns=METRIC_COLUMNS) -> None:
@@ -438,13 +585,23 @@ def write_simulated_validation(validation: pd.DataFrame, path) -> None:
 
 class JobCost(NamedTuple):
     """What a train job cost: its wall seconds and peak memory (MB; None: not measured)."""
+
     total_seconds: float
     peak_memory_mb: float | None = None
 
 
-def train_info(classifier_name: str, params: dict | None, seed: int, protocol: str,
-               labels, feature_names, metrics: pd.DataFrame, model_files: list[dict],
-               cost: JobCost, selection: dict | None = None) -> dict:
+def train_info(
+    classifier_name: str,
+    params: dict | None,
+    seed: int,
+    protocol: str,
+    labels,
+    feature_names,
+    metrics: pd.DataFrame,
+    model_files: list[dict],
+    cost: JobCost,
+    selection: dict | None = None,
+) -> dict:
     """Contents of info.json: what was trained, on which features, and how long it took."""
     total_seconds, peak_memory_mb = cost
     names_json = json.dumps(list(feature_names))
@@ -461,9 +618,17 @@ def train_info(classifier_name: str, params: dict | None, seed: int, protocol: s
         "feature_names_sha256": hashlib.sha256(names_json.encode()).hexdigest(),
         "models": model_files,
         "selection": {k: v for k, v in (selection or {}).items() if v is not None},
-        "timings": {"total_seconds": round(total_seconds, 3),
-                    "fit_seconds_sum": round(float(metrics.drop_duplicates(
-                        ["measured_percent", "repeat", "holdout"])["fit_seconds"].sum()), 3)},
+        "timings": {
+            "total_seconds": round(total_seconds, 3),
+            "fit_seconds_sum": round(
+                float(
+                    metrics.drop_duplicates(["measured_percent", "repeat", "holdout"])[
+                        "fit_seconds"
+                    ].sum()
+                ),
+                3,
+            ),
+        },
         "peak_memory_mb": None if peak_memory_mb is None else round(peak_memory_mb, 1),
         "package_versions": versions,
     }

@@ -3,6 +3,7 @@ concatenated into the accuracy table, the predictions.parquet files into one tab
 classifier from each file's path. A file that breaks the stage contract raises
 ReportInputError naming it. The report and tracking read them alike through this module.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -11,11 +12,30 @@ import numpy as np
 import pandas as pd
 
 # accuracy.csv: the contract columns first, then the context of each evaluation.
-ACCURACY_COLUMNS = ["classifier", "protocol", "measured_percent", "repeat", "speed_rpm",
-                    "accuracy", "macro_f1", "holdout", "n_train_simulated",
-                    "n_train_measured", "n_test"]
-PREDICTION_COLUMNS = ["protocol", "measured_percent", "repeat", "holdout", "record_id",
-                      "segment", "speed_rpm", "true_label", "predicted_label"]
+ACCURACY_COLUMNS = [
+    "classifier",
+    "protocol",
+    "measured_percent",
+    "repeat",
+    "speed_rpm",
+    "accuracy",
+    "macro_f1",
+    "holdout",
+    "n_train_simulated",
+    "n_train_measured",
+    "n_test",
+]
+PREDICTION_COLUMNS = [
+    "protocol",
+    "measured_percent",
+    "repeat",
+    "holdout",
+    "record_id",
+    "segment",
+    "speed_rpm",
+    "true_label",
+    "predicted_label",
+]
 # optional: the CNN ensemble's member spread per prediction (NaN for the other classifiers)
 OPTIONAL_PREDICTION_COLUMNS = ["uncertainty"]
 SORT_KEYS = ["classifier", "protocol", "measured_percent", "repeat", "holdout", "speed_rpm"]
@@ -67,10 +87,10 @@ def load_metrics(paths, extra_columns=()) -> pd.DataFrame:
         first = table.loc[duplicated].iloc[0]
         raise ReportInputError(
             f"metrics rows repeat for classifier {first.classifier!r} protocol {first.protocol!r} "
-            f"percent {first.measured_percent} repeat {first.repeat}; is a metrics file listed twice?")
+            f"percent {first.measured_percent} repeat {first.repeat}; is a metrics file listed twice?"
+        )
     # na_position="first": the all-speeds row leads its group.
-    return (table.sort_values(SORT_KEYS, na_position="first", kind="stable")
-            .reset_index(drop=True))
+    return table.sort_values(SORT_KEYS, na_position="first", kind="stable").reset_index(drop=True)
 
 
 def classifier_of(predictions_path: Path) -> str:
@@ -91,8 +111,10 @@ def load_predictions(paths) -> pd.DataFrame:
             frame.insert(0, "classifier", classifier_of(path))
         protocols = set(frame["protocol"])
         if protocols != {path.parent.name}:
-            raise ReportInputError(f"{path}: protocol column {sorted(protocols)} does not match "
-                                   f"the directory train/<classifier>/{path.parent.name}/")
+            raise ReportInputError(
+                f"{path}: protocol column {sorted(protocols)} does not match "
+                f"the directory train/<classifier>/{path.parent.name}/"
+            )
         for column in OPTIONAL_PREDICTION_COLUMNS:
             if column not in frame.columns:
                 frame[column] = np.nan

@@ -195,16 +195,22 @@ def statistical_feature_params():
     another run's features."""
     if "statistical" not in FEATURE_FAMILIES:
         return None
-    return dict(config["features"]["statistical"])
+    statistical = dict(config["features"]["statistical"])
+    # the lines a defect modulates (the envelope features read them): in the settings the features
+    # jobs and a packaged model take alike
+    sidebands = SYSTEM.defect_sidebands()
+    if sidebands:
+        statistical["line_sidebands"] = dict(sidebands)
+    return statistical
 
 
 def feature_threads():
     """The features jobs' threads: every core of the run where a chosen family of the system's
-    spreads its segments over them (`takes_processes`), else one,
+    spreads its segments over them (`SystemFamily.parallel`), else one,
     so a family that cannot use them never holds the other jobs back."""
     own = SYSTEM.feature_families()
     chosen = [own[family] for family in FEATURE_FAMILIES if family in own]
-    if any(getattr(table, "takes_processes", False) for table in chosen):
+    if any(family.parallel for family in chosen):
         return workflow.resource_settings.cores or 1
     return 1
 
@@ -302,8 +308,7 @@ def measured_reference_output():
     outputs = {"reference": f"{RESULTS}/features/measured_reference.parquet"}
     own = SYSTEM.feature_families()
     if any(
-        getattr(own.get(f), "takes_reference", False)
-        for f in config["features"]["kind"].split("+")
+        f in own and own[f].references for f in config["features"]["kind"].split("+")
     ):
         outputs["family_references"] = (
             f"{RESULTS}/features/measured_family_references.parquet"

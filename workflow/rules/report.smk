@@ -117,7 +117,6 @@ rule report:
         bench_differences=SYSTEM.bench_differences(),
         confusion_percent=config["report"]["confusion_percent"],
         benchmarked_rules=list(upstream_benchmarks()),
-        cores=workflow.cores,  # the run's elapsed time against its CPU seconds / cores
         healthy_state=SYSTEM.healthy_state,
         calibrations=CALIBRATIONS,  # the first one's calibration made the simulated data
         state_models=STATE_CALIBRATIONS,  # calibration.per_state: labelled in every plot
@@ -136,6 +135,10 @@ rule report:
             reserve=config["calibration"]["reserve"],
             states=[SYSTEM.healthy_state, *STATE_CALIBRATIONS],
         ),
+    resources:
+        # the run's --cores, to set its elapsed time against its CPU seconds / cores: a resource,
+        # not a param, so running with other cores reruns nothing (no --resources limits it)
+        run_cores=workflow.resource_settings.cores or 1,
     conda:
         "../envs/report.yaml"
     benchmark:

@@ -42,9 +42,15 @@ rule train:
 
 
 # The system's training-free physics baselines (System.physics_baselines), on the same test
-# sets: their thresholds come from the calibration segments only.
+# sets: their thresholds come from the calibration segments only; the measured signals too, where
+# the system's rules read them (System.baselines_read_signals).
 rule physics_baseline:
     input:
+        **(
+            {"signals": rules.measured.output[0]}
+            if SYSTEM.baselines_read_signals
+            else {}
+        ),
         measured=rules.features_measured.output.features,
         splits=rules.hybrid.output.splits,
     output:

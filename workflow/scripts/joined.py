@@ -4,6 +4,7 @@ share of segments outside the fit's training range; condmon.joined).
 
 `snakemake` is injected by Snakemake's script directive.
 """
+
 import json
 
 import pandas as pd
@@ -22,12 +23,25 @@ measured, measured_names = read_feature_table(inputs.measured)
 names = matching_feature_names(simulated_names, measured_names)
 info = json.loads(open(inputs.info).read())
 joined, summary, coverage = joined_predictions(
-    classifier, pd.read_parquet(inputs.predictions), pd.read_parquet(inputs.rule), info["models"],
-    simulated, measured, read_split_table(inputs.splits), names)
+    classifier,
+    pd.read_parquet(inputs.predictions),
+    pd.read_parquet(inputs.rule),
+    info["models"],
+    simulated,
+    measured,
+    read_split_table(inputs.splits),
+    names,
+)
 write_predictions(prediction_frame(joined), snakemake.output.predictions)
-write_metrics(joined_metrics(classifier, joined, pd.read_csv(inputs.metrics, dtype={"holdout": str})),
-              snakemake.output.metrics)
+write_metrics(
+    joined_metrics(classifier, joined, pd.read_csv(inputs.metrics, dtype={"holdout": str})),
+    snakemake.output.metrics,
+)
 write_text(coverage.to_csv(index=False), snakemake.output.coverage)
 write_json({**summary, "protocol": info["protocol"]}, snakemake.output.info)
-log.info("%s: %d predictions, %.3f of them outside the training range (the rule's call there)",
-         joined_name(classifier), len(joined), summary["outside_training_share"])
+log.info(
+    "%s: %d predictions, %.3f of them outside the training range (the rule's call there)",
+    joined_name(classifier),
+    len(joined),
+    summary["outside_training_share"],
+)

@@ -1,5 +1,6 @@
 """One part of a system's synthetic bench (`System.measured_parts`, e.g. one health state at one
 speed)."""
+
 from condmon.runlog import setup_logging
 from condmon.signals import write_signal_table
 from condmon.systems import load_system

@@ -2,6 +2,7 @@
 
 `snakemake` is injected by Snakemake's script directive. The logic lives in condmon.predict.
 """
+
 import sys
 
 from condmon.predict import PredictError, load_model, predict, read_input, write_outputs
@@ -19,5 +20,10 @@ except (PredictError, UnsupportedRecords) as error:  # named: the record or the 
     log.error("%s", error)
     sys.exit(1)
 summary = results["summary"]
-log.info("%s: %d records, %d fault, by %s", snakemake.input.data, len(summary),
-         (summary["status"] == "fault").sum(), origin["source"])
+log.info(
+    "%s: %d records, %d fault, by %s",
+    snakemake.input.data,
+    len(summary),
+    (summary["status"] == "fault").sum(),
+    origin["source"],
+)

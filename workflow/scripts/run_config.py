@@ -3,6 +3,7 @@ in) -> report/config.yaml, linked from the report's pages.
 
 `snakemake` is injected by Snakemake's script directive.
 """
+
 import yaml
 
 from condmon.atomic import write_text

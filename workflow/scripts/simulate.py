@@ -1,4 +1,5 @@
 """One simulation job: a batch of the system's runs for one health state and speed."""
+
 import json
 
 from condmon.atomic import write_json
@@ -16,14 +17,30 @@ with open(snakemake.input.calibration) as handle:
 if "state_calibration" in snakemake.input.keys():
     with open(snakemake.input.state_calibration) as handle:
         state = json.load(handle)
-    calibrated["state_models"] = {state["state"]: {"variant": state["model_variant"], "parameters": state["parameters"],
-                                                   "spread": state["spread"]}}
+    calibrated["state_models"] = {
+        state["state"]: {
+            "variant": state["model_variant"],
+            "parameters": state["parameters"],
+            "spread": state["spread"],
+        }
+    }
 # calibration.background: the input is there only when it is on
-background = read_background(snakemake.input.background) if "background" in snakemake.input.keys() else None
-rows, report = simulate_batch(load_system(p.system), calibrated, snakemake.wildcards.health,
-                              float(snakemake.wildcards.speed), int(snakemake.wildcards.batch),
-                              samples=p.samples, simulation=p.simulation, background=background,
-                              reference_segments=int(getattr(p, "reference_segments", 0)))
+background = (
+    read_background(snakemake.input.background) if "background" in snakemake.input.keys() else None
+)
+rows, report = simulate_batch(
+    load_system(p.system),
+    calibrated,
+    snakemake.wildcards.health,
+    float(snakemake.wildcards.speed),
+    int(snakemake.wildcards.batch),
+    samples=p.samples,
+    simulation=p.simulation,
+    background=background,
+    reference_segments=int(getattr(p, "reference_segments", 0)),
+)
 write_signal_table(rows, snakemake.output.signals, config=dict(p.items()))
 write_json(report, snakemake.output.report)
-log.info("wrote %d rows; %d of %d samples failed", len(rows), len(report["failures"]), report["samples"])
+log.info(
+    "wrote %d rows; %d of %d samples failed", len(rows), len(report["failures"]), report["samples"]
+)

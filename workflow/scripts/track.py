@@ -4,6 +4,7 @@ The only job that writes to the tracking store, run once after all training, so 
 never race on it. The logic lives in condmon.tracking.
 `snakemake` is injected by Snakemake's script directive.
 """
+
 import sys
 from pathlib import Path
 
@@ -11,45 +12,77 @@ import pandas as pd
 
 from condmon.model_store import build_store
 from condmon.runlog import setup_logging
+from condmon.signal_model import packaged_features
 from condmon.systems import load_system
-from condmon.tracking import (TrackedRun, TrackingError, check_tracking_server, log_pipeline_run,
-                              resolve_tracking_uri, write_run_info)
+from condmon.tracking import (
+    TrackedRun,
+    TrackingError,
+    check_tracking_server,
+    log_pipeline_run,
+    resolve_tracking_uri,
+    write_run_info,
+)
 
 log = setup_logging(snakemake)  # to snakemake.log[0]
 params, inputs = snakemake.params, snakemake.input
 train_dirs = [Path(path).parent for path in inputs.info]  # train/<classifier>/<protocol>
 try:
-    check_tracking_server(resolve_tracking_uri(params.tracking_uri))  # a dead server: before any work
+    check_tracking_server(
+        resolve_tracking_uri(params.tracking_uri)
+    )  # a dead server: before any work
     # every fit as a model from raw segments (the features and training domain with it), where
     # the job declares the store (the rule always does; a bare logging job, as the tracking-server
     # tests run, logs the fitted estimators as they are)
     store = snakemake.output.models if "models" in snakemake.output.keys() else None
     if store is not None:
-        features = {**dict(params.features), "defect_orders": load_system(params.features_system).defect_orders()}
-        if "reference" in inputs.keys():  # features.healthy_reference: new records taken against it too
-            features["reference"] = {"condition": params.condition,
-                                     "table": pd.read_parquet(inputs.reference).to_dict("list")}
-        if "family_references" in inputs.keys():  # a family's own references (waveforms), packaged in its params
-            own = load_system(params.features_system).feature_families()
-            patterns = pd.read_parquet(inputs.family_references).to_dict("list")
-            features["families"] = {family: dict(settings) for family, settings in (features.get("families") or {}).items()}
-            for family, settings in features["families"].items():
-                if getattr(own.get(family), "takes_reference", False):
-                    settings["reference_patterns"] = patterns
-        index = build_store(store, train_dirs, dict(zip(params.protocols, inputs.splits)),
-                            inputs.measured_signals, inputs.features_simulated, inputs.features_measured,
-                            features, params.healthy_state, dict(params.measured_system), params.config_hash)
+        system = load_system(params.features_system)
+        reference = None
+        if (
+            "reference" in inputs.keys()
+        ):  # features.healthy_reference: new records taken against it too
+            reference = {
+                "condition": params.condition,
+                "table": pd.read_parquet(inputs.reference).to_dict("list"),
+            }
+        family_references = None  # a family's own references (waveforms), packaged in its settings
+        if "family_references" in inputs.keys():
+            family_references = pd.read_parquet(inputs.family_references)
+        features = packaged_features(
+            dict(params.features),
+            system.defect_orders(),
+            system.feature_families(),
+            reference,
+            family_references,
+        )
+        index = build_store(
+            store,
+            train_dirs,
+            dict(zip(params.protocols, inputs.splits)),
+            inputs.measured_signals,
+            inputs.features_simulated,
+            inputs.features_measured,
+            features,
+            params.healthy_state,
+            dict(params.measured_system),
+            params.config_hash,
+        )
         log.info("packaged %d models in %s; best %s", len(index["models"]), store, index["best"])
     info = log_pipeline_run(
         tracking_uri=params.tracking_uri,
-        run=TrackedRun(run_name=params.run_name, config_hash=params.config_hash,
-                       data_source=params.data_source, config=dict(params.config),
-                       healthy_state=params.healthy_state),
+        run=TrackedRun(
+            run_name=params.run_name,
+            config_hash=params.config_hash,
+            data_source=params.data_source,
+            config=dict(params.config),
+            healthy_state=params.healthy_state,
+        ),
         train_dirs=train_dirs,
-        datasets={"measured_signals": [inputs.measured_signals],
-                  "simulated_signals": list(inputs.simulated_signals),
-                  "measured_features": [inputs.features_measured],
-                  "simulated_features": [inputs.features_simulated]},
+        datasets={
+            "measured_signals": [inputs.measured_signals],
+            "simulated_signals": list(inputs.simulated_signals),
+            "measured_features": [inputs.features_measured],
+            "simulated_features": [inputs.features_simulated],
+        },
         log_models=params.log_models,
         model_store=store,
         artifacts={"plots": inputs.plots} if "plots" in inputs.keys() else None,

@@ -15,11 +15,21 @@ split table, with the calibration set and the simulated validation set around it
 `reasons=True` a `reason` column (kept out of the written table, whose format is fixed). A new
 protocol is one file with a `Protocol` subclass and one line in registry.REGISTRY.
 """
+
 from __future__ import annotations
 
 from condmon.protocols.base import Assignment, Protocol, Split
 from condmon.protocols.registry import PROTOCOLS, REGISTRY, make_protocol, protocol_from
 from condmon.protocols.table import check_healthy_tested, make_splits
 
-__all__ = ["Assignment", "PROTOCOLS", "Protocol", "REGISTRY", "Split", "check_healthy_tested",
-           "make_protocol", "make_splits", "protocol_from"]
+__all__ = [
+    "Assignment",
+    "PROTOCOLS",
+    "Protocol",
+    "REGISTRY",
+    "Split",
+    "check_healthy_tested",
+    "make_protocol",
+    "make_splits",
+    "protocol_from",
+]

@@ -8,6 +8,7 @@ segment_share) its role and the reason it has it. `records`: record_id, health_s
 `segment` column). The calibration set and the simulated validation set are not a protocol's
 business: `condmon.protocols.make_splits` adds them around it.
 """
+
 from __future__ import annotations
 
 import logging
@@ -31,6 +32,7 @@ MEASURED_NEEDS = {"specimens": "each measured fault record's specimen and specim
 @dataclass(frozen=True)
 class Assignment:
     """One unit's place in one split: its role (train, test, unused) and why."""
+
     record_id: str
     role: str
     reason: str
@@ -40,6 +42,7 @@ class Assignment:
 @dataclass(frozen=True)
 class Split:
     """One split of a protocol: every unit once, with its role and the reason."""
+
     measured_percent: int
     repeat: int
     holdout: str
@@ -59,8 +62,18 @@ class Split:
 
     def rows(self) -> list[tuple]:
         """(measured_percent, repeat, holdout, record_id, segment, role, reason) per unit."""
-        return [(self.measured_percent, self.repeat, self.holdout, a.record_id, a.segment,
-                 a.role, a.reason) for a in self.assignments]
+        return [
+            (
+                self.measured_percent,
+                self.repeat,
+                self.holdout,
+                a.record_id,
+                a.segment,
+                a.role,
+                a.reason,
+            )
+            for a in self.assignments
+        ]
 
 
 def check_percents(measured_percent) -> list[int]:
@@ -98,13 +111,15 @@ def stratum_orders(records: pd.DataFrame, seed: int, repeat: int) -> dict[tuple,
     for (health, value), group in records.groupby(["health_state", "condition"], sort=True):
         ids = sorted(group["record_id"])  # start from a fixed order: input row order is irrelevant
         rng = np.random.default_rng(
-            derive_seed(seed, repeat, stable_int(f"{health}|{format_speed(value)}")))
+            derive_seed(seed, repeat, stable_int(f"{health}|{format_speed(value)}"))
+        )
         orders[(health, value)] = [ids[i] for i in rng.permutation(len(ids))]
     return orders
 
 
-def draw(ids, percent: int, keep: int, stratum: str, rest: str = "test",
-         unit: str = "records") -> list[tuple[str, str, str]]:
+def draw(
+    ids, percent: int, keep: int, stratum: str, rest: str = "test", unit: str = "records"
+) -> list[tuple[str, str, str]]:
     """(id, role, reason) of a stratum's ids in their random order: the first
     n_train_records(n, percent, keep) train, the others get `rest`; the reason tells a unit the
     share did not draw from one kept back (`keep`: kept for testing)."""
@@ -116,8 +131,9 @@ def draw(ids, percent: int, keep: int, stratum: str, rest: str = "test",
         if i < n_train:
             out.append((uid, "train", f"in the training share ({drawn})"))
         elif i < wanted:
-            out.append((uid, rest,
-                        f"kept back for testing (at least {keep} {unit} of {stratum} test)"))
+            out.append(
+                (uid, rest, f"kept back for testing (at least {keep} {unit} of {stratum} test)")
+            )
         else:
             out.append((uid, rest, f"not drawn for training ({drawn})"))
     return out
@@ -131,6 +147,7 @@ class Protocol:
     keeps any; `condition`: the operating-condition column (speed_rpm, load); `healthy_state`:
     with it every test set holds healthy data (false alarms are always measured).
     """
+
     name: ClassVar[str]
     # the unit the split table lists: "record" (segment -1: a whole record or time block) or
     # "segment" (segment_share; records cut in time are never its units)
@@ -139,8 +156,15 @@ class Protocol:
     # config check refuses a protocol whose data lack it (System.measured_offers), before any job
     needs: ClassVar[frozenset[str]] = frozenset()
 
-    def __init__(self, measured_percent, repeats: int, seed: int, min_test_records: int = 1,
-                 condition: str = "speed_rpm", healthy_state: str | None = None):
+    def __init__(
+        self,
+        measured_percent,
+        repeats: int,
+        seed: int,
+        min_test_records: int = 1,
+        condition: str = "speed_rpm",
+        healthy_state: str | None = None,
+    ):
         self.measured_percent = check_percents(measured_percent)
         self.repeats = check_integer("repeats", repeats, 1)
         self.seed = check_integer("seed", seed, 0)
@@ -149,8 +173,10 @@ class Protocol:
         self.healthy_state = healthy_state
 
     def __repr__(self) -> str:
-        return (f"{type(self).__name__}(measured_percent={self.measured_percent}, "
-                f"repeats={self.repeats}, seed={self.seed})")
+        return (
+            f"{type(self).__name__}(measured_percent={self.measured_percent}, "
+            f"repeats={self.repeats}, seed={self.seed})"
+        )
 
     def stratum(self, health: str, value: float) -> str:
         """A stratum as reasons name it: "healthy at speed_rpm=450"."""
@@ -168,13 +194,18 @@ class Protocol:
             orders = stratum_orders(units, self.seed, repeat)
             for percent in self.measured_percent:
                 for holdout, rows in self.assign(orders, percent):
-                    yield Split(percent, repeat, holdout,
-                                tuple(Assignment(uid, role, reason) for uid, role, reason in rows))
+                    yield Split(
+                        percent,
+                        repeat,
+                        holdout,
+                        tuple(Assignment(uid, role, reason) for uid, role, reason in rows),
+                    )
 
     def check(self, units: pd.DataFrame) -> None:
         """Refuse (or warn about) units this protocol cannot split; nothing by default."""
 
-    def assign(self, orders: dict[tuple, list[str]], percent: int
-               ) -> Iterator[tuple[str, list[tuple[str, str, str]]]]:
+    def assign(
+        self, orders: dict[tuple, list[str]], percent: int
+    ) -> Iterator[tuple[str, list[tuple[str, str, str]]]]:
         """(holdout, [(unit, role, reason), ...]) per split at one share and repeat."""
         raise NotImplementedError

@@ -1,5 +1,6 @@
 """record_split: per stratum (health_state x condition) a share of whole records trains, the
 rest tests; at least `min_test_records` per stratum stay in the test set."""
+
 from __future__ import annotations
 
 from condmon.labels import format_speed
@@ -13,8 +14,11 @@ class RecordSplit(Protocol):
         sizes = units.groupby(["health_state", "condition"]).size()
         small = sizes[sizes <= self.min_test_records]
         if len(small):
-            log.warning("strata with <= min_test_records=%d records never train: %s",
-                        self.min_test_records, [(h, format_speed(s)) for h, s in small.index])
+            log.warning(
+                "strata with <= min_test_records=%d records never train: %s",
+                self.min_test_records,
+                [(h, format_speed(s)) for h, s in small.index],
+            )
 
     def assign(self, orders, percent):
         rows = []

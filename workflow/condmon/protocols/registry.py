@@ -1,4 +1,5 @@
 """The protocols by name: one line per protocol (its file holds the class)."""
+
 from __future__ import annotations
 
 import inspect
@@ -11,8 +12,10 @@ from condmon.protocols.segment_share import SegmentShare
 from condmon.protocols.specimen_holdout import SpecimenHoldout
 from condmon.protocols.unseen_fault import UnseenFault
 
-REGISTRY: dict[str, type[Protocol]] = {cls.name: cls for cls in (
-    RecordSplit, ConditionHoldout, SegmentShare, UnseenFault, SpecimenHoldout)}
+REGISTRY: dict[str, type[Protocol]] = {
+    cls.name: cls
+    for cls in (RecordSplit, ConditionHoldout, SegmentShare, UnseenFault, SpecimenHoldout)
+}
 PROTOCOLS = tuple(REGISTRY)
 
 
@@ -23,8 +26,9 @@ def make_protocol(name: str, **params) -> Protocol:
         raise SplitError(f"unknown protocol {name!r}; choose one of {list(PROTOCOLS)}")
     unknown = sorted(set(params) - set(parameters(name)))
     if unknown:
-        raise SplitError(f"protocol {name!r} takes no parameter(s) {unknown}; it takes "
-                         f"{list(parameters(name))}")
+        raise SplitError(
+            f"protocol {name!r} takes no parameter(s) {unknown}; it takes {list(parameters(name))}"
+        )
     return REGISTRY[name](**params)
 
 
@@ -33,8 +37,9 @@ def protocol_from(name: str, offered: dict) -> Protocol:
     offers every protocol's: measured_classes, condition_split, specimens, ...)."""
     if name not in REGISTRY:
         make_protocol(name)  # the error listing the valid names
-    return make_protocol(name, **{key: value for key, value in offered.items()
-                                  if key in parameters(name)})
+    return make_protocol(
+        name, **{key: value for key, value in offered.items() if key in parameters(name)}
+    )
 
 
 def parameters(name: str) -> tuple[str, ...]:

@@ -1,6 +1,7 @@
 """specimen_holdout: each specimen group (e.g. a fault size) in turn tests whole, at every
 condition; the share trains from the other groups' records (the rest unused); healthy records
 always test, so no specimen is on both sides."""
+
 from __future__ import annotations
 
 import pandas as pd
@@ -14,25 +15,41 @@ HEALTHY_GROUP = ""  # healthy units: never held out by group, they test in every
 class SpecimenHoldout(Protocol):
     """`specimens`: record_id, specimen, specimen_group of the measured records (the measured
     stage's records.csv)."""
+
     name = "specimen_holdout"
     needs = frozenset({"specimens"})
 
-    def __init__(self, measured_percent, repeats, seed, min_test_records=1,
-                 condition="speed_rpm", healthy_state=None, specimens: pd.DataFrame | None = None):
-        super().__init__(measured_percent, repeats, seed, min_test_records, condition,
-                         healthy_state)
+    def __init__(
+        self,
+        measured_percent,
+        repeats,
+        seed,
+        min_test_records=1,
+        condition="speed_rpm",
+        healthy_state=None,
+        specimens: pd.DataFrame | None = None,
+    ):
+        super().__init__(
+            measured_percent, repeats, seed, min_test_records, condition, healthy_state
+        )
         if specimens is None or not {"record_id", "specimen", "specimen_group"} <= set(specimens):
-            raise SplitError("specimen_holdout needs the specimen and specimen_group of every "
-                             "measured record (measured/records.csv: the system's measured "
-                             "stage writes them where it knows them: a system's own record "
-                             "files, or a measured_table's columns specimen and specimen_group)")
+            raise SplitError(
+                "specimen_holdout needs the specimen and specimen_group of every "
+                "measured record (measured/records.csv: the system's measured "
+                "stage writes them where it knows them: a system's own record "
+                "files, or a measured_table's columns specimen and specimen_group)"
+            )
         self.specimens = specimens
         self.group_of: dict[str, str] = {}
 
     def check(self, units):
         """{unit: specimen group} of every unit; healthy units get HEALTHY_GROUP."""
-        group = dict(zip(self.specimens["record_id"].astype(str),
-                         self.specimens["specimen_group"].fillna("").astype(str)))
+        group = dict(
+            zip(
+                self.specimens["record_id"].astype(str),
+                self.specimens["specimen_group"].fillna("").astype(str),
+            )
+        )
         groups = {}
         for unit, health in zip(units["record_id"], units["health_state"]):
             record = unit.partition(BLOCK_MARK)[0]
@@ -43,8 +60,9 @@ class SpecimenHoldout(Protocol):
             else:
                 groups[unit] = group[record]
         if len({g for g in groups.values() if g}) < 2:
-            raise SplitError("specimen_holdout needs fault specimens of at least two groups "
-                             "(sizes)")
+            raise SplitError(
+                "specimen_holdout needs fault specimens of at least two groups (sizes)"
+            )
         self.group_of = groups
 
     def assign(self, orders, percent):
@@ -55,8 +73,9 @@ class SpecimenHoldout(Protocol):
                     if self.group_of[rid] == group:
                         rows.append((rid, "test", f"held-out specimen group {group}"))
                     elif self.group_of[rid] == HEALTHY_GROUP:
-                        rows.append((rid, "test",
-                                     f"{health}, the healthy state: tests in every split"))
+                        rows.append(
+                            (rid, "test", f"{health}, the healthy state: tests in every split")
+                        )
                 others = [rid for rid in ids if self.group_of[rid] not in (HEALTHY_GROUP, group)]
                 rows += draw(others, percent, 0, self.stratum(health, value), rest="unused")
             yield f"specimen_group={group}", rows

@@ -3,6 +3,7 @@ separate their classes on their own (condmon.separability: a classifier on the m
 alone, each record left out, over all records and per condition), on the modelled specimens'
 records as the headline; the headline's last row. Conditions where the measured records' own
 classifier misses a class are logged (exempt from what simulation is asked)."""
+
 from __future__ import annotations
 
 from condmon.report.section import Section
@@ -14,6 +15,9 @@ def write(report) -> dict:
 
 
 SECTION = Section(
-    "ceiling", write,
+    "ceiling",
+    write,
     inputs=("evaluation.measured_features", "evaluation.condition", "evaluation.unmodelled"),
-    requires=("evaluation.measured_features",), summary_keys=("measured_separability",))
+    requires=("evaluation.measured_features",),
+    summary_keys=("measured_separability",),
+)

@@ -5,6 +5,7 @@ position is), how many of its segments agree and how sure they are (the share of
 that position); where the records carry the truth (a virtual bench), whether it is named right:
 the position overlaps the `span` positions from where a damaged one begins. summary.json
 `fault_location`: the share of the scored records named right, per class."""
+
 from __future__ import annotations
 
 import json
@@ -34,17 +35,42 @@ def record_locations(located: pd.DataFrame) -> pd.DataFrame:
         named = segments["position"].astype(int)
         position = int(named.mode().min())
         truth = positions_of(segments["true_positions"].iloc[0])
-        rows.append({"record_id": record, "health_state": segments["health_state"].iloc[0],
-                     "speed_rpm": float(segments["speed_rpm"].iloc[0]), "part": part, "position": position,
-                     "agreement": float((named == position).mean()),
-                     "share": float(segments.loc[named == position, "share"].mean()), "true_positions": truth,
-                     "named_right": (named_right(position, truth, int(segments["positions"].iloc[0]),
-                                                 float(segments["span"].iloc[0])) if truth else None)})
+        rows.append(
+            {
+                "record_id": record,
+                "health_state": segments["health_state"].iloc[0],
+                "speed_rpm": float(segments["speed_rpm"].iloc[0]),
+                "part": part,
+                "position": position,
+                "agreement": float((named == position).mean()),
+                "share": float(segments.loc[named == position, "share"].mean()),
+                "true_positions": truth,
+                "named_right": (
+                    named_right(
+                        position,
+                        truth,
+                        int(segments["positions"].iloc[0]),
+                        float(segments["span"].iloc[0]),
+                    )
+                    if truth
+                    else None
+                ),
+            }
+        )
     return pd.DataFrame(rows)
 
 
-COLUMNS = ["record_id", "health_state", "speed_rpm", "part", "position", "agreement", "share", "true_positions",
-           "named_right"]
+COLUMNS = [
+    "record_id",
+    "health_state",
+    "speed_rpm",
+    "part",
+    "position",
+    "agreement",
+    "share",
+    "true_positions",
+    "named_right",
+]
 
 
 def write(report) -> dict:
@@ -58,17 +84,30 @@ def write(report) -> dict:
     table = record_locations(located)
     scored = table.dropna(subset=["named_right"])
     report.summary["fault_location"] = {
-        "records": int(len(table)), "scored": int(len(scored)),
+        "records": int(len(table)),
+        "scored": int(len(scored)),
         "named_right": float(scored["named_right"].astype(bool).mean()) if len(scored) else None,
-        "per_class": {state: float(part["named_right"].astype(bool).mean())
-                      for state, part in scored.groupby("health_state")}}
+        "per_class": {
+            state: float(part["named_right"].astype(bool).mean())
+            for state, part in scored.groupby("health_state")
+        },
+    }
     return {"fault_location": table.assign(true_positions=table["true_positions"].map(json.dumps))}
 
 
 SECTION = Section(
-    "fault_location", write, inputs=("evaluation.fault_locations", "run.healthy_state"),
-    tables=(Table("fault_location", "fault_location.csv", "Where the fault sits (fault_location.csv)",
-                  "Per measured fault record and damaged part: the position its segments name (in "
-                  "the machine's own frame), their agreement and how sure; on a bench whether it is "
-                  "named right."),),
-    summary_keys=("fault_location",))
+    "fault_location",
+    write,
+    inputs=("evaluation.fault_locations", "run.healthy_state"),
+    tables=(
+        Table(
+            "fault_location",
+            "fault_location.csv",
+            "Where the fault sits (fault_location.csv)",
+            "Per measured fault record and damaged part: the position its segments name (in "
+            "the machine's own frame), their agreement and how sure; on a bench whether it is "
+            "named right.",
+        ),
+    ),
+    summary_keys=("fault_location",),
+)

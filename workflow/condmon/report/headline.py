@@ -3,6 +3,7 @@ embeds it): per protocol every classifier's accuracy on held-out measured record
 and the largest measured share, the baselines on the same test sets, chance, and the ceiling of
 the measured records alone; on the evaluation specimens' records where design records are
 declared."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -20,7 +21,8 @@ HEADLINE_NOTE = (
     "same test sets below each protocol's classifiers. `records`: all test records, "
     "or the evaluation specimens' (the headline) and the design specimens' apart. "
     "The last row, where the measured records allow it: a classifier on the measured "
-    "records alone, each left out in turn, the ceiling for one trained on simulation.")
+    "records alone, each left out in turn, the ceiling for one trained on simulation."
+)
 
 
 def write(report) -> dict:
@@ -28,21 +30,46 @@ def write(report) -> dict:
         return {}
     tables = report.evaluation
     table, physics_table, baseline_table, physics_overall = (
-        (None, None, None, None) if tables is None else
-        (tables.table, tables.physics_table, tables.baseline_table, tables.physics_overall))
-    headline = headline_table(report.accuracy, report.baseline, physics_overall, report.chance,
-                              table, physics_table, baseline_table)
+        (None, None, None, None)
+        if tables is None
+        else (tables.table, tables.physics_table, tables.baseline_table, tables.physics_overall)
+    )
+    headline = headline_table(
+        report.accuracy,
+        report.baseline,
+        physics_overall,
+        report.chance,
+        table,
+        physics_table,
+        baseline_table,
+    )
     return {"headline": with_ceiling(headline, report.separability)}
 
 
 # not among the pages' tables: report_pages shows it (and embeds it in the front page) on its own
 SECTION = Section(
-    "headline", write,
-    inputs=("train.metrics", "train.measured_only", "train.physics", "train.measured_only_predictions",
-            "evaluation.measured_features", "evaluation.design_records", "evaluation.design_specimens",
-            "evaluation.unmodelled"),
-    tables=(Table("headline", "headline.csv", "Headline: accuracy on held-out measured records",
-                  HEADLINE_NOTE, page=False),))
+    "headline",
+    write,
+    inputs=(
+        "train.metrics",
+        "train.measured_only",
+        "train.physics",
+        "train.measured_only_predictions",
+        "evaluation.measured_features",
+        "evaluation.design_records",
+        "evaluation.design_specimens",
+        "evaluation.unmodelled",
+    ),
+    tables=(
+        Table(
+            "headline",
+            "headline.csv",
+            "Headline: accuracy on held-out measured records",
+            HEADLINE_NOTE,
+            page=False,
+        ),
+    ),
+)
 
 
 def _mean_and_range(row) -> str:
@@ -55,12 +82,17 @@ def _mean_and_range(row) -> str:
     return text
 
 
-HEADLINE_RECORDS = {evaluation.ALL: "all", "evaluation": "evaluation specimens",
-                    "design": "design specimens"}
-NO_EVALUATION_SPECIMEN = ("no evaluation specimen in this data: every tested record is of a "
-                          "design specimen; add records of other specimens (point measured_dir "
-                          "at a full download of the data set). The design-specimen figures "
-                          "below are no headline")
+HEADLINE_RECORDS = {
+    evaluation.ALL: "all",
+    "evaluation": "evaluation specimens",
+    "design": "design specimens",
+}
+NO_EVALUATION_SPECIMEN = (
+    "no evaluation specimen in this data: every tested record is of a "
+    "design specimen; add records of other specimens (point measured_dir "
+    "at a full download of the data set). The design-specimen figures "
+    "below are no headline"
+)
 
 
 def records_over_repeats(table: pd.DataFrame, records: str) -> pd.DataFrame:
@@ -70,11 +102,15 @@ def records_over_repeats(table: pd.DataFrame, records: str) -> pd.DataFrame:
     return over_repeats(rows.assign(speed_rpm=np.nan, macro_f1=np.nan))
 
 
-def headline_table(accuracy: pd.DataFrame, baseline: pd.DataFrame | None,
-                   physics_overall: pd.DataFrame | None, chance: float,
-                   table: pd.DataFrame | None = None,
-                   physics_table: pd.DataFrame | None = None,
-                   measured_only_table: pd.DataFrame | None = None) -> pd.DataFrame:
+def headline_table(
+    accuracy: pd.DataFrame,
+    baseline: pd.DataFrame | None,
+    physics_overall: pd.DataFrame | None,
+    chance: float,
+    table: pd.DataFrame | None = None,
+    physics_table: pd.DataFrame | None = None,
+    measured_only_table: pd.DataFrame | None = None,
+) -> pd.DataFrame:
     """The report's front-page table: per protocol, every classifier's accuracy on held-out
     measured records at the smallest and the largest measured share in training (0 and 100 %
     in a default run; mean over repeats as accuracy.csv and summary.json give it, with its
@@ -90,35 +126,55 @@ def headline_table(accuracy: pd.DataFrame, baseline: pd.DataFrame | None,
     Otherwise every row is on all test records (`records` all)."""
     percents = sorted(int(p) for p in accuracy["measured_percent"].unique())
     chosen = sorted({percents[0], percents[-1]})
-    columns = {p: ("simulation only (0 % measured)" if p == 0 else f"{p} % measured")
-               for p in chosen}
+    columns = {
+        p: ("simulation only (0 % measured)" if p == 0 else f"{p} % measured") for p in chosen
+    }
     if table is None or not table["records"].isin(["design", "evaluation"]).any():
         alone = over_repeats(baseline) if baseline is not None and not baseline.empty else None
-        return _headline_rows(evaluation.ALL, over_repeats(accuracy), alone, physics_overall,
-                              chance, chosen, columns)
+        return _headline_rows(
+            evaluation.ALL, over_repeats(accuracy), alone, physics_overall, chance, chosen, columns
+        )
     parts = []
     for records in ("evaluation", "design"):
         results = records_over_repeats(table, records)
         if results.empty and records == "design":
             continue
         if results.empty:
-            parts.append(pd.DataFrame([{"records": HEADLINE_RECORDS[records], "protocol": "-",
-                                        "model": NO_EVALUATION_SPECIMEN,
-                                        **{c: "-" for c in columns.values()}}]))
+            parts.append(
+                pd.DataFrame(
+                    [
+                        {
+                            "records": HEADLINE_RECORDS[records],
+                            "protocol": "-",
+                            "model": NO_EVALUATION_SPECIMEN,
+                            **{c: "-" for c in columns.values()},
+                        }
+                    ]
+                )
+            )
             continue
-        physics = (None if physics_table is None else
-                   records_over_repeats(physics_table, records).assign(
-                       condition=evaluation.ALL, records=evaluation.ALL))
-        alone = (None if measured_only_table is None else
-                 records_over_repeats(measured_only_table, records))
+        physics = (
+            None
+            if physics_table is None
+            else records_over_repeats(physics_table, records).assign(
+                condition=evaluation.ALL, records=evaluation.ALL
+            )
+        )
+        alone = (
+            None
+            if measured_only_table is None
+            else records_over_repeats(measured_only_table, records)
+        )
         parts.append(_headline_rows(records, results, alone, physics, chance, chosen, columns))
     return pd.concat(parts, ignore_index=True)
 
 
 CEILING_PROTOCOL = "measured records alone"
-CEILING_MODEL = ("ceiling: a classifier on the measured records alone, every record held out once "
-                 "(balanced accuracy, its permutation chance level in brackets; summary.json "
-                 "measured_separability)")
+CEILING_MODEL = (
+    "ceiling: a classifier on the measured records alone, every record held out once "
+    "(balanced accuracy, its permutation chance level in brackets; summary.json "
+    "measured_separability)"
+)
 
 
 def with_ceiling(headline: pd.DataFrame, separability: dict | None) -> pd.DataFrame:
@@ -131,15 +187,25 @@ def with_ceiling(headline: pd.DataFrame, separability: dict | None) -> pd.DataFr
         return headline
     chance = separability["all"]["chance"]
     shares = list(headline.columns[3:])
-    row = {"records": HEADLINE_RECORDS[evaluation.ALL], "protocol": CEILING_PROTOCOL, "model": CEILING_MODEL,
-           **{column: "-" for column in shares[:-1]},
-           shares[-1]: f"{ceiling:.3f} (chance {chance['mean']:.3f}, to {chance['upper']:.3f})"}
+    row = {
+        "records": HEADLINE_RECORDS[evaluation.ALL],
+        "protocol": CEILING_PROTOCOL,
+        "model": CEILING_MODEL,
+        **{column: "-" for column in shares[:-1]},
+        shares[-1]: f"{ceiling:.3f} (chance {chance['mean']:.3f}, to {chance['upper']:.3f})",
+    }
     return pd.concat([headline, pd.DataFrame([row])], ignore_index=True)
 
 
-def _headline_rows(records: str, results: pd.DataFrame, alone: pd.DataFrame | None,
-                   physics_overall: pd.DataFrame | None, chance: float, chosen: list,
-                   columns: dict) -> pd.DataFrame:
+def _headline_rows(
+    records: str,
+    results: pd.DataFrame,
+    alone: pd.DataFrame | None,
+    physics_overall: pd.DataFrame | None,
+    chance: float,
+    chosen: list,
+    columns: dict,
+) -> pd.DataFrame:
     """headline_table's rows of one set of test records (`results`, `alone`: over_repeats of
     the classifiers' and the measured-only baselines' accuracy on them)."""
 
@@ -150,15 +216,22 @@ def _headline_rows(records: str, results: pd.DataFrame, alone: pd.DataFrame | No
     alone = alone if alone is not None and not alone.empty else None
     physics = None
     if physics_overall is not None and not physics_overall.empty:
-        physics = physics_overall[(physics_overall["condition"] == evaluation.ALL)
-                                  & (physics_overall["records"] == evaluation.ALL)]
+        physics = physics_overall[
+            (physics_overall["condition"] == evaluation.ALL)
+            & (physics_overall["records"] == evaluation.ALL)
+        ]
     rows = []
     for protocol in sorted(results["protocol"].unique()):
         title = protocol_title(protocol)
         mine = results[results["protocol"] == protocol]
         for classifier in sorted(mine["classifier"].unique()):
-            rows.append({"protocol": title, "model": f"{classifier} (simulated + measured)",
-                         **cells(mine[mine["classifier"] == classifier])})
+            rows.append(
+                {
+                    "protocol": title,
+                    "model": f"{classifier} (simulated + measured)",
+                    **cells(mine[mine["classifier"] == classifier]),
+                }
+            )
         if alone is not None and not alone[alone["protocol"] == protocol].empty:
             # per share, the best measured-only classifier (its name in the cell)
             own = alone[alone["protocol"] == protocol]
@@ -166,18 +239,24 @@ def _headline_rows(records: str, results: pd.DataFrame, alone: pd.DataFrame | No
             row = {"protocol": title, "model": "baseline: measured data only (best classifier)"}
             for p in chosen:
                 at = best[best["measured_percent"] == p]
-                row[columns[p]] = ("-" if at.empty else
-                                   f"{_mean_and_range(at.iloc[0])} {at.iloc[0]['classifier']}")
+                row[columns[p]] = (
+                    "-" if at.empty else f"{_mean_and_range(at.iloc[0])} {at.iloc[0]['classifier']}"
+                )
             rows.append(row)
         if physics is not None:
             for rule, own in physics[physics["protocol"] == protocol].groupby("classifier"):
                 row = {"protocol": title, "model": f"baseline: physics rule {rule} (no training)"}
                 for p in chosen:
                     at = own[own["measured_percent"] == p]
-                    row[columns[p]] = ("-" if at.empty or not np.isfinite(at.iloc[0]["accuracy_mean"])
-                                       else f"{at.iloc[0]['accuracy_mean']:.3f}")
+                    row[columns[p]] = (
+                        "-"
+                        if at.empty or not np.isfinite(at.iloc[0]["accuracy_mean"])
+                        else f"{at.iloc[0]['accuracy_mean']:.3f}"
+                    )
                 rows.append(row)
-        rows.append({"protocol": title, "model": "chance",
-                     **{columns[p]: f"{chance:.3f}" for p in chosen}})
+        rows.append(
+            {"protocol": title, "model": "chance", **{columns[p]: f"{chance:.3f}" for p in chosen}}
+        )
     return pd.DataFrame(rows, columns=["protocol", "model", *columns.values()]).assign(
-        records=HEADLINE_RECORDS[records])[["records", "protocol", "model", *columns.values()]]
+        records=HEADLINE_RECORDS[records]
+    )[["records", "protocol", "model", *columns.values()]]

@@ -6,6 +6,7 @@ builds it from Snakemake's input, params and output; a test builds it from its o
 optional part has a default that means "not given": the report then leaves out what depends on
 it (see each field). Sequences are stored as tuples, so an instance is immutable throughout.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -21,6 +22,7 @@ def _tuple(values) -> tuple:
 
 class _Frozen:
     """Sequence fields become tuples (a frozen dataclass cannot assign them itself)."""
+
     _sequences: tuple[str, ...] = ()
 
     def __post_init__(self):
@@ -31,10 +33,13 @@ class _Frozen:
 @dataclass(frozen=True)
 class RunIdentity(_Frozen):
     """Whose report it is: summary.json's head and every plot's footnote."""
+
     run_name: str
-    data_source: str                     # the measured data's kind (condmon.labels.data_source_label)
-    healthy_state: str | None = None     # the class confusion matrices and label orders start from
-    bench_differences: tuple[dict, ...] = ()  # how the virtual bench differs from the model (System.bench_differences)
+    data_source: str  # the measured data's kind (condmon.labels.data_source_label)
+    healthy_state: str | None = None  # the class confusion matrices and label orders start from
+    bench_differences: tuple[
+        dict, ...
+    ] = ()  # how the virtual bench differs from the model (System.bench_differences)
     # fault states whose model was tuned on their own measured records (calibration.per_state)
     state_models: tuple[str, ...] = ()
     _sequences = ("bench_differences", "state_models")
@@ -43,8 +48,9 @@ class RunIdentity(_Frozen):
 @dataclass(frozen=True)
 class TrainOutputs(_Frozen):
     """The train stage's files (train/<classifier>/<protocol>/...)."""
-    metrics: tuple[Path_, ...]                 # metrics.csv: accuracy.csv and the results
-    predictions: tuple[Path_, ...]             # predictions.parquet: recalls, confusion, shares
+
+    metrics: tuple[Path_, ...]  # metrics.csv: accuracy.csv and the results
+    predictions: tuple[Path_, ...]  # predictions.parquet: recalls, confusion, shares
     # measured_only.csv (files without rows, where hybrid.measured_only_baseline is off, skipped):
     # the measured-only accuracy and simulation gain
     measured_only: tuple[Path_, ...] = ()
@@ -64,8 +70,16 @@ class TrainOutputs(_Frozen):
     # of segments outside its classifier's training range; recall_per_record.csv's
     # `outside_training`, summary.json's `simulation_coverage` (the design records' verdict)
     coverage: tuple[Path_, ...] = ()
-    _sequences = ("metrics", "predictions", "measured_only", "physics", "physics_info",
-                  "simulated_validation", "measured_only_predictions", "coverage")
+    _sequences = (
+        "metrics",
+        "predictions",
+        "measured_only",
+        "physics",
+        "physics_info",
+        "simulated_validation",
+        "measured_only_predictions",
+        "coverage",
+    )
 
 
 @dataclass(frozen=True)
@@ -73,7 +87,8 @@ class CalibrationOutputs:
     """The calibration files: each a path (one calibration), or {calibration variant: path} of
     one calibration per variant, the simulation's first (summary.json's `calibration`;
     `calibration_by_variant` lists all). The three must name the same variants."""
-    params: Path_ | Mapping[str, Path_]   # params.json
+
+    params: Path_ | Mapping[str, Path_]  # params.json
     spectra: Path_ | Mapping[str, Path_]  # spectra.parquet: measured vs calibrated spectra
     history: Path_ | Mapping[str, Path_]  # history.parquet: the calibration's convergence
     # {fault state: state_calibration/<state>/params.json} (calibration.per_state; summary.json's
@@ -96,6 +111,7 @@ class CalibrationOutputs:
 @dataclass(frozen=True)
 class EvaluationInputs(_Frozen):
     """What the evaluation tables and per-condition figures need."""
+
     # the measured features (each record's value of the operating condition); None: no
     # evaluation tables, per-speed figures only, the gain against the same classifier's
     # measured-only baseline
@@ -103,8 +119,8 @@ class EvaluationInputs(_Frozen):
     # the simulated features: with the measured ones, how each simulated fault's shift compares
     # with the measured fault's (condmon.signature; summary.json fault_signatures); None: not given
     simulated_features: Path_ | None = None
-    condition: str = "speed_rpm"                # hybrid.condition: the column figures group by
-    design_records: tuple[str, ...] = ()        # report.design_records: results given apart
+    condition: str = "speed_rpm"  # hybrid.condition: the column figures group by
+    design_records: tuple[str, ...] = ()  # report.design_records: results given apart
     # the system's design specimens (System.design_specimens): their records, matched to
     # measured_records' `specimen`, count as design records too; the headline is then on the
     # evaluation records
@@ -120,15 +136,16 @@ class EvaluationInputs(_Frozen):
     # where on the machine each measured segment's change sits (measured_fault_locations.csv, a
     # system family's), or None
     fault_locations: Path_ | None = None
-    confusion_percent: tuple[int, ...] = (0,)   # report.confusion_percent (+ the largest)
+    confusion_percent: tuple[int, ...] = (0,)  # report.confusion_percent (+ the largest)
     _sequences = ("design_records", "design_specimens", "confusion_percent")
 
 
 @dataclass(frozen=True)
 class StageRecords(_Frozen):
     """What the earlier stages recorded about their own jobs and inputs."""
+
     simulation_reports: tuple[Path_, ...] = ()  # the simulate jobs' .json: samples, failures, cost
-    measured_records: Path_ | None = None       # measured/records.csv: kept and left-out records
+    measured_records: Path_ | None = None  # measured/records.csv: kept and left-out records
     # {rule: the benchmark files of its jobs} of every job before the report; None: no timings
     benchmarks: Mapping[str, tuple] | None = None
     cores: int | None = None  # the run's --cores: its elapsed time against CPU seconds / cores
@@ -140,6 +157,7 @@ class ReportOutputs:
     """Where the report writes: summary.json, plots/ (written whole, atomically) and the tables by
     their names in the registry (condmon.report.registry: accuracy, evaluation, headline, ...);
     a table not named is not written."""
+
     summary: Path_
     plots: Path_
     tables: Mapping[str, Path_] = field(default_factory=dict)
@@ -148,6 +166,7 @@ class ReportOutputs:
 @dataclass(frozen=True)
 class ReportInputs:
     """Everything `condmon.report.write_report` reads and writes."""
+
     run: RunIdentity
     train: TrainOutputs
     calibration: CalibrationOutputs

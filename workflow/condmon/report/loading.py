@@ -1,6 +1,7 @@
 """The report's inputs read and checked: the train stage's optional tables, the calibrations, the
 physics baselines' fault lines, each record's operating condition, design and unmodelled records.
 Every problem is a ReportInputError naming the file."""
+
 from __future__ import annotations
 
 import json
@@ -22,9 +23,11 @@ def load_simulated_validation(paths) -> pd.DataFrame | None:
     table = load_metrics(with_rows, extra_columns=("test_source",))
     sources = set(table["test_source"]) if "test_source" in table.columns else {None}
     if sources != {SIMULATED_VALIDATION}:
-        raise ReportInputError(f"simulated validation files {[str(p) for p in with_rows]}: "
-                               f"test_source {sorted(map(str, sources))}, expected "
-                               f"only {SIMULATED_VALIDATION!r}")
+        raise ReportInputError(
+            f"simulated validation files {[str(p) for p in with_rows]}: "
+            f"test_source {sorted(map(str, sources))}, expected "
+            f"only {SIMULATED_VALIDATION!r}"
+        )
     return table
 
 
@@ -40,8 +43,12 @@ def load_calibration(params_path) -> dict:
     missing = [k for k in ("model_variant", "parameters", "cost", "evaluations") if k not in params]
     if missing:
         raise ReportInputError(f"{params_path}: calibration file lacks keys {missing}")
-    summary = {"model_variant": params["model_variant"], "cost": params["cost"],
-               "evaluations": params["evaluations"], "parameters": params["parameters"]}
+    summary = {
+        "model_variant": params["model_variant"],
+        "cost": params["cost"],
+        "evaluations": params["evaluations"],
+        "parameters": params["parameters"],
+    }
     for key in ("nominal_cost", "seconds", "sensor_noise"):
         if key in params:
             summary[key] = params[key]
@@ -53,17 +60,25 @@ def load_calibrations(calibration: CalibrationOutputs) -> tuple:
     calibration per variant (each summary with its `calibration_variant`), else the one's own."""
     params_paths, spectra_paths, history_paths = calibration.by_variant()
     if not (list(params_paths) == list(spectra_paths) == list(history_paths)) or not params_paths:
-        raise ReportInputError("calibration params, spectra and history must name the same "
-                               f"calibration variants: {list(params_paths)}, "
-                               f"{list(spectra_paths)}, {list(history_paths)}")
+        raise ReportInputError(
+            "calibration params, spectra and history must name the same "
+            f"calibration variants: {list(params_paths)}, "
+            f"{list(spectra_paths)}, {list(history_paths)}"
+        )
     calibrations = {m: load_calibration(p) for m, p in params_paths.items()}
     for variant, summary in calibrations.items():
         if variant is not None:
             summary["calibration_variant"] = variant
-    spectra = {m: read_table(p, ["speed_rpm", "channel", "freq_hz", "measured", "calibrated"],
-                             "calibration spectra") for m, p in spectra_paths.items()}
-    history = {m: read_table(p, ["evaluation", "model_variant", "cost"], "calibration history")
-               for m, p in history_paths.items()}
+    spectra = {
+        m: read_table(
+            p, ["speed_rpm", "channel", "freq_hz", "measured", "calibrated"], "calibration spectra"
+        )
+        for m, p in spectra_paths.items()
+    }
+    history = {
+        m: read_table(p, ["evaluation", "model_variant", "cost"], "calibration history")
+        for m, p in history_paths.items()
+    }
     if not calibration.per_variant:
         return calibrations[None], spectra[None], history[None]
     return calibrations, spectra, history
@@ -76,8 +91,15 @@ def load_fault_lines(info_paths) -> tuple[pd.DataFrame | None, dict]:
     for path in info_paths:
         for name, rule in json.loads(Path(path).read_text()).get("baselines", {}).items():
             if rule.get("fault_lines"):
-                return pd.DataFrame(rule["fault_lines"]), {"rule": name, "threshold": rule.get("threshold"),
-                                                           "threshold_from": rule.get("threshold_from")}
+                return pd.DataFrame(rule["fault_lines"]), {
+                    "rule": name,
+                    "threshold": rule.get("threshold"),
+                    "threshold_from": rule.get("threshold_from"),
+                    # the envelope analyses the rule consults and each one's healthy threshold
+                    **{
+                        key: rule[key] for key in ("analyses", "analysis_thresholds") if key in rule
+                    },
+                }
     return None, {}
 
 
@@ -96,8 +118,10 @@ def with_condition(predictions: pd.DataFrame, conditions: dict, condition: str) 
     values = predictions["record_id"].astype(str).map(conditions)
     missing = sorted(set(predictions.loc[values.isna(), "record_id"].astype(str)))
     if missing:
-        raise ReportInputError(f"the measured features give no {condition!r} (hybrid.condition) "
-                               f"for the tested records {missing[:5]}")
+        raise ReportInputError(
+            f"the measured features give no {condition!r} (hybrid.condition) "
+            f"for the tested records {missing[:5]}"
+        )
     return predictions.assign(**{condition: values.astype(float)})
 
 
@@ -116,7 +140,8 @@ def design_record_ids(design_records, design_specimens, measured_records) -> tup
     if design_specimens and not specimens:
         raise ReportInputError(
             f"design specimens {sorted(design_specimens)} are declared, but the measured records "
-            f"({measured_records}) name no specimen to match them to")
+            f"({measured_records}) name no specimen to match them to"
+        )
     of_specimens = {r for r, specimen in specimens.items() if specimen in design_specimens}
     return sorted(set(map(str, design_records)) | of_specimens), specimens
 
@@ -127,7 +152,12 @@ def unmodelled_records(unmodelled: dict, specimens: dict) -> dict:
     (`unmodelled`: {specimen: reason}, System.unmodelled_specimens). Declared without a
     specimen to match: an error, never ignored."""
     if unmodelled and not specimens:
-        raise ReportInputError(f"unmodelled specimens {sorted(unmodelled)} are declared, "
-                               "but the measured records name no specimen to match them to")
-    return {record: unmodelled[specimen] for record, specimen in sorted(specimens.items())
-            if specimen in unmodelled}
+        raise ReportInputError(
+            f"unmodelled specimens {sorted(unmodelled)} are declared, "
+            "but the measured records name no specimen to match them to"
+        )
+    return {
+        record: unmodelled[specimen]
+        for record, specimen in sorted(specimens.items())
+        if specimen in unmodelled
+    }

@@ -8,6 +8,7 @@ matrices (``confusion_<clf>_<protocol>_<condition>.png``, all conditions and eac
 records of several kinds of specimens are tested each side apart: ``..._evaluation.png``,
 ``..._design.png``, ``..._unmodelled.png``).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -30,40 +31,69 @@ def write(report) -> dict:
     predictions, labels, condition = report.by_condition, report.labels, report.grouping
     shares = prediction_shares(predictions, labels, condition)
     record_ids = predictions["record_id"].astype(str)
-    sides = record_sides(record_ids.isin(set(map(str, report.design_records))),
-                         record_ids.isin(set(map(str, report.apart))))
+    sides = record_sides(
+        record_ids.isin(set(map(str, report.design_records))),
+        record_ids.isin(set(map(str, report.apart))),
+    )
     note, side_note = report.note(report.design_tested), report.note()
     for (classifier, protocol), group in predictions.groupby(["classifier", "protocol"]):
         own = sorted(int(p) for p in group["measured_percent"].unique())
         own_percents = sorted({p for p in report.percents if p in own} | {own[-1]})
-        panels = [(group if value is None else group[group[condition] == value],
-                   plots.condition_label(condition, value), condition_file_part(condition, value), note)
-                  for value in [None] + sorted(group[condition].unique())]
-        panels += [(group[side.loc[group.index]], where, name, f"{side_note} | {where} only")
-                   for name, side, where in sides]
+        panels = [
+            (
+                group if value is None else group[group[condition] == value],
+                plots.condition_label(condition, value),
+                condition_file_part(condition, value),
+                note,
+            )
+            for value in [None] + sorted(group[condition].unique())
+        ]
+        panels += [
+            (group[side.loc[group.index]], where, name, f"{side_note} | {where} only")
+            for name, side, where in sides
+        ]
         for subset, where, name, panel_note in panels:
             matrices = {}
             for percent in own_percents:
                 chosen = subset[subset["measured_percent"] == percent]
-                matrices[percent] = (confusion_counts(chosen["true_label"],
-                                                      chosen["predicted_label"], labels),
-                                     int(chosen["repeat"].nunique()))
-            report.save(plots.confusion_matrices(matrices, labels, classifier, protocol, where, panel_note),
-                        f"confusion_{classifier}_{protocol}_{name}.png")
+                matrices[percent] = (
+                    confusion_counts(chosen["true_label"], chosen["predicted_label"], labels),
+                    int(chosen["repeat"].nunique()),
+                )
+            report.save(
+                plots.confusion_matrices(matrices, labels, classifier, protocol, where, panel_note),
+                f"confusion_{classifier}_{protocol}_{name}.png",
+            )
         own_shares = shares[(shares["classifier"] == classifier) & (shares["protocol"] == protocol)]
-        report.save(plots.prediction_shares(own_shares, labels, classifier, protocol, own_percents, note,
-                                            condition),
-                    f"prediction_shares_{classifier}_{protocol}.png")
+        report.save(
+            plots.prediction_shares(
+                own_shares, labels, classifier, protocol, own_percents, note, condition
+            ),
+            f"prediction_shares_{classifier}_{protocol}.png",
+        )
     return {"prediction_shares": shares}
 
 
 SECTION = Section(
-    "prediction_shares", write,
-    inputs=("train.predictions", "evaluation.measured_features", "evaluation.condition",
-            "evaluation.confusion_percent", "evaluation.design_records", "evaluation.design_specimens",
-            "evaluation.unmodelled"),
-    tables=(Table("prediction_shares", "prediction_shares.csv",
-                  "Prediction shares (prediction_shares.csv)"),))
+    "prediction_shares",
+    write,
+    inputs=(
+        "train.predictions",
+        "evaluation.measured_features",
+        "evaluation.condition",
+        "evaluation.confusion_percent",
+        "evaluation.design_records",
+        "evaluation.design_specimens",
+        "evaluation.unmodelled",
+    ),
+    tables=(
+        Table(
+            "prediction_shares",
+            "prediction_shares.csv",
+            "Prediction shares (prediction_shares.csv)",
+        ),
+    ),
+)
 
 
 def confusion_counts(true_labels, predicted_labels, labels) -> np.ndarray:
@@ -80,13 +110,17 @@ def share_rows(key: tuple, counts: np.ndarray, labels) -> list[tuple]:
     order of ``labels``): every predicted label of every true label that was tested (n > 0),
     share = count / n, so a true label's shares sum to 1."""
     totals = counts.sum(axis=1)
-    return [(*key, true, predicted, counts[i, j] / totals[i], int(totals[i]))
-            for i, true in enumerate(labels) if totals[i] > 0
-            for j, predicted in enumerate(labels)]
+    return [
+        (*key, true, predicted, counts[i, j] / totals[i], int(totals[i]))
+        for i, true in enumerate(labels)
+        if totals[i] > 0
+        for j, predicted in enumerate(labels)
+    ]
 
 
-def prediction_shares(predictions: pd.DataFrame, labels,
-                      condition: str = "speed_rpm") -> pd.DataFrame:
+def prediction_shares(
+    predictions: pd.DataFrame, labels, condition: str = "speed_rpm"
+) -> pd.DataFrame:
     """The study's prediction percentages (Fig. 9): per (classifier, protocol, measured percent,
     operating condition), the share of each true class's test segments predicted as each class,
     counts pooled over repeats and holdouts as in the confusion matrices and recall (with equal
@@ -113,14 +147,18 @@ def condition_file_part(condition: str, value) -> str:
     return f"{condition}{float(value):g}"
 
 
-def record_sides(is_design: pd.Series, is_apart: pd.Series | None = None) -> list[tuple[str, pd.Series, str]]:
+def record_sides(
+    is_design: pd.Series, is_apart: pd.Series | None = None
+) -> list[tuple[str, pd.Series, str]]:
     """(file name part, row mask, title) of the tested records of evaluation specimens, of
     design specimens (`is_design`: per prediction, whether its record is of a design specimen)
     and of unmodelled specimens (`is_apart`, never among the evaluation records), where more than one
     side is tested (else none: the pooled figures are one side's)."""
     is_apart = pd.Series(False, index=is_design.index) if is_apart is None else is_apart
-    sides = [("evaluation", ~is_design & ~is_apart, "records of evaluation specimens"),
-             ("design", is_design & ~is_apart, "records of design specimens"),
-             (evaluation.UNMODELLED, is_apart, "records the model does not describe")]
+    sides = [
+        ("evaluation", ~is_design & ~is_apart, "records of evaluation specimens"),
+        ("design", is_design & ~is_apart, "records of design specimens"),
+        (evaluation.UNMODELLED, is_apart, "records the model does not describe"),
+    ]
     sides = [side for side in sides if side[1].any()]
     return sides if len(sides) > 1 else []

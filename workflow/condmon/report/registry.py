@@ -2,11 +2,26 @@
 holds its SECTION). The order is the order of summary.json's keys and of its plot list. A new
 table is one module with a SECTION and one line here: report.smk's outputs and the report pages'
 tables follow from `tables()`."""
+
 from __future__ import annotations
 
-from condmon.report import (accuracy, calibration, ceiling, conditions, evaluation_tables, gain,
-                            headline, physics, prediction_shares, recall_per_record, signatures,
-                            stages, timings, fault_location)
+from condmon.report import (
+    accuracy,
+    calibration,
+    ceiling,
+    conditions,
+    evaluation_tables,
+    gain,
+    headline,
+    measured_share,
+    physics,
+    prediction_shares,
+    recall_per_record,
+    signatures,
+    stages,
+    timings,
+    fault_location,
+)
 from condmon.report.section import Section, Table
 
 SECTIONS: list[Section] = [
@@ -23,6 +38,7 @@ SECTIONS: list[Section] = [
     conditions.SECTION,
     headline.SECTION,
     recall_per_record.SECTION,
+    measured_share.SECTION,
     fault_location.SECTION,
 ]
 

@@ -2,6 +2,7 @@
 from the benchmark files of every job before the report) and the run's elapsed time against its
 CPU seconds over the cores (row `run`): job_timings.csv, its plot and summary.json's `job_timings`
 ({rule: figures})."""
+
 from __future__ import annotations
 
 from condmon import job_timings, plots
@@ -14,7 +15,9 @@ def write(report) -> dict:
     timings = job_timings.summarise(upstream.benchmarks, cores=upstream.cores)
     rules = timings[timings["rule"] != job_timings.RUN_ROW]
     if not rules.empty:
-        report.save(plots.job_timings(rules, _note(report.run.run_name, timings)), "job_timings.png")
+        report.save(
+            plots.job_timings(rules, _note(report.run.run_name, timings)), "job_timings.png"
+        )
     report.summary["job_timings"] = {row.pop("rule"): row for row in timings.to_dict("records")}
     return {"job_timings": timings}
 
@@ -25,12 +28,18 @@ def _note(run_name: str, timings) -> str:
     if run.empty:
         return f"run {run_name}"
     row = run.iloc[0]
-    return (f"run {run_name}: {row.wall_seconds_total:.0f} s elapsed for {row.cpu_seconds_total:.0f} CPU-s on "
-            f"{row.cores:.0f} cores ({row.cpu_seconds_per_core:.0f} s per core; parallel efficiency "
-            f"{row.parallel_efficiency:.2f})")
+    return (
+        f"run {run_name}: {row.wall_seconds_total:.0f} s elapsed for {row.cpu_seconds_total:.0f} CPU-s on "
+        f"{row.cores:.0f} cores ({row.cpu_seconds_per_core:.0f} s per core; parallel efficiency "
+        f"{row.parallel_efficiency:.2f})"
+    )
 
 
 SECTION = Section(
-    "job_timings", write, inputs=("upstream.benchmarks",), requires=("upstream.benchmarks",),
+    "job_timings",
+    write,
+    inputs=("upstream.benchmarks",),
+    requires=("upstream.benchmarks",),
     tables=(Table("job_timings", "job_timings.csv", "Job timings per rule (job_timings.csv)"),),
-    summary_keys=("job_timings",))
+    summary_keys=("job_timings",),
+)

@@ -4,6 +4,7 @@ Each section that applies (its required inputs given) adds its summary.json keys
 returns its tables; the tables the outputs name are written, then summary.json. Every output is
 written atomically, the plots folder as a whole.
 """
+
 from __future__ import annotations
 
 import json
@@ -34,8 +35,10 @@ def write_report(inputs: ReportInputs) -> dict:
     known = {table.name for table in registry.tables()}
     unknown = sorted(set(out.tables) - known)
     if unknown:
-        raise ReportInputError(f"report tables {unknown} asked for, but no report section writes "
-                               f"them; the sections' tables: {sorted(known)}")
+        raise ReportInputError(
+            f"report tables {unknown} asked for, but no report section writes "
+            f"them; the sections' tables: {sorted(known)}"
+        )
     with staging_directory(out.plots) as staging:
         report = Report(inputs, staging)
         tables = {}
@@ -46,8 +49,13 @@ def write_report(inputs: ReportInputs) -> dict:
             if name in out.tables:
                 write_text(frame.to_csv(index=False), out.tables[name])
         write_text(json.dumps(report.summary, indent=2) + "\n", out.summary)
-    log.info("wrote %d tables, %s and %d plots in %s", len(set(tables) & set(out.tables)),
-             out.summary, len(report.plots), out.plots)
+    log.info(
+        "wrote %d tables, %s and %d plots in %s",
+        len(set(tables) & set(out.tables)),
+        out.summary,
+        len(report.plots),
+        out.plots,
+    )
     return report.summary
 
 
@@ -59,6 +67,8 @@ def run_section(section: Section, report: Report) -> dict:
     added = sorted(set(report.summary) - before - set(section.summary_keys))
     undeclared = sorted(set(tables) - {table.name for table in section.tables})
     if added or undeclared:
-        raise ValueError(f"report section {section.name!r} added summary keys {added} and tables "
-                         f"{undeclared} it does not declare (Section.summary_keys, Section.tables)")
+        raise ValueError(
+            f"report section {section.name!r} added summary keys {added} and tables "
+            f"{undeclared} it does not declare (Section.summary_keys, Section.tables)"
+        )
     return tables

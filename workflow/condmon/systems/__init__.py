@@ -7,6 +7,7 @@ config lists under `system_modules` (imported by `import_modules` before any loo
 Snakefile and in every job). Rules and scripts ask this registry; nothing else in the workflow
 branches on a system's name.
 """
+
 from __future__ import annotations
 
 import importlib
@@ -34,9 +35,15 @@ def register(system_class: type[System]) -> type[System]:
     if not issubclass(system_class, System):
         raise TypeError(f"{system_class.__name__} does not implement condmon.systems.base.System")
     taken = _REGISTERED.get(name)
-    if (taken is not None and taken is not system_class
-            and (taken.__module__, taken.__qualname__) != (system_class.__module__, system_class.__qualname__)):
-        raise ValueError(f"system {name!r} is already registered ({taken.__module__}.{taken.__qualname__})")
+    if (
+        taken is not None
+        and taken is not system_class
+        and (taken.__module__, taken.__qualname__)
+        != (system_class.__module__, system_class.__qualname__)
+    ):
+        raise ValueError(
+            f"system {name!r} is already registered ({taken.__module__}.{taken.__qualname__})"
+        )
     if name in BUILT_IN and not _is_built_in(name, system_class):
         raise ValueError(f"system {name!r} is a built-in system; register yours under another name")
     _REGISTERED[name] = system_class
@@ -56,7 +63,9 @@ def import_modules(modules) -> None:
             if not path.is_file():
                 raise ValueError(f"system_modules: {entry}: no such file")
             module_name = "condmon_system_" + path.stem
-            if module_name in sys.modules and getattr(sys.modules[module_name], "__file__", None) == str(path.resolve()):
+            if module_name in sys.modules and getattr(
+                sys.modules[module_name], "__file__", None
+            ) == str(path.resolve()):
                 continue
             spec = importlib.util.spec_from_file_location(module_name, path.resolve())
             module = importlib.util.module_from_spec(spec)
@@ -81,8 +90,10 @@ def system_class(name: str, modules=()) -> type[System]:
         module, qualname = BUILT_IN[name].split(":")
         register(getattr(importlib.import_module(module), qualname))
     if name not in _REGISTERED:
-        raise ValueError(f"system: unknown system {name!r}; registered: {system_names()} (a system of "
-                         "your own: list its module under system_modules)")
+        raise ValueError(
+            f"system: unknown system {name!r}; registered: {system_names()} (a system of "
+            "your own: list its module under system_modules)"
+        )
     return _REGISTERED[name]
 
 

@@ -16,6 +16,7 @@ A system object is built on a config: the whole validated config in the Snakefil
 `job_config` gives one job (so an edit reruns exactly the jobs it affects). Jobs get it back with
 `condmon.systems.load_system(params.system)`. Every method is deterministic given its seed.
 """
+
 from __future__ import annotations
 
 import functools
@@ -63,10 +64,12 @@ class System(ABC):
     """One rig and its model family. Subclasses set the class attributes and implement the
     abstract methods; the rest has defaults that fit most systems."""
 
-    name: ClassVar[str]                 # the config's `system` value
-    schema_file: ClassVar[Path]         # JSON schema (YAML) of its config sections, with defaults
+    name: ClassVar[str]  # the config's `system` value
+    schema_file: ClassVar[Path]  # JSON schema (YAML) of its config sections, with defaults
     sections: ClassVar[tuple[str, ...]]  # the top-level config keys it owns
-    default_condition: ClassVar[str] = "speed_rpm"  # hybrid.condition when the config leaves it null
+    default_condition: ClassVar[str] = (
+        "speed_rpm"  # hybrid.condition when the config leaves it null
+    )
     synthetic_source: ClassVar[str] = "virtual_bench"  # source label of its bench records
     calibrates_on_spectra: ClassVar[bool] = True  # its calibration compares features.spectrum bands
 
@@ -187,8 +190,11 @@ class System(ABC):
         """The `system` param of a rule: what `load_system` needs to rebuild this system in a job.
         For the stages that run the model it also carries `model_digest`, so Snakemake reruns
         them when the model's code changes (its code trigger sees only the rule's script)."""
-        spec = {"name": self.name, "modules": list(self.config.get("system_modules") or []),
-                "config": self.job_config(stage, variant)}
+        spec = {
+            "name": self.name,
+            "modules": list(self.config.get("system_modules") or []),
+            "config": self.job_config(stage, variant),
+        }
         if stage in MODEL_STAGES:
             spec["model_digest"] = self.model_digest()
         return spec
@@ -198,6 +204,7 @@ class System(ABC):
         (searched recursively) and the folder of this system's own module (not recursively: a
         system of your own may live in a large folder)."""
         from condmon import models
+
         built_in = (Path(__file__).parent.resolve(), Path(models.__file__).parent.resolve())
         own = Path(inspect.getfile(type(self))).parent.resolve()
         inside = any(own.is_relative_to(folder) for folder in built_in)
@@ -210,23 +217,33 @@ class System(ABC):
         config, problems = self.config, []
         unknown = sorted(set(config["features"]["channels"]) - set(self.channels))
         if unknown:
-            problems.append(f"features.channels: {unknown} are not channels of the {self.name} system "
-                            f"({self.channels})")
+            problems.append(
+                f"features.channels: {unknown} are not channels of the {self.name} system "
+                f"({self.channels})"
+            )
         costs = list(self.calibration_costs())
         if config["calibration"]["cost"] not in costs:
-            problems.append(f"calibration.cost: {config['calibration']['cost']!r} is not a cost of the "
-                            f"{self.name} system; choose one of {costs}")
+            problems.append(
+                f"calibration.cost: {config['calibration']['cost']!r} is not a cost of the "
+                f"{self.name} system; choose one of {costs}"
+            )
         wrong = sorted(set(config["calibration"]["parameters"]) - set(self.calibratable))
         if wrong:
-            problems.append(f"calibration.parameters: {wrong} are not parameters of the {self.name} "
-                            f"system (choose among {sorted(self.calibratable)})")
+            problems.append(
+                f"calibration.parameters: {wrong} are not parameters of the {self.name} "
+                f"system (choose among {sorted(self.calibratable)})"
+            )
         if self.healthy_state not in self.health_states:
-            problems.append(f"the healthy state {self.healthy_state!r} is not among the health states "
-                            f"{self.health_states} (calibration uses healthy records)")
+            problems.append(
+                f"the healthy state {self.healthy_state!r} is not among the health states "
+                f"{self.health_states} (calibration uses healthy records)"
+            )
         for state in config["calibration"]["per_state"]["states"]:
             if state not in self.health_states or state == self.healthy_state:
-                problems.append(f"calibration.per_state.states: {state!r} is not a fault state of this run "
-                                f"(rig.health_states {self.health_states})")
+                problems.append(
+                    f"calibration.per_state.states: {state!r} is not a fault state of this run "
+                    f"(rig.health_states {self.health_states})"
+                )
                 continue
             try:
                 self.state_calibration_space(state)
@@ -236,8 +253,10 @@ class System(ABC):
         if "unseen_fault" in config["hybrid"]["protocols"] and classes is not None:
             unknown = sorted(set(classes) - set(self.health_states))
             if unknown:
-                problems.append(f"hybrid.measured_classes: {unknown} are not health states of the "
-                                f"{self.name} system ({self.health_states})")
+                problems.append(
+                    f"hybrid.measured_classes: {unknown} are not health states of the "
+                    f"{self.name} system ({self.health_states})"
+                )
         problems += self.protocol_problems()
         nyquist = self.output_rate_hz / 2
         spectrum = config["features"]["spectrum"]
@@ -247,16 +266,24 @@ class System(ABC):
         own = self.feature_families()
         for family in families:
             if family in own:
-                problems += self.feature_family_problems(family, config["features"].get(family) or {})
+                problems += self.feature_family_problems(
+                    family, config["features"].get(family) or {}
+                )
             elif family not in FEATURE_FAMILIES:
-                problems.append(f"features.kind: {family!r} is not a feature family of the {self.name} system "
-                                f"(built in: {', '.join(FEATURE_FAMILIES)}; its own: {sorted(own) or 'none'})")
+                problems.append(
+                    f"features.kind: {family!r} is not a feature family of the {self.name} system "
+                    f"(built in: {', '.join(FEATURE_FAMILIES)}; its own: {sorted(own) or 'none'})"
+                )
         if "spectrum" in families or self.calibrates_on_spectra:
             if spectrum["f_max_hz"] > nyquist:
-                problems.append(f"features.spectrum.f_max_hz: {spectrum['f_max_hz']} Hz is above the "
-                                f"Nyquist frequency {nyquist:g} Hz of the {self.name} system's rate")
+                problems.append(
+                    f"features.spectrum.f_max_hz: {spectrum['f_max_hz']} Hz is above the "
+                    f"Nyquist frequency {nyquist:g} Hz of the {self.name} system's rate"
+                )
             if spectrum["f_min_hz"] >= spectrum["f_max_hz"]:
-                problems.append("features.spectrum.f_min_hz: must be below features.spectrum.f_max_hz")
+                problems.append(
+                    "features.spectrum.f_min_hz: must be below features.spectrum.f_max_hz"
+                )
         return problems
 
     def protocol_problems(self) -> list[str]:
@@ -267,13 +294,22 @@ class System(ABC):
         offers = self.measured_offers()
         if offers is None:
             return []
-        source = (f"the measured_table {self.measured_table} has no columns {SPECIMEN_COLUMNS}"
-                  if self.measured_table else f"the {self.name} system's virtual bench gives none")
-        return [f"hybrid.protocols: {name} needs {MEASURED_NEEDS[need]}, and {source}"
-                + (" (add them: one specimen and group per record; healthy records may leave them empty)"
-                   if self.measured_table else "; leave the protocol out")
-                for name in self.config["hybrid"]["protocols"] if name in REGISTRY
-                for need in sorted(REGISTRY[name].needs - offers)]
+        source = (
+            f"the measured_table {self.measured_table} has no columns {SPECIMEN_COLUMNS}"
+            if self.measured_table
+            else f"the {self.name} system's virtual bench gives none"
+        )
+        return [
+            f"hybrid.protocols: {name} needs {MEASURED_NEEDS[need]}, and {source}"
+            + (
+                " (add them: one specimen and group per record; healthy records may leave them empty)"
+                if self.measured_table
+                else "; leave the protocol out"
+            )
+            for name in self.config["hybrid"]["protocols"]
+            if name in REGISTRY
+            for need in sorted(REGISTRY[name].needs - offers)
+        ]
 
     def measured_offers(self) -> set[str] | None:
         """What the measured data carry beyond the signal table, of what protocols may need
@@ -295,7 +331,9 @@ class System(ABC):
         """Signal-table rows of one bench part (`measured_parts`)."""
         raise NotImplementedError(f"the {self.name} system has no synthetic bench")
 
-    def read_measured(self, files, parts, channels, on_bad_record: str) -> tuple[pd.DataFrame, pd.DataFrame]:
+    def read_measured(
+        self, files, parts, channels, on_bad_record: str
+    ) -> tuple[pd.DataFrame, pd.DataFrame]:
         """(signal-table frame, records list) of the measured data: the bench parts merged, or the
         user's signal table checked against the system (labels, channels, rate, segment length).
         The records list has `record_id, health_state, speed_rpm, load, status, reason`."""
@@ -303,20 +341,39 @@ class System(ABC):
         from condmon.signals import read_signal_table
 
         if parts:
-            frame = pd.concat([read_signal_table(path, allowed_sources=(self.synthetic_source,))
-                               for path in parts], ignore_index=True)
+            frame = pd.concat(
+                [
+                    read_signal_table(path, allowed_sources=(self.synthetic_source,))
+                    for path in parts
+                ],
+                ignore_index=True,
+            )
             return frame, kept_records(frame)
         if not self.measured_table:
             raise ValueError(f"the {self.name} system has no measured data: set measured_table")
         frame, skipped = read_user_table_checked(
-            self.measured_table, self.health_states, channels, self.output_rate_hz,
-            self.segment_length / self.output_rate_hz, on_bad_record=on_bad_record)
-        return frame, pd.concat([kept_records(frame), skipped.assign(status="left out")], ignore_index=True)
+            self.measured_table,
+            self.health_states,
+            channels,
+            self.output_rate_hz,
+            self.segment_length / self.output_rate_hz,
+            on_bad_record=on_bad_record,
+        )
+        return frame, pd.concat(
+            [kept_records(frame), skipped.assign(status="left out")], ignore_index=True
+        )
 
     # -- calibration -------------------------------------------------------------------------
     @abstractmethod
-    def calibrate(self, frame: pd.DataFrame, variant: str, calibration: dict, spectrum: dict, channels,
-                  processes: int = 1) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
+    def calibrate(
+        self,
+        frame: pd.DataFrame,
+        variant: str,
+        calibration: dict,
+        spectrum: dict,
+        channels,
+        processes: int = 1,
+    ) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
         """Fit the model to the healthy measured records: (params.json dict with at least
         `model_variant`, `parameters`, `cost`, `nominal_cost`, `evaluations`, `sensor_noise`;
         the history of every evaluation; the spectra frame `speed_rpm, channel, freq_hz,
@@ -335,31 +392,45 @@ class System(ABC):
         variants), given the `calibration` section; by default the one `nominal_variant`."""
         return [self.nominal_variant]
 
-    def simulate_healthy(self, variant: str, values: dict, speed_rpm: float, duration_s: float,
-                         seed: int) -> dict[str, np.ndarray]:
+    def simulate_healthy(
+        self, variant: str, values: dict, speed_rpm: float, duration_s: float, seed: int
+    ) -> dict[str, np.ndarray]:
         """One healthy run of a calibration candidate: model variant `variant` (one of
         `model_variants`), `values` overriding the nominal model. A system with variants
         overrides this; by default there is one."""
         if variant != self.nominal_variant:
-            raise ValueError(f"the {self.name} system has one model variant, {self.nominal_variant!r}, "
-                             f"not {variant!r}")
+            raise ValueError(
+                f"the {self.name} system has one model variant, {self.nominal_variant!r}, "
+                f"not {variant!r}"
+            )
         return self.simulate_sample(dict(values), self.healthy_state, speed_rpm, duration_s, seed)
 
     # -- per-state calibration (calibration.per_state) -----------------------------------------
     def state_calibration_space(self, state: str):
         """(model variants, [calibrate.Bound]) per-state calibration searches for fault `state`:
         its fault's form and severities. A system without it says so."""
-        raise ValueError(f"calibration.per_state: the {self.name} system has no per-state calibration")
+        raise ValueError(
+            f"calibration.per_state: the {self.name} system has no per-state calibration"
+        )
 
     def state_parameters(self, variant: str, values: dict) -> dict:
         """Of a per-state calibration's searched `values`, those its model `variant` uses."""
         return dict(values)
 
-    def simulate_state(self, calibrated: dict, state: str, state_model: dict | None, speed_rpm: float,
-                       duration_s: float, seed: int) -> dict[str, np.ndarray]:
+    def simulate_state(
+        self,
+        calibrated: dict,
+        state: str,
+        state_model: dict | None,
+        speed_rpm: float,
+        duration_s: float,
+        seed: int,
+    ) -> dict[str, np.ndarray]:
         """One run of `state` at the healthy calibration `calibrated` (params.json), its fault as
         `state_model` (variant, parameters; None: the fault as the sample draws it) exactly."""
-        raise ValueError(f"calibration.per_state: the {self.name} system has no per-state calibration")
+        raise ValueError(
+            f"calibration.per_state: the {self.name} system has no per-state calibration"
+        )
 
     # -- parameters and simulation -----------------------------------------------------------
     nominal_variant: ClassVar[str] = "nominal"  # model variant of the nominal model
@@ -373,19 +444,30 @@ class System(ABC):
         nominal values of `names` (default: every calibratable parameter), no sensor noise."""
         values = self.nominal_values()
         names = self.calibratable if names is None else names
-        return {"model_variant": self.nominal_variant, "parameters": {name: values[name] for name in names},
-                "sensor_noise": 0.0}
+        return {
+            "model_variant": self.nominal_variant,
+            "parameters": {name: values[name] for name in names},
+            "sensor_noise": 0.0,
+        }
 
     @abstractmethod
-    def sample_parameters(self, calibrated: dict, health_state: str, rng: np.random.Generator,
-                          simulation: dict) -> dict:
+    def sample_parameters(
+        self, calibrated: dict, health_state: str, rng: np.random.Generator, simulation: dict
+    ) -> dict:
         """One sample's parameters (JSON-able; stored with its records): the calibrated values
         drawn by the system's rule (perturbation, domain randomisation) from `rng`, which the
         caller advances in a fixed order."""
 
     @abstractmethod
-    def simulate_sample(self, parameters: dict, health_state: str, speed_rpm: float, duration_s: float,
-                        seed: int, step_refinement: int = 1) -> dict[str, np.ndarray]:
+    def simulate_sample(
+        self,
+        parameters: dict,
+        health_state: str,
+        speed_rpm: float,
+        duration_s: float,
+        seed: int,
+        step_refinement: int = 1,
+    ) -> dict[str, np.ndarray]:
         """{channel: signal at output_rate_hz, duration_s long} of one run; `seed` drives any
         randomness of the model, `step_refinement` divides the time step. Raises SimulationError
         when the run fails or diverges, ValueError never (invalid drawn values are a failed run)."""
@@ -411,9 +493,11 @@ class System(ABC):
         return None
 
     def feature_families(self) -> dict:
-        """The system's own feature families beside the built-in ones: {name: function(signal
-        frame, channels, params) -> wide features table}; `params` is `features.<name>` (its
-        schema in the system's schema file) plus what `feature_family_params` adds. None by default."""
+        """The system's own feature families beside the built-in ones: {name:
+        `condmon.features.SystemFamily`}, whose table is ``table(signal frame, channels,
+        settings, inputs) -> wide features table``; `settings` is `features.<name>` (its schema
+        in the system's schema file) plus what `feature_family_params` adds, `inputs` the
+        run-time `condmon.features.FamilyInputs` (references, processes). None by default."""
         return {}
 
     def feature_family_params(self, family: str) -> dict:
@@ -426,9 +510,18 @@ class System(ABC):
         return []
 
     # -- baselines ---------------------------------------------------------------------------
-    def physics_baselines(self, feature_names) -> dict:
+    # whether the baselines job hands its rules the measured signal table (`physics_baselines`)
+    baselines_read_signals = False
+
+    def defect_sidebands(self) -> dict | None:
+        """Sideband spacings of the envelope lines ({name of a `defect_orders` line: spacing in
+        shaft orders}), or None: the lines a defect modulates (`condmon.envelope.fault_line_sets`)."""
+        return None
+
+    def physics_baselines(self, feature_names, signals=None) -> dict:
         """{name: rule} of the training-free physics baselines this system offers on features
-        `feature_names` (none by default). A rule has `fit(frame)`, which sees only the healthy
+        `feature_names` (none by default); `signals`, the measured signal table where the rule
+        reads more of it than the features hold. A rule has `fit(frame)`, which sees only the healthy
         calibration segments' feature rows (its thresholds come from them, never from a test
         segment), `predict(frame)` -> labels, and `describe()` -> a JSON-able dict. The
         `baselines` job evaluates each on every split's test set (condmon.baselines)."""
@@ -438,6 +531,16 @@ class System(ABC):
 def kept_records(frame: pd.DataFrame) -> pd.DataFrame:
     """One line per record of a signal-table frame, marked kept (with its specimen and group
     where a user's table gives them)."""
-    columns = ["record_id", "health_state", "speed_rpm", "load", *[c for c in SPECIMEN_COLUMNS if c in frame]]
-    return (frame[columns].drop_duplicates("record_id")
-            .assign(status="kept", reason="").reset_index(drop=True))
+    columns = [
+        "record_id",
+        "health_state",
+        "speed_rpm",
+        "load",
+        *[c for c in SPECIMEN_COLUMNS if c in frame],
+    ]
+    return (
+        frame[columns]
+        .drop_duplicates("record_id")
+        .assign(status="kept", reason="")
+        .reset_index(drop=True)
+    )

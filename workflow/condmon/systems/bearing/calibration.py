@@ -11,6 +11,7 @@ Only healthy records calibrate: the defect parameters stay under domain randomis
 the user has no record of the faults the model must produce. A folder without a healthy record
 keeps the nominal parameters, and the result says so.
 """
+
 from __future__ import annotations
 
 import logging
@@ -27,8 +28,15 @@ from condmon.stat_features import StatisticalFeatures
 log = logging.getLogger(__name__)
 
 # Dimension-bearing statistics of the healthy signal: level, shape and spectral balance.
-CALIBRATION_FEATURES = ("rms", "kurtosis", "crest_factor", "shape_factor", "mean_frequency",
-                        "frequency_centre", "std_frequency")
+CALIBRATION_FEATURES = (
+    "rms",
+    "kurtosis",
+    "crest_factor",
+    "shape_factor",
+    "mean_frequency",
+    "frequency_centre",
+    "std_frequency",
+)
 
 
 def features_eq6(simulated: np.ndarray, measured: np.ndarray) -> float:
@@ -46,27 +54,39 @@ class RigFeatureModel(SpectrumModel):
     (n_speeds, 1, n_features): what `features_eq6` compares."""
 
     def mean_spectra(self, signals_by_speed) -> np.ndarray:
-        return np.stack([segment_features(signals[CHANNEL], self.segment_length, self.output_rate)
-                         .mean(0).reshape(1, -1) for signals in signals_by_speed])
+        return np.stack(
+            [
+                segment_features(signals[CHANNEL], self.segment_length, self.output_rate)
+                .mean(0)
+                .reshape(1, -1)
+                for signals in signals_by_speed
+            ]
+        )
 
 
 def segment_features(signal, segment_length: int, fs_hz: float) -> np.ndarray:
     """CALIBRATION_FEATURES of every whole segment of one signal (n_segments, n_features)."""
     n = len(signal) // segment_length
-    segments = np.asarray(signal[:n * segment_length], dtype=float).reshape(n, segment_length)
+    segments = np.asarray(signal[: n * segment_length], dtype=float).reshape(n, segment_length)
     extractor = StatisticalFeatures(fs_hz=fs_hz, envelope=False)
     names = list(extractor.get_feature_names_out())
     return extractor.fit_transform(segments)[:, [names.index(f) for f in CALIBRATION_FEATURES]]
 
 
-def measured_features(frame: pd.DataFrame, speeds, fs_hz: float, label: str, tolerance_rpm: float = 5.0):
+def measured_features(
+    frame: pd.DataFrame, speeds, fs_hz: float, label: str, tolerance_rpm: float = 5.0
+):
     """Mean CALIBRATION_FEATURES of the measured healthy (`label`) segments near each speed."""
     out = []
     for speed in speeds:
-        rows = frame[(frame["health_state"] == label)
-                     & ((frame["speed_rpm"] - float(speed)).abs() <= tolerance_rpm)]
+        rows = frame[
+            (frame["health_state"] == label)
+            & ((frame["speed_rpm"] - float(speed)).abs() <= tolerance_rpm)
+        ]
         _, arrays = to_arrays(rows, [CHANNEL])
-        values = np.concatenate([segment_features(x, arrays.shape[-1], fs_hz) for x in arrays[:, 0]])
+        values = np.concatenate(
+            [segment_features(x, arrays.shape[-1], fs_hz) for x in arrays[:, 0]]
+        )
         out.append(values.mean(0).reshape(1, -1))
     return np.stack(out)
 
@@ -81,8 +101,14 @@ def healthy_speeds(frame: pd.DataFrame, label: str, tolerance_rpm: float = 5.0) 
     return speeds
 
 
-def calibrate_rig(system, frame: pd.DataFrame, calibration: dict, spectrum: dict, processes: int = 1,
-                  fallback_speeds=(1797.0,)):
+def calibrate_rig(
+    system,
+    frame: pd.DataFrame,
+    calibration: dict,
+    spectrum: dict,
+    processes: int = 1,
+    fallback_speeds=(1797.0,),
+):
     """Calibrate the rig of `system` (a BearingSystem) on the healthy records of a measured
     signal table.
 
@@ -93,63 +119,128 @@ def calibrate_rig(system, frame: pd.DataFrame, calibration: dict, spectrum: dict
     start = time.perf_counter()
     cost_kind, variant = calibration["cost"], system.nominal_variant
     if cost_kind not in COSTS:
-        raise ValueError(f"calibration.cost: {cost_kind!r} is not a cost of the bearing rig; "
-                         f"choose one of {list(COSTS)}")
+        raise ValueError(
+            f"calibration.cost: {cost_kind!r} is not a cost of the bearing rig; "
+            f"choose one of {list(COSTS)}"
+        )
     model = system.model
     unknown = sorted(set(calibration["parameters"]) - set(model))
     if unknown:
-        raise ValueError(f"calibration.parameters: {unknown} are not bearing.model parameters "
-                         f"(choose among {sorted(model)})")
-    bounds = [Bound(name, b["low"], b["high"], b.get("log", False))
-              for name, b in calibration["parameters"].items()]
+        raise ValueError(
+            f"calibration.parameters: {unknown} are not bearing.model parameters "
+            f"(choose among {sorted(model)})"
+        )
+    bounds = [
+        Bound(name, b["low"], b["high"], b.get("log", False))
+        for name, b in calibration["parameters"].items()
+    ]
     nominal = {b.name: float(model[b.name]) for b in bounds}
     fs, healthy = system.output_rate_hz, system.healthy_state
     speeds = healthy_speeds(frame, healthy)
-    spectrum_args = dict(channels=[CHANNEL], spectrum=spectrum, resolution_hz=calibration["resolution_hz"],
-                         sim_seconds=calibration["sim_seconds"], seed=calibration["seed"])
+    spectrum_args = dict(
+        channels=[CHANNEL],
+        spectrum=spectrum,
+        resolution_hz=calibration["resolution_hz"],
+        sim_seconds=calibration["sim_seconds"],
+        seed=calibration["seed"],
+    )
     plot_model = SpectrumModel(system, speeds or list(fallback_speeds), **spectrum_args)
     freqs = plot_model.spectrum.band_centres()
     if not speeds:
         log.warning("no measured %r record: the rig keeps its nominal parameters", healthy)
         model_only = plot_model(variant, nominal)
-        result = dict(model_variant=variant, parameters=nominal, cost=None, nominal_cost=None,
-                      evaluations=0, calibrated=False,
-                      reason=f"no measured {healthy!r} record to calibrate on",
-                      cost_function=cost_kind, speeds_rpm=[], sensor_noise=0.0,
-                      seconds=round(time.perf_counter() - start, 1))
-        history = pd.DataFrame([dict(generation=0, evaluation=0, model_variant=variant, cost=np.nan,
-                                     seconds=0.0, error="not calibrated", **nominal)])
+        result = dict(
+            model_variant=variant,
+            parameters=nominal,
+            cost=None,
+            nominal_cost=None,
+            evaluations=0,
+            calibrated=False,
+            reason=f"no measured {healthy!r} record to calibrate on",
+            cost_function=cost_kind,
+            speeds_rpm=[],
+            sensor_noise=0.0,
+            seconds=round(time.perf_counter() - start, 1),
+        )
+        history = pd.DataFrame(
+            [
+                dict(
+                    generation=0,
+                    evaluation=0,
+                    model_variant=variant,
+                    cost=np.nan,
+                    seconds=0.0,
+                    error="not calibrated",
+                    **nominal,
+                )
+            ]
+        )
         return result, history, _spectra_frame(list(fallback_speeds), freqs, None, model_only)
 
-    measured = measured_spectra(frame, speeds, [CHANNEL], spectrum, calibration["resolution_hz"], fs,
-                                label=healthy, tolerance_rpm=5.0)
+    measured = measured_spectra(
+        frame,
+        speeds,
+        [CHANNEL],
+        spectrum,
+        calibration["resolution_hz"],
+        fs,
+        label=healthy,
+        tolerance_rpm=5.0,
+    )
     if cost_kind == "features_eq6":
         evaluated = RigFeatureModel(system, speeds, **spectrum_args)
         target = measured_features(frame, speeds, fs, healthy)
     else:
         evaluated, target = plot_model, measured
-    calibrator = Calibrator(bounds, [variant], strategy="per_law", population=calibration["population"],
-                            generations=calibration["generations"], sigma0=calibration["sigma0"],
-                            seed=calibration["seed"], processes=processes, initial=nominal)
-    log.info("calibrating the rig (%s) on healthy speeds %s: %s", cost_kind, speeds,
-             [b.name for b in bounds])
+    calibrator = Calibrator(
+        bounds,
+        [variant],
+        strategy="per_law",
+        population=calibration["population"],
+        generations=calibration["generations"],
+        sigma0=calibration["sigma0"],
+        seed=calibration["seed"],
+        processes=processes,
+        initial=nominal,
+    )
+    log.info(
+        "calibrating the rig (%s) on healthy speeds %s: %s",
+        cost_kind,
+        speeds,
+        [b.name for b in bounds],
+    )
     cost = COSTS[cost_kind]
     best, history = calibrator.run(evaluated, target, cost)
     nominal_cost = cost(evaluated(variant, nominal), target)
     calibrated_spectra = plot_model(variant, best["parameters"])
-    result = dict(best, nominal_cost=nominal_cost, calibrated=True, cost_function=cost_kind,
-                  speeds_rpm=speeds, sensor_noise=0.0, strategy="per_law",
-                  seconds=round(time.perf_counter() - start, 1),
-                  seconds_per_evaluation=float(history["seconds"].mean()),
-                  failed_evaluations=int((history["error"] != "").sum()))
+    result = dict(
+        best,
+        nominal_cost=nominal_cost,
+        calibrated=True,
+        cost_function=cost_kind,
+        speeds_rpm=speeds,
+        sensor_noise=0.0,
+        strategy="per_law",
+        seconds=round(time.perf_counter() - start, 1),
+        seconds_per_evaluation=float(history["seconds"].mean()),
+        failed_evaluations=int((history["error"] != "").sum()),
+    )
     return result, history, _spectra_frame(speeds, freqs, measured, calibrated_spectra)
 
 
 def _spectra_frame(speeds, freqs, measured, calibrated) -> pd.DataFrame:
     rows = []
     for i, speed in enumerate(speeds):
-        rows.append(pd.DataFrame(dict(
-            speed_rpm=speed, channel=CHANNEL, freq_hz=freqs,
-            measured=np.nan if measured is None else measured[i, 0],
-            calibrated=calibrated[i, 0], model_only=calibrated[i, 0])))
+        rows.append(
+            pd.DataFrame(
+                dict(
+                    speed_rpm=speed,
+                    channel=CHANNEL,
+                    freq_hz=freqs,
+                    measured=np.nan if measured is None else measured[i, 0],
+                    calibrated=calibrated[i, 0],
+                    model_only=calibrated[i, 0],
+                )
+            )
+        )
     return pd.concat(rows, ignore_index=True)

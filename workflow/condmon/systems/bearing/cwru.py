@@ -19,6 +19,7 @@ optionally `FE`), acceleration in m/s^2, resampled to `fs_hz` (the 48 kHz baseli
 speed stored in the file, `load` the motor load in HP, `health_state` the label of the chosen task
 (`health_label`). Records whose class is outside the task are left out and reported.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -43,12 +44,30 @@ SOURCE = "measured"
 CHANNELS = ("DE", "FE", "BA")
 TASKS = ("location", "severity", "ten_class")
 FAULTS = ("normal", "inner_race", "ball", "outer_race")
-MANIFEST_COLUMNS = ("cwru_number", "file", "fault", "or_position", "diameter_in", "load_hp",
-                    "rpm", "fs_hz", "de_samples", "sha256")
+MANIFEST_COLUMNS = (
+    "cwru_number",
+    "file",
+    "fault",
+    "or_position",
+    "diameter_in",
+    "load_hp",
+    "rpm",
+    "fs_hz",
+    "de_samples",
+    "sha256",
+)
 NOMINAL_RPM = {0: 1797.0, 1: 1772.0, 2: 1750.0, 3: 1730.0}  # data centre's nominal speed per HP
 ON_BAD_RECORD = ("stop", "skip")  # what cwru_rows does with a bad file
-EXCLUDED_COLUMNS = ["file", "cwru_number", "fault", "or_position", "diameter_in", "load_hp",
-                    "reason", "bad_record"]
+EXCLUDED_COLUMNS = [
+    "file",
+    "cwru_number",
+    "fault",
+    "or_position",
+    "diameter_in",
+    "load_hp",
+    "reason",
+    "bad_record",
+]
 
 
 class CwruError(ValueError):
@@ -85,9 +104,20 @@ def _catalogue() -> pd.DataFrame:
     for fault, position, diameter, fs_hz, numbers in groups:
         for load_hp, number in enumerate(numbers):
             rpm, sha = _SHARED_SUBSET.get(number, (NOMINAL_RPM[load_hp], ""))
-            rows.append(dict(cwru_number=number, file=f"{number}.mat", fault=fault,
-                             or_position=position, diameter_in=diameter, load_hp=float(load_hp),
-                             rpm=rpm, fs_hz=float(fs_hz), de_samples=np.nan, sha256=sha))
+            rows.append(
+                dict(
+                    cwru_number=number,
+                    file=f"{number}.mat",
+                    fault=fault,
+                    or_position=position,
+                    diameter_in=diameter,
+                    load_hp=float(load_hp),
+                    rpm=rpm,
+                    fs_hz=float(fs_hz),
+                    de_samples=np.nan,
+                    sha256=sha,
+                )
+            )
     return pd.DataFrame(rows, columns=MANIFEST_COLUMNS)
 
 
@@ -133,8 +163,10 @@ def read_manifest(path) -> pd.DataFrame:
     required = ["cwru_number", "fault", "diameter_in", "load_hp", "fs_hz"]
     missing = [c for c in required if c not in frame.columns]
     if missing:
-        raise CwruError(f"{path}: manifest lacks column(s) {missing}; expected the columns of "
-                        f"index.csv: {list(MANIFEST_COLUMNS)}")
+        raise CwruError(
+            f"{path}: manifest lacks column(s) {missing}; expected the columns of "
+            f"index.csv: {list(MANIFEST_COLUMNS)}"
+        )
     for column in MANIFEST_COLUMNS:
         if column not in frame.columns:
             frame[column] = np.nan
@@ -210,6 +242,7 @@ def task_labels(task: str) -> list[str]:
 @dataclass
 class CwruRecord:
     """One CWRU file read: signals in m/s^2 at the original rate, and what it is."""
+
     path: Path
     number: int
     fs_hz: float
@@ -241,15 +274,19 @@ def sha256_of(path) -> str:
 
 def _loadmat(path: Path, data: bytes) -> dict:
     if not data.startswith(b"MATLAB"):
-        raise CwruError(f"{path}: not a CWRU record: not a MATLAB v5 .mat file "
-                        f"(starts with {data[:16]!r})")
+        raise CwruError(
+            f"{path}: not a CWRU record: not a MATLAB v5 .mat file (starts with {data[:16]!r})"
+        )
     try:
         return scipy.io.loadmat(io.BytesIO(data))
     except NotImplementedError as exc:  # v7.3 (HDF5)
-        raise CwruError(f"{path}: not a CWRU record: MATLAB v7.3 files are not supported "
-                        f"({exc})") from exc
+        raise CwruError(
+            f"{path}: not a CWRU record: MATLAB v7.3 files are not supported ({exc})"
+        ) from exc
     except Exception as exc:  # scipy raises several types for corrupt files
-        raise CwruError(f"{path}: not a readable MATLAB file, truncated or corrupt ({exc})") from exc
+        raise CwruError(
+            f"{path}: not a readable MATLAB file, truncated or corrupt ({exc})"
+        ) from exc
 
 
 # The data centre's 0.028-in files (3001-3008) hold their record under another number:
@@ -265,12 +302,18 @@ def _stored_numbers(number: int) -> list[int]:
 def _variable_prefixes(number: int) -> list[str]:
     """`X097` (the CWRU spelling) first, then the unpadded `X97` if a file uses it; for the
     0.028-in files, the same for the number they store their record under."""
-    return list(dict.fromkeys(prefix for stored in _stored_numbers(number)
-                              for prefix in (f"X{stored:03d}", f"X{stored}")))
+    return list(
+        dict.fromkeys(
+            prefix
+            for stored in _stored_numbers(number)
+            for prefix in (f"X{stored:03d}", f"X{stored}")
+        )
+    )
 
 
-def read_cwru_file(path, channels=("DE",), table: pd.DataFrame | None = None,
-                   number: int | None = None) -> CwruRecord:
+def read_cwru_file(
+    path, channels=("DE",), table: pd.DataFrame | None = None, number: int | None = None
+) -> CwruRecord:
     """Read one original CWRU `.mat` file: the requested channels (g -> m/s^2), the measured
     speed and the sampling rate of its catalogue row.
 
@@ -295,25 +338,34 @@ def read_cwru_file(path, channels=("DE",), table: pd.DataFrame | None = None,
     except OSError as exc:
         raise CwruError(f"{path}: cannot read ({exc})") from exc
     variables = _loadmat(path, data)
-    de_numbers = sorted({int(m.group(1)) for name in variables
-                         if (m := re.fullmatch(r"X(\d+)_DE_time", name))})
+    de_numbers = sorted(
+        {int(m.group(1)) for name in variables if (m := re.fullmatch(r"X(\d+)_DE_time", name))}
+    )
     if not de_numbers:
-        raise CwruError(f"{path}: not a CWRU record: no X<n>_DE_time variable "
-                        f"(variables: {sorted(k for k in variables if not k.startswith('__'))})")
+        raise CwruError(
+            f"{path}: not a CWRU record: no X<n>_DE_time variable "
+            f"(variables: {sorted(k for k in variables if not k.startswith('__'))})"
+        )
     if number is None:
         number = file_number(path, table)
     if number is None:
         if len(de_numbers) != 1:
-            raise CwruError(f"{path}: no file number in the name and several records in the file "
-                            f"{de_numbers}; name the file <number>.mat or list it in a manifest")
+            raise CwruError(
+                f"{path}: no file number in the name and several records in the file "
+                f"{de_numbers}; name the file <number>.mat or list it in a manifest"
+            )
         number = de_numbers[0]
     if not set(_stored_numbers(number)) & set(de_numbers):
-        raise CwruError(f"{path}: no X{number:03d}_DE_time for file number {number}; the file "
-                        f"holds record(s) {de_numbers} (a stray copy, or a misnamed file?)")
+        raise CwruError(
+            f"{path}: no X{number:03d}_DE_time for file number {number}; the file "
+            f"holds record(s) {de_numbers} (a stray copy, or a misnamed file?)"
+        )
     rows = table.loc[table["cwru_number"] == number]
     if rows.empty:
-        raise CwruError(f"{path}: file number {number} is not in the CWRU table; add it to a "
-                        f"manifest (columns {list(MANIFEST_COLUMNS)})")
+        raise CwruError(
+            f"{path}: file number {number} is not in the CWRU table; add it to a "
+            f"manifest (columns {list(MANIFEST_COLUMNS)})"
+        )
     row = rows.iloc[-1]
     prefix = next(p for p in _variable_prefixes(number) if f"{p}_DE_time" in variables)
     signals = {}
@@ -326,11 +378,15 @@ def read_cwru_file(path, channels=("DE",), table: pd.DataFrame | None = None,
             raise CwruError(f"{path}: {name} is empty")
         bad = ~np.isfinite(values)
         if bad.any():
-            raise CwruError(f"{path}: {name} has {int(bad.sum())} non-finite samples (NaN or inf),"
-                            f" first at index {int(np.flatnonzero(bad)[0])}")
+            raise CwruError(
+                f"{path}: {name} has {int(bad.sum())} non-finite samples (NaN or inf),"
+                f" first at index {int(np.flatnonzero(bad)[0])}"
+            )
         if np.ptp(values) == 0.0:
-            raise CwruError(f"{path}: {name} is constant ({values[0]:g} g in all {values.size} "
-                            "samples): dead sensor or disconnected channel")
+            raise CwruError(
+                f"{path}: {name} is constant ({values[0]:g} g in all {values.size} "
+                "samples): dead sensor or disconnected channel"
+            )
         signals[channel] = values * G
     _check_against_table(path, variables, prefix, number, row)
     rpm_name = f"{prefix}RPM"
@@ -340,15 +396,25 @@ def read_cwru_file(path, channels=("DE",), table: pd.DataFrame | None = None,
         if value.size == 1 and np.isfinite(value[0]) and value[0] > 0:
             speed, from_file = float(value[0]), True
     if not from_file:
-        speed = float(row["rpm"]) if np.isfinite(row["rpm"]) else NOMINAL_RPM.get(
-            int(row["load_hp"]), np.nan)
+        speed = (
+            float(row["rpm"])
+            if np.isfinite(row["rpm"])
+            else NOMINAL_RPM.get(int(row["load_hp"]), np.nan)
+        )
         if not (np.isfinite(speed) and speed > 0):
             raise CwruError(f"{path}: no usable {rpm_name} and no speed in the table")
-        log.warning("%s: no usable %s variable; using the table speed %.1f rpm", path, rpm_name,
-                    speed)
-    return CwruRecord(path=path, number=int(number), fs_hz=float(row["fs_hz"]), speed_rpm=speed,
-                      speed_from_file=from_file, signals=signals,
-                      sha256=hashlib.sha256(data).hexdigest())
+        log.warning(
+            "%s: no usable %s variable; using the table speed %.1f rpm", path, rpm_name, speed
+        )
+    return CwruRecord(
+        path=path,
+        number=int(number),
+        fs_hz=float(row["fs_hz"]),
+        speed_rpm=speed,
+        speed_from_file=from_file,
+        signals=signals,
+        sha256=hashlib.sha256(data).hexdigest(),
+    )
 
 
 _RATE_VARIABLE = r"(?:X0*{number}_?)?(?:fs|fs_hz|sampling_?rate|sample_?rate)"
@@ -360,9 +426,11 @@ def _check_against_table(path: Path, variables: dict, prefix: str, number: int, 
     de = np.asarray(variables[f"{prefix}_DE_time"]).size
     expected = pd.to_numeric(pd.Series([row["de_samples"]]), errors="coerce").iloc[0]
     if np.isfinite(expected) and int(expected) != de:
-        raise CwruError(f"{path}: {prefix}_DE_time has {de} samples but the table lists "
-                        f"de_samples = {int(expected)} for file number {number} (truncated, or "
-                        "another recording?)")
+        raise CwruError(
+            f"{path}: {prefix}_DE_time has {de} samples but the table lists "
+            f"de_samples = {int(expected)} for file number {number} (truncated, or "
+            "another recording?)"
+        )
     pattern = re.compile(_RATE_VARIABLE.format(number=number), re.IGNORECASE)
     for name, value in variables.items():
         if name.startswith("__") or not pattern.fullmatch(name):
@@ -371,9 +439,11 @@ def _check_against_table(path: Path, variables: dict, prefix: str, number: int, 
         if value.size != 1 or not np.issubdtype(value.dtype, np.number):
             continue
         if not np.isclose(float(value[0]), float(row["fs_hz"]), rtol=1e-6):
-            raise CwruError(f"{path}: sampling rate {float(value[0]):g} Hz stored in {name} "
-                            f"differs from the table's fs_hz {float(row['fs_hz']):g} Hz for file "
-                            f"number {number}; fix the manifest's fs_hz or the file")
+            raise CwruError(
+                f"{path}: sampling rate {float(value[0]):g} Hz stored in {name} "
+                f"differs from the table's fs_hz {float(row['fs_hz']):g} Hz for file "
+                f"number {number}; fix the manifest's fs_hz or the file"
+            )
 
 
 def resample(signal, fs_in: float, fs_out: float) -> np.ndarray:
@@ -392,15 +462,24 @@ class CwruIngest:
     """What `cwru_rows` made of a folder: the signal-table rows, one line per record kept
     (`records`), and the files left out (`excluded`, with a `reason`): their class is outside
     the task, or (`on_bad_record="skip"`) they are bad records (`bad_record` true)."""
+
     rows: list
     records: pd.DataFrame
     excluded: pd.DataFrame
     task: str
 
 
-def cwru_rows(folder, task: str = "location", channels=("DE",), fs_hz: float = 12000.0,
-              segment_length: int = 4096, manifest="auto", files=None,
-              on_bad_record: str = "stop", segment_hop: int | None = None) -> CwruIngest:
+def cwru_rows(
+    folder,
+    task: str = "location",
+    channels=("DE",),
+    fs_hz: float = 12000.0,
+    segment_length: int = 4096,
+    manifest="auto",
+    files=None,
+    on_bad_record: str = "stop",
+    segment_hop: int | None = None,
+) -> CwruIngest:
     """Signal-table rows of every `*.mat` in `folder` (or of the given `files` names), cut into
     segments of `segment_length` samples starting every `segment_hop` (default: no overlap).
 
@@ -429,27 +508,30 @@ def cwru_rows(folder, task: str = "location", channels=("DE",), fs_hz: float = 1
         raise ValueError(f"segment_length must be at least 2, got {segment_length}")
     segment_hop = int(segment_hop or segment_length)
     if not 1 <= segment_hop <= int(segment_length):
-        raise ValueError(f"segment_hop must lie in 1..segment_length ({segment_length}), got "
-                         f"{segment_hop}")
+        raise ValueError(
+            f"segment_hop must lie in 1..segment_length ({segment_length}), got {segment_hop}"
+        )
     explicit = manifest not in ("auto", None)
     if manifest == "auto":
         manifest = folder / "index.csv" if (folder / "index.csv").exists() else None
     listed = read_manifest(manifest) if manifest is not None else None
     table = merged_table(listed)
-    paths = (sorted(folder.glob("*.mat")) if files is None else [folder / f for f in files])
+    paths = sorted(folder.glob("*.mat")) if files is None else [folder / f for f in files]
     if not paths:
         raise CwruError(f"{folder}: no .mat files")
     if files is None and explicit:  # listed but absent: a missing file, not silence
         present = {p.name for p in paths}
         paths += [folder / name for name in listed["file"] if name not in present]
     numbered = [(file_number(p, table), p) for p in paths]
-    keyed = sorted(((-1 if n is None else n, p) for n, p in numbered),
-                   key=lambda t: (t[0], str(t[1])))
+    keyed = sorted(
+        ((-1 if n is None else n, p) for n, p in numbered), key=lambda t: (t[0], str(t[1]))
+    )
     rows, records, excluded = [], [], []
     for number, path in keyed:
         try:
-            kept = _ingest_file(path, number, table, task, channels, fs_hz, segment_length,
-                                excluded, segment_hop)
+            kept = _ingest_file(
+                path, number, table, task, channels, fs_hz, segment_length, excluded, segment_hop
+            )
         except CwruError as exc:
             if on_bad_record == "stop":
                 raise
@@ -461,8 +543,10 @@ def cwru_rows(folder, task: str = "location", channels=("DE",), fs_hz: float = 1
             records.append(kept[1])
     bad = [e for e in excluded if e.get("bad_record")]
     if not records and bad:
-        raise CwruError(f"{folder}: no usable record left; {len(bad)} bad file(s) skipped: "
-                        + "; ".join(f"{e['file']}: {e['reason']}" for e in bad))
+        raise CwruError(
+            f"{folder}: no usable record left; {len(bad)} bad file(s) skipped: "
+            + "; ".join(f"{e['file']}: {e['reason']}" for e in bad)
+        )
     if not records:
         raise CwruError(f"{folder}: no record belongs to a class of task {task!r}")
     excluded = pd.DataFrame(excluded, columns=EXCLUDED_COLUMNS)
@@ -475,15 +559,26 @@ def _bad_file(path: Path, number, table: pd.DataFrame, error: CwruError) -> dict
     """The `excluded` line of a bad file: what the table says it is, and why it was skipped."""
     reason = str(error)
     if reason.startswith(f"{path}: "):
-        reason = reason[len(f"{path}: "):]
-    entry = dict(file=path.name, cwru_number=None if number in (None, -1) else int(number),
-                 fault="", or_position="", diameter_in=np.nan, load_hp=np.nan, reason=reason,
-                 bad_record=True)
+        reason = reason[len(f"{path}: ") :]
+    entry = dict(
+        file=path.name,
+        cwru_number=None if number in (None, -1) else int(number),
+        fault="",
+        or_position="",
+        diameter_in=np.nan,
+        load_hp=np.nan,
+        reason=reason,
+        bad_record=True,
+    )
     known = table.loc[table["cwru_number"] == entry["cwru_number"]]
     if len(known):
         info = known.iloc[-1]
-        entry.update(fault=info["fault"], or_position=info["or_position"],
-                     diameter_in=float(info["diameter_in"]), load_hp=float(info["load_hp"]))
+        entry.update(
+            fault=info["fault"],
+            or_position=info["or_position"],
+            diameter_in=float(info["diameter_in"]),
+            load_hp=float(info["load_hp"]),
+        )
     return entry
 
 
@@ -493,8 +588,10 @@ def specimen_of(info) -> dict:
     records of one specimen are not independent; the healthy bearing is one specimen, group ""."""
     if info["fault"] == "normal":
         return {"specimen": "normal", "specimen_group": ""}
-    return {"specimen": specimen_name(info["fault"], info["diameter_in"], info["or_position"]),
-            "specimen_group": f"{float(info['diameter_in']):.3f}"}
+    return {
+        "specimen": specimen_name(info["fault"], info["diameter_in"], info["or_position"]),
+        "specimen_group": f"{float(info['diameter_in']):.3f}",
+    }
 
 
 def specimen_name(fault: str, diameter_in=0.0, position=None) -> str:
@@ -506,55 +603,110 @@ def specimen_name(fault: str, diameter_in=0.0, position=None) -> str:
     return f"{fault} {float(diameter_in):.3f} in{where}"
 
 
-def _ingest_file(path: Path, number: int, table: pd.DataFrame, task: str, channels, fs_hz: float,
-                 segment_length: int, excluded: list, segment_hop: int | None = None):
+def _ingest_file(
+    path: Path,
+    number: int,
+    table: pd.DataFrame,
+    task: str,
+    channels,
+    fs_hz: float,
+    segment_length: int,
+    excluded: list,
+    segment_hop: int | None = None,
+):
     """(rows, record line) of one file, or None when its class is outside the task (then a line
     is appended to `excluded`). Raises CwruError for a bad file."""
     known = table.loc[table["cwru_number"] == number]
-    if len(known) and health_label(task, known.iloc[-1]["fault"],
-                                   known.iloc[-1]["diameter_in"]) is None:
+    if (
+        len(known)
+        and health_label(task, known.iloc[-1]["fault"], known.iloc[-1]["diameter_in"]) is None
+    ):
         info = known.iloc[-1]  # class outside the task: left out without reading the file
-        excluded.append(dict(file=path.name, cwru_number=int(number), fault=info["fault"],
-                             or_position=info["or_position"],
-                             diameter_in=float(info["diameter_in"]),
-                             load_hp=float(info["load_hp"]),
-                             reason=f"class not in task {task!r}", bad_record=False))
-        log.info("%s: %s %.3f in is not a class of task %s; left out", path.name,
-                 info["fault"], info["diameter_in"], task)
+        excluded.append(
+            dict(
+                file=path.name,
+                cwru_number=int(number),
+                fault=info["fault"],
+                or_position=info["or_position"],
+                diameter_in=float(info["diameter_in"]),
+                load_hp=float(info["load_hp"]),
+                reason=f"class not in task {task!r}",
+                bad_record=False,
+            )
+        )
+        log.info(
+            "%s: %s %.3f in is not a class of task %s; left out",
+            path.name,
+            info["fault"],
+            info["diameter_in"],
+            task,
+        )
         return None
     record = read_cwru_file(path, channels=channels, table=table)
     info = table.loc[table["cwru_number"] == record.number].iloc[-1]
     label = health_label(task, info["fault"], info["diameter_in"])
-    description = dict(file=path.name, cwru_number=record.number, fault=info["fault"],
-                       or_position=info["or_position"], diameter_in=float(info["diameter_in"]),
-                       load_hp=float(info["load_hp"]), **specimen_of(info))
+    description = dict(
+        file=path.name,
+        cwru_number=record.number,
+        fault=info["fault"],
+        or_position=info["or_position"],
+        diameter_in=float(info["diameter_in"]),
+        load_hp=float(info["load_hp"]),
+        **specimen_of(info),
+    )
     if label is None:  # number known only from the file's variables
-        excluded.append({**description, "reason": f"class not in task {task!r}",
-                         "bad_record": False})
-        log.info("%s: %s %.3f in is not a class of task %s; left out", path.name,
-                 info["fault"], info["diameter_in"], task)
+        excluded.append(
+            {**description, "reason": f"class not in task {task!r}", "bad_record": False}
+        )
+        log.info(
+            "%s: %s %.3f in is not a class of task %s; left out",
+            path.name,
+            info["fault"],
+            info["diameter_in"],
+            task,
+        )
         return None
     expected = str(info["sha256"] or "")
     sha_ok = None
     if expected:
         sha_ok = expected.lower() == record.sha256
         if not sha_ok:
-            log.warning("%s: sha256 %s differs from the table's %s (another version of the "
-                        "file?)", path, record.sha256, expected)
+            log.warning(
+                "%s: sha256 %s differs from the table's %s (another version of the file?)",
+                path,
+                record.sha256,
+                expected,
+            )
     signals = {ch: resample(sig, record.fs_hz, fs_hz) for ch, sig in record.signals.items()}
     n = min(len(s) for s in signals.values())
     if n < segment_length:
-        raise CwruError(f"{path}: {n} samples at {fs_hz:g} Hz, shorter than one segment "
-                        f"({segment_length})")
+        raise CwruError(
+            f"{path}: {n} samples at {fs_hz:g} Hz, shorter than one segment ({segment_length})"
+        )
     record_id = f"cwru-{record.number}"
-    rows = make_rows(record_id, SOURCE, label, record.speed_rpm, float(info["load_hp"]),
-                     fs_hz, {ch: s[:n] for ch, s in signals.items()},
-                     segment_length=int(segment_length), segment_hop=segment_hop)
-    return rows, {**description, "record_id": record_id, "health_state": label,
-                  "speed_rpm": record.speed_rpm, "speed_from_file": record.speed_from_file,
-                  "fs_original_hz": record.fs_hz, "n_samples": n,
-                  "n_segments": len(rows) // len(signals), "sha256": record.sha256,
-                  "sha256_ok": sha_ok}
+    rows = make_rows(
+        record_id,
+        SOURCE,
+        label,
+        record.speed_rpm,
+        float(info["load_hp"]),
+        fs_hz,
+        {ch: s[:n] for ch, s in signals.items()},
+        segment_length=int(segment_length),
+        segment_hop=segment_hop,
+    )
+    return rows, {
+        **description,
+        "record_id": record_id,
+        "health_state": label,
+        "speed_rpm": record.speed_rpm,
+        "speed_from_file": record.speed_from_file,
+        "fs_original_hz": record.fs_hz,
+        "n_samples": n,
+        "n_segments": len(rows) // len(signals),
+        "sha256": record.sha256,
+        "sha256_ok": sha_ok,
+    }
 
 
 def write_cwru_signal_table(folder, path, config: dict | None = None, **reading) -> CwruIngest:

@@ -14,6 +14,7 @@ reads them):
 Calibrated values (`calibrated["parameters"]`) override `model`; the randomisation is applied over
 them (absolute ranges) or around them (`relative: true`, a factor on the calibrated value).
 """
+
 from __future__ import annotations
 
 import copy
@@ -30,9 +31,16 @@ from condmon.models.bearing.rig import INCH, BearingGeometry, BearingRigParamete
 
 CHANNEL = "DE"
 SIZES_IN = (0.007, 0.014, 0.021)
-_FIELDS = {f.name for f in dataclasses.fields(BearingRigParameters)} - {"de_geometry", "fe_geometry"}
-SCALES = ("resonance_frequency_scale", "resonance_damping_scale", "resonance_gain_scale",
-          "background_level_scale")
+_FIELDS = {f.name for f in dataclasses.fields(BearingRigParameters)} - {
+    "de_geometry",
+    "fe_geometry",
+}
+SCALES = (
+    "resonance_frequency_scale",
+    "resonance_damping_scale",
+    "resonance_gain_scale",
+    "background_level_scale",
+)
 
 
 @functools.cache
@@ -56,7 +64,9 @@ def defect_of_label(label: str, labels: dict | None = None) -> tuple[str, tuple[
     0.021); `<kind>_<size>in` is that size."""
     if labels is not None:
         if label not in labels:
-            raise ValueError(f"unknown bearing health label {label!r}; bearing.health_states has {sorted(labels)}")
+            raise ValueError(
+                f"unknown bearing health label {label!r}; bearing.health_states has {sorted(labels)}"
+            )
         spec = labels[label]
         if spec["defect"] == "none":
             return "none", (0.0, 0.0)
@@ -70,8 +80,10 @@ def defect_of_label(label: str, labels: dict | None = None) -> tuple[str, tuple[
     if match and float(match.group(2)) > 0:
         size = float(match.group(2))
         return match.group(1), (size, size)
-    raise ValueError(f"unknown bearing health label {label!r}: use normal, inner_race, ball, outer_race or "
-                     f"<inner_race|ball|outer_race>_<size>in (e.g. outer_race_0.007in)")
+    raise ValueError(
+        f"unknown bearing health label {label!r}: use normal, inner_race, ball, outer_race or "
+        f"<inner_race|ball|outer_race>_<size>in (e.g. outer_race_0.007in)"
+    )
 
 
 def load_of_speed(speed_rpm: float, load_speeds) -> float:
@@ -84,14 +96,20 @@ def load_of_speed(speed_rpm: float, load_speeds) -> float:
 
 def geometry(spec: dict) -> BearingGeometry:
     """A BearingGeometry from a `bearing.geometry` entry (lengths in m)."""
-    return BearingGeometry(int(spec["n_balls"]), float(spec["ball_diameter"]), float(spec["pitch_diameter"]),
-                           float(spec.get("contact_angle_deg", 0.0)))
+    return BearingGeometry(
+        int(spec["n_balls"]),
+        float(spec["ball_diameter"]),
+        float(spec["pitch_diameter"]),
+        float(spec.get("contact_angle_deg", 0.0)),
+    )
 
 
 def feature_orders(spec: dict) -> dict:
     """The envelope lines the features measure: BPFO, BPFI, BSF and 2 x BSF of a bearing."""
     orders = geometry(spec).orders()
-    return dict(bpfo=orders["bpfo"], bpfi=orders["bpfi"], bsf=orders["bsf"], bsf_x2=2 * orders["bsf"])
+    return dict(
+        bpfo=orders["bpfo"], bpfi=orders["bpfi"], bsf=orders["bsf"], bsf_x2=2 * orders["bsf"]
+    )
 
 
 # -- parameters ------------------------------------------------------------------------------------
@@ -101,8 +119,14 @@ def _merged_model(model: dict) -> dict:
     return merged
 
 
-def build_rig_parameters(model: dict, health_state: str, speed_rpm: float, labels: dict | None = None,
-                         geometries: tuple[dict, dict] | None = None, **overrides) -> BearingRigParameters:
+def build_rig_parameters(
+    model: dict,
+    health_state: str,
+    speed_rpm: float,
+    labels: dict | None = None,
+    geometries: tuple[dict, dict] | None = None,
+    **overrides,
+) -> BearingRigParameters:
     """BearingRigParameters from a `bearing.model` section (missing keys take the schema's
     defaults), the health label (its defect by `defect_of_label(label, labels)`; a pooled or fixed
     size's mid diameter unless `defect_width` or `defect_diameter_in` is overridden), the speed and
@@ -119,17 +143,26 @@ def build_rig_parameters(model: dict, health_state: str, speed_rpm: float, label
     kind, (low, high) = defect_of_label(health_state, labels)
     diameter = values.pop("defect_diameter_in", 0.5 * (low + high))
     ball_drop = float(values.pop("ball_drop_scale", 1.0))
-    ball_only = {k[len("ball_"):]: values.pop(k) for k in list(values) if k.startswith("ball_")}
+    ball_only = {k[len("ball_") :]: values.pop(k) for k in list(values) if k.startswith("ball_")}
     scales = {name: float(values.pop(name, 1.0)) for name in SCALES}
     unknown = sorted((set(values) | set(ball_only)) - _FIELDS)
     if unknown:
-        raise ValueError(f"unknown bearing model parameters {unknown}; choose among {sorted(_FIELDS | set(SCALES))}")
-    values["resonances"] = tuple((float(f) * scales["resonance_frequency_scale"],
-                                  min(float(z) * scales["resonance_damping_scale"], 0.9),
-                                  float(g) * scales["resonance_gain_scale"], *map(float, tilt))
-                                 for f, z, g, *tilt in values["resonances"])
-    values["background"] = tuple((float(f), float(z), float(r) * scales["background_level_scale"])
-                                 for f, z, r in values["background"])
+        raise ValueError(
+            f"unknown bearing model parameters {unknown}; choose among {sorted(_FIELDS | set(SCALES))}"
+        )
+    values["resonances"] = tuple(
+        (
+            float(f) * scales["resonance_frequency_scale"],
+            min(float(z) * scales["resonance_damping_scale"], 0.9),
+            float(g) * scales["resonance_gain_scale"],
+            *map(float, tilt),
+        )
+        for f, z, g, *tilt in values["resonances"]
+    )
+    values["background"] = tuple(
+        (float(f), float(z), float(r) * scales["background_level_scale"])
+        for f, z, r in values["background"]
+    )
     if kind != "none":
         values.setdefault("defect_width", float(diameter) * INCH)
         if kind == "ball":
@@ -192,8 +225,9 @@ def randomise(randomisation: dict, rng: np.random.Generator, base: dict | None =
     return out
 
 
-def draw_defect_diameter(health_state: str, spread: float, rng: np.random.Generator,
-                         labels: dict | None = None) -> float | None:
+def draw_defect_diameter(
+    health_state: str, spread: float, rng: np.random.Generator, labels: dict | None = None
+) -> float | None:
     """Defect diameter (in) of one sample: uniform over a pooled label's sizes, or a fixed size
     times a uniform factor 1 +/- spread. None for `normal`."""
     kind, (low, high) = defect_of_label(health_state, labels)
@@ -213,13 +247,17 @@ def rig_settings(numerics: dict | None, duration: float) -> RigSettings:
 
 
 # -- one sample's draw ---------------------------------------------------------------------
-def sample_values(bearing: dict, calibrated: dict | None, health_state: str, rng, labels: dict | None = None) -> dict:
+def sample_values(
+    bearing: dict, calibrated: dict | None, health_state: str, rng, labels: dict | None = None
+) -> dict:
     """The drawn values of one sample (everything that differs from `bearing.model`)."""
     base = {**(bearing.get("model") or {}), **((calibrated or {}).get("parameters") or {})}
     spec = bearing.get("randomisation", bearing_defaults()["randomisation"])
     values = dict((calibrated or {}).get("parameters") or {})
     values.update(randomise(spec, rng, base))
-    diameter = draw_defect_diameter(health_state, float(bearing.get("defect_size_spread", 0.1)), rng, labels)
+    diameter = draw_defect_diameter(
+        health_state, float(bearing.get("defect_size_spread", 0.1)), rng, labels
+    )
     if diameter is not None:
         values["defect_diameter_in"] = diameter
     return values

@@ -10,6 +10,7 @@ show: a breathing crack and a delamination (`condmon.models.gear.shaft_damage`).
 Config sections as the gear system's (`rig`, `model`, `numerics`, `virtual_bench`), with this
 rig's defaults (schema.yaml beside this file, merged over the gear system's) and `model.laminate`.
 """
+
 from __future__ import annotations
 
 from pathlib import Path

@@ -9,6 +9,7 @@ calibration per mesh stiffness model (`calibration.mesh_stiffness_models`), the 
 (`model.mesh_stiffness_model`) first; its model variants (searched by each calibration) are the
 contact laws of `calibration.contact_laws`, the nominal one `model.contact_law`.
 """
+
 from __future__ import annotations
 
 import logging
@@ -17,18 +18,38 @@ from pathlib import Path
 import numpy as np
 
 from condmon.calibrate import Bound, calibrate_on_spectra
-from condmon.models.gear.drivetrain import (Drivetrain, SimulationSettings, operating_mesh_stiffness, sensor_channels,
-                                            simulate)
+from condmon.models.gear.drivetrain import (
+    Drivetrain,
+    SimulationSettings,
+    operating_mesh_stiffness,
+    sensor_channels,
+    simulate,
+)
 from condmon.models.gear.shaft_damage import SHAFT_HEALTH_STATES
 from condmon.systems.base import System
 from condmon.systems.gear.mesh_lines import mesh_line_problems
-from condmon.systems.gear.parameters import (CALIBRATABLE, COMPLIANCE_PARAMETERS, STATE_SEVERITY, build_parameters,
-                                             draw_mesh_compliance, measured_fluctuation_fields, perturb, sample_effects,
-                                             state_model_fields, state_variants)
+from condmon.systems.gear.parameters import (
+    CALIBRATABLE,
+    COMPLIANCE_PARAMETERS,
+    STATE_SEVERITY,
+    build_parameters,
+    draw_mesh_compliance,
+    measured_fluctuation_fields,
+    perturb,
+    sample_effects,
+    state_model_fields,
+    state_variants,
+)
 
 # numerics the virtual bench sets for itself (virtual_bench.<key>): it stands for a real machine, so
 # its records never move with the model's step, modal reduction or start-up discarded
-BENCH_NUMERICS = ("oversampling", "integrator", "steps_per_sensor_sample", "modal_cutoff_hz", "settle_time")
+BENCH_NUMERICS = (
+    "oversampling",
+    "integrator",
+    "steps_per_sensor_sample",
+    "modal_cutoff_hz",
+    "settle_time",
+)
 
 log = logging.getLogger(__name__)
 
@@ -50,14 +71,18 @@ def unlisted_measured_speeds(measured_table, speeds_rpm) -> list[str]:
     except Exception:  # pyarrow raises several types; the measured job names the file's problem
         return []
     listed = np.asarray(speeds_rpm, float)
-    unlisted = table[~np.isclose(table["speed_rpm"].to_numpy(float)[:, None], listed[None, :]).any(axis=1)]
+    unlisted = table[
+        ~np.isclose(table["speed_rpm"].to_numpy(float)[:, None], listed[None, :]).any(axis=1)
+    ]
     if unlisted.empty:
         return []
     speeds = sorted(unlisted["speed_rpm"].unique())
     records = sorted(unlisted["record_id"].unique())
-    return [f"measured_table: records at {[float(f'{s:g}') for s in speeds]} rpm ({records[:3]}"
-            f"{' ...' if len(records) > 3 else ''}) but rig.speeds_rpm is {list(speeds_rpm)}; add "
-            "those speeds to rig.speeds_rpm (calibrated and simulated there) or leave the records out"]
+    return [
+        f"measured_table: records at {[float(f'{s:g}') for s in speeds]} rpm ({records[:3]}"
+        f"{' ...' if len(records) > 3 else ''}) but rig.speeds_rpm is {list(speeds_rpm)}; add "
+        "those speeds to rig.speeds_rpm (calibrated and simulated there) or leave the records out"
+    ]
 
 
 class GearSystem(System):
@@ -109,7 +134,9 @@ class GearSystem(System):
 
     def calibration_variants(self) -> list[str]:
         simulated = self.config["model"]["mesh_stiffness_model"]
-        return [simulated] + [m for m in self.config["calibration"]["mesh_stiffness_models"] if m != simulated]
+        return [simulated] + [
+            m for m in self.config["calibration"]["mesh_stiffness_models"] if m != simulated
+        ]
 
     def calibration_settings(self, calibration: dict) -> dict:
         return {k: v for k, v in calibration.items() if k != "mesh_stiffness_models"}
@@ -117,23 +144,38 @@ class GearSystem(System):
     def measured_parts(self) -> list[str]:
         if self.measured_table:
             return []
-        return [f"{health}_{speed_label(speed)}rpm" for health in self.health_states for speed in self.speeds_rpm]
+        return [
+            f"{health}_{speed_label(speed)}rpm"
+            for health in self.health_states
+            for speed in self.speeds_rpm
+        ]
 
     def job_config(self, stage: str, variant: str | None = None) -> dict:
         config = super().job_config(stage, variant)
         if stage != "simulate" and "model" in config:
             # the per-sample perturbation of the calibrated values concerns the simulation only
             # and so does the drawn mesh compliance (the calibration runs the nominal mesh)
-            variability = {k: v for k, v in config["model"].get("variability", {}).items() if k != "perturbation_sigma"}
-            config["model"] = {k: v for k, v in dict(config["model"], variability=variability).items()
-                               if k != "mesh_compliance"}
+            variability = {
+                k: v
+                for k, v in config["model"].get("variability", {}).items()
+                if k != "perturbation_sigma"
+            }
+            config["model"] = {
+                k: v
+                for k, v in dict(config["model"], variability=variability).items()
+                if k != "mesh_compliance"
+            }
         if stage != "bench":
             config.pop("virtual_bench", None)  # the hidden truth reaches the bench jobs only
         if stage == "bench":
             # the bench's mesh is virtual_bench.true_parameters.mesh_stiffness_model, not the model's,
             # and its sensor rate, modal reduction and start-up are virtual_bench's own
-            config["model"] = {k: v for k, v in config["model"].items() if k != "mesh_stiffness_model"}
-            config["numerics"] = {k: v for k, v in config["numerics"].items() if k not in BENCH_NUMERICS}
+            config["model"] = {
+                k: v for k, v in config["model"].items() if k != "mesh_stiffness_model"
+            }
+            config["numerics"] = {
+                k: v for k, v in config["numerics"].items() if k not in BENCH_NUMERICS
+            }
         elif stage == "calibrate":
             config["model"] = dict(config["model"], mesh_stiffness_model=variant)
         elif stage == "measured":
@@ -149,37 +191,56 @@ class GearSystem(System):
         rig, spectrum = config["rig"], config["features"]["spectrum"]
         nyquist = rig["output_rate_hz"] / 2
         span = spectrum["f_max_hz"] - spectrum["f_min_hz"]
-        for key, resolution in (("features.spectrum.resolution_hz", spectrum["resolution_hz"]),
-                                ("calibration.resolution_hz", config["calibration"]["resolution_hz"])):
+        for key, resolution in (
+            ("features.spectrum.resolution_hz", spectrum["resolution_hz"]),
+            ("calibration.resolution_hz", config["calibration"]["resolution_hz"]),
+        ):
             if abs(span / resolution - round(span / resolution)) > 1e-6:
-                problems.append(f"{key}: the range f_min_hz..f_max_hz ({span:g} Hz) is not a whole number "
-                                f"of {resolution:g} Hz bands")
+                problems.append(
+                    f"{key}: the range f_min_hz..f_max_hz ({span:g} Hz) is not a whole number "
+                    f"of {resolution:g} Hz bands"
+                )
         segment_resolution = 1.0 / rig["segment_seconds"]
         if spectrum["resolution_hz"] < segment_resolution:
-            problems.append(f"features.spectrum.resolution_hz: {spectrum['resolution_hz']} Hz is finer than "
-                            f"the {segment_resolution:g} Hz a {rig['segment_seconds']} s segment resolves")
+            problems.append(
+                f"features.spectrum.resolution_hz: {spectrum['resolution_hz']} Hz is finer than "
+                f"the {segment_resolution:g} Hz a {rig['segment_seconds']} s segment resolves"
+            )
         gmf = max(rig["speeds_rpm"]) / 60 * config["model"]["geometry"]["teeth_pinion"]
         if gmf >= nyquist:
-            problems.append(f"rig.output_rate_hz: the gear mesh frequency {gmf:.0f} Hz at the highest speed "
-                            f"is above the Nyquist frequency {nyquist} Hz")
-        if config["measured_table"] is None and config["virtual_bench"]["record_seconds"] < rig["segment_seconds"]:
+            problems.append(
+                f"rig.output_rate_hz: the gear mesh frequency {gmf:.0f} Hz at the highest speed "
+                f"is above the Nyquist frequency {nyquist} Hz"
+            )
+        if (
+            config["measured_table"] is None
+            and config["virtual_bench"]["record_seconds"] < rig["segment_seconds"]
+        ):
             problems.append("virtual_bench.record_seconds: shorter than rig.segment_seconds")
         if config["calibration"]["sim_seconds"] < rig["segment_seconds"]:
             problems.append("calibration.sim_seconds: shorter than rig.segment_seconds")
         compliance = config["model"].get("mesh_compliance")
         if compliance:
-            problems += [f"model.mesh_compliance.{key}: [low, high] with low above high: {value}"
-                         for key, value in compliance.items() if value[0] > value[1]]
+            problems += [
+                f"model.mesh_compliance.{key}: [low, high] with low above high: {value}"
+                for key, value in compliance.items()
+                if value[0] > value[1]
+            ]
             both = sorted(set(COMPLIANCE_PARAMETERS) & set(config["calibration"]["parameters"]))
             if both:
-                problems.append(f"calibration.parameters: {both} are drawn per sample by model.mesh_compliance; "
-                                "calibrate them or draw them, not both")
+                problems.append(
+                    f"calibration.parameters: {both} are drawn per sample by model.mesh_compliance; "
+                    "calibrate them or draw them, not both"
+                )
         if "condition_holdout" in config["hybrid"]["protocols"] and len(rig["speeds_rpm"]) < 2:
             problems.append("hybrid.protocols: condition_holdout needs at least two rig.speeds_rpm")
         problems += unlisted_measured_speeds(config["measured_table"], rig["speeds_rpm"])
         # a rate the healthy records' mesh lines contradict (a guessed fs_hz), named with the rate they imply
-        problems += mesh_line_problems(config["measured_table"], self.healthy_state,
-                                       int(config["model"]["geometry"]["teeth_pinion"]))
+        problems += mesh_line_problems(
+            config["measured_table"],
+            self.healthy_state,
+            int(config["model"]["geometry"]["teeth_pinion"]),
+        )
         try:
             Drivetrain(self.parameters())
         except (ValueError, TypeError) as exc:
@@ -190,11 +251,15 @@ class GearSystem(System):
             for state, spec in config["virtual_bench"]["faults"].items():
                 missing = [key for key in FAULT_FORMS[spec["form"]] if key not in spec]
                 if missing:
-                    problems.append(f"virtual_bench.faults.{state}: form {spec['form']} needs {missing}")
+                    problems.append(
+                        f"virtual_bench.faults.{state}: form {spec['form']} needs {missing}"
+                    )
                 for key in ("profile", "face"):
                     if key in spec and not spec[key][0] < spec[key][1]:
-                        problems.append(f"virtual_bench.faults.{state}.{key}: [start, end] with start < end "
-                                        f"(got {spec[key]})")
+                        problems.append(
+                            f"virtual_bench.faults.{state}.{key}: [start, end] with start < end "
+                            f"(got {spec[key]})"
+                        )
             try:
                 self.parameters(**dict(config["virtual_bench"]["model_overrides"]))
             except (ValueError, TypeError) as exc:
@@ -210,9 +275,14 @@ class GearSystem(System):
 
         health, speed = part.rsplit("_", 1)
         bench = self.config["virtual_bench"]
-        return virtual_bench_rows(self.parameters, bench, [health], [float(speed.removesuffix("rpm"))],
-                                  dict(self.numerics, **{key: bench[key] for key in BENCH_NUMERICS}),
-                                  self.config["rig"]["segment_seconds"])
+        return virtual_bench_rows(
+            self.parameters,
+            bench,
+            [health],
+            [float(speed.removesuffix("rpm"))],
+            dict(self.numerics, **{key: bench[key] for key in BENCH_NUMERICS}),
+            self.config["rig"]["segment_seconds"],
+        )
 
     def bench_differences(self) -> list[dict]:
         """Every way the bench differs from the model, each calibrated, randomised, neither or same
@@ -226,17 +296,24 @@ class GearSystem(System):
     # -- calibration -------------------------------------------------------------------------
     def calibrate(self, frame, variant, calibration, spectrum, channels, processes=1):
         model = self.config["model"]
-        result, history, spectra = calibrate_on_spectra(self, frame, calibration, spectrum, channels,
-                                                        nominal=model, processes=processes)
+        result, history, spectra = calibrate_on_spectra(
+            self, frame, calibration, spectrum, channels, nominal=model, processes=processes
+        )
         # K and n trade off at one load; the stiffness the vibration sees is what the data pin down.
         best = self.parameters(contact_law=result["model_variant"], **result["parameters"])
-        result = dict(result, contact_law=result["model_variant"], mesh_stiffness_model=model["mesh_stiffness_model"],
-                      operating_mesh_stiffness=operating_mesh_stiffness(best))
+        result = dict(
+            result,
+            contact_law=result["model_variant"],
+            mesh_stiffness_model=model["mesh_stiffness_model"],
+            operating_mesh_stiffness=operating_mesh_stiffness(best),
+        )
         if model["variability"]["speed_fluctuation_source"] == "healthy_records":
             result["speed_fluctuation"] = self.measured_speed_fluctuation(frame, channels)
             if not any(result["speed_fluctuation"].values()):
-                result["warning"] = ("speed_fluctuation_source healthy_records: no healthy record showed its "
-                                     "fluctuation; the simulation draws model.variability's ranges")
+                result["warning"] = (
+                    "speed_fluctuation_source healthy_records: no healthy record showed its "
+                    "fluctuation; the simulation draws model.variability's ranges"
+                )
                 log.warning(result["warning"])
         return result, history, spectra
 
@@ -251,8 +328,12 @@ class GearSystem(System):
         out = {}
         for speed in sorted(ids["speed_rpm"].astype(float).unique()):
             chosen = (ids["speed_rpm"].astype(float) == speed).to_numpy()
-            out[f"{speed:g}"] = speed_fluctuation(segments[chosen], self.output_rate_hz, speed, teeth)
-            log.info("speed fluctuation of the healthy records at %g rpm: %s", speed, out[f"{speed:g}"])
+            out[f"{speed:g}"] = speed_fluctuation(
+                segments[chosen], self.output_rate_hz, speed, teeth
+            )
+            log.info(
+                "speed fluctuation of the healthy records at %g rpm: %s", speed, out[f"{speed:g}"]
+            )
         return out
 
     # -- simulation --------------------------------------------------------------------------
@@ -265,8 +346,9 @@ class GearSystem(System):
 
     def simulate_healthy(self, variant, values, speed_rpm, duration_s, seed):
         # the model variant is the mesh's contact law
-        return self.simulate_sample({**values, "contact_law": variant}, self.healthy_state, speed_rpm,
-                                    duration_s, seed)
+        return self.simulate_sample(
+            {**values, "contact_law": variant}, self.healthy_state, speed_rpm, duration_s, seed
+        )
 
     def nominal_calibration(self, names=None) -> dict:
         return dict(super().nominal_calibration(names), contact_law=self.nominal_variant)
@@ -277,7 +359,9 @@ class GearSystem(System):
         variants = state_variants(state, model["surface_fault_model"])
         severity = model["fault_severity"]
         names = sorted({name for variant in variants for name in STATE_SEVERITY[variant]})
-        return variants, [Bound(name, float(severity[name][0]), float(severity[name][1]), False) for name in names]
+        return variants, [
+            Bound(name, float(severity[name][0]), float(severity[name][1]), False) for name in names
+        ]
 
     def state_parameters(self, variant, values):
         return {name: values[name] for name in STATE_SEVERITY[variant]}
@@ -294,19 +378,28 @@ class GearSystem(System):
         return {name: self.config["model"][name] for name in CALIBRATABLE}
 
     def sample_parameters(self, calibrated, health_state, rng, simulation) -> dict:
-        values = perturb(calibrated["parameters"], list(calibrated["parameters"]),
-                         self.config["model"]["variability"]["perturbation_sigma"], rng)
+        values = perturb(
+            calibrated["parameters"],
+            list(calibrated["parameters"]),
+            self.config["model"]["variability"]["perturbation_sigma"],
+            rng,
+        )
         compliance = self.config["model"].get("mesh_compliance")
         if compliance:  # drawn from the job's stream, so twins share it (healthy reference)
             values.update(draw_mesh_compliance(compliance, self.parameters(**values), rng))
         # per-state calibration: the state's tuned severities (drawn in simulate_sample, no draw here)
         state_model = (calibrated.get("state_models") or {}).get(health_state)
         measured = calibrated.get("speed_fluctuation")
-        return {"contact_law": calibrated["contact_law"], **values,
-                **({"state_model": state_model} if state_model else {}),
-                **({"measured_speed_fluctuation": measured} if measured else {})}
+        return {
+            "contact_law": calibrated["contact_law"],
+            **values,
+            **({"state_model": state_model} if state_model else {}),
+            **({"measured_speed_fluctuation": measured} if measured else {}),
+        }
 
-    def simulate_sample(self, parameters, health_state, speed_rpm, duration_s, seed, step_refinement=1):
+    def simulate_sample(
+        self, parameters, health_state, speed_rpm, duration_s, seed, step_refinement=1
+    ):
         """One run; `seed` draws this drivetrain's run-out, pitch errors and fluctuations
         (`model.variability`) and its fault's severity (`model.fault_severity`, or a calibrated
         `state_model` of `parameters`: `state_model_fields`)."""
@@ -314,15 +407,23 @@ class GearSystem(System):
         parameters = dict(parameters)
         state_model = parameters.pop("state_model", None)
         measured_fluctuation = parameters.pop("measured_speed_fluctuation", None)
-        params = self.parameters(speed_rpm=float(speed_rpm), health_state=health_state, **parameters)
+        params = self.parameters(
+            speed_rpm=float(speed_rpm), health_state=health_state, **parameters
+        )
         effects = sample_effects(model, params.geometry, np.random.default_rng(seed))
         if state_model is not None:
             effects.update(state_model_fields(state_model, effects, seed))
         if measured_fluctuation:
-            effects.update(measured_fluctuation_fields(measured_fluctuation, float(speed_rpm), seed))
+            effects.update(
+                measured_fluctuation_fields(measured_fluctuation, float(speed_rpm), seed)
+            )
         params = params.replace(**effects)
-        return simulate(params, SimulationSettings(duration=duration_s, step_refinement=int(step_refinement),
-                                                   **self.numerics))
+        return simulate(
+            params,
+            SimulationSettings(
+                duration=duration_s, step_refinement=int(step_refinement), **self.numerics
+            ),
+        )
 
     def diverging(self, parameters: dict) -> dict:
         # a mesh a million times stiffer needs a step far below any physical range: SimulationError
@@ -336,10 +437,16 @@ class GearSystem(System):
     # -- features: the order-domain gear diagnostics (order_features.py) and the residual
     # signatures against each machine's healthy reference (residual_features.py) -------------
     def feature_families(self) -> dict:
+        from condmon.features import SystemFamily
         from condmon.systems.gear.order_features import order_feature_table
         from condmon.systems.gear.residual_features import residual_feature_table
 
-        return {"order": order_feature_table, "residual": residual_feature_table}
+        # the residual signatures take every machine against its healthy reference (a waveform)
+        # themselves and spread their segments over the job's cores
+        return {
+            "order": SystemFamily(order_feature_table),
+            "residual": SystemFamily(residual_feature_table, references=True, parallel=True),
+        }
 
     def feature_family_params(self, family: str) -> dict:
         shafts = {"shafts": [list(shaft) for shaft in self.shafts()]}
@@ -347,14 +454,20 @@ class GearSystem(System):
             shafts["damaged_shafts"] = self.damaged_shafts()
             # how many pitches a tooth meshes over (transverse plus overlap ratio): where a
             # located tooth's change may lie
-            shafts["contact_ratio"] = round(float(self.parameters().geometry.total_contact_ratio), 3)
+            shafts["contact_ratio"] = round(
+                float(self.parameters().geometry.total_contact_ratio), 3
+            )
         return shafts
 
     def damaged_shafts(self) -> list[str]:
         """The shafts the health states damage: the pinion's (every tooth fault is on a pinion
         tooth) and, with a shaft fault, `model.damaged_shaft`'s (0: the input shaft)."""
         names = [name for name, _, _ in self.shafts()]
-        damaged = {names[0]} if set(self.health_states) - {self.healthy_state} - set(SHAFT_HEALTH_STATES) else set()
+        damaged = (
+            {names[0]}
+            if set(self.health_states) - {self.healthy_state} - set(SHAFT_HEALTH_STATES)
+            else set()
+        )
         if set(self.health_states) & set(SHAFT_HEALTH_STATES):
             damaged.add(names[int(self.config["model"].get("damaged_shaft", 0))])
         return [name for name in names if name in damaged] or names[:1]
@@ -368,34 +481,58 @@ class GearSystem(System):
         problems = []
         if family == "residual":
             if not self.config["features"]["healthy_reference"]["enabled"]:
-                problems.append("features.kind residual: the residual signatures take every machine against "
-                                "its own healthy reference; set features.healthy_reference.enabled: true")
-            from condmon.systems.gear.residual_features import (PASSBAND_SHARE, passband_harmonics,
-                                                                resolution_problem)
+                problems.append(
+                    "features.kind residual: the residual signatures take every machine against "
+                    "its own healthy reference; set features.healthy_reference.enabled: true"
+                )
+            from condmon.systems.gear.residual_features import (
+                PASSBAND_SHARE,
+                passband_harmonics,
+                resolution_problem,
+            )
 
             # the grid against the rate at every speed, for the widest window the rule can give
             widest = order["mesh_harmonics"]
             if widest == "auto":  # the rule's window, bounded by the passband (`window_harmonics`)
-                widest = min(passband_harmonics(self.output_rate_hz, max(self.speeds_rpm), teeth, ratio)
-                             for _, ratio, teeth in shafts)
+                widest = min(
+                    passband_harmonics(self.output_rate_hz, max(self.speeds_rpm), teeth, ratio)
+                    for _, ratio, teeth in shafts
+                )
                 if widest < 1:
-                    problems.append(f"features.residual.mesh_harmonics: auto finds no mesh harmonic within "
-                                    f"rig.output_rate_hz / 2.56 ({self.output_rate_hz * PASSBAND_SHARE:g} Hz) at "
-                                    f"{max(self.speeds_rpm):g} rpm")
-            folding = {resolution_problem(self.output_rate_hz, speed, shafts, order["samples_per_revolution"],
-                                          max(widest, 1)) for speed in self.speeds_rpm}
+                    problems.append(
+                        f"features.residual.mesh_harmonics: auto finds no mesh harmonic within "
+                        f"rig.output_rate_hz / 2.56 ({self.output_rate_hz * PASSBAND_SHARE:g} Hz) at "
+                        f"{max(self.speeds_rpm):g} rpm"
+                    )
+            folding = {
+                resolution_problem(
+                    self.output_rate_hz,
+                    speed,
+                    shafts,
+                    order["samples_per_revolution"],
+                    max(widest, 1),
+                )
+                for speed in self.speeds_rpm
+            }
             problems += sorted(p for p in folding if p)
-            return problems + self._order_problems("features.residual", shafts,
-                                                   1 if order["mesh_harmonics"] == "auto" else order["mesh_harmonics"])
+            return problems + self._order_problems(
+                "features.residual",
+                shafts,
+                1 if order["mesh_harmonics"] == "auto" else order["mesh_harmonics"],
+            )
         fastest, slowest = max(self.speeds_rpm) / 60, min(self.speeds_rpm) / 60
         seconds = (self.segment_length - 1) / self.output_rate_hz
         nyquist_order = self.output_rate_hz / 2 / fastest
         if order["order_max"] > nyquist_order:
-            problems.append(f"features.order.order_max: {order['order_max']} is above the Nyquist order "
-                            f"{nyquist_order:.1f} at the highest speed {max(self.speeds_rpm):g} rpm")
+            problems.append(
+                f"features.order.order_max: {order['order_max']} is above the Nyquist order "
+                f"{nyquist_order:.1f} at the highest speed {max(self.speeds_rpm):g} rpm"
+            )
         if 1 / (seconds * slowest) > order["resolution_orders"]:
-            problems.append(f"features.order.resolution_orders: {order['resolution_orders']} is finer than the "
-                            f"{1 / (seconds * slowest):.3g} orders a segment resolves at {min(self.speeds_rpm):g} rpm")
+            problems.append(
+                f"features.order.resolution_orders: {order['resolution_orders']} is finer than the "
+                f"{1 / (seconds * slowest):.3g} orders a segment resolves at {min(self.speeds_rpm):g} rpm"
+            )
         return problems + self._order_problems("features.order", shafts, order["mesh_harmonics"])
 
     def _order_problems(self, section: str, shafts, mesh_harmonics: int) -> list[str]:
@@ -406,13 +543,17 @@ class GearSystem(System):
         problems = []
         for name, ratio, teeth in shafts:
             if seconds * slowest * ratio < 1:
-                problems.append(f"rig: a segment holds less than one revolution of the {name} at "
-                                f"{min(self.speeds_rpm):g} rpm; the order features average whole revolutions")
+                problems.append(
+                    f"rig: a segment holds less than one revolution of the {name} at "
+                    f"{min(self.speeds_rpm):g} rpm; the order features average whole revolutions"
+                )
             top = (mesh_harmonics * teeth + 1) * ratio
             if top > nyquist_order:
-                problems.append(f"{section}.mesh_harmonics: the {name}'s harmonic {mesh_harmonics} "
-                                f"and its sideband (input order {top:g}) lie above the Nyquist order "
-                                f"{nyquist_order:.1f} at {max(self.speeds_rpm):g} rpm")
+                problems.append(
+                    f"{section}.mesh_harmonics: the {name}'s harmonic {mesh_harmonics} "
+                    f"and its sideband (input order {top:g}) lie above the Nyquist order "
+                    f"{nyquist_order:.1f} at {max(self.speeds_rpm):g} rpm"
+                )
         return problems
 
     def shafts(self) -> list[tuple[str, float, int]]:

@@ -1,4 +1,5 @@
 """The gear system's virtual bench: records of the hidden true rig, labelled `virtual_bench`."""
+
 from __future__ import annotations
 
 import logging
@@ -15,11 +16,14 @@ FORM_KEYS = tuple(BenchForm.__dataclass_fields__)
 
 def bench_form(bench: dict) -> BenchForm:
     """The `virtual_bench` config section's effects the model lacks."""
-    return BenchForm(**{k: tuple(v) if isinstance(v, list) else v for k, v in bench.items() if k in FORM_KEYS})
+    return BenchForm(
+        **{k: tuple(v) if isinstance(v, list) else v for k, v in bench.items() if k in FORM_KEYS}
+    )
 
 
-def virtual_bench_rows(parameters, bench: dict, health_states, speeds_rpm, numerics: dict,
-                       segment_seconds: float) -> list[dict]:
+def virtual_bench_rows(
+    parameters, bench: dict, health_states, speeds_rpm, numerics: dict, segment_seconds: float
+) -> list[dict]:
     """Records of the virtual bench: `records_per_state` acquisitions per health state and speed,
     each `record_seconds` long, cut into segments. Source is always `virtual_bench`.
     `parameters(**overrides)` builds the rig's GearDrivetrainParameters (the system's); the bench
@@ -33,21 +37,42 @@ def virtual_bench_rows(parameters, bench: dict, health_states, speeds_rpm, numer
     gears = bench_gears(form, geometry, bench["seed"])
     rows = []
     for health_state in health_states:
-        model_state, fault_maps = bench_fault(health_state, bench.get("faults", {}), geometry.teeth_pinion,
-                                              bench["faulty_tooth"], job_rng(bench["seed"], "bench fault", health_state))
+        model_state, fault_maps = bench_fault(
+            health_state,
+            bench.get("faults", {}),
+            geometry.teeth_pinion,
+            bench["faulty_tooth"],
+            job_rng(bench["seed"], "bench fault", health_state),
+        )
         for speed in speeds_rpm:
             rng = job_rng(bench["seed"], "virtual_bench", health_state, float(speed))
             params = parameters(speed_rpm=float(speed), health_state=model_state, **truth)
             for k in range(bench["records_per_state"]):
                 start = time.perf_counter()
                 signals, mesh_phase = bench_record(params, form, settings, rng, gears, fault_maps)
-                log.info("virtual bench %s %s rpm record %d of %d: %.1f s", health_state, speed, k + 1,
-                         bench["records_per_state"], time.perf_counter() - start)
+                log.info(
+                    "virtual bench %s %s rpm record %d of %d: %.1f s",
+                    health_state,
+                    speed,
+                    k + 1,
+                    bench["records_per_state"],
+                    time.perf_counter() - start,
+                )
                 # the truth a located tooth is scored against: where the teeth stood at the first
                 # sample, and which pinion teeth the bench damaged
-                truth_of_record = {"mesh_phase": mesh_phase,
-                                   "damaged_teeth": [t for t, m in enumerate(fault_maps) if m is not None]}
-                rows += make_rows(f"vb-{health_state}-{speed:g}rpm-r{k:02d}", "virtual_bench", health_state,
-                                  speed, params.load_torque, settings.output_rate, signals,
-                                  segment_length=segment_length, params=truth_of_record)
+                truth_of_record = {
+                    "mesh_phase": mesh_phase,
+                    "damaged_teeth": [t for t, m in enumerate(fault_maps) if m is not None],
+                }
+                rows += make_rows(
+                    f"vb-{health_state}-{speed:g}rpm-r{k:02d}",
+                    "virtual_bench",
+                    health_state,
+                    speed,
+                    params.load_torque,
+                    settings.output_rate,
+                    signals,
+                    segment_length=segment_length,
+                    params=truth_of_record,
+                )
     return rows

@@ -15,6 +15,7 @@ see where, and which of the differences the pipeline can close. Each row says:
 
 Everything is read from the config: a changed key changes the rows.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -29,7 +30,11 @@ CALIBRATED, RANDOMISED, NEITHER, SAME = "calibrated", "randomised", "neither", "
 # The model's severity ranges (model.fault_severity) each bench fault form is drawn against:
 # bench key -> model key, per (bench form, the model's form of the state).
 SEVERITY_OF_FORM = {
-    ("pitting", "pitting"): {"pit_depth": "pit_depth", "pitted_area": "pitted_area", "teeth": "pitted_teeth"},
+    ("pitting", "pitting"): {
+        "pit_depth": "pit_depth",
+        "pitted_area": "pitted_area",
+        "teeth": "pitted_teeth",
+    },
     ("broken_tooth", "missing_tooth"): {"broken_height": "missing_share"},
     ("spall", "spall"): {"depth": "spall_depth"},
 }
@@ -60,7 +65,9 @@ def _parameter_rows(model: dict, bench: dict, calibration: dict) -> list[dict]:
     searched = calibration["parameters"]
     truth = {**bench.get("model_overrides", {}), **bench["true_parameters"]}
     compliance = model.get("mesh_compliance")
-    if compliance and any(_differs(truth.get(name, model[name]), model[name]) for name in COMPLIANCE_PARAMETERS):
+    if compliance and any(
+        _differs(truth.get(name, model[name]), model[name]) for name in COMPLIANCE_PARAMETERS
+    ):
         rows.append(_compliance_row(model, truth, compliance))
         truth = {name: value for name, value in truth.items() if name not in COMPLIANCE_PARAMETERS}
     for name, value in truth.items():
@@ -70,15 +77,19 @@ def _parameter_rows(model: dict, bench: dict, calibration: dict) -> list[dict]:
         text = f"{name} {_number_or_range(value)} (model {_number_or_range(nominal)})"
         if name == "contact_law":
             laws = calibration["contact_laws"]
-            rows.append(row(text, CALIBRATED, "calibration searches calibration.contact_laws", True)
-                        if value in laws else
-                        row(text, NEITHER, f"not among calibration.contact_laws {list(laws)}"))
+            rows.append(
+                row(text, CALIBRATED, "calibration searches calibration.contact_laws", True)
+                if value in laws
+                else row(text, NEITHER, f"not among calibration.contact_laws {list(laws)}")
+            )
         elif name == "mesh_stiffness_model":
             rows.append(row(text, NEITHER, "the simulation runs model.mesh_stiffness_model"))
         elif name in searched:
             low, high = searched[name]["low"], searched[name]["high"]
             inside = bool(low <= value <= high)
-            rows.append(row(text, CALIBRATED, f"calibration.parameters range [{low:g}, {high:g}]", inside))
+            rows.append(
+                row(text, CALIBRATED, f"calibration.parameters range [{low:g}, {high:g}]", inside)
+            )
         else:
             rows.append(row(text, NEITHER, "not a calibrated parameter: the model keeps its value"))
     return rows
@@ -91,10 +102,14 @@ def _compliance_row(model: dict, truth: dict, compliance: dict) -> dict:
     low, high = compliance["deflection"]
     exponents = compliance["contact_exponent"]
     inside = low <= deflection <= high and exponents[0] <= mesh["contact_exponent"] <= exponents[1]
-    return row(f"mesh_stiffness {mesh['mesh_stiffness']:g} at contact_exponent {mesh['contact_exponent']:g}: a static "
-               f"deflection of {deflection * 1e6:.2f} um", RANDOMISED,
-               f"model.mesh_compliance, drawn per sample: deflection [{low * 1e6:g}, {high * 1e6:g}] um, "
-               f"contact_exponent {_number_or_range(exponents)}", bool(inside))
+    return row(
+        f"mesh_stiffness {mesh['mesh_stiffness']:g} at contact_exponent {mesh['contact_exponent']:g}: a static "
+        f"deflection of {deflection * 1e6:.2f} um",
+        RANDOMISED,
+        f"model.mesh_compliance, drawn per sample: deflection [{low * 1e6:g}, {high * 1e6:g}] um, "
+        f"contact_exponent {_number_or_range(exponents)}",
+        bool(inside),
+    )
 
 
 def _background_rows(form: BenchForm, calibration: dict) -> list[dict]:
@@ -102,49 +117,104 @@ def _background_rows(form: BenchForm, calibration: dict) -> list[dict]:
     estimated = f"the {method} background of the healthy records"
     rows = []
     if form.sensor_noise:
-        rows.append(row(f"white sensor noise {form.sensor_noise:g} m/s^2 rms", CALIBRATED,
-                        estimated if background else "the sensor noise from the floor of the healthy spectra"))
+        rows.append(
+            row(
+                f"white sensor noise {form.sensor_noise:g} m/s^2 rms",
+                CALIBRATED,
+                estimated
+                if background
+                else "the sensor noise from the floor of the healthy spectra",
+            )
+        )
     if form.coloured_noise:
-        rows.append(row(f"coloured sensor noise {form.coloured_noise:g} m/s^2 rms", CALIBRATED if background else NEITHER,
-                        estimated if background else "calibration.background off: white noise only"))
+        rows.append(
+            row(
+                f"coloured sensor noise {form.coloured_noise:g} m/s^2 rms",
+                CALIBRATED if background else NEITHER,
+                estimated if background else "calibration.background off: white noise only",
+            )
+        )
     # tones reach every channel through the structure: only the `deficit` background takes them
-    tones = [(form.bearing_tone_force, f"rolling-bearing tones ({form.bearing_tone_force:g} N at orders "
-                                       f"{', '.join(f'{o:g}' for o in form.bearing_orders)} of each shaft)"),
-             (form.motor_ripple, f"motor torque ripple ({form.motor_ripple:g} N m at {2 * form.line_frequency_hz:g} Hz)")]
+    tones = [
+        (
+            form.bearing_tone_force,
+            f"rolling-bearing tones ({form.bearing_tone_force:g} N at orders "
+            f"{', '.join(f'{o:g}' for o in form.bearing_orders)} of each shaft)",
+        ),
+        (
+            form.motor_ripple,
+            f"motor torque ripple ({form.motor_ripple:g} N m at {2 * form.line_frequency_hz:g} Hz)",
+        ),
+    ]
     for amplitude, text in tones:
         if not amplitude:
             continue
         if background and method == "deficit":
             rows.append(row(text, CALIBRATED, "the deficit background of the healthy records"))
         else:
-            rows.append(row(text, NEITHER, "coherent across channels: the incoherent background leaves it out"
-                            if background else "calibration.background off"))
+            rows.append(
+                row(
+                    text,
+                    NEITHER,
+                    "coherent across channels: the incoherent background leaves it out"
+                    if background
+                    else "calibration.background off",
+                )
+            )
     return rows
 
 
 def _form_rows(model: dict, form: BenchForm, calibration: dict) -> list[dict]:
     rows = []
     if form.housing_model == "block":
-        rows.append(row("housings as rigid blocks on four feet (rocking modes)", NEITHER,
-                        "the model's housings are point masses; the calibrated bushings fit the transfer path "
-                        "as far as they can"))
+        rows.append(
+            row(
+                "housings as rigid blocks on four feet (rocking modes)",
+                NEITHER,
+                "the model's housings are point masses; the calibrated bushings fit the transfer path "
+                "as far as they can",
+            )
+        )
     if form.shaft_model != model.get("shaft_model", "rigid"):
-        rows.append(row(f"{form.shaft_model} shafts (model {model.get('shaft_model', 'rigid')})", NEITHER,
-                        "the simulation runs model.shaft_model"))
+        rows.append(
+            row(
+                f"{form.shaft_model} shafts (model {model.get('shaft_model', 'rigid')})",
+                NEITHER,
+                "the simulation runs model.shaft_model",
+            )
+        )
     if _differs(list(form.housing_stiffness), list(model["housing_stiffness"])):
-        rows.append(row(f"housing mounts {_number_or_range(form.housing_stiffness)} N/m "
-                        f"(model {_number_or_range(model['housing_stiffness'])})",
-                        NEITHER, "not a calibrated parameter: the model keeps its value"))
+        rows.append(
+            row(
+                f"housing mounts {_number_or_range(form.housing_stiffness)} N/m "
+                f"(model {_number_or_range(model['housing_stiffness'])})",
+                NEITHER,
+                "not a calibrated parameter: the model keeps its value",
+            )
+        )
     rows += _background_rows(form, calibration)
     errors = model["gear_errors"]
     if form.gear_deviation_share or form.misalignment:
-        grade, share, misalignment = errors["grade"], errors["deviation_share"], errors["misalignment"]
-        inside = (grade[0] <= form.gear_grade <= grade[1] and share[0] <= form.gear_deviation_share <= share[1]
-                  and misalignment[0] <= form.misalignment <= misalignment[1])
-        rows.append(row(f"its own gears: ISO grade {form.gear_grade:g} at {form.gear_deviation_share:g} of the "
-                        f"tolerances, misalignment {form.misalignment:g} m (one fixed pattern)", RANDOMISED,
-                        f"model.gear_errors: grade {grade}, share {share}, misalignment {misalignment}, a new pair "
-                        "per sample", bool(inside)))
+        grade, share, misalignment = (
+            errors["grade"],
+            errors["deviation_share"],
+            errors["misalignment"],
+        )
+        inside = (
+            grade[0] <= form.gear_grade <= grade[1]
+            and share[0] <= form.gear_deviation_share <= share[1]
+            and misalignment[0] <= form.misalignment <= misalignment[1]
+        )
+        rows.append(
+            row(
+                f"its own gears: ISO grade {form.gear_grade:g} at {form.gear_deviation_share:g} of the "
+                f"tolerances, misalignment {form.misalignment:g} m (one fixed pattern)",
+                RANDOMISED,
+                f"model.gear_errors: grade {grade}, share {share}, misalignment {misalignment}, a new pair "
+                "per sample",
+                bool(inside),
+            )
+        )
     variability = model["variability"]
     for name in ("speed_fluctuation", "load_fluctuation"):
         amplitude, frequency = getattr(form, name), getattr(form, f"{name}_hz")
@@ -152,13 +222,25 @@ def _form_rows(model: dict, form: BenchForm, calibration: dict) -> list[dict]:
             continue
         text = f"{name.replace('_', ' ')} {amplitude:g} at {frequency:g} Hz"
         if variability.get(f"{name}_source") == "healthy_records":
-            rows.append(row(text, CALIBRATED, "read off the healthy records' tracked speed (params.json "
-                                              f"{name}), drawn within it per sample"))
+            rows.append(
+                row(
+                    text,
+                    CALIBRATED,
+                    "read off the healthy records' tracked speed (params.json "
+                    f"{name}), drawn within it per sample",
+                )
+            )
             continue
         span = variability[f"{name}_hz"]
         inside = amplitude <= variability[name] and span[0] <= frequency <= span[1]
-        rows.append(row(text, RANDOMISED, f"model.variability: up to {variability[name]:g} at {span} Hz",
-                        bool(inside)))
+        rows.append(
+            row(
+                text,
+                RANDOMISED,
+                f"model.variability: up to {variability[name]:g} at {span} Hz",
+                bool(inside),
+            )
+        )
     return rows
 
 
@@ -168,7 +250,9 @@ def _model_form(model: dict, state: str) -> str:
     return state
 
 
-def _fault_rows(model: dict, bench: dict, calibration: dict, health_states, healthy_state: str) -> list[dict]:
+def _fault_rows(
+    model: dict, bench: dict, calibration: dict, health_states, healthy_state: str
+) -> list[dict]:
     rows = []
     per_state = calibration.get("per_state", {}).get("states", [])
     severity = model["fault_severity"]
@@ -177,25 +261,44 @@ def _fault_rows(model: dict, bench: dict, calibration: dict, health_states, heal
             continue
         spec = bench["faults"].get(state)
         if spec is None:
-            rows.append(row(f"{state}: no form of its own", SAME,
-                            "the bench runs the model's fault code at the model's values: not a test of its form"))
+            rows.append(
+                row(
+                    f"{state}: no form of its own",
+                    SAME,
+                    "the bench runs the model's fault code at the model's values: not a test of its form",
+                )
+            )
             continue
         form = spec["form"]
         details = ", ".join(f"{k} {_number_or_range(v)}" for k, v in spec.items() if k != "form")
         text = f"{state} as its own {form.replace('_', ' ')} ({details})"
         if state in per_state:
-            rows.append(row(text, CALIBRATED, "per-state calibration on its first record per speed"))
+            rows.append(
+                row(text, CALIBRATED, "per-state calibration on its first record per speed")
+            )
             continue
         model_form = _model_form(model, state)
         keys = SEVERITY_OF_FORM.get((form, model_form))
         if keys is None:
-            rows.append(row(text, NEITHER, f"the model's {state} is {model_form.replace('_', ' ')}, "
-                                           f"not the bench's {form.replace('_', ' ')}"))
+            rows.append(
+                row(
+                    text,
+                    NEITHER,
+                    f"the model's {state} is {model_form.replace('_', ' ')}, "
+                    f"not the bench's {form.replace('_', ' ')}",
+                )
+            )
             continue
         inside = all(severity[m][0] <= spec[b] <= severity[m][1] for b, m in keys.items())
         ranges = ", ".join(f"{m} {severity[m]}" for m in keys.values())
-        rows.append(row(text, RANDOMISED, f"model {model_form.replace('_', ' ')}, drawn per sample: {ranges}",
-                        bool(inside)))
+        rows.append(
+            row(
+                text,
+                RANDOMISED,
+                f"model {model_form.replace('_', ' ')}, drawn per sample: {ranges}",
+                bool(inside),
+            )
+        )
     return rows
 
 
@@ -203,4 +306,8 @@ def _number_or_range(value) -> str:
     """A value as the report lists it: 3e-05, [0.3, 0.6] for a range, a name as it is."""
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_number_or_range(v) for v in value) + "]"
-    return f"{value:g}" if isinstance(value, (int, float)) and not isinstance(value, bool) else str(value)
+    return (
+        f"{value:g}"
+        if isinstance(value, (int, float)) and not isinstance(value, bool)
+        else str(value)
+    )

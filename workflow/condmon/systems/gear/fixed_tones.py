@@ -16,6 +16,7 @@ falls between them, the average takes it out already.
   keep it); every segment, measured or simulated, so both lose the same orders.
 With one speed a fixed tone cannot be told from a shaft order: none is found (logged).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -43,12 +44,17 @@ def spectrum_lines(segments: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.n
     neighbours = np.lib.stride_tricks.sliding_window_view(padded, 2 * FLOOR_BINS + 1)
     floor = np.median(neighbours, axis=-1)
     inner = np.arange(2, len(power) - 1)
-    peaks = inner[(power[inner] > power[inner - 1]) & (power[inner] >= power[inner + 1])
-                  & (power[inner] > LINE_PROMINENCE * np.maximum(floor[inner], 1e-300))]
+    peaks = inner[
+        (power[inner] > power[inner - 1])
+        & (power[inner] >= power[inner + 1])
+        & (power[inner] > LINE_PROMINENCE * np.maximum(floor[inner], 1e-300))
+    ]
     log = np.log(np.maximum(power, 1e-300))
     left, centre, right = log[peaks - 1], log[peaks], log[peaks + 1]
     curvature = left - 2 * centre + right
-    offset = np.where(curvature < 0, 0.5 * (left - right) / np.where(curvature < 0, curvature, -1.0), 0.0)
+    offset = np.where(
+        curvature < 0, 0.5 * (left - right) / np.where(curvature < 0, curvature, -1.0), 0.0
+    )
     amplitudes = 2.0 * np.sqrt(power[peaks]) / window.sum()
     return (peaks + offset) * fs_hz / n, amplitudes
 
@@ -60,8 +66,10 @@ def fixed_tones(segments_by_speed: dict, fs_hz: float) -> list[float]:
     fewer than two speeds."""
     if len(segments_by_speed) < 2:
         return []
-    found = [spectrum_lines(segments, fs_hz) + (fs_hz / np.shape(segments)[-1],)
-             for segments in segments_by_speed.values()]
+    found = [
+        spectrum_lines(segments, fs_hz) + (fs_hz / np.shape(segments)[-1],)
+        for segments in segments_by_speed.values()
+    ]
     (first, first_amplitudes, _), others = found[0], found[1:]
     tones = []
     for frequency, amplitude in zip(first, first_amplitudes):
@@ -89,7 +97,9 @@ def kept_by_the_average(tone_hz: float, speed_rpm: float, seconds: float, shafts
     return False
 
 
-def remove_fixed_tones(segment: np.ndarray, fs_hz: float, speed_rpm: float, shafts, tones) -> tuple[np.ndarray, list]:
+def remove_fixed_tones(
+    segment: np.ndarray, fs_hz: float, speed_rpm: float, shafts, tones
+) -> tuple[np.ndarray, list]:
     """(segment less the tones the average would keep, those tones): one segment (n_channels, n),
     each channel less its least-squares fit of a constant and a sinusoid at each such tone."""
     x = np.asarray(segment, dtype=float)
@@ -98,7 +108,9 @@ def remove_fixed_tones(segment: np.ndarray, fs_hz: float, speed_rpm: float, shaf
     if not kept:
         return x, []
     t = np.arange(x.shape[-1]) / fs_hz
-    basis = np.column_stack([np.ones_like(t)] + [fn(2 * np.pi * f * t) for f in kept for fn in (np.cos, np.sin)])
+    basis = np.column_stack(
+        [np.ones_like(t)] + [fn(2 * np.pi * f * t) for f in kept for fn in (np.cos, np.sin)]
+    )
     coefficients, *_ = np.linalg.lstsq(basis, x.T, rcond=None)
     coefficients[0] = 0.0  # the mean stays: only the tones go
     return x - (basis @ coefficients).T, kept

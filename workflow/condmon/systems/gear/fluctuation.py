@@ -13,6 +13,7 @@ The tracking band is +/- `phase_band_orders` of the shaft frequency around the m
 fluctuation faster than that is cut: at 450 rpm and 0.3 orders, above 2.25 Hz. Each speed's
 estimate says how far it can see (`band_hz`); one outside its band is not used.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -31,7 +32,7 @@ def relative_speed(angle, fs_hz: float) -> np.ndarray:
     relative = speed / speed.mean() - 1.0
     sos = butter(4, LOWPASS_HZ, fs=fs_hz, output="sos")
     edge = int(EDGE_SECONDS * fs_hz)
-    return sosfiltfilt(sos, relative)[edge:len(relative) - edge]
+    return sosfiltfilt(sos, relative)[edge : len(relative) - edge]
 
 
 def fluctuation_of(relative, fs_hz: float) -> tuple[float, float]:
@@ -44,8 +45,14 @@ def fluctuation_of(relative, fs_hz: float) -> tuple[float, float]:
     return float(np.sqrt(2.0) * relative.std()), float(frequencies[1:][np.argmax(spectrum[1:])])
 
 
-def speed_fluctuation(segments, fs_hz: float, speed_rpm: float, mesh_order: float,
-                      phase_band_orders: float = 0.3, phase_min_snr: float = 5.0) -> dict | None:
+def speed_fluctuation(
+    segments,
+    fs_hz: float,
+    speed_rpm: float,
+    mesh_order: float,
+    phase_band_orders: float = 0.3,
+    phase_min_snr: float = 5.0,
+) -> dict | None:
     """The fluctuation of healthy segments (n_segments, n_channels, n_samples) at one speed:
     {amplitude: [low, high], frequency_hz: [low, high]} over the segments whose mesh line could be
     followed (on the channel where it stands highest), `segments` used and the tracking band
@@ -58,7 +65,9 @@ def speed_fluctuation(segments, fs_hz: float, speed_rpm: float, mesh_order: floa
         return None
     estimates = []
     for segment in segments:
-        angle, method, _ = segment_angle(segment, fs_hz, shaft_hz, mesh_order, phase_band_orders, phase_min_snr)
+        angle, method, _ = segment_angle(
+            segment, fs_hz, shaft_hz, mesh_order, phase_band_orders, phase_min_snr
+        )
         if method == "mesh_phase":
             estimates.append(fluctuation_of(relative_speed(angle, fs_hz), fs_hz))
     band_hz = phase_band_orders * shaft_hz
@@ -67,6 +76,9 @@ def speed_fluctuation(segments, fs_hz: float, speed_rpm: float, mesh_order: floa
     amplitudes, frequencies = np.array(estimates).T
     if not 1.0 / usable_seconds <= np.median(frequencies) <= band_hz:
         return None
-    return {"amplitude": [float(amplitudes.min()), float(amplitudes.max())],
-            "frequency_hz": [float(frequencies.min()), float(frequencies.max())],
-            "segments": len(estimates), "band_hz": round(float(band_hz), 3)}
+    return {
+        "amplitude": [float(amplitudes.min()), float(amplitudes.max())],
+        "frequency_hz": [float(frequencies.min()), float(frequencies.max())],
+        "segments": len(estimates),
+        "band_hz": round(float(band_hz), 3),
+    }

@@ -8,6 +8,7 @@ frequency but not on it names the rate that would put it there, rate x expected 
 
 Each function is small and pure but `healthy_records`, which reads the table.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -72,8 +73,13 @@ def implied_rate(freqs, power, fs_hz: float, mesh_hz: float) -> dict:
     found_hz, found = strongest_line(freqs, power, mesh_hz / SEARCH, mesh_hz * SEARCH)
     clear = at_mesh < PRESENT and found >= CLEAR and found >= ABOVE * max(at_mesh, 1.0)
     off = abs(found_hz - mesh_hz) > LINE_WIDTH * mesh_hz
-    return {"mesh_hz": mesh_hz, "at_mesh": at_mesh, "found_hz": found_hz, "found": found,
-            "rate_hz": fs_hz * mesh_hz / found_hz if clear and off else None}
+    return {
+        "mesh_hz": mesh_hz,
+        "at_mesh": at_mesh,
+        "found_hz": found_hz,
+        "found": found,
+        "rate_hz": fs_hz * mesh_hz / found_hz if clear and off else None,
+    }
 
 
 def rate_problem(findings: dict, fs_hz: float, teeth: int) -> str | None:
@@ -85,12 +91,17 @@ def rate_problem(findings: dict, fs_hz: float, teeth: int) -> str | None:
     rates = [f["rate_hz"] for f in wrong.values()]
     speed, first = next(iter(wrong.items()))
     agree = max(rates) - min(rates) <= 0.01 * np.mean(rates)
-    implied = (f"the lines imply a rate of {np.mean(rates):.0f} Hz" if agree else
-               f"the speeds imply rates of {', '.join(f'{r:.0f}' for r in rates)} Hz")
-    return (f"measured_table: the healthy records at {speed:g} rpm show no mesh line where fs_hz "
-            f"{fs_hz:g} Hz, the speed and model.geometry.teeth_pinion {teeth} put it ({first['mesh_hz']:.1f} Hz, "
-            f"line to floor {first['at_mesh']:.1f}) but a line at {first['found_hz']:.1f} Hz "
-            f"({first['found']:.0f}); {implied}: check the table's fs_hz (or speed_rpm and the tooth counts)")
+    implied = (
+        f"the lines imply a rate of {np.mean(rates):.0f} Hz"
+        if agree
+        else f"the speeds imply rates of {', '.join(f'{r:.0f}' for r in rates)} Hz"
+    )
+    return (
+        f"measured_table: the healthy records at {speed:g} rpm show no mesh line where fs_hz "
+        f"{fs_hz:g} Hz, the speed and model.geometry.teeth_pinion {teeth} put it ({first['mesh_hz']:.1f} Hz, "
+        f"line to floor {first['at_mesh']:.1f}) but a line at {first['found_hz']:.1f} Hz "
+        f"({first['found']:.0f}); {implied}: check the table's fs_hz (or speed_rpm and the tooth counts)"
+    )
 
 
 def healthy_records(measured_table, healthy_state: str, max_rows: int = 64):
@@ -102,8 +113,11 @@ def healthy_records(measured_table, healthy_state: str, max_rows: int = 64):
     import pyarrow.parquet as pq
 
     try:
-        table = pq.read_table(measured_table, columns=["health_state", "speed_rpm", "fs_hz", "signal"],
-                              filters=[("health_state", "=", healthy_state)]).to_pandas()
+        table = pq.read_table(
+            measured_table,
+            columns=["health_state", "speed_rpm", "fs_hz", "signal"],
+            filters=[("health_state", "=", healthy_state)],
+        ).to_pandas()
     except Exception:  # pyarrow raises several types
         return {}
     out = {}

@@ -38,6 +38,7 @@ The indicators cite their definitions: Zakrajsek, Townsend, Decker 1993, "An ana
 fault detection methods as applied to pitting fatigue failure data", NASA TM-105950 (FM0, FM4,
 NA4, M6A, M8A); Lebold et al. 2000 (energy ratio, sideband level factor, and all of them again).
 """
+
 from __future__ import annotations
 
 import logging
@@ -55,22 +56,45 @@ from condmon.stat_features import crest_factor, kurtosis, rms
 
 log = logging.getLogger(__name__)
 
-INDICATORS = ("FM0", "FM4", "NA4", "M6A", "M8A", "ER", "SLF", "TSA_RMS", "TSA_kurtosis",
-              "TSA_crest", "residual_RMS", "residual_crest")
+INDICATORS = (
+    "FM0",
+    "FM4",
+    "NA4",
+    "M6A",
+    "M8A",
+    "ER",
+    "SLF",
+    "TSA_RMS",
+    "TSA_kurtosis",
+    "TSA_crest",
+    "residual_RMS",
+    "residual_crest",
+)
 SCALES = ("linear", "log")
 BAND_STATISTICS = ("mean", "rms")
 LOG_FLOOR = 1e-6  # as the spectrum family: added before log10 so silent bands stay finite
 # A phase whose mean rate is further than this from the nominal speed followed another line.
 MAX_SPEED_DEVIATION = 0.05
 FLOOR_HALFWIDTH_ORDERS = 5.0  # the line-to-floor ratio's floor: bins within +/- this many orders
-ORDER_PARAMS = ("order_min", "order_max", "resolution_orders", "band_statistic", "scale",
-                "samples_per_revolution", "shaft_orders", "mesh_harmonics", "phase_harmonic",
-                "phase_band_orders", "phase_min_snr")
+ORDER_PARAMS = (
+    "order_min",
+    "order_max",
+    "resolution_orders",
+    "band_statistic",
+    "scale",
+    "samples_per_revolution",
+    "shaft_orders",
+    "mesh_harmonics",
+    "phase_harmonic",
+    "phase_band_orders",
+    "phase_min_snr",
+)
 
 
 # -- shaft angle -----------------------------------------------------------------------------
-def line_to_floor(x, fs_hz: float, line_hz: float, half_width_hz: float,
-                  floor_halfwidth_hz: float) -> float:
+def line_to_floor(
+    x, fs_hz: float, line_hz: float, half_width_hz: float, floor_halfwidth_hz: float
+) -> float:
     """Amplitude of the strongest bin within line_hz +/- half_width_hz over the median amplitude of
     the bins within line_hz +/- floor_halfwidth_hz outside that band (Hann amplitude spectrum).
     About 1-3 where there is no line."""
@@ -96,19 +120,28 @@ def band_phase(x, fs_hz: float, line_hz: float, half_width_hz: float) -> np.ndar
     """
     x = np.asarray(x, dtype=np.float64)
     if not 0 < half_width_hz < line_hz < fs_hz / 2 - half_width_hz:
-        raise ValueError(f"phase band {line_hz:g} +/- {half_width_hz:g} Hz must lie in "
-                         f"(0, fs/2 = {fs_hz / 2:g} Hz)")
+        raise ValueError(
+            f"phase band {line_hz:g} +/- {half_width_hz:g} Hz must lie in "
+            f"(0, fs/2 = {fs_hz / 2:g} Hz)"
+        )
     t = np.arange(x.shape[-1]) / fs_hz
     baseband = (x - x.mean()) * np.exp(-2j * np.pi * line_hz * t)
     sos = butter(4, half_width_hz, btype="lowpass", fs=fs_hz, output="sos")
     padlen = min(x.shape[-1] - 1, int(np.ceil(3 * fs_hz / half_width_hz)))
-    smooth = (sosfiltfilt(sos, baseband.real, padtype="even", padlen=padlen)
-              + 1j * sosfiltfilt(sos, baseband.imag, padtype="even", padlen=padlen))
+    smooth = sosfiltfilt(sos, baseband.real, padtype="even", padlen=padlen) + 1j * sosfiltfilt(
+        sos, baseband.imag, padtype="even", padlen=padlen
+    )
     return np.unwrap(np.angle(smooth)) + 2 * np.pi * line_hz * t
 
 
-def shaft_angle(x, fs_hz: float, shaft_hz: float, mesh_order: float, phase_band_orders: float = 0.3,
-                phase_min_snr: float = 5.0) -> tuple[np.ndarray, str, float]:
+def shaft_angle(
+    x,
+    fs_hz: float,
+    shaft_hz: float,
+    mesh_order: float,
+    phase_band_orders: float = 0.3,
+    phase_min_snr: float = 5.0,
+) -> tuple[np.ndarray, str, float]:
     """Angle of the input shaft (revolutions since the first sample) at every sample of x.
 
     `mesh_order` is the line followed, in orders of the input shaft (a mesh harmonic: h x teeth x
@@ -139,19 +172,28 @@ def shaft_angle(x, fs_hz: float, shaft_hz: float, mesh_order: float, phase_band_
     return angle, "mesh_phase", snr
 
 
-def segment_angle(segment, fs_hz: float, shaft_hz: float, mesh_order: float, phase_band_orders: float = 0.3,
-                  phase_min_snr: float = 5.0) -> tuple[np.ndarray, str, float]:
+def segment_angle(
+    segment,
+    fs_hz: float,
+    shaft_hz: float,
+    mesh_order: float,
+    phase_band_orders: float = 0.3,
+    phase_min_snr: float = 5.0,
+) -> tuple[np.ndarray, str, float]:
     """`shaft_angle` of a multi-channel segment (n_channels, n_samples), read on the channel where
     the mesh line stands highest above its floor (one angle for all channels: they see the same
     shafts); the nominal speed only when no channel's line can be followed."""
-    candidates = [shaft_angle(channel, fs_hz, shaft_hz, mesh_order, phase_band_orders, phase_min_snr)
-                  for channel in segment]
+    candidates = [
+        shaft_angle(channel, fs_hz, shaft_hz, mesh_order, phase_band_orders, phase_min_snr)
+        for channel in segment
+    ]
     tracked = [c for c in candidates if c[1] == "mesh_phase"]
     return max(tracked or candidates, key=lambda c: c[2])
 
 
-def angular_resample(x, fs_hz: float, angle, samples_per_revolution: int, n_out: int | None = None
-                     ) -> np.ndarray:
+def angular_resample(
+    x, fs_hz: float, angle, samples_per_revolution: int, n_out: int | None = None
+) -> np.ndarray:
     """x at the angles 0, 1/P, 2/P, ... revolutions (P = samples_per_revolution) of a shaft whose
     angle at every sample is `angle` (revolutions, increasing, angle[0] = 0).
 
@@ -168,12 +210,19 @@ def angular_resample(x, fs_hz: float, angle, samples_per_revolution: int, n_out:
     available = int(np.floor(span * samples_per_revolution + 1e-9)) + 1
     n_out = available if n_out is None else int(n_out)
     if n_out > available:
-        raise ValueError(f"{n_out} grid points at {samples_per_revolution} per revolution need "
-                         f"{(n_out - 1) / samples_per_revolution:g} revolutions; the segment has {span:g}")
+        raise ValueError(
+            f"{n_out} grid points at {samples_per_revolution} per revolution need "
+            f"{(n_out - 1) / samples_per_revolution:g} revolutions; the segment has {span:g}"
+        )
     grid_rate_hz = samples_per_revolution * span / ((n - 1) / fs_hz)
     if grid_rate_hz < fs_hz:
         sos = butter(8, 0.4 * grid_rate_hz, btype="lowpass", fs=fs_hz, output="sos")
-        x = sosfiltfilt(sos, x, padtype="even", padlen=min(n - 1, int(np.ceil(3 * fs_hz / (0.4 * grid_rate_hz)))))
+        x = sosfiltfilt(
+            sos,
+            x,
+            padtype="even",
+            padlen=min(n - 1, int(np.ceil(3 * fs_hz / (0.4 * grid_rate_hz)))),
+        )
     grid = angle[0] + np.arange(n_out) / samples_per_revolution
     instants = np.interp(grid, angle, np.arange(n, dtype=np.float64))  # in samples
     return CubicSpline(np.arange(n), x)(instants)
@@ -186,15 +235,21 @@ def time_synchronous_average(resampled, samples_per_revolution: int) -> np.ndarr
     resampled = np.asarray(resampled, dtype=np.float64)
     revolutions = resampled.shape[-1] // samples_per_revolution
     if revolutions < 1:
-        raise ValueError(f"{resampled.shape[-1]} samples at {samples_per_revolution} per revolution: "
-                         "less than one revolution to average")
-    return resampled[..., :revolutions * samples_per_revolution].reshape(
-        *resampled.shape[:-1], revolutions, samples_per_revolution).mean(axis=-2)
+        raise ValueError(
+            f"{resampled.shape[-1]} samples at {samples_per_revolution} per revolution: "
+            "less than one revolution to average"
+        )
+    return (
+        resampled[..., : revolutions * samples_per_revolution]
+        .reshape(*resampled.shape[:-1], revolutions, samples_per_revolution)
+        .mean(axis=-2)
+    )
 
 
 # -- signals derived from the TSA ---------------------------------------------------------------
-def regular_orders(teeth: int, shaft_orders: int, mesh_harmonics: int, sidebands: bool,
-                   n_samples: int) -> np.ndarray:
+def regular_orders(
+    teeth: int, shaft_orders: int, mesh_harmonics: int, sidebands: bool, n_samples: int
+) -> np.ndarray:
     """Shaft orders 1..shaft_orders and the mesh harmonics h x teeth (h = 1..mesh_harmonics), with
     their first-order sidebands h x teeth +/- 1 if `sidebands`; those below the Nyquist order of a
     TSA of n_samples (the orders its DFT holds, sorted)."""
@@ -217,7 +272,9 @@ def keep_orders(tsa, orders) -> np.ndarray:
 def regular_signal(tsa, teeth: int, shaft_orders: int = 2, mesh_harmonics: int = 3) -> np.ndarray:
     """Regular signal: the TSA's shaft orders 1..k and mesh harmonics (Lebold et al. 2000)."""
     tsa = np.asarray(tsa, dtype=np.float64)
-    return keep_orders(tsa, regular_orders(teeth, shaft_orders, mesh_harmonics, False, tsa.shape[-1]))
+    return keep_orders(
+        tsa, regular_orders(teeth, shaft_orders, mesh_harmonics, False, tsa.shape[-1])
+    )
 
 
 def residual_signal(tsa, teeth: int, shaft_orders: int = 2, mesh_harmonics: int = 3) -> np.ndarray:
@@ -228,7 +285,9 @@ def residual_signal(tsa, teeth: int, shaft_orders: int = 2, mesh_harmonics: int 
     return centred - regular_signal(tsa, teeth, shaft_orders, mesh_harmonics)
 
 
-def difference_signal(tsa, teeth: int, shaft_orders: int = 2, mesh_harmonics: int = 3) -> np.ndarray:
+def difference_signal(
+    tsa, teeth: int, shaft_orders: int = 2, mesh_harmonics: int = 3
+) -> np.ndarray:
     """Difference signal: the TSA minus its regular meshing components, shaft orders 1..k, mesh
     harmonics and their first-order sidebands (and its mean) (Zakrajsek et al. 1993; Lebold et
     al. 2000)."""
@@ -250,8 +309,8 @@ def _normalised_moment(x, k: int) -> np.ndarray:
     to the power k/2 (4: the kurtosis, 3 for Gaussian noise)."""
     x = np.asarray(x, dtype=np.float64)
     centred = x - x.mean(axis=-1, keepdims=True)
-    variance = np.mean(centred ** 2, axis=-1)
-    return np.mean(centred ** k, axis=-1) / np.maximum(variance, np.finfo(float).tiny) ** (k / 2)
+    variance = np.mean(centred**2, axis=-1)
+    return np.mean(centred**k, axis=-1) / np.maximum(variance, np.finfo(float).tiny) ** (k / 2)
 
 
 def fm0(tsa, teeth: int, mesh_harmonics: int = 3) -> np.ndarray:
@@ -259,7 +318,9 @@ def fm0(tsa, teeth: int, mesh_harmonics: int = 3) -> np.ndarray:
     mesh harmonics h x teeth (Zakrajsek et al. 1993, eq. 1; Lebold et al. 2000). A heavy fault
     (a missing tooth, wear) raises the peak-to-peak but not the mesh lines."""
     tsa = np.asarray(tsa, dtype=np.float64)
-    harmonics = [h * teeth for h in range(1, mesh_harmonics + 1) if h * teeth < (tsa.shape[-1] + 1) // 2]
+    harmonics = [
+        h * teeth for h in range(1, mesh_harmonics + 1) if h * teeth < (tsa.shape[-1] + 1) // 2
+    ]
     mesh = sum(order_amplitude(tsa, o) for o in harmonics)
     return np.ptp(tsa, axis=-1) / np.maximum(mesh, np.finfo(float).tiny)
 
@@ -315,11 +376,20 @@ def condition_indicators(tsa, teeth: int, shaft_orders: int = 2, mesh_harmonics:
     regular = regular_signal(tsa, teeth, shaft_orders, mesh_harmonics)
     residual = residual_signal(tsa, teeth, shaft_orders, mesh_harmonics)
     difference = difference_signal(tsa, teeth, shaft_orders, mesh_harmonics)
-    return {"FM0": fm0(tsa, teeth, mesh_harmonics), "FM4": fm4(difference), "NA4": na4(residual),
-            "M6A": m6a(difference), "M8A": m8a(difference), "ER": energy_ratio(difference, regular),
-            "SLF": sideband_level_factor(tsa, teeth), "TSA_RMS": rms(tsa - np.mean(tsa)),
-            "TSA_kurtosis": kurtosis(tsa), "TSA_crest": crest_factor(tsa - np.mean(tsa)),
-            "residual_RMS": rms(residual), "residual_crest": crest_factor(residual)}
+    return {
+        "FM0": fm0(tsa, teeth, mesh_harmonics),
+        "FM4": fm4(difference),
+        "NA4": na4(residual),
+        "M6A": m6a(difference),
+        "M8A": m8a(difference),
+        "ER": energy_ratio(difference, regular),
+        "SLF": sideband_level_factor(tsa, teeth),
+        "TSA_RMS": rms(tsa - np.mean(tsa)),
+        "TSA_kurtosis": kurtosis(tsa),
+        "TSA_crest": crest_factor(tsa - np.mean(tsa)),
+        "residual_RMS": rms(residual),
+        "residual_crest": crest_factor(residual),
+    }
 
 
 # -- order spectrum ----------------------------------------------------------------------------
@@ -351,11 +421,22 @@ class OrderFeatures(TransformerMixin, BaseEstimator):
     from the mesh phase or the nominal speed.
     """
 
-    def __init__(self, shafts=(("pinion", 1.0, 29),), channels=("A1_x",), order_min: float = 0.5,
-                 order_max: float = 120.5, resolution_orders: float = 1.0, band_statistic: str = "rms",
-                 scale: str = "log", samples_per_revolution: int = 1024, shaft_orders: int = 2,
-                 mesh_harmonics: int = 3, phase_harmonic: int = 1, phase_band_orders: float = 0.3,
-                 phase_min_snr: float = 5.0):
+    def __init__(
+        self,
+        shafts=(("pinion", 1.0, 29),),
+        channels=("A1_x",),
+        order_min: float = 0.5,
+        order_max: float = 120.5,
+        resolution_orders: float = 1.0,
+        band_statistic: str = "rms",
+        scale: str = "log",
+        samples_per_revolution: int = 1024,
+        shaft_orders: int = 2,
+        mesh_harmonics: int = 3,
+        phase_harmonic: int = 1,
+        phase_band_orders: float = 0.3,
+        phase_min_snr: float = 5.0,
+    ):
         self.shafts = shafts
         self.channels = channels
         self.order_min = order_min
@@ -379,9 +460,15 @@ class OrderFeatures(TransformerMixin, BaseEstimator):
     def feature_names(self) -> list[str]:
         """Band features of every channel, then the indicators of every channel and shaft."""
         centres = self.band_centres()
-        names = [f"ord_{channel}_{centre:05.1f}x" for channel in self.channels for centre in centres]
-        names += [f"ci_{channel}_{shaft}_{indicator}" for channel in self.channels
-                  for shaft, _, _ in self._shafts() for indicator in INDICATORS]
+        names = [
+            f"ord_{channel}_{centre:05.1f}x" for channel in self.channels for centre in centres
+        ]
+        names += [
+            f"ci_{channel}_{shaft}_{indicator}"
+            for channel in self.channels
+            for shaft, _, _ in self._shafts()
+            for indicator in INDICATORS
+        ]
         return names
 
     # -- sklearn API ---------------------------------------------------------------------------
@@ -396,10 +483,14 @@ class OrderFeatures(TransformerMixin, BaseEstimator):
         self._check_params()
         X = np.asarray(X, dtype=np.float64)
         if X.ndim != 3:
-            raise ValueError(f"expected an array (n_segments, n_channels, n_samples), got shape {X.shape}")
+            raise ValueError(
+                f"expected an array (n_segments, n_channels, n_samples), got shape {X.shape}"
+            )
         if X.shape[1] != len(self.channels):
-            raise ValueError(f"array has {X.shape[1]} channels but OrderFeatures has "
-                             f"{len(self.channels)}: {list(self.channels)}")
+            raise ValueError(
+                f"array has {X.shape[1]} channels but OrderFeatures has "
+                f"{len(self.channels)}: {list(self.channels)}"
+            )
         if not np.isfinite(X).all():
             raise ValueError("segments contain NaN or inf")
         speeds = np.broadcast_to(np.asarray(speed_rpm, dtype=np.float64), X.shape[:1])
@@ -412,8 +503,12 @@ class OrderFeatures(TransformerMixin, BaseEstimator):
             self.phase_methods_.append(method)
         nominal = self.phase_methods_.count("nominal")
         if nominal:
-            log.info("order features: %d of %d segments on the nominal speed (mesh line too weak or "
-                     "not followed)", nominal, len(X))
+            log.info(
+                "order features: %d of %d segments on the nominal speed (mesh line too weak or "
+                "not followed)",
+                nominal,
+                len(X),
+            )
         values = np.array(rows, dtype=np.float64).reshape(len(X), -1)
         if self.scale == "log":
             values = np.log10(np.maximum(values, 0.0) + LOG_FLOOR)
@@ -427,24 +522,41 @@ class OrderFeatures(TransformerMixin, BaseEstimator):
         first_name, first_ratio, first_teeth = self._shafts()[0]
         mesh_order = self.phase_harmonic * first_teeth * first_ratio
         # the phase from the channel where the mesh line stands highest above its floor
-        angle, method, snr = segment_angle(segment, fs_hz, shaft_hz, mesh_order, self.phase_band_orders,
-                                           self.phase_min_snr)
-        log.debug("order features: shaft angle from %s (mesh order %g, line/floor %.1f)",
-                  "the mesh phase" if method == "mesh_phase" else "the nominal speed", mesh_order, snr)
+        angle, method, snr = segment_angle(
+            segment, fs_hz, shaft_hz, mesh_order, self.phase_band_orders, self.phase_min_snr
+        )
+        log.debug(
+            "order features: shaft angle from %s (mesh order %g, line/floor %.1f)",
+            "the mesh phase" if method == "mesh_phase" else "the nominal speed",
+            mesh_order,
+            snr,
+        )
         P = int(self.samples_per_revolution)
         bands, indicators = [], []
         for channel in segment:
             resampled = angular_resample(channel, fs_hz, angle, P)
             orders, amps = order_spectrum(resampled, P)
-            bands.append(band_values(orders, amps, self.order_min, self.resolution_orders,
-                                     self._n_bands(), self.band_statistic))
+            bands.append(
+                band_values(
+                    orders,
+                    amps,
+                    self.order_min,
+                    self.resolution_orders,
+                    self._n_bands(),
+                    self.band_statistic,
+                )
+            )
             for _, ratio, teeth in self._shafts():
                 revolutions = int(np.floor(angle[-1] * ratio + 1e-9))
-                tsa_input = (resampled if ratio == 1.0
-                             else angular_resample(channel, fs_hz, angle * ratio, P))
-                tsa = time_synchronous_average(tsa_input[:revolutions * P], P)
-                values = condition_indicators(tsa, int(teeth), int(self.shaft_orders),
-                                              int(self.mesh_harmonics))
+                tsa_input = (
+                    resampled
+                    if ratio == 1.0
+                    else angular_resample(channel, fs_hz, angle * ratio, P)
+                )
+                tsa = time_synchronous_average(tsa_input[: revolutions * P], P)
+                values = condition_indicators(
+                    tsa, int(teeth), int(self.shaft_orders), int(self.mesh_harmonics)
+                )
                 indicators += [float(values[name]) for name in INDICATORS]
         return np.concatenate([np.ravel(bands), indicators]), method
 
@@ -459,36 +571,55 @@ class OrderFeatures(TransformerMixin, BaseEstimator):
         if len(self.channels) == 0:
             raise ValueError("OrderFeatures needs at least one channel")
         if not self.shafts:
-            raise ValueError("OrderFeatures needs at least one shaft (name, speed ratio, teeth); "
-                             "the system has no gears (System.shafts() is None)")
+            raise ValueError(
+                "OrderFeatures needs at least one shaft (name, speed ratio, teeth); "
+                "the system has no gears (System.shafts() is None)"
+            )
         for shaft in self.shafts:
             if len(shaft) != 3:
                 raise ValueError(f"shaft {shaft!r}: expected (name, speed ratio, teeth)")
             name, ratio, teeth = shaft
-            if not (isinstance(name, str) and name and float(ratio) > 0 and int(teeth) >= 2
-                    and int(teeth) == teeth):
-                raise ValueError(f"shaft {shaft!r}: needs a name, a positive speed ratio and at least 2 teeth")
+            if not (
+                isinstance(name, str)
+                and name
+                and float(ratio) > 0
+                and int(teeth) >= 2
+                and int(teeth) == teeth
+            ):
+                raise ValueError(
+                    f"shaft {shaft!r}: needs a name, a positive speed ratio and at least 2 teeth"
+                )
         if self.scale not in SCALES:
             raise ValueError(f"unknown scale {self.scale!r}; choose one of {list(SCALES)}")
         if self.band_statistic not in BAND_STATISTICS:
-            raise ValueError(f"unknown band_statistic {self.band_statistic!r}; choose one of {list(BAND_STATISTICS)}")
+            raise ValueError(
+                f"unknown band_statistic {self.band_statistic!r}; choose one of {list(BAND_STATISTICS)}"
+            )
         if not self.resolution_orders > 0:
             raise ValueError(f"resolution_orders must be positive, got {self.resolution_orders}")
         if self.order_min < 0 or self.order_max <= self.order_min:
-            raise ValueError(f"need 0 <= order_min < order_max, got {self.order_min}, {self.order_max}")
+            raise ValueError(
+                f"need 0 <= order_min < order_max, got {self.order_min}, {self.order_max}"
+            )
         span = (self.order_max - self.order_min) / self.resolution_orders
         if abs(span - round(span)) > 1e-6:
-            raise ValueError(f"order_max - order_min = {self.order_max - self.order_min} is not a whole "
-                             f"number of resolution_orders = {self.resolution_orders} bands")
+            raise ValueError(
+                f"order_max - order_min = {self.order_max - self.order_min} is not a whole "
+                f"number of resolution_orders = {self.resolution_orders} bands"
+            )
         largest_order = max((self.mesh_harmonics * teeth + 1) for _, _, teeth in self._shafts())
         if int(self.samples_per_revolution) < 2 * max(self.order_max, largest_order) + 2:
-            raise ValueError(f"samples_per_revolution={self.samples_per_revolution} cannot hold order "
-                             f"{max(self.order_max, largest_order):g} (needs more than twice it)")
+            raise ValueError(
+                f"samples_per_revolution={self.samples_per_revolution} cannot hold order "
+                f"{max(self.order_max, largest_order):g} (needs more than twice it)"
+            )
         for key in ("shaft_orders", "mesh_harmonics", "phase_harmonic"):
             if int(getattr(self, key)) < (0 if key == "shaft_orders" else 1):
                 raise ValueError(f"{key} must be a positive whole number, got {getattr(self, key)}")
         if not 0 < self.phase_band_orders < 0.5:
-            raise ValueError(f"phase_band_orders must lie in (0, 0.5), got {self.phase_band_orders}")
+            raise ValueError(
+                f"phase_band_orders must lie in (0, 0.5), got {self.phase_band_orders}"
+            )
         if not self.phase_min_snr > 0:
             raise ValueError(f"phase_min_snr must be positive, got {self.phase_min_snr}")
 
@@ -496,35 +627,46 @@ class OrderFeatures(TransformerMixin, BaseEstimator):
         seconds = (n - 1) / fs_hz
         nyquist_order = fs_hz / 2 / shaft_hz
         if self.order_max > nyquist_order:
-            raise ValueError(f"order_max={self.order_max} is above the Nyquist order {nyquist_order:.1f} "
-                             f"of a {fs_hz:g} Hz record at {speed_rpm:g} rpm")
+            raise ValueError(
+                f"order_max={self.order_max} is above the Nyquist order {nyquist_order:.1f} "
+                f"of a {fs_hz:g} Hz record at {speed_rpm:g} rpm"
+            )
         for name, ratio, _ in self._shafts():
             if seconds * shaft_hz * ratio < 1:
-                raise ValueError(f"a {n / fs_hz:g} s segment at {speed_rpm:g} rpm holds "
-                                 f"{seconds * shaft_hz * ratio:.2f} revolutions of the {name}: less than "
-                                 "one to average")
+                raise ValueError(
+                    f"a {n / fs_hz:g} s segment at {speed_rpm:g} rpm holds "
+                    f"{seconds * shaft_hz * ratio:.2f} revolutions of the {name}: less than "
+                    "one to average"
+                )
         if 1.0 / (seconds * shaft_hz) > self.resolution_orders * (1 + 1e-9):
-            raise ValueError(f"resolution_orders={self.resolution_orders} is finer than the "
-                             f"{1 / (seconds * shaft_hz):.3g} orders a {n / fs_hz:g} s segment at "
-                             f"{speed_rpm:g} rpm resolves; use longer segments or a coarser resolution")
+            raise ValueError(
+                f"resolution_orders={self.resolution_orders} is finer than the "
+                f"{1 / (seconds * shaft_hz):.3g} orders a {n / fs_hz:g} s segment at "
+                f"{speed_rpm:g} rpm resolves; use longer segments or a coarser resolution"
+            )
 
 
 def order_features_from_params(channels, shafts, order_params: dict) -> OrderFeatures:
     """An OrderFeatures from the config's `features.order` section, rejecting unknown keys."""
     unknown = sorted(set(order_params) - set(ORDER_PARAMS))
     if unknown:
-        raise ValueError(f"unknown features.order parameter(s) {unknown}; allowed: {list(ORDER_PARAMS)}")
+        raise ValueError(
+            f"unknown features.order parameter(s) {unknown}; allowed: {list(ORDER_PARAMS)}"
+        )
     if not shafts:
-        raise ValueError("order features need the rig's geared shafts, and this system has none "
-                         "(System.shafts() is None)")
+        raise ValueError(
+            "order features need the rig's geared shafts, and this system has none "
+            "(System.shafts() is None)"
+        )
     return OrderFeatures(shafts=[tuple(s) for s in shafts], channels=list(channels), **order_params)
 
 
-def order_feature_table(signal_frame, channels, params: dict) -> pd.DataFrame:
+def order_feature_table(signal_frame, channels, params: dict, inputs=None) -> pd.DataFrame:
     """Wide features table of one signal table: order-spectrum bands and gear condition indicators
     per channel (`condmon.order_features.OrderFeatures`, configured by `params` = the config's
     `features.order` with the rig's `shafts` [(name, speed ratio, teeth)], `GearSystem.shafts()`),
-    with each segment's stored input-shaft speed."""
+    with each segment's stored input-shaft speed. `inputs` (`condmon.features.FamilyInputs`):
+    unused, the order features take no reference and run in one process."""
     params = dict(params)
     shafts = params.pop("shafts", None)
     try:
@@ -534,12 +676,16 @@ def order_feature_table(signal_frame, channels, params: dict) -> pd.DataFrame:
     present = set(signal_frame["channel"])
     missing = [ch for ch in extractor.channels if ch not in present]
     if missing:
-        raise FeatureTableError(f"channel(s) {missing} not in the signal table (it has {sorted(present)})")
+        raise FeatureTableError(
+            f"channel(s) {missing} not in the signal table (it has {sorted(present)})"
+        )
     fs_hz = single_sampling_rate(signal_frame)
     ids, arrays = to_arrays(signal_frame, extractor.channels)
     try:
         values = extractor.transform(arrays, fs_hz, ids["speed_rpm"].to_numpy())
     except ValueError as exc:
         raise FeatureTableError(f"order features: {exc}") from exc
-    return pd.concat([ids.reset_index(drop=True),
-                      pd.DataFrame(values, columns=extractor.feature_names())], axis=1)
+    return pd.concat(
+        [ids.reset_index(drop=True), pd.DataFrame(values, columns=extractor.feature_names())],
+        axis=1,
+    )

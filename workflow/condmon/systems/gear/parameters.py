@@ -1,4 +1,5 @@
 """Bridge between config sections and the pure gear drivetrain model in `models/`."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -6,15 +7,34 @@ import math
 
 import numpy as np
 
-from condmon.models.gear.drivetrain import GearDrivetrainParameters, GearGeometry, ShaftLayout, SimulationSettings
+from condmon.models.gear.drivetrain import (
+    GearDrivetrainParameters,
+    GearGeometry,
+    ShaftLayout,
+    SimulationSettings,
+)
 from condmon.models.gear.errors import draw_gear_errors
 from condmon.models.gear.mesh_force import stiffness_for_deflection
 
 # Parameters that calibration may tune (the contact law is the categorical one).
-CALIBRATABLE = ("mesh_stiffness", "restitution", "contact_exponent", "mesh_damping_ratio", "bushing_stiffness",
-                "bushing_damping", "bushing_axial_stiffness", "transmission_error")
+CALIBRATABLE = (
+    "mesh_stiffness",
+    "restitution",
+    "contact_exponent",
+    "mesh_damping_ratio",
+    "bushing_stiffness",
+    "bushing_damping",
+    "bushing_axial_stiffness",
+    "transmission_error",
+)
 _FIELDS = {f.name for f in dataclasses.fields(GearDrivetrainParameters)}
-_SECTIONS = ("geometry", "variability", "gear_errors", "fault_severity", "mesh_compliance")  # drawn per sample, not parameters
+_SECTIONS = (
+    "geometry",
+    "variability",
+    "gear_errors",
+    "fault_severity",
+    "mesh_compliance",
+)  # drawn per sample, not parameters
 
 
 def build_parameters(model: dict, **overrides) -> GearDrivetrainParameters:
@@ -30,7 +50,9 @@ def build_parameters(model: dict, **overrides) -> GearDrivetrainParameters:
         raise ValueError(f"unknown gear model parameters {unknown}")
     for key in ("input_shaft", "output_shaft"):
         if isinstance(values.get(key), dict):
-            values[key] = ShaftLayout(**{k: tuple(v) if isinstance(v, list) else v for k, v in values[key].items()})
+            values[key] = ShaftLayout(
+                **{k: tuple(v) if isinstance(v, list) else v for k, v in values[key].items()}
+            )
     if isinstance(values.get("sensors"), dict):
         values["sensors"] = tuple(values["sensors"].items())
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
@@ -57,7 +79,9 @@ def perturb(values: dict, names, sigma: float, rng: np.random.Generator) -> dict
 COMPLIANCE_PARAMETERS = ("mesh_stiffness", "contact_exponent")
 
 
-def draw_mesh_compliance(compliance: dict, params: GearDrivetrainParameters, rng: np.random.Generator) -> dict:
+def draw_mesh_compliance(
+    compliance: dict, params: GearDrivetrainParameters, rng: np.random.Generator
+) -> dict:
     """One drivetrain's mesh compliance (`model.mesh_compliance`): its contact exponent uniform in
     `contact_exponent`, its static deflection under the rig's load log-uniform in `deflection`
     (m), and the `mesh_stiffness` that gives that deflection (`stiffness_for_deflection`).
@@ -73,8 +97,10 @@ def draw_mesh_compliance(compliance: dict, params: GearDrivetrainParameters, rng
     exponent = float(rng.uniform(*compliance["contact_exponent"]))
     low, high = np.log(compliance["deflection"][0]), np.log(compliance["deflection"][1])
     deflection = float(np.exp(rng.uniform(low, high)))
-    return {"contact_exponent": exponent,
-            "mesh_stiffness": stiffness_for_deflection(params, deflection, exponent)}
+    return {
+        "contact_exponent": exponent,
+        "mesh_stiffness": stiffness_for_deflection(params, deflection, exponent),
+    }
 
 
 def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator) -> dict:
@@ -91,18 +117,35 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
       seed;
     - the mesh phase the run starts at, uniform over the gear pair's full cycle (a measurement
       starts at any shaft angle: where the damaged tooth passes within a segment varies)."""
+
     def uniform(low, high):
         return float(rng.uniform(low, high))
 
-    errors, variability, severity = model["gear_errors"], model["variability"], model["fault_severity"]
+    errors, variability, severity = (
+        model["gear_errors"],
+        model["variability"],
+        model["fault_severity"],
+    )
     grade, share = uniform(*errors["grade"]), uniform(*errors["deviation_share"])
     fields = {}
     for name, teeth in (("pinion", geometry.teeth_pinion), ("gear", geometry.teeth_gear)):
-        gear = draw_gear_errors(rng, grade, teeth, geometry.normal_module, 2 * geometry.pitch_radius(teeth),
-                                geometry.face_width, share,
-                                misalignment=uniform(*errors["misalignment"]) if name == "pinion" else 0.0)
-        fields.update({f"pitch_errors_{name}": gear.pitch_deviations, f"runout_{name}": gear.eccentricity,
-                       f"runout_phase_{name}": gear.eccentricity_phase})
+        gear = draw_gear_errors(
+            rng,
+            grade,
+            teeth,
+            geometry.normal_module,
+            2 * geometry.pitch_radius(teeth),
+            geometry.face_width,
+            share,
+            misalignment=uniform(*errors["misalignment"]) if name == "pinion" else 0.0,
+        )
+        fields.update(
+            {
+                f"pitch_errors_{name}": gear.pitch_deviations,
+                f"runout_{name}": gear.eccentricity,
+                f"runout_phase_{name}": gear.eccentricity_phase,
+            }
+        )
         if name == "pinion":
             fields["flank_maps_pinion"] = gear.flank_maps
     return dict(
@@ -118,12 +161,16 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
         pitted_area=uniform(*severity["pitted_area"]),
         spall_depth=uniform(*severity["spall_depth"]),
         crack_depth=uniform(*severity["crack_depth"]),
-        wear_seed=int(rng.integers(2 ** 31)),
+        wear_seed=int(rng.integers(2**31)),
         # the record starts at any shaft angle of both gears (drawn last: the draws above stay as they were)
         start_mesh_phase=uniform(0.0, math.lcm(geometry.teeth_pinion, geometry.teeth_gear)),
         missing_share=uniform(*severity["missing_share"]),
-        spall_face=_spall_face(uniform(*severity["spall_width"]), rng),  # drawn last, as the line above
-        surface_fault_teeth=int(rng.integers(severity["pitted_teeth"][0], severity["pitted_teeth"][1] + 1)),
+        spall_face=_spall_face(
+            uniform(*severity["spall_width"]), rng
+        ),  # drawn last, as the line above
+        surface_fault_teeth=int(
+            rng.integers(severity["pitted_teeth"][0], severity["pitted_teeth"][1] + 1)
+        ),
         pitting_growth=uniform(*severity["pitting_growth"]),
     )
 
@@ -140,15 +187,21 @@ def measured_fluctuation_fields(measured: dict, speed_rpm: float, seed: int) -> 
         return {}
     estimate = known[min(known, key=lambda speed: abs(speed - speed_rpm))]
     rng = np.random.default_rng([int(seed), 0x5FEED])
-    return {"speed_fluctuation": float(rng.uniform(*estimate["amplitude"])),
-            "speed_fluctuation_hz": float(rng.uniform(*estimate["frequency_hz"]))}
+    return {
+        "speed_fluctuation": float(rng.uniform(*estimate["amplitude"])),
+        "speed_fluctuation_hz": float(rng.uniform(*estimate["frequency_hz"])),
+    }
 
 
 # Per-state calibration (calibration.per_state): the severities each fault state's model tunes,
 # by model variant (a surface fault's form is its variant; the other states have one, their name).
-STATE_SEVERITY = {"wear": ("wear_depth",), "pitting": ("pit_depth", "pitted_area"),
-                  "missing_tooth": ("missing_share",), "spall": ("spall_depth", "spall_width"),
-                  "root_crack": ("crack_depth",)}
+STATE_SEVERITY = {
+    "wear": ("wear_depth",),
+    "pitting": ("pit_depth", "pitted_area"),
+    "missing_tooth": ("missing_share",),
+    "spall": ("spall_depth", "spall_width"),
+    "root_crack": ("crack_depth",),
+}
 SHARES = ("pitted_area", "missing_share", "spall_width", "crack_depth")  # fractions: at most 1
 
 
@@ -156,12 +209,16 @@ def state_variants(state: str, surface_fault_model: str) -> list[str]:
     """The model variants per-state calibration searches for `state` (ValueError: none)."""
     if state == "surface_fault":
         if surface_fault_model != "pitting":
-            raise ValueError(f"calibration.per_state: surface_fault_model {surface_fault_model} removes no "
-                             "material; per-state calibration tunes the depths of pitting")
+            raise ValueError(
+                f"calibration.per_state: surface_fault_model {surface_fault_model} removes no "
+                "material; per-state calibration tunes the depths of pitting"
+            )
         return ["pitting"]
     if state not in STATE_SEVERITY:
-        raise ValueError(f"calibration.per_state.states: {state!r} has no severity to tune; the gear model "
-                         f"tunes surface_fault, {', '.join(k for k in STATE_SEVERITY if k != 'pitting')}")
+        raise ValueError(
+            f"calibration.per_state.states: {state!r} has no severity to tune; the gear model "
+            f"tunes surface_fault, {', '.join(k for k in STATE_SEVERITY if k != 'pitting')}"
+        )
     return [state]
 
 
@@ -175,7 +232,9 @@ def state_model_fields(state_model: dict, drawn: dict, seed: int) -> dict:
     variant = state_model["variant"]
     fields = {"surface_fault_model": variant} if variant == "pitting" else {}
     for name in STATE_SEVERITY[variant]:
-        value = float(state_model["parameters"][name]) * float(rng.uniform(1.0 - spread, 1.0 + spread))
+        value = float(state_model["parameters"][name]) * float(
+            rng.uniform(1.0 - spread, 1.0 + spread)
+        )
         value = min(value, 1.0) if name in SHARES else value
         if name == "spall_width":
             centre = 0.5 * (drawn["spall_face"][0] + drawn["spall_face"][1])

@@ -46,12 +46,14 @@ that grow with the fault's size (`rms_ratio`, `NA4`) are left out and the bands 
 shape (less their mean over the bands): that size follows the mesh's compliance, which healthy
 records do not identify.
 """
+
 from __future__ import annotations
 
 import json
 import logging
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
 from fractions import Fraction
 
 import numpy as np
@@ -59,13 +61,12 @@ import pandas as pd
 from scipy.interpolate import CubicSpline
 from scipy.signal import resample_poly
 
-from condmon.features import FeatureTableError, single_sampling_rate
+from condmon.features import FamilyInputs, FeatureTableError, single_sampling_rate
 from condmon.hybrid import calibration_frame
 from condmon.signals import to_arrays
 from condmon.simulate import machine_of
 from condmon.systems.gear.fixed_tones import fixed_tones, remove_fixed_tones
-from condmon.systems.gear.order_features import (difference_signal, residual_signal,
-                                                 segment_angle)
+from condmon.systems.gear.order_features import difference_signal, residual_signal, segment_angle
 
 log = logging.getLogger(__name__)
 
@@ -82,7 +83,9 @@ SIZED_FEATURES = ("rms_ratio", "NA4")
 
 
 # -- synchronous patterns ----------------------------------------------------------------------
-def resample_at(x: np.ndarray, angle: np.ndarray, samples_per_revolution: int, upsampling: int = 1) -> np.ndarray:
+def resample_at(
+    x: np.ndarray, angle: np.ndarray, samples_per_revolution: int, upsampling: int = 1
+) -> np.ndarray:
     """Channels x (n_channels, n_samples) at the angles 0, 1/P, 2/P, ... of a shaft whose angle
     (revolutions, increasing from 0) is `angle` at every sample: cubic spline in time, every whole
     grid step within the segment. No anti-alias filter: on a grid coarser than the samples,
@@ -100,14 +103,16 @@ def resample_at(x: np.ndarray, angle: np.ndarray, samples_per_revolution: int, u
     return CubicSpline(np.arange(n), x, axis=-1)(instants)
 
 
-def synchronous_average(x: np.ndarray, angle: np.ndarray, samples_per_revolution: int) -> np.ndarray:
+def synchronous_average(
+    x: np.ndarray, angle: np.ndarray, samples_per_revolution: int
+) -> np.ndarray:
     """TSA (n_channels, P) over the whole revolutions of a shaft at `angle`: the plain TSA, which
     keeps what another shaft leaves in a short record (`shaft_patterns` keeps it out)."""
     resampled = resample_at(x, angle, samples_per_revolution)
     revolutions = resampled.shape[-1] // samples_per_revolution
     if revolutions < 1:
         raise ValueError("less than one revolution of a shaft to average")
-    return fold(resampled[..., :revolutions * samples_per_revolution], samples_per_revolution)
+    return fold(resampled[..., : revolutions * samples_per_revolution], samples_per_revolution)
 
 
 def pattern_at(pattern: np.ndarray, angle: np.ndarray) -> np.ndarray:
@@ -132,8 +137,13 @@ def without_orders(pattern: np.ndarray, period_orders: int) -> np.ndarray:
     return np.fft.irfft(spectrum, n=pattern.shape[-1], axis=-1)
 
 
-def shaft_patterns(segment: np.ndarray, angle: np.ndarray, shafts, samples_per_revolution: int,
-                   iterations: int = SEPARATION_ITERATIONS) -> list[np.ndarray]:
+def shaft_patterns(
+    segment: np.ndarray,
+    angle: np.ndarray,
+    shafts,
+    samples_per_revolution: int,
+    iterations: int = SEPARATION_ITERATIONS,
+) -> list[np.ndarray]:
     """Each shaft's synchronous pattern (n_channels, P) in one segment (n_channels, n_samples),
     the shafts kept apart: alternating projections, each shaft's TSA of the segment less the other
     shafts' patterns. An order common to two shafts (a mesh harmonic: teeth x the shaft's order)
@@ -157,10 +167,20 @@ def shaft_patterns(segment: np.ndarray, angle: np.ndarray, shafts, samples_per_r
     patterns = [np.zeros((x.shape[0], P)) for _ in shafts]
     for _ in range(iterations if len(shafts) > 1 else 1):
         for k, (_, ratio, teeth) in enumerate(shafts):
-            others = sum((pattern_at(patterns[j], grids[k] * float(shafts[j][1]) / float(ratio))
-                          for j in range(len(shafts)) if j != k), np.zeros_like(resampled[k]))
+            others = sum(
+                (
+                    pattern_at(patterns[j], grids[k] * float(shafts[j][1]) / float(ratio))
+                    for j in range(len(shafts))
+                    if j != k
+                ),
+                np.zeros_like(resampled[k]),
+            )
             pattern = fold(resampled[k] - others, P)
-            patterns[k] = without_orders(pattern, int(teeth)) if k > 0 else pattern - pattern.mean(axis=-1, keepdims=True)
+            patterns[k] = (
+                without_orders(pattern, int(teeth))
+                if k > 0
+                else pattern - pattern.mean(axis=-1, keepdims=True)
+            )
     return patterns
 
 
@@ -170,7 +190,9 @@ def fold(on_grid: np.ndarray, samples_per_revolution: int) -> np.ndarray:
 
 
 # -- alignment -----------------------------------------------------------------------------------
-def alignment_shift(tsa: np.ndarray, reference: np.ndarray, teeth: int, top_order: int | None = None) -> float:
+def alignment_shift(
+    tsa: np.ndarray, reference: np.ndarray, teeth: int, top_order: int | None = None
+) -> float:
     """The shift s (samples, fractional) that best aligns `tsa` to `reference` (both (n_channels,
     P)): tsa(i + s) ~ reference(i). Circular cross-correlation summed over the channels, of both
     less their mesh harmonics (periodic with the tooth pitch, they would make every whole-tooth
@@ -185,7 +207,7 @@ def alignment_shift(tsa: np.ndarray, reference: np.ndarray, teeth: int, top_orde
     b = np.fft.rfft(np.atleast_2d(reference), axis=-1)
     p = np.atleast_2d(tsa).shape[-1]
     if top_order is not None:
-        a[..., int(top_order) + 1:] = 0.0
+        a[..., int(top_order) + 1 :] = 0.0
     fingerprint = (a * np.conj(b)).sum(axis=0)
     fingerprint[::teeth] = 0.0
     shift = float(np.argmax(np.fft.irfft(fingerprint, n=p)))
@@ -194,7 +216,7 @@ def alignment_shift(tsa: np.ndarray, reference: np.ndarray, teeth: int, top_orde
     omega = 2 * np.pi * np.arange(p // 2 + 1) / p
     for _ in range(4):
         turned = cross * np.exp(1j * omega * shift)
-        slope, curvature = -np.sum(omega * turned.imag), -np.sum(omega ** 2 * turned.real)
+        slope, curvature = -np.sum(omega * turned.imag), -np.sum(omega**2 * turned.real)
         if curvature >= 0:
             break
         shift -= float(np.clip(slope / curvature, -0.5, 0.5))
@@ -204,11 +226,15 @@ def alignment_shift(tsa: np.ndarray, reference: np.ndarray, teeth: int, top_orde
 def shifted(pattern: np.ndarray, shift: float) -> np.ndarray:
     """pattern(i + shift), circularly, by the DFT's shift theorem (any fractional shift)."""
     p = pattern.shape[-1]
-    spectrum = np.fft.rfft(pattern, axis=-1) * np.exp(2j * np.pi * np.arange(p // 2 + 1) * shift / p)
+    spectrum = np.fft.rfft(pattern, axis=-1) * np.exp(
+        2j * np.pi * np.arange(p // 2 + 1) * shift / p
+    )
     return np.fft.irfft(spectrum, n=p, axis=-1)
 
 
-def aligned(tsa: np.ndarray, reference: np.ndarray, teeth: int, top_order: int | None = None) -> np.ndarray:
+def aligned(
+    tsa: np.ndarray, reference: np.ndarray, teeth: int, top_order: int | None = None
+) -> np.ndarray:
     """`tsa` shifted onto `reference` (`alignment_shift`)."""
     return shifted(tsa, alignment_shift(tsa, reference, teeth, top_order))
 
@@ -217,8 +243,11 @@ def reference_pattern(patterns, teeth: int, top_order: int | None = None) -> np.
     """The healthy reference of one shaft from several segments' patterns (each (n_channels, P)):
     each aligned to the first (on the orders up to `top_order`), then their mean."""
     first = np.asarray(patterns[0], dtype=np.float64)
-    return np.mean([first] + [aligned(np.asarray(p, dtype=np.float64), first, teeth, top_order)
-                              for p in patterns[1:]], axis=0)
+    return np.mean(
+        [first]
+        + [aligned(np.asarray(p, dtype=np.float64), first, teeth, top_order) for p in patterns[1:]],
+        axis=0,
+    )
 
 
 def top_band_order(band_orders: float, n_bands: int) -> int:
@@ -231,11 +260,16 @@ def top_band_order(band_orders: float, n_bands: int) -> int:
 def hunting_revolutions(shafts) -> int:
     """Revolutions of the input shaft after which every shaft is back at its starting angle: the
     pair's hunting cycle (29/44 teeth: 44), over which each tooth has met every mating tooth."""
-    return int(np.lcm.reduce([Fraction(float(ratio)).limit_denominator(100000).denominator
-                              for _, ratio, _ in shafts]))
+    return int(
+        np.lcm.reduce(
+            [Fraction(float(ratio)).limit_denominator(100000).denominator for _, ratio, _ in shafts]
+        )
+    )
 
 
-def hunting_cycle(record: np.ndarray, angle: np.ndarray, revolutions: int, samples_per_revolution: int):
+def hunting_cycle(
+    record: np.ndarray, angle: np.ndarray, revolutions: int, samples_per_revolution: int
+):
     """The synchronous average of a record (n_channels, n_samples) over the hunting cycle
     (`revolutions` of the input shaft, whose angle is `angle`): (n_channels, revolutions x P),
     every point of the cycle the mean over the cycles the record's middle covers there (its
@@ -244,15 +278,20 @@ def hunting_cycle(record: np.ndarray, angle: np.ndarray, revolutions: int, sampl
     x = np.asarray(record, dtype=np.float64)
     # the cycle's values come back at other instants of other records (`cycle_residual`), so
     # between samples they must be the signal's, not the spline's
-    on_grid = resample_at(x - x.mean(axis=-1, keepdims=True), angle, samples_per_revolution, CYCLE_UPSAMPLING)
+    on_grid = resample_at(
+        x - x.mean(axis=-1, keepdims=True), angle, samples_per_revolution, CYCLE_UPSAMPLING
+    )
     length = int(revolutions) * samples_per_revolution
     if on_grid.shape[-1] < length:
         return None
     edge = cycle_start(on_grid.shape[-1], length, samples_per_revolution)
-    on_grid = on_grid[..., edge:on_grid.shape[-1] - edge]
+    on_grid = on_grid[..., edge : on_grid.shape[-1] - edge]
     position = np.arange(on_grid.shape[-1]) % length
     counts = np.bincount(position, minlength=length)
-    return np.stack([np.bincount(position, weights=channel, minlength=length) for channel in on_grid]) / counts
+    return (
+        np.stack([np.bincount(position, weights=channel, minlength=length) for channel in on_grid])
+        / counts
+    )
 
 
 def cycle_start(n_grid: int, length: int, samples_per_revolution: int) -> int:
@@ -263,7 +302,9 @@ def cycle_start(n_grid: int, length: int, samples_per_revolution: int) -> int:
     return min((n_grid - length) // 2, samples_per_revolution // 2)
 
 
-def cycle_shaft_patterns(cycle: np.ndarray, shafts, revolutions: int, samples_per_revolution: int) -> list:
+def cycle_shaft_patterns(
+    cycle: np.ndarray, shafts, revolutions: int, samples_per_revolution: int
+) -> list:
     """Each shaft's synchronous pattern (n_channels, P) from a hunting-cycle average: the cycle's
     orders at multiples of the shaft's turns per cycle, exact, since over a whole cycle every other
     shaft's pattern averages out. The mesh harmonics stay with the first shaft, as in
@@ -272,15 +313,21 @@ def cycle_shaft_patterns(cycle: np.ndarray, shafts, revolutions: int, samples_pe
     spectrum = np.fft.rfft(cycle, axis=-1)
     patterns = []
     for k, (_, ratio, teeth) in enumerate(shafts):
-        own = spectrum[..., ::int(round(revolutions * float(ratio)))][..., :P // 2 + 1]
+        own = spectrum[..., :: int(round(revolutions * float(ratio)))][..., : P // 2 + 1]
         orders = np.zeros((cycle.shape[0], P // 2 + 1), complex)
-        orders[..., :own.shape[-1]] = own
+        orders[..., : own.shape[-1]] = own
         pattern = np.fft.irfft(orders, n=P, axis=-1) * P / cycle.shape[-1]
-        patterns.append(without_orders(pattern, int(teeth)) if k > 0 else pattern - pattern.mean(axis=-1, keepdims=True))
+        patterns.append(
+            without_orders(pattern, int(teeth))
+            if k > 0
+            else pattern - pattern.mean(axis=-1, keepdims=True)
+        )
     return patterns
 
 
-def band_limited(x: np.ndarray, turns: int, top_order: int, without_multiples_of: int = 0) -> np.ndarray:
+def band_limited(
+    x: np.ndarray, turns: int, top_order: int, without_multiples_of: int = 0
+) -> np.ndarray:
     """`x` (n_channels, n: `turns` revolutions of the input shaft on its grid) without its orders
     above `top_order` and, with `without_multiples_of` (a tooth count), without the mesh
     harmonics."""
@@ -292,8 +339,9 @@ def band_limited(x: np.ndarray, turns: int, top_order: int, without_multiples_of
     return np.fft.irfft(spectrum, n=x.shape[-1], axis=-1)
 
 
-def cycle_offset(on_grid: np.ndarray, cycle: np.ndarray, samples_per_revolution: int, teeth: int,
-                 top_order: int) -> float:
+def cycle_offset(
+    on_grid: np.ndarray, cycle: np.ndarray, samples_per_revolution: int, teeth: int, top_order: int
+) -> float:
     """Where in the hunting cycle (n_channels, L) a record lies (n_channels, n: whole input
     revolutions on the same grid): the offset o (grid samples, fractional) with on_grid(i) ~
     cycle(i + o). First the peak of the fingerprint's correlation (the orders up to `top_order`
@@ -311,8 +359,10 @@ def cycle_offset(on_grid: np.ndarray, cycle: np.ndarray, samples_per_revolution:
         record = padded.reshape(on_grid.shape[0], -1, length).sum(axis=1)
         reference = band_limited(cycle, cycle_turns, top_order, without_mesh)
         # c(o) = sum_i record(i) cycle(i + o), summed over the channels
-        return np.fft.irfft((np.conj(np.fft.rfft(record, axis=-1)) * np.fft.rfft(reference, axis=-1)).sum(axis=0),
-                            n=length)
+        return np.fft.irfft(
+            (np.conj(np.fft.rfft(record, axis=-1)) * np.fft.rfft(reference, axis=-1)).sum(axis=0),
+            n=length,
+        )
 
     coarse = int(np.argmax(correlation(teeth)))
     whole = correlation(0)
@@ -324,8 +374,15 @@ def cycle_offset(on_grid: np.ndarray, cycle: np.ndarray, samples_per_revolution:
     return float(peak + (0.5 * (left - right) / curvature if curvature < 0 else 0.0))
 
 
-def cycle_residual(segment: np.ndarray, angle: np.ndarray, cycle: np.ndarray, samples_per_revolution: int,
-                   teeth: int, top_order: int, with_offset: bool = False):
+def cycle_residual(
+    segment: np.ndarray,
+    angle: np.ndarray,
+    cycle: np.ndarray,
+    samples_per_revolution: int,
+    teeth: int,
+    top_order: int,
+    with_offset: bool = False,
+):
     """A segment (n_channels, n_samples; input-shaft angle `angle`) less its machine's healthy
     hunting-cycle average where it lies in the cycle (`cycle_offset`), in time: what is left is
     the change since the machine was healthy, with neither gear's pattern in it, whichever part
@@ -344,7 +401,9 @@ def cycle_residual(segment: np.ndarray, angle: np.ndarray, cycle: np.ndarray, sa
 
 
 # -- features of a residual ----------------------------------------------------------------------
-def band_levels(pattern: np.ndarray, band_orders: float, n_bands: int, without_multiples_of: int = 0) -> np.ndarray:
+def band_levels(
+    pattern: np.ndarray, band_orders: float, n_bands: int, without_multiples_of: int = 0
+) -> np.ndarray:
     """RMS order amplitude of a one-revolution pattern (n_channels, P) in bands `band_orders` wide
     from order 0.5: (n_channels, n_bands). Bin m of its DFT is shaft order m exactly. With
     `without_multiples_of` (a tooth count) the orders at its multiples, the mesh harmonics, are
@@ -368,8 +427,10 @@ def tooth_peak(signal: np.ndarray, teeth: int, pitches: int) -> np.ndarray:
     p = signal.shape[-1]
     window = max(1, int(round(pitches * p / teeth)))
     energy = np.concatenate([signal, signal[..., :window]], axis=-1) ** 2
-    cumulative = np.concatenate([np.zeros((energy.shape[0], 1)), np.cumsum(energy, axis=-1)], axis=-1)
-    sliding = cumulative[:, window:window + p] - cumulative[:, :p]
+    cumulative = np.concatenate(
+        [np.zeros((energy.shape[0], 1)), np.cumsum(energy, axis=-1)], axis=-1
+    )
+    sliding = cumulative[:, window : window + p] - cumulative[:, :p]
     return sliding.max(axis=-1) / np.maximum(np.median(sliding, axis=-1), TINY)
 
 
@@ -395,7 +456,7 @@ def teeth_participation(excess: np.ndarray) -> float:
     energy x (1: a single tooth, as a broken one; a few: pitting of neighbouring teeth; near the
     count of teeth: every tooth alike, or nothing but noise)."""
     total = float(np.sum(excess))
-    return total ** 2 / float(np.sum(excess ** 2)) if total > TINY else float(len(excess))
+    return total**2 / float(np.sum(excess**2)) if total > TINY else float(len(excess))
 
 
 def tooth_share(excess: np.ndarray, pitches: int) -> float:
@@ -403,14 +464,19 @@ def tooth_share(excess: np.ndarray, pitches: int) -> float:
     total = float(np.sum(excess))
     if total <= TINY:
         return pitches / len(excess)
-    window = np.convolve(np.concatenate([excess, excess[:pitches - 1]]), np.ones(pitches), mode="valid")
+    window = np.convolve(
+        np.concatenate([excess, excess[: pitches - 1]]), np.ones(pitches), mode="valid"
+    )
     return float(window.max() / total)
 
 
 def teeth_features(excess: np.ndarray) -> dict:
     """TEETH_FEATURES of a shaft's `damaged_pitches` (linear; the caller takes logs)."""
-    return {"participation": teeth_participation(excess), "share1": tooth_share(excess, 1),
-            "share3": tooth_share(excess, 3)}
+    return {
+        "participation": teeth_participation(excess),
+        "share1": tooth_share(excess, 1),
+        "share3": tooth_share(excess, 3),
+    }
 
 
 def located_tooth(excess: np.ndarray) -> tuple[int, float]:
@@ -432,23 +498,54 @@ def reference_frames(references: dict, shafts, top_orders) -> dict:
     own calibration record did; its pattern aligned to the first condition's (`alignment_shift`,
     the pitch pattern as the fingerprint) says how far apart they lie."""
     keys = sorted(references)
-    return {key: np.array([-alignment_shift(references[key][k], references[keys[0]][k], teeth, top_orders[k])
-                           / references[key][k].shape[-1] for k, (_, _, teeth) in enumerate(shafts)])
-            for key in keys}
+    return {
+        key: np.array(
+            [
+                -alignment_shift(references[key][k], references[keys[0]][k], teeth, top_orders[k])
+                / references[key][k].shape[-1]
+                for k, (_, _, teeth) in enumerate(shafts)
+            ]
+        )
+        for key in keys
+    }
 
 
-def residual_features(pattern: np.ndarray, reference: np.ndarray, teeth: int, band_orders: float, n_bands: int,
-                      shaft_orders: int = 2, mesh_harmonics: int = 3, reference_level: str = "whole") -> dict:
+def residual_features(
+    pattern: np.ndarray,
+    reference: np.ndarray,
+    teeth: int,
+    band_orders: float,
+    n_bands: int,
+    shaft_orders: int = 2,
+    mesh_harmonics: int = 3,
+    reference_level: str = "whole",
+) -> dict:
     """The residual features of one shaft's pattern against its healthy reference (both
     (n_channels, P)): {feature: (n_channels,)}, linear (the caller takes logs). `reference_level`
     (REFERENCE_LEVELS): what the bands are taken over. Module docstring."""
     residual = aligned(pattern, reference, teeth, top_band_order(band_orders, n_bands)) - reference
-    return residual_signatures(residual, reference, teeth, band_orders, n_bands, shaft_orders, mesh_harmonics,
-                               reference_level)
+    return residual_signatures(
+        residual,
+        reference,
+        teeth,
+        band_orders,
+        n_bands,
+        shaft_orders,
+        mesh_harmonics,
+        reference_level,
+    )
 
 
-def residual_signatures(residual: np.ndarray, reference: np.ndarray, teeth: int, band_orders: float, n_bands: int,
-                        shaft_orders: int = 2, mesh_harmonics: int = 3, reference_level: str = "whole") -> dict:
+def residual_signatures(
+    residual: np.ndarray,
+    reference: np.ndarray,
+    teeth: int,
+    band_orders: float,
+    n_bands: int,
+    shaft_orders: int = 2,
+    mesh_harmonics: int = 3,
+    reference_level: str = "whole",
+) -> dict:
     """`residual_features` of a shaft's residual pattern R (already taken against its healthy
     reference, both (n_channels, P)); the reference gives the levels the features are taken over.
     R and the reference are first cut to the orders the bands hold (`top_band_order`), as the
@@ -461,19 +558,31 @@ def residual_signatures(residual: np.ndarray, reference: np.ndarray, teeth: int,
     top = top_band_order(band_orders, n_bands)
     residual, reference = band_limited(residual, 1, top), band_limited(reference, 1, top)
     levels = band_levels(residual, band_orders, n_bands)
-    reference_levels = band_levels(reference, band_orders, n_bands,
-                                   teeth if reference_level == "without_mesh_lines" else 0)
-    reference_rms = np.sqrt(np.mean((reference - reference.mean(axis=-1, keepdims=True)) ** 2, axis=-1))
+    reference_levels = band_levels(
+        reference, band_orders, n_bands, teeth if reference_level == "without_mesh_lines" else 0
+    )
+    reference_rms = np.sqrt(
+        np.mean((reference - reference.mean(axis=-1, keepdims=True)) ** 2, axis=-1)
+    )
     local = residual_signal(residual, teeth, shaft_orders, mesh_harmonics)
     reference_local = residual_signal(reference, teeth, shaft_orders, mesh_harmonics)
     difference = difference_signal(residual, teeth, shaft_orders, mesh_harmonics)
     centred = difference - difference.mean(axis=-1, keepdims=True)
-    fm4 = np.mean(centred ** 4, axis=-1) / np.maximum(np.mean(centred ** 2, axis=-1), TINY) ** 2
-    na4 = (np.mean((local - local.mean(axis=-1, keepdims=True)) ** 4, axis=-1)
-           / np.maximum(np.var(reference_local, axis=-1), TINY) ** 2)
-    out = {f"b{k:02d}": levels[:, k] / np.maximum(reference_levels[:, k], TINY) for k in range(n_bands)}
-    out.update(rms_ratio=np.sqrt(np.mean(residual ** 2, axis=-1)) / np.maximum(reference_rms, TINY),
-               FM4=fm4, NA4=na4, tooth_peak1=tooth_peak(local, teeth, 1), tooth_peak3=tooth_peak(local, teeth, 3))
+    fm4 = np.mean(centred**4, axis=-1) / np.maximum(np.mean(centred**2, axis=-1), TINY) ** 2
+    na4 = (
+        np.mean((local - local.mean(axis=-1, keepdims=True)) ** 4, axis=-1)
+        / np.maximum(np.var(reference_local, axis=-1), TINY) ** 2
+    )
+    out = {
+        f"b{k:02d}": levels[:, k] / np.maximum(reference_levels[:, k], TINY) for k in range(n_bands)
+    }
+    out.update(
+        rms_ratio=np.sqrt(np.mean(residual**2, axis=-1)) / np.maximum(reference_rms, TINY),
+        FM4=fm4,
+        NA4=na4,
+        tooth_peak1=tooth_peak(local, teeth, 1),
+        tooth_peak3=tooth_peak(local, teeth, 3),
+    )
     return out
 
 
@@ -487,32 +596,53 @@ def input_angle(segment: np.ndarray, fs_hz: float, speed_rpm: float, shafts, pha
     orders, minimum SNR)."""
     phase_harmonic, phase_band_orders, phase_min_snr = phase
     _, ratio, teeth = shafts[0]
-    angle, method, _ = segment_angle(segment, fs_hz, speed_rpm / 60.0, phase_harmonic * teeth * ratio,
-                                     phase_band_orders, phase_min_snr)
+    angle, method, _ = segment_angle(
+        segment,
+        fs_hz,
+        speed_rpm / 60.0,
+        phase_harmonic * teeth * ratio,
+        phase_band_orders,
+        phase_min_snr,
+    )
     return angle, method
 
 
-def segment_patterns(segment: np.ndarray, fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int,
-                     phase_harmonic: int = 1, phase_band_orders: float = 0.3, phase_min_snr: float = 5.0,
-                     cycle: np.ndarray | None = None, top_order: int | None = None):
+def segment_patterns(
+    segment: np.ndarray,
+    fs_hz: float,
+    speed_rpm: float,
+    shafts,
+    samples_per_revolution: int,
+    phase_harmonic: int = 1,
+    phase_band_orders: float = 0.3,
+    phase_min_snr: float = 5.0,
+    cycle: np.ndarray | None = None,
+    top_order: int | None = None,
+):
     """(patterns per shaft, phase method, origin) of one segment (n_channels, n_samples): its
     angle (`input_angle`), then `shaft_patterns`. With its machine's healthy hunting-cycle average
     (`cycle`), the patterns of its residual against it (`cycle_residual`, on the orders up to
     `top_order`): the shafts' residual patterns, and `origin`, where their first sample lies in
     the cycle (input-shaft revolutions from the cycle's start: the same frame on every record of
     the machine); None without a cycle."""
-    angle, method = input_angle(segment, fs_hz, speed_rpm, shafts, (phase_harmonic, phase_band_orders, phase_min_snr))
+    angle, method = input_angle(
+        segment, fs_hz, speed_rpm, shafts, (phase_harmonic, phase_band_orders, phase_min_snr)
+    )
     origin = None
     if cycle is not None:
-        residual, offset = cycle_residual(segment, angle, cycle, samples_per_revolution, shafts[0][2], top_order,
-                                          with_offset=True)
+        residual, offset = cycle_residual(
+            segment, angle, cycle, samples_per_revolution, shafts[0][2], top_order, with_offset=True
+        )
         start = float(angle[0])
         # a revolution of the input shaft left out at either end: there the tracked angle settles
         # (its phase filter's edges), and against a cycle that holds no such error, the residual
         # would show it
         edge = int(np.ceil(np.searchsorted(angle, angle[0] + 1.0)))
         if angle[-1] - angle[0] > 2.0 + 1.0:
-            residual, angle = residual[..., edge:residual.shape[-1] - edge], angle[edge:len(angle) - edge]
+            residual, angle = (
+                residual[..., edge : residual.shape[-1] - edge],
+                angle[edge : len(angle) - edge],
+            )
         segment = residual
         # the patterns start at the (trimmed) segment's first angle, the segment at `offset` in the cycle
         origin = offset / samples_per_revolution + float(angle[0]) - start
@@ -526,34 +656,65 @@ _CYCLES: dict = {}
 
 def _patterns_of(task):
     segment, fs_hz, speed, shafts, samples_per_revolution, phase, key, top_order = task
-    patterns, _, origin = segment_patterns(segment, fs_hz, speed, shafts, samples_per_revolution, *phase,
-                                           cycle=_CYCLES.get(key), top_order=top_order)
+    patterns, _, origin = segment_patterns(
+        segment,
+        fs_hz,
+        speed,
+        shafts,
+        samples_per_revolution,
+        *phase,
+        cycle=_CYCLES.get(key),
+        top_order=top_order,
+    )
     return patterns, origin
 
 
-def every_segments_patterns(arrays, speeds, fs_hz: float, shafts, samples_per_revolution: int, phase: tuple,
-                            processes: int = 1, keys=None, cycles: dict | None = None,
-                            top_order: int | None = None) -> list:
+def every_segments_patterns(
+    arrays,
+    speeds,
+    fs_hz: float,
+    shafts,
+    samples_per_revolution: int,
+    phase: tuple,
+    processes: int = 1,
+    keys=None,
+    cycles: dict | None = None,
+    top_order: int | None = None,
+) -> list:
     """`segment_patterns` of every segment (arrays (n_segments, n_channels, n_samples)) at its
     speed, against its key's hunting cycle where `cycles` holds one, in `processes` worker
     processes: the costly part of the family, and each segment's patterns depend on that segment
     alone, so the split changes no number. [(patterns per shaft, origin in the cycle or None)]."""
     keys = [None] * len(arrays) if keys is None else list(keys)
-    tasks = [(segment, fs_hz, float(speed), shafts, samples_per_revolution, phase, key, top_order)
-             for segment, speed, key in zip(arrays, speeds, keys)]
+    tasks = [
+        (segment, fs_hz, float(speed), shafts, samples_per_revolution, phase, key, top_order)
+        for segment, speed, key in zip(arrays, speeds, keys)
+    ]
     _CYCLES.clear()
     _CYCLES.update(cycles or {})
     try:
         if processes <= 1 or len(tasks) < 2:
             return [_patterns_of(task) for task in tasks]
-        with ProcessPoolExecutor(min(processes, len(tasks)), mp_context=multiprocessing.get_context("fork")) as pool:
-            return list(pool.map(_patterns_of, tasks, chunksize=max(1, len(tasks) // (4 * processes))))
+        with ProcessPoolExecutor(
+            min(processes, len(tasks)), mp_context=multiprocessing.get_context("fork")
+        ) as pool:
+            return list(
+                pool.map(_patterns_of, tasks, chunksize=max(1, len(tasks) // (4 * processes)))
+            )
     finally:
         _CYCLES.clear()
 
 
-def record_cycles(ids: pd.DataFrame, arrays, rows, fs_hz: float, shafts, samples_per_revolution: int,
-                  phase: tuple, top_order: int):
+def record_cycles(
+    ids: pd.DataFrame,
+    arrays,
+    rows,
+    fs_hz: float,
+    shafts,
+    samples_per_revolution: int,
+    phase: tuple,
+    top_order: int,
+):
     """The healthy hunting-cycle average of one machine from its reference segments (`rows`, of
     one or more records): each record's segments joined in order (a record's segments follow one
     another), its average over the cycle (`hunting_cycle`), the records' averages aligned to the
@@ -568,8 +729,11 @@ def record_cycles(ids: pd.DataFrame, arrays, rows, fs_hz: float, shafts, samples
         cycle = hunting_cycle(joined, angle, revolutions, P)
         if cycle is None:
             return None
-        cycles.append(cycle if not cycles else
-                      aligned(cycle, cycles[0], teeth * revolutions, top_order * revolutions))
+        cycles.append(
+            cycle
+            if not cycles
+            else aligned(cycle, cycles[0], teeth * revolutions, top_order * revolutions)
+        )
     return np.mean(cycles, axis=0)
 
 
@@ -597,7 +761,9 @@ def passband_harmonics(fs_hz: float, fastest_rpm: float, teeth: int, ratio: floa
     return int(np.floor((top_order - 1.0) / int(teeth)))
 
 
-def energy_order(healthy: np.ndarray, fs_hz: float, speed_rpm: float, share: float = WINDOW_ENERGY_SHARE) -> float:
+def energy_order(
+    healthy: np.ndarray, fs_hz: float, speed_rpm: float, share: float = WINDOW_ENERGY_SHARE
+) -> float:
     """The input-shaft order below which `share` of the healthy segments' power lies
     (segments (n_segments, n_channels, n_samples) at `speed_rpm`; their power spectra summed over
     segments and channels, each channel's mean removed): where the rig's vibration lives."""
@@ -606,7 +772,10 @@ def energy_order(healthy: np.ndarray, fs_hz: float, speed_rpm: float, share: flo
     power = (np.abs(np.fft.rfft(x, axis=-1)) ** 2).reshape(-1, x.shape[-1] // 2 + 1).sum(axis=0)
     frequencies = np.fft.rfftfreq(x.shape[-1], 1.0 / fs_hz)
     cumulative = np.cumsum(power) / max(power.sum(), TINY)
-    return float(frequencies[min(np.searchsorted(cumulative, share), len(frequencies) - 1)] / (speed_rpm / 60.0))
+    return float(
+        frequencies[min(np.searchsorted(cumulative, share), len(frequencies) - 1)]
+        / (speed_rpm / 60.0)
+    )
 
 
 def window_harmonics(healthy_by_speed: dict, fs_hz: float, shafts) -> tuple[int, float, int]:
@@ -622,8 +791,10 @@ def window_harmonics(healthy_by_speed: dict, fs_hz: float, shafts) -> tuple[int,
     order = energy_order(healthy_by_speed[slowest], fs_hz, slowest)
     limit = min(passband_harmonics(fs_hz, fastest, t, r) for _, r, t in shafts)
     if limit < 1:
-        raise FeatureTableError(f"{KEY}: the first mesh harmonic of the {shafts[0][0]} lies above "
-                                f"the usable band, sampling rate / 2.56 ({fs_hz * PASSBAND_SHARE:g} Hz), at {fastest:g} rpm")
+        raise FeatureTableError(
+            f"{KEY}: the first mesh harmonic of the {shafts[0][0]} lies above "
+            f"the usable band, sampling rate / 2.56 ({fs_hz * PASSBAND_SHARE:g} Hz), at {fastest:g} rpm"
+        )
     return max(1, min(int(np.ceil(order / (int(teeth) * float(ratio)))), limit)), order, limit
 
 
@@ -644,9 +815,11 @@ def resolved_window(mesh_harmonics, table, source: str) -> int:
         return int(mesh_harmonics)
     chosen = window_from_table(table)
     if chosen is None:
-        raise FeatureTableError(f"{KEY}.mesh_harmonics: auto takes the window the measured records' job chose, "
-                                f"and {source} hold none (written before the window rule? rerun the measured "
-                                "features job)")
+        raise FeatureTableError(
+            f"{KEY}.mesh_harmonics: auto takes the window the measured records' job chose, "
+            f"and {source} hold none (written before the window rule? rerun the measured "
+            "features job)"
+        )
     return chosen
 
 
@@ -654,13 +827,26 @@ def resolved_window(mesh_harmonics, table, source: str) -> int:
 def record_truth(signal_frame: pd.DataFrame, record_id: str) -> dict:
     """The params a record's rows carry (a virtual bench's: the mesh phase at its first sample,
     the pinion teeth it damaged); {} for a user's records, which carry none."""
-    rows = signal_frame.loc[signal_frame["record_id"] == record_id, "params"] if "params" in signal_frame else []
+    rows = (
+        signal_frame.loc[signal_frame["record_id"] == record_id, "params"]
+        if "params" in signal_frame
+        else []
+    )
     text = next((str(value) for value in rows if value), "")
     return json.loads(text) if text else {}
 
 
-def frame_origin_phase(signal_frame: pd.DataFrame, ids: pd.DataFrame, arrays, rows, fs_hz: float, shafts,
-                       samples_per_revolution: int, phase: tuple, has_cycle: bool) -> float | None:
+def frame_origin_phase(
+    signal_frame: pd.DataFrame,
+    ids: pd.DataFrame,
+    arrays,
+    rows,
+    fs_hz: float,
+    shafts,
+    samples_per_revolution: int,
+    phase: tuple,
+    has_cycle: bool,
+) -> float | None:
     """The mesh phase (mesh periods; pair j, pinion tooth j mod z1, enters mesh at phase j) at the
     start of a condition's reference (`rows`, its calibration segments): where the machine's
     tooth frame begins, from the record's truth; None where its records carry none. Against a
@@ -677,7 +863,10 @@ def frame_origin_phase(signal_frame: pd.DataFrame, ids: pd.DataFrame, arrays, ro
         return None
     _, _, teeth = shafts[0]
     speed, P = float(chosen["speed_rpm"].iloc[0]), samples_per_revolution
-    origin = truth["mesh_phase"] + speed / 60.0 * teeth * int(chosen["segment"].iloc[0]) * arrays.shape[-1] / fs_hz
+    origin = (
+        truth["mesh_phase"]
+        + speed / 60.0 * teeth * int(chosen["segment"].iloc[0]) * arrays.shape[-1] / fs_hz
+    )
     if has_cycle:
         joined = np.concatenate([arrays[i] for i in chosen.index], axis=-1)
         angle, _ = input_angle(joined, fs_hz, speed, shafts, phase)
@@ -692,14 +881,28 @@ def true_positions(signal_frame: pd.DataFrame, origin_phase: float | None, teeth
     without a frame's truth (a user's records, a simulated table)."""
     if origin_phase is None:
         return {}
-    truths = {record: record_truth(signal_frame, record) for record in signal_frame["record_id"].unique()}
-    return {record: [float((tooth - origin_phase) % teeth) for tooth in truth["damaged_teeth"]]
-            for record, truth in truths.items() if truth.get("damaged_teeth")}
+    truths = {
+        record: record_truth(signal_frame, record) for record in signal_frame["record_id"].unique()
+    }
+    return {
+        record: [float((tooth - origin_phase) % teeth) for tooth in truth["damaged_teeth"]]
+        for record, truth in truths.items()
+        if truth.get("damaged_teeth")
+    }
 
 
 # -- the feature family --------------------------------------------------------------------------
-RESIDUAL_PARAMS = ("samples_per_revolution", "bands_per_mesh", "mesh_harmonics", "shaft_orders",
-                   "phase_harmonic", "phase_band_orders", "phase_min_snr", "magnitudes", "reference_level")
+RESIDUAL_PARAMS = (
+    "samples_per_revolution",
+    "bands_per_mesh",
+    "mesh_harmonics",
+    "shaft_orders",
+    "phase_harmonic",
+    "phase_band_orders",
+    "phase_min_snr",
+    "magnitudes",
+    "reference_level",
+)
 # the reference's level in a band the bands are taken over: all its orders, or all but the mesh
 # harmonics (`residual_features`)
 REFERENCE_LEVELS = ("whole", "without_mesh_lines")
@@ -714,9 +917,12 @@ def kept_features(magnitudes: bool = True) -> list[str]:
 def feature_names(channels, shafts, n_bands: int, magnitudes: bool = True) -> list[str]:
     """`res_<channel>_<shaft>_<feature>`: per channel and shaft its bands, then the kept FEATURES
     (each channel and shaft a block of bands, as the CNN reads band spectra)."""
-    return ([f"res_{channel}_{shaft}_{feature}" for channel in channels for shaft, _, _ in shafts
-             for feature in band_names(n_bands) + kept_features(magnitudes)]
-            + teeth_names(shafts))
+    return [
+        f"res_{channel}_{shaft}_{feature}"
+        for channel in channels
+        for shaft, _, _ in shafts
+        for feature in band_names(n_bands) + kept_features(magnitudes)
+    ] + teeth_names(shafts)
 
 
 def teeth_names(shafts) -> list[str]:
@@ -735,14 +941,18 @@ def reference_rows(ids: pd.DataFrame, against: dict) -> dict:
     segment's key is its condition (the calibration set there), a simulated one's its machine (its
     healthy twin's last segments), as `condmon.reference` takes the features."""
     if against["source"] == "measured":
-        chosen = calibration_frame(ids, against["healthy_state"], against["condition"], dict(against["reserve"]))
+        chosen = calibration_frame(
+            ids, against["healthy_state"], against["condition"], dict(against["reserve"])
+        )
         keys = ids[against["condition"]].astype(float).to_numpy()
         positions = {}
         for position in chosen.index:
             positions.setdefault(float(ids.at[position, against["condition"]]), []).append(position)
         return positions, list(keys)
     machines = ids["record_id"].map(machine_of)
-    is_reference = (ids["health_state"] == against["healthy_state"]) & (ids["segment"] >= int(against["segments_per_sample"]))
+    is_reference = (ids["health_state"] == against["healthy_state"]) & (
+        ids["segment"] >= int(against["segments_per_sample"])
+    )
     positions = {}
     for position in np.flatnonzero(is_reference.to_numpy()):
         positions.setdefault(machines.iat[position], []).append(position)
@@ -757,24 +967,51 @@ CYCLE_ROW = "hunting_cycle"
 TONES_ROW = "fixed_tones"
 
 
-def patterns_table(references: dict, condition: str, shafts, channels, cycles: dict | None = None,
-                   tones=(), window=None) -> pd.DataFrame:
+def patterns_table(
+    references: dict,
+    condition: str,
+    shafts,
+    channels,
+    cycles: dict | None = None,
+    tones=(),
+    window=None,
+) -> pd.DataFrame:
     """The measured references as a table to write and package: one row per condition, shaft and
     channel, the pattern (one revolution) as a list; where a condition has a hunting-cycle
     average (`cycles`), one row per channel with shaft `CYCLE_ROW`, the cycle as a list; per
     condition one row with shaft `TONES_ROW`, the fixed tones (Hz) as a list; and with `window`
     ((mesh harmonics, energy order, passband limit): `window_harmonics`) one row per condition
     with shaft `WINDOW_ROW`, it as a list."""
-    rows = [{condition: key, "shaft": name, "channel": channel, "pattern": reference[k][c].tolist()}
-            for key, reference in references.items() for k, (name, _, _) in enumerate(shafts)
-            for c, channel in enumerate(channels)]
-    rows += [{condition: key, "shaft": CYCLE_ROW, "channel": channel, "pattern": cycle[c].tolist()}
-             for key, cycle in (cycles or {}).items() for c, channel in enumerate(channels)]
-    rows += [{condition: key, "shaft": TONES_ROW, "channel": channels[0], "pattern": [float(f) for f in tones]}
-             for key in references]
+    rows = [
+        {condition: key, "shaft": name, "channel": channel, "pattern": reference[k][c].tolist()}
+        for key, reference in references.items()
+        for k, (name, _, _) in enumerate(shafts)
+        for c, channel in enumerate(channels)
+    ]
+    rows += [
+        {condition: key, "shaft": CYCLE_ROW, "channel": channel, "pattern": cycle[c].tolist()}
+        for key, cycle in (cycles or {}).items()
+        for c, channel in enumerate(channels)
+    ]
+    rows += [
+        {
+            condition: key,
+            "shaft": TONES_ROW,
+            "channel": channels[0],
+            "pattern": [float(f) for f in tones],
+        }
+        for key in references
+    ]
     if window is not None:
-        rows += [{condition: key, "shaft": WINDOW_ROW, "channel": channels[0], "pattern": [float(v) for v in window]}
-                 for key in references]
+        rows += [
+            {
+                condition: key,
+                "shaft": WINDOW_ROW,
+                "channel": channels[0],
+                "pattern": [float(v) for v in window],
+            }
+            for key in references
+        ]
     return pd.DataFrame(rows)
 
 
@@ -786,10 +1023,14 @@ def patterns_from_table(table, shafts, channels) -> tuple[str, dict, dict, list]
     references, cycles = {}, {}
     for value, rows in table.groupby(condition):
         indexed = rows.set_index(["shaft", "channel"])["pattern"]
-        references[float(value)] = [np.array([np.asarray(indexed[(name, channel)], float) for channel in channels])
-                                    for name, _, _ in shafts]
+        references[float(value)] = [
+            np.array([np.asarray(indexed[(name, channel)], float) for channel in channels])
+            for name, _, _ in shafts
+        ]
         if (CYCLE_ROW, channels[0]) in indexed.index:
-            cycles[float(value)] = np.array([np.asarray(indexed[(CYCLE_ROW, channel)], float) for channel in channels])
+            cycles[float(value)] = np.array(
+                [np.asarray(indexed[(CYCLE_ROW, channel)], float) for channel in channels]
+            )
     return condition, references, cycles, tones_from_table(table)
 
 
@@ -800,7 +1041,9 @@ def tones_from_table(table) -> list[float]:
     return [float(f) for f in rows.iloc[0]] if len(rows) else []
 
 
-def without_fixed_tones(ids: pd.DataFrame, arrays: np.ndarray, fs_hz: float, shafts, tones) -> np.ndarray:
+def without_fixed_tones(
+    ids: pd.DataFrame, arrays: np.ndarray, fs_hz: float, shafts, tones
+) -> np.ndarray:
     """Every segment less the fixed tones its synchronous average would keep
     (`fixed_tones.remove_fixed_tones`), logged per speed."""
     if not len(tones):
@@ -813,149 +1056,439 @@ def without_fixed_tones(ids: pd.DataFrame, arrays: np.ndarray, fs_hz: float, sha
                 cleaned = np.array(arrays, dtype=float)
             cleaned[i] = segment
             removed.setdefault(speed, set()).update(round(f, 2) for f in kept)
-    log.info("fixed tones %s Hz; removed where on a shaft order: %s", [round(f, 2) for f in tones],
-             {f"{speed:g} rpm": sorted(found) for speed, found in removed.items()} or "nowhere")
+    log.info(
+        "fixed tones %s Hz; removed where on a shaft order: %s",
+        [round(f, 2) for f in tones],
+        {f"{speed:g} rpm": sorted(found) for speed, found in removed.items()} or "nowhere",
+    )
     return cleaned
 
 
-def residual_feature_table(signal_frame: pd.DataFrame, channels, params: dict) -> pd.DataFrame:
-    """Wide features table of one signal table: every segment's residual signatures against its
-    machine's healthy reference (module docstring), the segments' patterns in `processes` worker
-    processes (default 1). `params`: the config's `features.residual`
-    with the rig's `shafts`, the `damaged_shafts` whose features it gives (default: every
-    shaft; the gear system's faults damage the pinion and its shaft) and either `against` (the features job's healthy-reference spec:
-    measured segments against the calibration set per condition, simulated ones against their
-    healthy twins) or `reference_patterns` (a packaged model's measured references). With
-    `against` measured, the references go in `attrs["references"]` to be written and packaged;
-    with `against` simulated, `measured_references` (that table) gives the fixed tones every
-    segment loses as the measured ones do (`fixed_tones`)."""
+@dataclass(frozen=True)
+class ResidualSettings:
+    """`features.residual` with what the gear system adds, read and checked once
+    (`residual_settings`)."""
+
+    shafts: list  # [(name, speed ratio, teeth)], the input shaft first
+    damaged: list  # the shafts whose features the table gives
+    contact_ratio: float  # the pair's, for the located teeth
+    samples_per_revolution: int
+    bands_per_mesh: int
+    magnitudes: bool
+    reference_level: str
+    shaft_orders: int
+    phase: tuple  # (harmonic, band in orders, least SNR) of the mesh phase
+    mesh_harmonics: int | str  # a count, or "auto": the window from the calibration records
+
+
+def residual_settings(params: dict) -> ResidualSettings:
+    """The residual family's settings of `params` (`features.residual` with the rig's `shafts`,
+    the `damaged_shafts` whose features it gives, default every shaft, and the pair's
+    `contact_ratio`); an unknown or invalid one is refused by name."""
     params = dict(params)
     shafts = [(str(n), float(r), int(t)) for n, r, t in params.pop("shafts")]
-    contact_ratio = float(params.pop("contact_ratio", 2.0))  # the pair's, for the located teeth
-    damaged = [str(name) for name in params.pop("damaged_shafts", None) or [name for name, _, _ in shafts]]
-    against, packaged = params.pop("against", None), params.pop("reference_patterns", None)
-    measured_references = params.pop("measured_references", None)  # a simulated run's: its fixed tones
-    processes = int(params.pop("processes", 1))  # the job's cores, not a feature setting
+    contact_ratio = float(params.pop("contact_ratio", 2.0))
+    damaged = [
+        str(name) for name in params.pop("damaged_shafts", None) or [name for name, _, _ in shafts]
+    ]
     if not set(damaged) <= {name for name, _, _ in shafts}:
-        raise FeatureTableError(f"{KEY}: damaged shafts {damaged} are not all among the rig's {[n for n, _, _ in shafts]}")
+        raise FeatureTableError(
+            f"{KEY}: damaged shafts {damaged} are not all among the rig's {[n for n, _, _ in shafts]}"
+        )
     unknown = sorted(set(params) - set(RESIDUAL_PARAMS))
     if unknown:
-        raise FeatureTableError(f"{KEY}: unknown parameter(s) {unknown}; allowed: {list(RESIDUAL_PARAMS)}")
-    if against is None and packaged is None:
-        raise FeatureTableError(f"{KEY}: residual signatures take each machine against its healthy reference; "
-                                "switch features.healthy_reference on")
-    P, bands_per_mesh = int(params["samples_per_revolution"]), int(params["bands_per_mesh"])
-    magnitudes = bool(params.get("magnitudes", True))
+        raise FeatureTableError(
+            f"{KEY}: unknown parameter(s) {unknown}; allowed: {list(RESIDUAL_PARAMS)}"
+        )
     reference_level = str(params.get("reference_level", "whole"))
     if reference_level not in REFERENCE_LEVELS:
-        raise FeatureTableError(f"{KEY}.reference_level: {reference_level!r} is none of {list(REFERENCE_LEVELS)}")
-    shaft_orders = int(params["shaft_orders"])
+        raise FeatureTableError(
+            f"{KEY}.reference_level: {reference_level!r} is none of {list(REFERENCE_LEVELS)}"
+        )
+    return ResidualSettings(
+        shafts=shafts,
+        damaged=damaged,
+        contact_ratio=contact_ratio,
+        samples_per_revolution=int(params["samples_per_revolution"]),
+        bands_per_mesh=int(params["bands_per_mesh"]),
+        magnitudes=bool(params.get("magnitudes", True)),
+        reference_level=reference_level,
+        shaft_orders=int(params["shaft_orders"]),
+        phase=(
+            int(params["phase_harmonic"]),
+            float(params["phase_band_orders"]),
+            float(params["phase_min_snr"]),
+        ),
+        mesh_harmonics=params["mesh_harmonics"],
+    )
+
+
+@dataclass
+class MachineReferences:
+    """Where each segment's healthy reference comes from, and the segments without the fixed
+    tones (`packaged_machine`, `own_machine`)."""
+
+    keys: list  # each row's reference key: its condition (measured, packaged) or its machine
+    mesh_harmonics: int  # the bands reach this mesh harmonic
+    tones: list  # the machine's fixed tones in Hz, removed from `arrays`
+    arrays: np.ndarray  # (n_segments, n_channels, n_samples)
+    positions: dict | None = None  # the job's own: {key: rows of its reference segments}
+    cycles: dict = field(default_factory=dict)  # {key: hunting-cycle average}
+    references: dict | None = None  # {key: [pattern per shaft]}
+    window: tuple | None = None  # (mesh harmonics, energy order, passband limit) chosen here
+
+
+def packaged_machine(
+    ids, arrays, fs_hz: float, s: ResidualSettings, packaged, channels
+) -> MachineReferences:
+    """A packaged model's references (`patterns_table`): each segment against the nearest
+    condition's."""
+    condition, references, cycles, tones = patterns_from_table(packaged, s.shafts, list(channels))
+    known = np.array(sorted(references))
+    keys = [float(known[np.argmin(np.abs(known - v))]) for v in ids[condition].astype(float)]
+    mesh_harmonics = resolved_window(s.mesh_harmonics, packaged, "the packaged model's references")
+    arrays = without_fixed_tones(ids, arrays, fs_hz, s.shafts, tones)
+    return MachineReferences(
+        keys, mesh_harmonics, tones, arrays, cycles=cycles, references=references
+    )
+
+
+def own_machine(
+    ids, arrays, fs_hz: float, s: ResidualSettings, against: dict, measured_references
+) -> MachineReferences:
+    """The features job's references in the signal table itself (`against`: the healthy-reference
+    spec): the calibration set per condition, or each simulated sample's healthy twin, which loses
+    the fixed tones the measured records (`measured_references`) lost."""
+    positions, keys = reference_rows(ids, against)
+    window = None
+    if (
+        against["source"] == "measured"
+    ):  # the calibration records' lines at one frequency at every speed
+        chosen = sorted(i for rows in positions.values() for i in rows)
+        by_speed = {
+            speed: arrays[list(rows)]
+            for speed, rows in ids.loc[chosen].groupby("speed_rpm").groups.items()
+        }
+        tones = fixed_tones(by_speed, fs_hz)
+        if (
+            s.mesh_harmonics == "auto"
+        ):  # the window from the calibration records (`window_harmonics`)
+            window = window_harmonics(by_speed, fs_hz, s.shafts)
+            log.info(
+                "residual window: up to mesh harmonic %d (%d orders of the %s); the healthy records' "
+                "%.0f %% energy order at %g rpm %.0f, the passband's limit %d harmonics",
+                window[0],
+                window[0] * s.shafts[0][2],
+                s.shafts[0][0],
+                100 * WINDOW_ENERGY_SHARE,
+                min(by_speed),
+                window[1],
+                window[2],
+            )
+        mesh_harmonics = window[0] if window else int(s.mesh_harmonics)
+    else:  # a simulated machine has none, but loses the same orders as the measured records
+        tones = tones_from_table(measured_references) if measured_references is not None else []
+        mesh_harmonics = resolved_window(
+            s.mesh_harmonics, measured_references, "the measured records' references"
+        )
+    arrays = without_fixed_tones(ids, arrays, fs_hz, s.shafts, tones)
+    return MachineReferences(
+        keys, mesh_harmonics, tones, arrays, positions=positions, window=window
+    )
+
+
+def own_cycles(
+    ids, machine: MachineReferences, fs_hz: float, s: ResidualSettings, top: int
+) -> dict:
+    """A machine whose reference records cover the hunting cycle is taken against its average
+    over the cycle; one whose records are shorter, against its shafts' separated patterns."""
+    cycles = {
+        key: record_cycles(
+            ids, machine.arrays, rows, fs_hz, s.shafts, s.samples_per_revolution, s.phase, top
+        )
+        for key, rows in machine.positions.items()
+    }
+    cycles = {key: cycle for key, cycle in cycles.items() if cycle is not None}
+    shorter = sorted(str(key) for key in set(machine.positions) - set(cycles))
+    if shorter:
+        log.info(
+            "%d of %d healthy references cover less than the hunting cycle (%d input revolutions): "
+            "their shafts' patterns are separated instead (%s)",
+            len(shorter),
+            len(machine.positions),
+            hunting_revolutions(s.shafts),
+            ", ".join(shorter[:5]) + (" ..." if len(shorter) > 5 else ""),
+        )
+    return cycles
+
+
+def own_references(
+    patterns, machine: MachineReferences, s: ResidualSettings, n_bands: int, against: dict
+) -> dict:
+    """{key: [pattern per shaft]}: the hunting cycle's shaft patterns where it is covered, else the
+    reference segments' patterns averaged; a measured condition without calibration records is
+    refused by name."""
+    revolutions = hunting_revolutions(s.shafts)
+    references = {
+        key: (
+            cycle_shaft_patterns(
+                machine.cycles[key], s.shafts, revolutions, s.samples_per_revolution
+            )
+            if key in machine.cycles
+            else [
+                reference_pattern(
+                    [patterns[i][k] for i in rows],
+                    teeth,
+                    top_band_order(teeth / s.bands_per_mesh, n_bands),
+                )
+                for k, (_, _, teeth) in enumerate(s.shafts)
+            ]
+        )
+        for key, rows in machine.positions.items()
+    }
+    missing = sorted({str(k) for k in machine.keys} - {str(k) for k in references})
+    if against["source"] == "measured" and missing:
+        raise FeatureTableError(
+            f"{KEY}: no calibration records at {against['condition']} {missing}"
+        )
+    return references
+
+
+def tooth_frames(
+    signal_frame,
+    ids,
+    machine: MachineReferences,
+    fs_hz: float,
+    s: ResidualSettings,
+    tops: list,
+    measured: bool,
+    packaged: bool,
+) -> tuple[dict, dict]:
+    """One tooth frame for the machine (measured or packaged references; a simulated machine's
+    locations go nowhere): {key: each shaft's turns from the frame's start}, and where its damaged
+    teeth begin on a bench whose records carry the truth ({record: positions})."""
+    references = machine.references
+    frames = (
+        reference_frames(references, s.shafts, tops)
+        if packaged or measured
+        else {key: np.zeros(len(s.shafts)) for key in references}
+    )
+    origin_phase = None
+    if not packaged and measured:
+        first = min(machine.positions)
+        origin_phase = frame_origin_phase(
+            signal_frame,
+            ids,
+            machine.arrays,
+            machine.positions[first],
+            fs_hz,
+            s.shafts,
+            s.samples_per_revolution,
+            s.phase,
+            first in machine.cycles,
+        )
+    return frames, true_positions(signal_frame, origin_phase, s.shafts[0][2])
+
+
+def segment_residual_features(
+    i: int,
+    patterns,
+    origins,
+    machine: MachineReferences,
+    s: ResidualSettings,
+    frames: dict,
+    n_bands: int,
+    tops: list,
+) -> tuple[np.ndarray, list]:
+    """One segment's residual signatures (the names' order: channel, shaft, feature; then how the
+    change is spread over each damaged shaft's teeth) and each damaged shaft's excess per tooth."""
+    key, references = machine.keys[i], machine.references
+    chosen = [(k, shaft) for k, shaft in enumerate(s.shafts) if shaft[0] in s.damaged]
+    # against the hunting cycle the patterns are already residuals; else aligned and subtracted
+    residuals = [
+        patterns[i][k]
+        if key in machine.cycles
+        else aligned(
+            patterns[i][k],
+            references[key][k],
+            teeth,
+            top_band_order(teeth / s.bands_per_mesh, n_bands),
+        )
+        - references[key][k]
+        for k, (_, _, teeth) in chosen
+    ]
+    found = [
+        residual_signatures(
+            residual,
+            references[key][k],
+            teeth,
+            teeth / s.bands_per_mesh,
+            n_bands,
+            s.shaft_orders,
+            machine.mesh_harmonics,
+            s.reference_level,
+        )
+        for residual, (k, (_, _, teeth)) in zip(residuals, chosen)
+    ]
+    # (shaft, feature, channel) -> the names' order: channel, shaft, feature
+    kept = band_names(n_bands) + kept_features(s.magnitudes)
+    block = np.log10(np.array([[shaft[feature] for feature in kept] for shaft in found]) + TINY)
+    if (
+        not s.magnitudes
+    ):  # (shaft, feature, channel): the bands as their shape per shaft and channel
+        block[:, :n_bands] = band_shape(block[:, :n_bands].transpose(0, 2, 1)).transpose(0, 2, 1)
+    # how the change is spread over each shaft's teeth, in its reference's frame
+    spread = [
+        damaged_pitches(
+            residual_signal(
+                in_reference_frame(
+                    band_limited(residual, 1, tops[k]), (origins[i] or 0.0) * ratio + frames[key][k]
+                ),
+                teeth,
+                s.shaft_orders,
+                machine.mesh_harmonics,
+            ),
+            teeth,
+        )
+        for residual, (k, (_, ratio, teeth)) in zip(residuals, chosen)
+    ]
+    teeth_block = [
+        np.log10(teeth_features(excess)[f] + TINY) for excess in spread for f in TEETH_FEATURES
+    ]
+    return np.concatenate([block.transpose(2, 0, 1).ravel(), teeth_block]), spread
+
+
+def segment_locations(i: int, ids, spread: list, s: ResidualSettings, truths: dict) -> list[dict]:
+    """Where one segment's change sits on each damaged shaft (`located_tooth`), beside the truth."""
+    truth = truths.get(ids.at[i, "record_id"], [])
+    chosen = [(k, shaft) for k, shaft in enumerate(s.shafts) if shaft[0] in s.damaged]
+    return [
+        {
+            "row": i,
+            "part": name,
+            "positions": teeth,
+            "span": s.contact_ratio,
+            "position": tooth,
+            "share": share,
+            "true_positions": truth if k == 0 else [],
+        }
+        for excess, (k, (name, _, teeth)) in zip(spread, chosen)
+        for tooth, share in [located_tooth(excess)]
+    ]
+
+
+def residual_feature_table(
+    signal_frame: pd.DataFrame, channels, params: dict, inputs: FamilyInputs | None = None
+) -> pd.DataFrame:
+    """Wide features table of one signal table: every segment's residual signatures against its
+    machine's healthy reference (module docstring).
+
+    `params`: the settings (`residual_settings`). `inputs` (`condmon.features.FamilyInputs`):
+    either `healthy_reference` (the features job's spec: measured segments against the
+    calibration set per condition, simulated ones against their healthy twins; with a
+    simulated one, `measured_references` gives the fixed tones every segment loses as the
+    measured ones do) or `packaged_references` (a packaged model's); the segments' patterns in
+    `processes` worker processes. Measured, the references go in `attrs["references"]` to be
+    written and packaged; `attrs["fault_locations"]`: where each segment's change sits."""
+    s, inputs = residual_settings(params), inputs or FamilyInputs()
+    against, packaged = inputs.healthy_reference, inputs.packaged_references
+    if against is None and packaged is None:
+        raise FeatureTableError(
+            f"{KEY}: residual signatures take each machine against its healthy reference; "
+            "switch features.healthy_reference on"
+        )
     fs_hz = single_sampling_rate(signal_frame)
     ids, arrays = to_arrays(signal_frame, list(channels))
     ids = ids.reset_index(drop=True)
+    machine = (
+        packaged_machine(ids, arrays, fs_hz, s, packaged, channels)
+        if packaged is not None
+        else own_machine(ids, arrays, fs_hz, s, against, inputs.measured_references)
+    )
+    return residual_frame(
+        signal_frame,
+        ids,
+        machine,
+        fs_hz,
+        s,
+        channels,
+        against,
+        inputs.processes,
+        packaged is not None,
+    )
+
+
+def residual_frame(
+    signal_frame,
+    ids,
+    machine: MachineReferences,
+    fs_hz: float,
+    s: ResidualSettings,
+    channels,
+    against: dict | None,
+    processes: int,
+    packaged: bool,
+) -> pd.DataFrame:
+    """`residual_feature_table`'s table once the references' source is known (`machine`)."""
     speeds = ids["speed_rpm"].to_numpy(float)
-    phase = (int(params["phase_harmonic"]), float(params["phase_band_orders"]), float(params["phase_min_snr"]))
-    revolutions = hunting_revolutions(shafts)
-    window = None  # (mesh harmonics, energy order, passband limit) where the rule chose them here
-    if packaged is not None:
-        condition, references, cycles, tones = patterns_from_table(packaged, shafts, list(channels))
-        known = np.array(sorted(references))
-        keys = [float(known[np.argmin(np.abs(known - v))]) for v in ids[condition].astype(float)]
-        mesh_harmonics = resolved_window(params["mesh_harmonics"], packaged, "the packaged model's references")
-        arrays = without_fixed_tones(ids, arrays, fs_hz, shafts, tones)
-    else:
-        positions, keys = reference_rows(ids, against)
-        if against["source"] == "measured":  # the calibration records' lines at one frequency at every speed
-            chosen = sorted(i for rows in positions.values() for i in rows)
-            by_speed = {speed: arrays[list(rows)] for speed, rows in ids.loc[chosen].groupby("speed_rpm").groups.items()}
-            tones = fixed_tones(by_speed, fs_hz)
-            if params["mesh_harmonics"] == "auto":  # the window from the calibration records (`window_harmonics`)
-                window = window_harmonics(by_speed, fs_hz, shafts)
-                log.info("residual window: up to mesh harmonic %d (%d orders of the %s); the healthy records' "
-                         "%.0f %% energy order at %g rpm %.0f, the passband's limit %d harmonics", window[0],
-                         window[0] * shafts[0][2], shafts[0][0], 100 * WINDOW_ENERGY_SHARE, min(by_speed),
-                         window[1], window[2])
-            mesh_harmonics = window[0] if window else int(params["mesh_harmonics"])
-        else:  # a simulated machine has none, but loses the same orders as the measured records
-            tones = tones_from_table(measured_references) if measured_references is not None else []
-            mesh_harmonics = resolved_window(params["mesh_harmonics"], measured_references,
-                                             "the measured records' references")
-        arrays = without_fixed_tones(ids, arrays, fs_hz, shafts, tones)
-    n_bands = bands_per_mesh * mesh_harmonics
+    n_bands = s.bands_per_mesh * machine.mesh_harmonics
     for speed in np.unique(speeds):
-        check_resolution(fs_hz, float(speed), shafts, P, mesh_harmonics)
-    top = top_band_order(shafts[0][2] / bands_per_mesh, n_bands)
-    if packaged is None:
-        # a machine whose reference records cover the hunting cycle is taken against its average
-        # over the cycle; one whose records are shorter, against its shafts' separated patterns
-        cycles = {key: record_cycles(ids, arrays, rows, fs_hz, shafts, P, phase, top) for key, rows in positions.items()}
-        cycles = {key: cycle for key, cycle in cycles.items() if cycle is not None}
-        shorter = sorted(str(key) for key in set(positions) - set(cycles))
-        if shorter:
-            log.info("%d of %d healthy references cover less than the hunting cycle (%d input revolutions): "
-                     "their shafts' patterns are separated instead (%s)", len(shorter), len(positions),
-                     revolutions, ", ".join(shorter[:5]) + (" ..." if len(shorter) > 5 else ""))
-    patterns, origins = map(list, zip(*every_segments_patterns(arrays, speeds, fs_hz, shafts, P, phase, processes,
-                                                               keys, cycles, top)))
-    if packaged is None:
-        references = {key: (cycle_shaft_patterns(cycles[key], shafts, revolutions, P) if key in cycles else
-                            [reference_pattern([patterns[i][k] for i in rows], teeth,
-                                               top_band_order(teeth / bands_per_mesh, n_bands))
-                             for k, (_, _, teeth) in enumerate(shafts)])
-                      for key, rows in positions.items()}
-        missing = sorted({str(k) for k in keys} - {str(k) for k in references})
-        if against["source"] == "measured" and missing:
-            raise FeatureTableError(f"{KEY}: no calibration records at {against['condition']} {missing}")
-    # one tooth frame for the machine (measured or packaged references; a simulated machine's
-    # locations go nowhere), and where it begins on a bench whose records carry the truth
-    tops = [top_band_order(teeth / bands_per_mesh, n_bands) for _, _, teeth in shafts]
-    frames = (reference_frames(references, shafts, tops) if packaged is not None or against["source"] == "measured"
-              else {key: np.zeros(len(shafts)) for key in references})
-    origin_phase = None
-    if packaged is None and against["source"] == "measured":
-        first = min(positions)
-        origin_phase = frame_origin_phase(signal_frame, ids, arrays, positions[first], fs_hz, shafts, P, phase,
-                                          first in cycles)
-    truths = true_positions(signal_frame, origin_phase, shafts[0][2])
+        check_resolution(
+            fs_hz, float(speed), s.shafts, s.samples_per_revolution, machine.mesh_harmonics
+        )
+    top = top_band_order(s.shafts[0][2] / s.bands_per_mesh, n_bands)
+    if not packaged:
+        machine.cycles = own_cycles(ids, machine, fs_hz, s, top)
+    patterns, origins = map(
+        list,
+        zip(
+            *every_segments_patterns(
+                machine.arrays,
+                speeds,
+                fs_hz,
+                s.shafts,
+                s.samples_per_revolution,
+                s.phase,
+                processes,
+                machine.keys,
+                machine.cycles,
+                top,
+            )
+        ),
+    )
+    if not packaged:
+        machine.references = own_references(patterns, machine, s, n_bands, against)
+    measured = against is not None and against["source"] == "measured"
+    tops = [top_band_order(teeth / s.bands_per_mesh, n_bands) for _, _, teeth in s.shafts]
+    frames, truths = tooth_frames(signal_frame, ids, machine, fs_hz, s, tops, measured, packaged)
     # features of the shafts whose gears the modelled faults damage; every shaft's pattern is
     # still estimated, to keep the others out of theirs
-    chosen = [(k, shaft) for k, shaft in enumerate(shafts) if shaft[0] in damaged]
-    names = feature_names(channels, [shaft for _, shaft in chosen], n_bands, magnitudes)
-    kept = band_names(n_bands) + kept_features(magnitudes)
-    values = np.full((len(ids), len(names)), np.nan)
-    locations = []
-    for i, key in enumerate(keys):
-        if key not in references:  # a simulated sample whose healthy twin failed: left out later
+    names = feature_names(
+        channels, [shaft for shaft in s.shafts if shaft[0] in s.damaged], n_bands, s.magnitudes
+    )
+    values, locations = np.full((len(ids), len(names)), np.nan), []
+    for i, key in enumerate(machine.keys):
+        if (
+            key not in machine.references
+        ):  # a simulated sample whose healthy twin failed: left out later
             continue
-        # against the hunting cycle the patterns are already residuals; else aligned and subtracted
-        residuals = [patterns[i][k] if key in cycles else
-                     aligned(patterns[i][k], references[key][k], teeth, top_band_order(teeth / bands_per_mesh, n_bands))
-                     - references[key][k] for k, (_, _, teeth) in chosen]
-        found = [residual_signatures(residual, references[key][k], teeth, teeth / bands_per_mesh, n_bands,
-                                     shaft_orders, mesh_harmonics, reference_level)
-                 for residual, (k, (_, _, teeth)) in zip(residuals, chosen)]
-        # (shaft, feature, channel) -> the names' order: channel, shaft, feature
-        block = np.log10(np.array([[shaft[feature] for feature in kept] for shaft in found]) + TINY)
-        if not magnitudes:  # (shaft, feature, channel): the bands as their shape per shaft and channel
-            block[:, :n_bands] = band_shape(block[:, :n_bands].transpose(0, 2, 1)).transpose(0, 2, 1)
-        # how the change is spread over each shaft's teeth, in its reference's frame
-        spread = [damaged_pitches(residual_signal(
-            in_reference_frame(band_limited(residual, 1, tops[k]), (origins[i] or 0.0) * ratio + frames[key][k]),
-            teeth, shaft_orders, mesh_harmonics), teeth)
-                  for residual, (k, (_, ratio, teeth)) in zip(residuals, chosen)]
-        teeth_block = [np.log10(teeth_features(excess)[f] + TINY) for excess in spread for f in TEETH_FEATURES]
-        values[i] = np.concatenate([block.transpose(2, 0, 1).ravel(), teeth_block])
-        truth = truths.get(ids.at[i, "record_id"], [])
-        locations += [{"row": i, "part": name, "positions": teeth, "span": contact_ratio,
-                       "position": tooth, "share": share, "true_positions": truth if k == 0 else []}
-                      for excess, (k, (name, _, teeth)) in zip(spread, chosen)
-                      for tooth, share in [located_tooth(excess)]]
+        values[i], spread = segment_residual_features(
+            i, patterns, origins, machine, s, frames, n_bands, tops
+        )
+        locations += segment_locations(i, ids, spread, s, truths)
     frame = pd.concat([ids, pd.DataFrame(values.astype(np.float32), columns=names)], axis=1)
     frame.attrs["referenced_columns"] = names
     frame.attrs["fault_locations"] = fault_locations(ids, locations)
-    if against is not None and against["source"] == "measured":
-        frame.attrs["references"] = patterns_table(references, against["condition"], shafts, list(channels), cycles,
-                                                   tones, window or (mesh_harmonics, np.nan, np.nan))
+    if measured:
+        frame.attrs["references"] = patterns_table(
+            machine.references,
+            against["condition"],
+            s.shafts,
+            list(channels),
+            machine.cycles,
+            machine.tones,
+            machine.window or (machine.mesh_harmonics, np.nan, np.nan),
+        )
     return frame
 
 
@@ -966,21 +1499,17 @@ def fault_locations(ids: pd.DataFrame, locations: list[dict]) -> pd.DataFrame:
     machine) of the shaft's `positions` teeth, its share of the change (how sure), how many
     pitches a tooth meshes over (`span`, the pair's total contact ratio) and, on a bench, where
     its damaged teeth enter mesh (`true_positions`), beside the segment's ids."""
-    table = pd.DataFrame(locations, columns=["row", "part", "positions", "span", "position", "share",
-                                             "true_positions"])
+    table = pd.DataFrame(
+        locations,
+        columns=["row", "part", "positions", "span", "position", "share", "true_positions"],
+    )
     located = ids.iloc[table["row"].to_numpy()].reset_index(drop=True)
     return pd.concat([located, table.drop(columns="row").reset_index(drop=True)], axis=1)
 
 
-# the features job hands it the healthy-reference spec (`against`) and reads every record at once
-# for it (a simulated sample's healthy twin lies in another file)
-residual_feature_table.takes_reference = True
-# ... and spreads its segments over the job's cores (`processes`)
-residual_feature_table.takes_processes = True
-
-
-def resolution_problem(fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int,
-                       mesh_harmonics: int) -> str | None:
+def resolution_problem(
+    fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int, mesh_harmonics: int
+) -> str | None:
     """Why an angular grid folds content into the orders kept, or None. `resample_at` has no
     anti-alias filter: on a grid coarser than the samples (P x shaft frequency < fs) content up
     to fs / 2 folds down to P - fs / (2 x shaft frequency) orders, which must lie above every
@@ -990,14 +1519,17 @@ def resolution_problem(fs_hz: float, speed_rpm: float, shafts, samples_per_revol
         lowest_folded = samples_per_revolution - fs_hz / (2 * shaft_hz)
         top = mesh_harmonics * int(teeth) + 1
         if lowest_folded < top:
-            return (f"{KEY}.samples_per_revolution: {samples_per_revolution} per revolution of the {name} at "
-                    f"{speed_rpm:g} rpm folds {fs_hz:g} Hz content down to order {lowest_folded:.0f}, below its "
-                    f"order {top}; raise it to at least {int(np.ceil(top + fs_hz / (2 * shaft_hz)))}")
+            return (
+                f"{KEY}.samples_per_revolution: {samples_per_revolution} per revolution of the {name} at "
+                f"{speed_rpm:g} rpm folds {fs_hz:g} Hz content down to order {lowest_folded:.0f}, below its "
+                f"order {top}; raise it to at least {int(np.ceil(top + fs_hz / (2 * shaft_hz)))}"
+            )
     return None
 
 
-def check_resolution(fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int,
-                     mesh_harmonics: int) -> None:
+def check_resolution(
+    fs_hz: float, speed_rpm: float, shafts, samples_per_revolution: int, mesh_harmonics: int
+) -> None:
     """Refuse an angular grid that folds content into the orders kept (`resolution_problem`)."""
     problem = resolution_problem(fs_hz, speed_rpm, shafts, samples_per_revolution, mesh_harmonics)
     if problem:

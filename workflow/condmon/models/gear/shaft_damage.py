@@ -30,6 +30,7 @@ with no bore): the area and second moments of an annulus with material missing o
 carries no axial stress: an open crack, or an outer sublaminate that slides on the inner one
 ('free mode' delamination).
 """
+
 from __future__ import annotations
 
 import math
@@ -39,9 +40,18 @@ import numpy as np
 
 from condmon.models.gear.mesh_force import SHAFT_HEALTH_STATES
 
-__all__ = ["SHAFT_HEALTH_STATES", "DamagedElement", "ShaftDamageForce", "crack_section_ratios",
-           "delamination_section_ratios", "RELATIVE_ROTATION", "removed_rotational_stiffness",
-           "SectionGeometry", "cracked_tube_geometry", "delaminated_tube_geometry"]
+__all__ = [
+    "SHAFT_HEALTH_STATES",
+    "DamagedElement",
+    "ShaftDamageForce",
+    "crack_section_ratios",
+    "delamination_section_ratios",
+    "RELATIVE_ROTATION",
+    "removed_rotational_stiffness",
+    "SectionGeometry",
+    "cracked_tube_geometry",
+    "delaminated_tube_geometry",
+]
 
 
 @dataclass(frozen=True)
@@ -59,6 +69,7 @@ class SectionGeometry:
     - second_moment_eta = integral of eta^2 dA: bending along eta (the crack sits on the neutral
       axis of that bending).
     Both are about axes through the remaining section's centroid."""
+
     area: float
     centroid_offset: float
     second_moment_xi: float
@@ -71,37 +82,57 @@ def _disc_beyond(radius: float, cut: float) -> np.ndarray:
     if radius == 0:
         return np.zeros(4)
     alpha = math.acos(min(1.0, max(-1.0, cut / radius)))  # half angle of the segment
-    return np.array([
-        radius**2 * (alpha - math.sin(alpha) * math.cos(alpha)),
-        2 / 3 * radius**3 * math.sin(alpha)**3,
-        radius**4 / 4 * (alpha - math.sin(4 * alpha) / 4),
-        2 / 3 * radius**4 * (3 * alpha / 8 - math.sin(2 * alpha) / 4 + math.sin(4 * alpha) / 32)])
+    return np.array(
+        [
+            radius**2 * (alpha - math.sin(alpha) * math.cos(alpha)),
+            2 / 3 * radius**3 * math.sin(alpha) ** 3,
+            radius**4 / 4 * (alpha - math.sin(4 * alpha) / 4),
+            2
+            / 3
+            * radius**4
+            * (3 * alpha / 8 - math.sin(2 * alpha) / 4 + math.sin(4 * alpha) / 32),
+        ]
+    )
 
 
 def _annular_sector(inner_radius: float, outer_radius: float, arc: float) -> np.ndarray:
     """(area, integral xi dA, integral xi^2 dA, integral eta^2 dA) about the centre of the sector
     inner_radius < rho < outer_radius, |theta| < arc / 2 (radians, theta from +xi)."""
     r2, r3, r4 = (outer_radius**p - inner_radius**p for p in (2, 3, 4))
-    return np.array([arc / 2 * r2, r3 / 3 * 2 * math.sin(arc / 2),
-                     r4 / 4 * (arc + math.sin(arc)) / 2, r4 / 4 * (arc - math.sin(arc)) / 2])
+    return np.array(
+        [
+            arc / 2 * r2,
+            r3 / 3 * 2 * math.sin(arc / 2),
+            r4 / 4 * (arc + math.sin(arc)) / 2,
+            r4 / 4 * (arc - math.sin(arc)) / 2,
+        ]
+    )
 
 
 def _geometry(moments: np.ndarray) -> SectionGeometry:
     """SectionGeometry from moments about the tube's centre (shifted to the centroid)."""
     area, first, xi2, eta2 = (float(m) for m in moments)
     centroid = first / area
-    return SectionGeometry(area=area, centroid_offset=centroid,
-                           second_moment_xi=xi2 - area * centroid**2, second_moment_eta=eta2)
+    return SectionGeometry(
+        area=area,
+        centroid_offset=centroid,
+        second_moment_xi=xi2 - area * centroid**2,
+        second_moment_eta=eta2,
+    )
 
 
 def _check_annulus(outer_diameter: float, inner_diameter: float) -> None:
     if not outer_diameter > 0:
         raise ValueError(f"outer_diameter must be positive, got {outer_diameter}")
     if not 0 <= inner_diameter < outer_diameter:
-        raise ValueError(f"inner_diameter {inner_diameter} must be in [0, outer_diameter = {outer_diameter})")
+        raise ValueError(
+            f"inner_diameter {inner_diameter} must be in [0, outer_diameter = {outer_diameter})"
+        )
 
 
-def cracked_tube_geometry(outer_diameter: float, inner_diameter: float, depth: float) -> SectionGeometry:
+def cracked_tube_geometry(
+    outer_diameter: float, inner_diameter: float, depth: float
+) -> SectionGeometry:
     """Section of a tube (inner_diameter 0: a solid shaft) with an open, straight-fronted
     transverse crack entering from the outer surface at +xi: material with xi > R - a is missing,
     depth = a / outer_diameter in [0, 1) (0: intact, 0.5: crack front on the centre line)."""
@@ -111,12 +142,15 @@ def cracked_tube_geometry(outer_diameter: float, inner_diameter: float, depth: f
     R, r = outer_diameter / 2, inner_diameter / 2
     front = R - depth * outer_diameter
     # remaining = (outer disc with xi <= front) - (bore with xi <= front)
-    remaining = (_disc_beyond(R, -R) - _disc_beyond(R, front)) - (_disc_beyond(r, -r) - _disc_beyond(r, front))
+    remaining = (_disc_beyond(R, -R) - _disc_beyond(R, front)) - (
+        _disc_beyond(r, -r) - _disc_beyond(r, front)
+    )
     return _geometry(remaining)
 
 
-def delaminated_tube_geometry(outer_diameter: float, inner_diameter: float, interface_depth: float,
-                              arc_deg: float) -> SectionGeometry:
+def delaminated_tube_geometry(
+    outer_diameter: float, inner_diameter: float, interface_depth: float, arc_deg: float
+) -> SectionGeometry:
     """Section of a tube with a 'free mode' delamination: the outer sublaminate, radius
     R - interface_depth (R - r) to R, over an arc of `arc_deg` centred on +xi slides on the
     inner one and carries no axial stress, so it is left out.
@@ -128,13 +162,16 @@ def delaminated_tube_geometry(outer_diameter: float, inner_diameter: float, inte
     ends and at the arc's edges the sublaminate still takes some load."""
     _check_annulus(outer_diameter, inner_diameter)
     if not 0 <= interface_depth < 1:
-        raise ValueError(f"interface_depth {interface_depth} must be in [0, 1) (fraction of the wall thickness)")
+        raise ValueError(
+            f"interface_depth {interface_depth} must be in [0, 1) (fraction of the wall thickness)"
+        )
     if not 0 <= arc_deg <= 360:
         raise ValueError(f"arc_deg {arc_deg} must be in [0, 360]")
     R, r = outer_diameter / 2, inner_diameter / 2
     interface_radius = R - interface_depth * (R - r)
-    remaining = (_annular_sector(r, R, 2 * math.pi)
-                 - _annular_sector(interface_radius, R, math.radians(arc_deg)))
+    remaining = _annular_sector(r, R, 2 * math.pi) - _annular_sector(
+        interface_radius, R, math.radians(arc_deg)
+    )
     return _geometry(remaining)
 
 
@@ -148,22 +185,32 @@ def removed_rotational_stiffness(length: float, bending: float, bending_ratio: f
     return bending * (1.0 - bending_ratio) / length
 
 
-def crack_section_ratios(outer_diameter: float, inner_diameter: float, depth: float) -> tuple[float, float, float]:
+def crack_section_ratios(
+    outer_diameter: float, inner_diameter: float, depth: float
+) -> tuple[float, float, float]:
     """(I_xi, I_eta, area) of a tube with an open crack of relative depth a / D over the intact."""
-    return _ratios(cracked_tube_geometry(outer_diameter, inner_diameter, depth),
-                   cracked_tube_geometry(outer_diameter, inner_diameter, 0.0))
+    return _ratios(
+        cracked_tube_geometry(outer_diameter, inner_diameter, depth),
+        cracked_tube_geometry(outer_diameter, inner_diameter, 0.0),
+    )
 
 
-def delamination_section_ratios(outer_diameter: float, inner_diameter: float, interface_depth: float,
-                                arc_deg: float) -> tuple[float, float, float]:
+def delamination_section_ratios(
+    outer_diameter: float, inner_diameter: float, interface_depth: float, arc_deg: float
+) -> tuple[float, float, float]:
     """(I_xi, I_eta, area) of a tube whose outer sublaminate over `arc_deg` carries no stress."""
-    return _ratios(delaminated_tube_geometry(outer_diameter, inner_diameter, interface_depth, arc_deg),
-                   delaminated_tube_geometry(outer_diameter, inner_diameter, 0.0, 0.0))
+    return _ratios(
+        delaminated_tube_geometry(outer_diameter, inner_diameter, interface_depth, arc_deg),
+        delaminated_tube_geometry(outer_diameter, inner_diameter, 0.0, 0.0),
+    )
 
 
 def _ratios(damaged, intact) -> tuple[float, float, float]:
-    return (damaged.second_moment_xi / intact.second_moment_xi, damaged.second_moment_eta / intact.second_moment_eta,
-            damaged.area / intact.area)
+    return (
+        damaged.second_moment_xi / intact.second_moment_xi,
+        damaged.second_moment_eta / intact.second_moment_eta,
+        damaged.area / intact.area,
+    )
 
 
 @dataclass(frozen=True)
@@ -171,6 +218,7 @@ class DamagedElement:
     """One damaged shaft element: the rotational stiffness removed in the damage's own plane (xi,
     where a crack opens) and across it (eta), whether it breathes, and how its direction turns:
     phi(t) = angle + spin_hz 2 pi t."""
+
     removed_xi: float
     removed_eta: float
     breathing: bool
@@ -186,8 +234,10 @@ class ShaftDamageForce:
     overhead on 2-vectors would cost more than the whole structure's solve."""
 
     def __init__(self, elements: list[DamagedElement]):
-        self.elements = [(e.removed_xi, e.removed_eta, e.breathing, e.angle, 2 * math.pi * e.spin_hz)
-                         for e in elements]
+        self.elements = [
+            (e.removed_xi, e.removed_eta, e.breathing, e.angle, 2 * math.pi * e.spin_hz)
+            for e in elements
+        ]
 
     def __call__(self, t: float, d) -> list[float]:
         force = [0.0] * (2 * len(self.elements))

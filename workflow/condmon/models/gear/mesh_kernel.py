@@ -13,6 +13,7 @@ each, 1.2 us of the 1.5 us a call with eight arrays took), while four scalars co
 does. They also hold the Python path's gate (an impact tracked, the mesh out of contact) in the
 block's state vector, so the callback needs no Python attribute lookups either.
 """
+
 from __future__ import annotations
 
 import math
@@ -34,10 +35,23 @@ def entry_point(kernel):
 
 
 # the excitation and the steady sums' arguments: constants, run-out rows, then per kernel its tables
-VECTOR, MATRIX, TABLE, INDEX = "float64[::1]", "float64[:, ::1]", "float64[:, :, ::1]", "int64[:, ::1]"
+VECTOR, MATRIX, TABLE, INDEX = (
+    "float64[::1]",
+    "float64[:, ::1]",
+    "float64[:, :, ::1]",
+    "int64[:, ::1]",
+)
 
 # excitation_constants: the layout `MeshForce` packs
-START_PHASE, MESH_FREQUENCY, FLUCTUATION, FLUCTUATION_W, FLUCTUATION_PHASE, FLUCTUATION_COS0, INVERSE_BASE_PITCH = range(7)
+(
+    START_PHASE,
+    MESH_FREQUENCY,
+    FLUCTUATION,
+    FLUCTUATION_W,
+    FLUCTUATION_PHASE,
+    FLUCTUATION_COS0,
+    INVERSE_BASE_PITCH,
+) = range(7)
 
 
 @njit(f"UniTuple(float64, 4)(float64, {VECTOR}, {MATRIX})", cache=True)
@@ -49,8 +63,9 @@ def mesh_excitation(t, excitation_constants, runout):
     mesh_frequency, fluctuation = c[MESH_FREQUENCY], c[FLUCTUATION]
     if fluctuation != 0.0:
         angle = c[FLUCTUATION_W] * t + c[FLUCTUATION_PHASE]
-        phase = c[START_PHASE] + mesh_frequency * (t + fluctuation * (c[FLUCTUATION_COS0] - math.cos(angle))
-                                                   / c[FLUCTUATION_W])
+        phase = c[START_PHASE] + mesh_frequency * (
+            t + fluctuation * (c[FLUCTUATION_COS0] - math.cos(angle)) / c[FLUCTUATION_W]
+        )
         phase_rate = mesh_frequency * (1.0 + fluctuation * math.sin(angle))
     else:
         phase, phase_rate = c[START_PHASE] + mesh_frequency * t, mesh_frequency
@@ -86,21 +101,42 @@ def steady_sum(contacts, count, exponent, damping_per_stiffness, inverse_damping
         stiffness_ref, d, d_t = contacts[m, 1], contacts[m, 2], contacts[m, 3]
         x = d * inverse_damping_onset
         onset = x * x * (3.0 - 2.0 * x) if x < 1.0 else 1.0
-        force = stiffness_ref * (d / DEFLECTION_REF) ** exponent + damping_per_stiffness * stiffness_ref * onset * d_t
+        force = (
+            stiffness_ref * (d / DEFLECTION_REF) ** exponent
+            + damping_per_stiffness * stiffness_ref * onset * d_t
+        )
         if force > 0.0:
             total += force
     return total
 
 
 # simple_constants: the layout `MeshForce` packs
-(S_BACKLASH, S_CONTACT_RATIO, S_BASE_PITCH, S_TIP_RADIUS, S_PAIR_FORCE_REF, S_EXPONENT, S_DAMPING,
- S_INVERSE_ONSET, S_TE_AMPLITUDE) = range(9)
+(
+    S_BACKLASH,
+    S_CONTACT_RATIO,
+    S_BASE_PITCH,
+    S_TIP_RADIUS,
+    S_PAIR_FORCE_REF,
+    S_EXPONENT,
+    S_DAMPING,
+    S_INVERSE_ONSET,
+    S_TE_AMPLITUDE,
+) = range(9)
 SIMPLE_TABLES = f"{VECTOR}, {MATRIX}, {VECTOR}, {VECTOR}, {VECTOR}"
 
 
 @njit(f"int64({SIMPLE_TABLES}, float64, float64, float64, {CONTACTS})", cache=True)
-def simple_contacts(excitation_constants, runout, constants, stiffness_factor, pair_pitch_error,
-                    t, deflection, rate, contacts):
+def simple_contacts(
+    excitation_constants,
+    runout,
+    constants,
+    stiffness_factor,
+    pair_pitch_error,
+    t,
+    deflection,
+    rate,
+    contacts,
+):
     """The `simple` mesh's contacts in touch (`MeshForce`): pair j nominally in contact while its
     phase is in [0, contact ratio), all pairs equally stiff, the tip gap s^2 / (2 rho) outside."""
     phase, phase_rate, e, e_t = mesh_excitation(t, excitation_constants, runout)
@@ -140,13 +176,31 @@ def simple_contacts(excitation_constants, runout, constants, stiffness_factor, p
 
 
 @njit(f"float64({SIMPLE_TABLES}, {CONTACTS}, float64, float64, float64)", cache=True)
-def simple_steady_force(excitation_constants, runout, constants, stiffness_factor, pair_pitch_error, contacts,
-                        t, deflection, rate):
+def simple_steady_force(
+    excitation_constants,
+    runout,
+    constants,
+    stiffness_factor,
+    pair_pitch_error,
+    contacts,
+    t,
+    deflection,
+    rate,
+):
     """The `simple` mesh's force in steady contact; -1 where the back flank touches (an impact)
     or the contacts overflow `contacts`: the caller's Python path takes both. The tables and the
     contacts' scratch space come first, so that functools.partial binds them once."""
-    count = simple_contacts(excitation_constants, runout, constants, stiffness_factor, pair_pitch_error,
-                            t, deflection, rate, contacts)
+    count = simple_contacts(
+        excitation_constants,
+        runout,
+        constants,
+        stiffness_factor,
+        pair_pitch_error,
+        t,
+        deflection,
+        rate,
+        contacts,
+    )
     if count < 0:
         return -1.0
     c = constants
@@ -154,14 +208,36 @@ def simple_steady_force(excitation_constants, runout, constants, stiffness_facto
 
 
 # tvms_constants: the layout `TVMSMeshForce` packs
-(T_BACKLASH, T_WINDOW, T_POINTS_PER_PITCH, T_BASE_PITCH, T_TIP_RADIUS, T_EXPONENT, T_DAMPING, T_INVERSE_ONSET,
- T_EDGE_EXCESS, T_EXTENDED, T_MAX_DEFLECTION) = range(11)
+(
+    T_BACKLASH,
+    T_WINDOW,
+    T_POINTS_PER_PITCH,
+    T_BASE_PITCH,
+    T_TIP_RADIUS,
+    T_EXPONENT,
+    T_DAMPING,
+    T_INVERSE_ONSET,
+    T_EDGE_EXCESS,
+    T_EXTENDED,
+    T_MAX_DEFLECTION,
+) = range(11)
 TVMS_TABLES = f"{VECTOR}, {MATRIX}, {VECTOR}, {TABLE}, {MATRIX}, {INDEX}, {VECTOR}"
 
 
 @njit(f"int64({TVMS_TABLES}, float64, float64, float64, {CONTACTS})", cache=True)
-def tvms_contacts(excitation_constants, runout, constants, tables, edges, tooth_groups, pair_pitch_error,
-                  t, deflection, rate, contacts):
+def tvms_contacts(
+    excitation_constants,
+    runout,
+    constants,
+    tables,
+    edges,
+    tooth_groups,
+    pair_pitch_error,
+    t,
+    deflection,
+    rate,
+    contacts,
+):
     """The `potential_energy` mesh's contacts in touch (`TVMSMeshForce`), one per contact group of
     each pair (key 4 j + group).
 
@@ -218,8 +294,19 @@ def tvms_contacts(excitation_constants, runout, constants, tables, edges, tooth_
 
 
 @njit(f"float64({TVMS_TABLES}, {CONTACTS}, float64, float64, float64)", cache=True)
-def tvms_steady_force(excitation_constants, runout, constants, tables, edges, tooth_groups, pair_pitch_error,
-                      contacts, t, deflection, rate):
+def tvms_steady_force(
+    excitation_constants,
+    runout,
+    constants,
+    tables,
+    edges,
+    tooth_groups,
+    pair_pitch_error,
+    contacts,
+    t,
+    deflection,
+    rate,
+):
     """The `potential_energy` mesh's force in steady contact; -1 where the back flank touches (an
     impact), the deflection is out of range (divergence) or the contacts overflow `contacts`: the
     caller's Python path takes them. The tables and the contacts' scratch space come first, so
@@ -227,8 +314,19 @@ def tvms_steady_force(excitation_constants, runout, constants, tables, edges, to
     c = constants
     if not abs(deflection) < c[T_MAX_DEFLECTION]:
         return -1.0
-    count = tvms_contacts(excitation_constants, runout, constants, tables, edges, tooth_groups, pair_pitch_error,
-                          t, deflection, rate, contacts)
+    count = tvms_contacts(
+        excitation_constants,
+        runout,
+        constants,
+        tables,
+        edges,
+        tooth_groups,
+        pair_pitch_error,
+        t,
+        deflection,
+        rate,
+        contacts,
+    )
     if count < 0:
         return -1.0
     return steady_sum(contacts, count, c[T_EXPONENT], c[T_DAMPING], c[T_INVERSE_ONSET])
@@ -237,8 +335,10 @@ def tvms_steady_force(excitation_constants, runout, constants, tables, edges, to
 # -- the arrays by address ------------------------------------------------------------------------
 # An ArrayBlock's layout: one row (address, shape...) per array; its first array is the state
 # vector of the callback's gate (`MeshForce` keeps it in step with its impacts):
-SEPARATED, TRACKING = range(2)  # the whole mesh was out of contact at the last call; an impact is tracked
-LAYOUT_COLUMNS = 4              # address and up to three dimensions
+SEPARATED, TRACKING = range(
+    2
+)  # the whole mesh was out of contact at the last call; an impact is tracked
+LAYOUT_COLUMNS = 4  # address and up to three dimensions
 
 
 class ArrayBlock:
@@ -250,11 +350,17 @@ class ArrayBlock:
         self.arrays = arrays
         self.layout = np.zeros((len(arrays), LAYOUT_COLUMNS), dtype=np.int64)
         for row, array in enumerate(arrays):
-            if array.dtype not in (np.float64, np.int64) or not array.flags.c_contiguous or array.ndim >= LAYOUT_COLUMNS:
-                raise TypeError(f"array {row}: a kernel reads C-contiguous float64 or int64 arrays of up to "
-                                f"{LAYOUT_COLUMNS - 1} dimensions by address (got {array.dtype}, {array.ndim} d)")
+            if (
+                array.dtype not in (np.float64, np.int64)
+                or not array.flags.c_contiguous
+                or array.ndim >= LAYOUT_COLUMNS
+            ):
+                raise TypeError(
+                    f"array {row}: a kernel reads C-contiguous float64 or int64 arrays of up to "
+                    f"{LAYOUT_COLUMNS - 1} dimensions by address (got {array.dtype}, {array.ndim} d)"
+                )
             self.layout[row, 0] = array.ctypes.data
-            self.layout[row, 1:1 + array.ndim] = array.shape
+            self.layout[row, 1 : 1 + array.ndim] = array.shape
         self.address = int(self.layout.ctypes.data)
 
 
@@ -287,7 +393,9 @@ def _matrix(layout, row):
 
 @njit(cache=True)
 def _table(layout, row):
-    return carray(_pointer(layout[row, 0]), (layout[row, 1], layout[row, 2], layout[row, 3]), np.float64)
+    return carray(
+        _pointer(layout[row, 0]), (layout[row, 1], layout[row, 2], layout[row, 3]), np.float64
+    )
 
 
 @njit(cache=True)
@@ -313,8 +421,20 @@ def simple_gated_force(address, t, deflection, rate):
     state = _vector(a, 0)
     if state[SEPARATED] != 0.0 or state[TRACKING] != 0.0:
         return -1.0
-    return _gate(state, simple_steady_force(_vector(a, 1), _matrix(a, 2), _vector(a, 3), _vector(a, 4),
-                                            _vector(a, 5), _matrix(a, 6), t, deflection, rate))
+    return _gate(
+        state,
+        simple_steady_force(
+            _vector(a, 1),
+            _matrix(a, 2),
+            _vector(a, 3),
+            _vector(a, 4),
+            _vector(a, 5),
+            _matrix(a, 6),
+            t,
+            deflection,
+            rate,
+        ),
+    )
 
 
 @njit("float64(int64, float64, float64, float64)", cache=True)
@@ -326,5 +446,19 @@ def tvms_gated_force(address, t, deflection, rate):
     state = _vector(a, 0)
     if state[SEPARATED] != 0.0 or state[TRACKING] != 0.0:
         return -1.0
-    return _gate(state, tvms_steady_force(_vector(a, 1), _matrix(a, 2), _vector(a, 3), _table(a, 4), _matrix(a, 5),
-                                          _index(a, 6), _vector(a, 7), _matrix(a, 8), t, deflection, rate))
+    return _gate(
+        state,
+        tvms_steady_force(
+            _vector(a, 1),
+            _matrix(a, 2),
+            _vector(a, 3),
+            _table(a, 4),
+            _matrix(a, 5),
+            _index(a, 6),
+            _vector(a, 7),
+            _matrix(a, 8),
+            t,
+            deflection,
+            rate,
+        ),
+    )

@@ -36,6 +36,7 @@ part, which changes the contact ratio by about 0.3 % at 10 um, is left out), too
 flank maps (`errors.FlankMap`: profile and helix deviations); a bench's own damage comes as damage
 maps (`damage_maps_pinion`).
 """
+
 from __future__ import annotations
 
 import functools
@@ -44,17 +45,43 @@ import math
 import numpy as np
 
 from condmon.models.gear.contact_laws import hysteresis_factor
-from condmon.models.gear.errors import (add_flank_maps, broken_tooth_flank_map, contact_fatigue_band,
-                                        pitted_flank_map, wear_flank_map)
+from condmon.models.gear.errors import (
+    add_flank_maps,
+    broken_tooth_flank_map,
+    contact_fatigue_band,
+    pitted_flank_map,
+    wear_flank_map,
+)
 from condmon.models.gear.mesh import GearMesh, ProfileDeviation, ToothDamage
+
 # DEFLECTION_REF: K = mesh stiffness at this deflection keeps K's unit N/m for any n
-from condmon.models.gear.mesh_kernel import (BACK_FLANK, DEFLECTION_REF, SEPARATED, TOO_MANY_CONTACTS, TRACKING,
-                                             ArrayBlock, entry_point, mesh_excitation, simple_contacts,
-                                             simple_gated_force, simple_steady_force, tvms_contacts,
-                                             tvms_gated_force, tvms_steady_force)
+from condmon.models.gear.mesh_kernel import (
+    BACK_FLANK,
+    DEFLECTION_REF,
+    SEPARATED,
+    TOO_MANY_CONTACTS,
+    TRACKING,
+    ArrayBlock,
+    entry_point,
+    mesh_excitation,
+    simple_contacts,
+    simple_gated_force,
+    simple_steady_force,
+    tvms_contacts,
+    tvms_gated_force,
+    tvms_steady_force,
+)
 from condmon.models.numerics import SimulationError
 
-MESH_HEALTH_STATES = ("healthy", "surface_fault", "wear", "missing_tooth", "spall", "chipped_tooth", "root_crack")
+MESH_HEALTH_STATES = (
+    "healthy",
+    "surface_fault",
+    "wear",
+    "missing_tooth",
+    "spall",
+    "chipped_tooth",
+    "root_crack",
+)
 # States of a drivetrain whose mesh is healthy: the damage is in a shaft (drivetrain.py).
 SHAFT_HEALTH_STATES = ("shaft_crack", "delamination")
 HEALTH_STATES = MESH_HEALTH_STATES + SHAFT_HEALTH_STATES
@@ -67,8 +94,10 @@ MESH_STIFFNESS_MODELS = ("potential_energy", "simple")
 # surface fault: it is another kind of damage (ISO 10825) with another signature.
 SURFACE_FAULT_MODELS = ("pitting", "stiffness_loss", "mesh_stiffness_loss")
 MAX_DEFLECTION = 1.0e-3  # m; a mesh deflection beyond this is divergence
-EDGE_CONTACT = 0.02      # a pair stiffness at its window's edge above this share of the peak: extended contact
-MAX_CONTACTS = 64        # tooth contacts one call can hold (a helical pair: about 3, a spur pair in extended contact: 6)
+EDGE_CONTACT = (
+    0.02  # a pair stiffness at its window's edge above this share of the peak: extended contact
+)
+MAX_CONTACTS = 64  # tooth contacts one call can hold (a helical pair: about 3, a spur pair in extended contact: 6)
 
 
 def whole_tooth_missing(p) -> bool:
@@ -79,16 +108,26 @@ def tooth_damage(p) -> ToothDamage | None:
     """The health state of `p` as tooth geometry (None when healthy, a pure stiffness loss or a
     flank map: surface wear and pitting, a tooth broken off short of its root)."""
     if p.health_state not in HEALTH_STATES:
-        raise ValueError(f"unknown health state {p.health_state!r}; choose one of {list(HEALTH_STATES)}")
+        raise ValueError(
+            f"unknown health state {p.health_state!r}; choose one of {list(HEALTH_STATES)}"
+        )
     tooth = p.faulty_tooth
     if whole_tooth_missing(p):
         return ToothDamage("missing", teeth=(tooth,))
     if p.health_state == "spall":
         # the pit: `spall_depth` below the flank, its pitted surface softer like a surface fault
-        return ToothDamage("spall", teeth=(tooth,), profile=tuple(p.spall_profile), face=tuple(p.spall_face),
-                           depth=p.spall_depth, stiffness_loss=p.surface_fault_stiffness_loss)
+        return ToothDamage(
+            "spall",
+            teeth=(tooth,),
+            profile=tuple(p.spall_profile),
+            face=tuple(p.spall_face),
+            depth=p.spall_depth,
+            stiffness_loss=p.surface_fault_stiffness_loss,
+        )
     if p.health_state == "chipped_tooth":
-        return ToothDamage("chip", teeth=(tooth,), profile=(p.chip_profile, 1.0), face=tuple(p.chip_face))
+        return ToothDamage(
+            "chip", teeth=(tooth,), profile=(p.chip_profile, 1.0), face=tuple(p.chip_face)
+        )
     if p.health_state == "root_crack":
         return ToothDamage("crack", teeth=(tooth,), crack_depth=p.crack_depth)
     return None
@@ -102,8 +141,10 @@ def surface_fault_teeth(p) -> list[int]:
 def surface_fault_form(p) -> str:
     """The surface fault's form in `p`: its `surface_fault_model`."""
     if p.surface_fault_model not in SURFACE_FAULT_MODELS:
-        raise ValueError(f"unknown surface_fault_model {p.surface_fault_model!r}; "
-                         f"choose one of {list(SURFACE_FAULT_MODELS)}")
+        raise ValueError(
+            f"unknown surface_fault_model {p.surface_fault_model!r}; "
+            f"choose one of {list(SURFACE_FAULT_MODELS)}"
+        )
     return p.surface_fault_model
 
 
@@ -115,7 +156,10 @@ def contact_stiffness_factors(p) -> list[float]:
     if p.health_state != "surface_fault":
         return factors
     form = surface_fault_form(p)
-    weakened = {"stiffness_loss": surface_fault_teeth(p), "mesh_stiffness_loss": range(len(factors))}.get(form, ())
+    weakened = {
+        "stiffness_loss": surface_fault_teeth(p),
+        "mesh_stiffness_loss": range(len(factors)),
+    }.get(form, ())
     for tooth in weakened:
         factors[tooth] = 1.0 - p.surface_fault_stiffness_loss
     return factors
@@ -145,11 +189,16 @@ def damage_maps(p) -> tuple:
         if p.wear_depth <= 0:
             raise ValueError(f"wear: a worn flank has lost material (depth {p.wear_depth} m, > 0)")
         pitch_line = p.geometry.roll_fraction(p.geometry.pitch_point)
-        damage = [wear_flank_map(p.wear_depth, p.wear_roughness, rng, pitch_line=pitch_line) for _ in range(teeth)]
+        damage = [
+            wear_flank_map(p.wear_depth, p.wear_roughness, rng, pitch_line=pitch_line)
+            for _ in range(teeth)
+        ]
     elif p.health_state == "surface_fault" and surface_fault_form(p) == "pitting":
         # contact fatigue starts on a few teeth (surface_fault_teeth), each its own craters
         if p.pit_depth <= 0:
-            raise ValueError(f"pitting: a pitted flank has lost material (depth {p.pit_depth} m, > 0)")
+            raise ValueError(
+                f"pitting: a pitted flank has lost material (depth {p.pit_depth} m, > 0)"
+            )
         band = pitting_band(p)
         for tooth in surface_fault_teeth(p):
             damage[tooth] = pitted_flank_map(p.pit_depth, p.pitted_area, band, rng)
@@ -160,10 +209,15 @@ def damage_maps(p) -> tuple:
 
 def gear_mesh(p) -> GearMesh:
     """The potential-energy TVMS tables of `p` (geometry, slices, profile deviations, flank and damage maps, damage)."""
-    return GearMesh(p.geometry, slices=p.helix_slices, damage=tooth_damage(p),
-                    profile_deviation=ProfileDeviation(tip_relief=p.tip_relief),
-                    transmission_error=p.transmission_error, flank_maps=tuple(p.flank_maps_pinion),
-                    damage_maps=damage_maps(p))
+    return GearMesh(
+        p.geometry,
+        slices=p.helix_slices,
+        damage=tooth_damage(p),
+        profile_deviation=ProfileDeviation(tip_relief=p.tip_relief),
+        transmission_error=p.transmission_error,
+        flank_maps=tuple(p.flank_maps_pinion),
+        damage_maps=damage_maps(p),
+    )
 
 
 def excitation_tables(p) -> tuple[np.ndarray, np.ndarray]:
@@ -171,14 +225,29 @@ def excitation_tables(p) -> tuple[np.ndarray, np.ndarray]:
     the run-out of each shaft that has one: (amplitude, shaft angle per mesh period, phase))."""
     g = p.geometry
     mesh_frequency = p.speed_rpm / 60.0 * g.teeth_pinion
-    constants = np.array([
-        float(p.start_mesh_phase), mesh_frequency, p.speed_fluctuation, 2 * math.pi * p.speed_fluctuation_hz,
-        p.speed_fluctuation_phase, math.cos(p.speed_fluctuation_phase), 1.0 / g.base_pitch], dtype=float)
-    runout = np.array([(amplitude, 2 * math.pi / g.teeth_pinion * ratio, offset)
-                       for amplitude, ratio, offset in ((p.runout_pinion, 1.0, p.runout_phase_pinion),
-                                                        (p.runout_gear, g.teeth_pinion / g.teeth_gear,
-                                                         p.runout_phase_gear))
-                       if amplitude], dtype=float).reshape(-1, 3)
+    constants = np.array(
+        [
+            float(p.start_mesh_phase),
+            mesh_frequency,
+            p.speed_fluctuation,
+            2 * math.pi * p.speed_fluctuation_hz,
+            p.speed_fluctuation_phase,
+            math.cos(p.speed_fluctuation_phase),
+            1.0 / g.base_pitch,
+        ],
+        dtype=float,
+    )
+    runout = np.array(
+        [
+            (amplitude, 2 * math.pi / g.teeth_pinion * ratio, offset)
+            for amplitude, ratio, offset in (
+                (p.runout_pinion, 1.0, p.runout_phase_pinion),
+                (p.runout_gear, g.teeth_pinion / g.teeth_gear, p.runout_phase_gear),
+            )
+            if amplitude
+        ],
+        dtype=float,
+    ).reshape(-1, 3)
     return constants, runout
 
 
@@ -200,8 +269,10 @@ class MeshForce:
 
     def __new__(cls, p, damping: float = 0.0):
         if p.mesh_stiffness_model not in MESH_STIFFNESS_MODELS:
-            raise ValueError(f"unknown mesh_stiffness_model {p.mesh_stiffness_model!r}; "
-                             f"choose one of {list(MESH_STIFFNESS_MODELS)}")
+            raise ValueError(
+                f"unknown mesh_stiffness_model {p.mesh_stiffness_model!r}; "
+                f"choose one of {list(MESH_STIFFNESS_MODELS)}"
+            )
         if cls is MeshForce and p.mesh_stiffness_model == "potential_energy":
             cls = TVMSMeshForce
         return super().__new__(cls)
@@ -229,12 +300,13 @@ class MeshForce:
         gear = _pitch_errors(p.pitch_errors_gear, g.teeth_gear, "gear")
         # pair j meets pinion tooth j mod z1 and gear tooth j mod z2: periodic in lcm(z1, z2)
         self.pitch_period = math.lcm(g.teeth_pinion, g.teeth_gear)
-        self.pair_pitch_error = [pinion[j % g.teeth_pinion] + gear[j % g.teeth_gear]
-                                 for j in range(self.pitch_period)]
+        self.pair_pitch_error = [
+            pinion[j % g.teeth_pinion] + gear[j % g.teeth_gear] for j in range(self.pitch_period)
+        ]
         self.stiffness_factor = contact_stiffness_factors(p)
         # the callback's gate, shared with the compiled kernel (mesh_kernel.SEPARATED, TRACKING)
         self._state = np.zeros(2)
-        self.impacts = {}       # contact key -> approach speed d'(-) of an impact still in contact
+        self.impacts = {}  # contact key -> approach speed d'(-) of an impact still in contact
         self.separated = False  # the whole mesh was out of contact at the last call
 
     def __init__(self, p, damping: float = 0.0):
@@ -244,33 +316,63 @@ class MeshForce:
         # contact
         maps = add_flank_maps(tuple(p.flank_maps_pinion), damage_maps(p))
         if maps:
-            z1, z2 = p.geometry.teeth_pinion, p.geometry.teeth_gear
+            z1 = p.geometry.teeth_pinion
             mean = [0.0 if m is None else float(m.array().mean()) for m in maps]
             self.pair_pitch_error = [e - mean[j % z1] for j, e in enumerate(self.pair_pitch_error)]
         if whole_tooth_missing(p):
             self.stiffness_factor[p.faulty_tooth % self.teeth] = 0.0
         elif p.health_state in ("chipped_tooth", "root_crack", "spall"):
             tvms = GearMesh(p.geometry, slices=p.helix_slices, damage=tooth_damage(p))
-            self.stiffness_factor[p.faulty_tooth % self.teeth] = (
-                sum(grp.stiffness.sum() for grp in tvms.groups(p.faulty_tooth))
-                / sum(grp.stiffness.sum() for grp in tvms.healthy_groups))
+            self.stiffness_factor[p.faulty_tooth % self.teeth] = sum(
+                grp.stiffness.sum() for grp in tvms.groups(p.faulty_tooth)
+            ) / sum(grp.stiffness.sum() for grp in tvms.healthy_groups)
         # mesh_kernel's layout (S_BACKLASH, S_CONTACT_RATIO, ...)
-        constants = np.array([self.backlash, self.contact_ratio, self.base_pitch, self.tip_radius,
-                              self.pair_force_ref, self.exponent, self.damping_per_stiffness,
-                              self.inverse_damping_onset, self.te_amplitude], dtype=float)
-        self._bind(simple_contacts, simple_steady_force, simple_gated_force, constants,
-                   np.array(self.stiffness_factor, dtype=float), np.array(self.pair_pitch_error, dtype=float))
+        constants = np.array(
+            [
+                self.backlash,
+                self.contact_ratio,
+                self.base_pitch,
+                self.tip_radius,
+                self.pair_force_ref,
+                self.exponent,
+                self.damping_per_stiffness,
+                self.inverse_damping_onset,
+                self.te_amplitude,
+            ],
+            dtype=float,
+        )
+        self._bind(
+            simple_contacts,
+            simple_steady_force,
+            simple_gated_force,
+            constants,
+            np.array(self.stiffness_factor, dtype=float),
+            np.array(self.pair_pitch_error, dtype=float),
+        )
 
     def _bind(self, contacts, steady_force, gated_force, *tables):
         """Bind the compiled contact enumerator and steady force to this mesh's tables and its
         contacts' scratch space (mesh_kernel: tables first, then the call's t, deflection, rate),
         and make `spring_force`, the callback, on the gated kernel."""
         self.contacts = np.zeros((MAX_CONTACTS, 4))
-        self.find_contacts = functools.partial(entry_point(contacts), self.excitation_constants, self.runout, *tables)
-        self.steady_force = functools.partial(entry_point(steady_force), self.excitation_constants, self.runout,
-                                              *tables, self.contacts)
-        self.kernel_arrays = ArrayBlock(self._state, self.excitation_constants, self.runout, *tables, self.contacts)
-        gated, address, tracked = entry_point(gated_force), self.kernel_arrays.address, self.tracked_force
+        self.find_contacts = functools.partial(
+            entry_point(contacts), self.excitation_constants, self.runout, *tables
+        )
+        self.steady_force = functools.partial(
+            entry_point(steady_force),
+            self.excitation_constants,
+            self.runout,
+            *tables,
+            self.contacts,
+        )
+        self.kernel_arrays = ArrayBlock(
+            self._state, self.excitation_constants, self.runout, *tables, self.contacts
+        )
+        gated, address, tracked = (
+            entry_point(gated_force),
+            self.kernel_arrays.address,
+            self.tracked_force,
+        )
 
         def spring_force(mbs, t, item, deflection, rate, stiffness, damping, offset):
             """The force as exudyn's springForceUserFunction takes it (the connector's own
@@ -346,14 +448,18 @@ class MeshForce:
         if not abs(deflection) < MAX_DEFLECTION:
             # a diverging run: stop at once (the extended contact's pair range grows with the
             # deflection and would eat the memory before the run's end check)
-            raise SimulationError(f"mesh deflection {deflection:.3g} m at t = {t:.4g} s: the simulation diverged")
+            raise SimulationError(
+                f"mesh deflection {deflection:.3g} m at t = {t:.4g} s: the simulation diverged"
+            )
         count = self.find_contacts(t, deflection, rate, self.contacts)
         if count == BACK_FLANK:
             d, d_t = self.contacts[0, 2], self.contacts[0, 3]
             return self._back_flank(-d - self.backlash, d_t)
         if count == TOO_MANY_CONTACTS:
-            raise SimulationError(f"over {MAX_CONTACTS} tooth contacts at once at t = {t:.4g} s (mesh deflection "
-                                  f"{deflection:.3g} m): the simulation diverged")
+            raise SimulationError(
+                f"over {MAX_CONTACTS} tooth contacts at once at t = {t:.4g} s (mesh deflection "
+                f"{deflection:.3g} m): the simulation diverged"
+            )
         touching = [] if (self.impacts or self.separated) else None
         total = 0.0
         for key, stiffness, d, d_t in self.contacts[:count].tolist():
@@ -414,16 +520,30 @@ class TVMSMeshForce(MeshForce):
         # a spur pair carries load at its window's edges: the extended contact beyond them; a helical
         # pair's edge values are the last partial slice before its stiffness reaches zero
         peak = max(row[0] for groups in self.tooth_groups for rows, _ in groups for row in rows)
-        self.extended = any(max(edges[0], edges[2]) > EDGE_CONTACT * peak
-                            for groups in self.tooth_groups for _, edges in groups)
+        self.extended = any(
+            max(edges[0], edges[2]) > EDGE_CONTACT * peak
+            for groups in self.tooth_groups
+            for _, edges in groups
+        )
         # per pair j mod lcm(z1, z2): its pinion tooth's contact groups and its pitch errors
-        self.pairs = [(self.tooth_groups[j % self.teeth], self.pair_pitch_error[j]) for j in range(self.pitch_period)]
+        self.pairs = [
+            (self.tooth_groups[j % self.teeth], self.pair_pitch_error[j])
+            for j in range(self.pitch_period)
+        ]
         # how far a pair's flank can stand proud of the mesh deflection at its window's edges (its
         # pitch errors less the edge deviation): the extended contact reaches that much further
-        self.edge_excess = max(0.0, max(error - min(edges[1], edges[3])
-                                        for groups, error in self.pairs for _, edges in groups))
+        self.edge_excess = max(
+            0.0,
+            max(
+                error - min(edges[1], edges[3])
+                for groups, error in self.pairs
+                for _, edges in groups
+            ),
+        )
         healthy = tvms.healthy_groups[0]
-        self.mean_deviation = float((healthy.stiffness * healthy.deviation).sum() / healthy.stiffness.sum())
+        self.mean_deviation = float(
+            (healthy.stiffness * healthy.deviation).sum() / healthy.stiffness.sum()
+        )
         self._pack()
 
     def _pack(self):
@@ -436,18 +556,41 @@ class TVMSMeshForce(MeshForce):
         length = max(len(rows) for rows, _ in groups.values())
         tables, edges = np.zeros((len(groups), length, 4)), np.zeros((len(groups), 4))
         for key, (group_rows, group_edges) in groups.items():
-            tables[index[key], :len(group_rows)] = group_rows
+            tables[index[key], : len(group_rows)] = group_rows
             edges[index[key]] = group_edges
         slots = max(len(g) for g in self.tooth_groups)
         group_of_tooth = np.full((self.teeth, slots), -1, dtype=np.int64)
         for tooth, tooth_groups in enumerate(self.tooth_groups):
-            group_of_tooth[tooth, :len(tooth_groups)] = [index[id(group)] for group in tooth_groups]
+            group_of_tooth[tooth, : len(tooth_groups)] = [
+                index[id(group)] for group in tooth_groups
+            ]
         # mesh_kernel's layout (T_BACKLASH, T_WINDOW, ...)
-        constants = np.array([self.backlash, self.window, self.points_per_pitch, self.base_pitch, self.tip_radius,
-                              self.exponent, self.damping_per_stiffness, self.inverse_damping_onset,
-                              self.edge_excess, float(self.extended), MAX_DEFLECTION], dtype=float)
-        self._bind(tvms_contacts, tvms_steady_force, tvms_gated_force, constants, tables, edges, group_of_tooth,
-                   np.array(self.pair_pitch_error, dtype=float))
+        constants = np.array(
+            [
+                self.backlash,
+                self.window,
+                self.points_per_pitch,
+                self.base_pitch,
+                self.tip_radius,
+                self.exponent,
+                self.damping_per_stiffness,
+                self.inverse_damping_onset,
+                self.edge_excess,
+                float(self.extended),
+                MAX_DEFLECTION,
+            ],
+            dtype=float,
+        )
+        self._bind(
+            tvms_contacts,
+            tvms_steady_force,
+            tvms_gated_force,
+            constants,
+            tables,
+            edges,
+            group_of_tooth,
+            np.array(self.pair_pitch_error, dtype=float),
+        )
 
     def static_deflection(self, force):
         return super().static_deflection(force) + self.mean_deviation
@@ -455,14 +598,19 @@ class TVMSMeshForce(MeshForce):
 
 def mesh_equivalent_mass(geometry, pinion_polar_inertia: float, gear_polar_inertia: float) -> float:
     """Equivalent mass of the pair along the transverse line of action (torsional)."""
-    rb1, rb2 = geometry.base_radius(geometry.teeth_pinion), geometry.base_radius(geometry.teeth_gear)
-    return 1.0 / (rb1 ** 2 / pinion_polar_inertia + rb2 ** 2 / gear_polar_inertia)
+    rb1, rb2 = (
+        geometry.base_radius(geometry.teeth_pinion),
+        geometry.base_radius(geometry.teeth_gear),
+    )
+    return 1.0 / (rb1**2 / pinion_polar_inertia + rb2**2 / gear_polar_inertia)
 
 
 def static_mesh_force(p) -> float:
     """The mesh force (N, along the line of action) that carries the static load of `p` (> 0)."""
     if not p.load_torque > 0.0:
-        raise ValueError(f"load_torque {p.load_torque} N m: the mesh's operating point needs a load (> 0)")
+        raise ValueError(
+            f"load_torque {p.load_torque} N m: the mesh's operating point needs a load (> 0)"
+        )
     return p.load_torque / p.geometry.base_radius(p.geometry.teeth_gear)
 
 
@@ -476,22 +624,33 @@ def stiffness_for_deflection(p, deflection: float, exponent: float) -> float:
     """The `mesh_stiffness` (N/m at 1 um) whose mean mesh of contact exponent `exponent` carries the
     static load of `p` at `deflection` (m): the inverse of `operating_deflection`."""
     if not (deflection > 0.0 and exponent > 0.0):
-        raise ValueError(f"deflection {deflection} m and exponent {exponent}: both must be positive")
+        raise ValueError(
+            f"deflection {deflection} m and exponent {exponent}: both must be positive"
+        )
     return static_mesh_force(p) / DEFLECTION_REF / (deflection / DEFLECTION_REF) ** exponent
 
 
 def operating_stiffness(p) -> float:
     """dF/d(delta) of the mean mesh at the deflection that carries the static load of `p`: the
     stiffness the vibration sees. K and n trade off against each other at one load; this does not."""
-    return (p.contact_exponent * p.mesh_stiffness
-            * (operating_deflection(p) / DEFLECTION_REF) ** (p.contact_exponent - 1.0))
+    return (
+        p.contact_exponent
+        * p.mesh_stiffness
+        * (operating_deflection(p) / DEFLECTION_REF) ** (p.contact_exponent - 1.0)
+    )
 
 
 def mesh_damping(p, pinion_polar_inertia: float, gear_polar_inertia: float) -> float:
     """Viscous mesh damping c = 2 zeta sqrt(k_op m_eq) (N s/m) of the damping ratio
     `p.mesh_damping_ratio` at the operating mesh stiffness."""
-    return 2.0 * p.mesh_damping_ratio * math.sqrt(operating_stiffness(p) * mesh_equivalent_mass(
-        p.geometry, pinion_polar_inertia, gear_polar_inertia))
+    return (
+        2.0
+        * p.mesh_damping_ratio
+        * math.sqrt(
+            operating_stiffness(p)
+            * mesh_equivalent_mass(p.geometry, pinion_polar_inertia, gear_polar_inertia)
+        )
+    )
 
 
 def random_pitch_errors(rng: np.random.Generator, teeth: int, rms: float) -> list[float]:

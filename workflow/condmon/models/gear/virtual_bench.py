@@ -18,6 +18,7 @@ report labels them):
 - coloured (low-frequency weighted) sensor noise on top of white noise.
 Its records are always labelled `virtual_bench`, never `measured`.
 """
+
 from __future__ import annotations
 
 import math
@@ -26,7 +27,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
-from condmon.models.gear.drivetrain import GearDrivetrainParameters, PeriodicLoad, SimulationSettings, simulate
+from condmon.models.gear.drivetrain import (
+    GearDrivetrainParameters,
+    PeriodicLoad,
+    SimulationSettings,
+    simulate,
+)
 from condmon.models.gear.errors import FlankMap, draw_gear_errors
 from condmon.models.gear.mesh_force import mesh_phase_at
 
@@ -34,22 +40,23 @@ from condmon.models.gear.mesh_force import mesh_phase_at
 @dataclass(frozen=True)
 class BenchForm:
     """What the bench has that the model lacks (see the module docstring); amplitudes in SI."""
+
     housing_model: str = "block"
     shaft_model: str = "rigid"
     housing_stiffness: tuple = (5.0e7, 1.5e8, 8.0e7)
-    sensor_noise: float = 0.001          # white, m/s^2 rms
-    coloured_noise: float = 0.002        # m/s^2 rms
-    gear_grade: float = 5.0              # ISO 1328-1 accuracy grade of both gears
-    gear_deviation_share: float = 0.8    # their deviations as a share of the grade's tolerances
-    misalignment: float = 8.0e-6         # mesh misalignment across the face, m
+    sensor_noise: float = 0.001  # white, m/s^2 rms
+    coloured_noise: float = 0.002  # m/s^2 rms
+    gear_grade: float = 5.0  # ISO 1328-1 accuracy grade of both gears
+    gear_deviation_share: float = 0.8  # their deviations as a share of the grade's tolerances
+    misalignment: float = 8.0e-6  # mesh misalignment across the face, m
     speed_fluctuation: float = 0.002
     speed_fluctuation_hz: float = 1.5
     load_fluctuation: float = 0.05
     load_fluctuation_hz: float = 0.7
-    bearing_tone_force: float = 3.0      # N per bearing and order
+    bearing_tone_force: float = 3.0  # N per bearing and order
     bearing_orders: tuple = (3.585, 5.415)
     line_frequency_hz: float = 50.0
-    motor_ripple: float = 0.1            # N m at 2 x line frequency
+    motor_ripple: float = 0.1  # N m at 2 x line frequency
 
 
 def bench_gears(form: BenchForm, geometry, seed: int) -> dict:
@@ -61,23 +68,43 @@ def bench_gears(form: BenchForm, geometry, seed: int) -> dict:
     rng = np.random.default_rng([seed, 0xBE7C4])
     fields = {}
     for name, teeth in (("pinion", geometry.teeth_pinion), ("gear", geometry.teeth_gear)):
-        gear = draw_gear_errors(rng, form.gear_grade, teeth, geometry.normal_module, 2 * geometry.pitch_radius(teeth),
-                                geometry.face_width, form.gear_deviation_share,
-                                misalignment=form.misalignment if name == "pinion" else 0.0)
-        fields.update({f"pitch_errors_{name}": gear.pitch_deviations, f"runout_{name}": gear.eccentricity,
-                       f"runout_phase_{name}": gear.eccentricity_phase})
+        gear = draw_gear_errors(
+            rng,
+            form.gear_grade,
+            teeth,
+            geometry.normal_module,
+            2 * geometry.pitch_radius(teeth),
+            geometry.face_width,
+            form.gear_deviation_share,
+            misalignment=form.misalignment if name == "pinion" else 0.0,
+        )
+        fields.update(
+            {
+                f"pitch_errors_{name}": gear.pitch_deviations,
+                f"runout_{name}": gear.eccentricity,
+                f"runout_phase_{name}": gear.eccentricity_phase,
+            }
+        )
         if name == "pinion":
             fields["flank_maps_pinion"] = gear.flank_maps
     return fields
 
 
 # The bench's own fault forms: health state -> form; each form's keys (`virtual_bench.faults`).
-FAULT_FORMS = {"pitting": ("teeth", "pit_depth", "pitted_area"), "broken_tooth": ("broken_height",),
-               "spall": ("depth", "profile", "face")}
+FAULT_FORMS = {
+    "pitting": ("teeth", "pit_depth", "pitted_area"),
+    "broken_tooth": ("broken_height",),
+    "spall": ("depth", "profile", "face"),
+}
 
 
-def pitting_map(rng: np.random.Generator, pit_depth: float, pitted_area: float, rows: int = 41,
-                columns: int = 21) -> FlankMap:
+def pitting_map(
+    rng: np.random.Generator,
+    pit_depth: float,
+    pitted_area: float,
+    rows: int = 41,
+    columns: int = 21,
+) -> FlankMap:
     """Pitting of one flank: round pits, each up to `pit_depth` deep, around the pitch line (roll
     fraction 0.3-0.6, where rolling contact fatigue starts) until `pitted_area` of that band is
     pitted."""
@@ -89,7 +116,7 @@ def pitting_map(rng: np.random.Generator, pit_depth: float, pitted_area: float, 
             break
         centre = (rng.uniform(0.3, 0.6), rng.uniform(0.0, 1.0))
         radius = rng.uniform(0.03, 0.08)
-        inside = ((roll - centre[0]) ** 2 + ((face - centre[1]) * 0.5) ** 2) < radius ** 2
+        inside = ((roll - centre[0]) ** 2 + ((face - centre[1]) * 0.5) ** 2) < radius**2
         removed[inside] = np.maximum(removed[inside], pit_depth * rng.uniform(0.5, 1.0))
     return FlankMap.of(removed)
 
@@ -101,7 +128,9 @@ def broken_tooth_map(broken_height: float, rows: int = 41) -> FlankMap:
     return FlankMap.of(np.where(roll >= 1.0 - broken_height, 1.0e-3, 0.0))
 
 
-def spall_map(rng: np.random.Generator, depth: float, profile, face, rows: int = 41, columns: int = 21) -> FlankMap:
+def spall_map(
+    rng: np.random.Generator, depth: float, profile, face, rows: int = 41, columns: int = 21
+) -> FlankMap:
     """A spall of one flank: the crater pits leave when they join and flake off, over `profile` x
     `face` ([start, end] fractions of the active profile and of the face width), its floor rough:
     0.7-1.0 of `depth` below the flank, cell by cell."""
@@ -110,7 +139,9 @@ def spall_map(rng: np.random.Generator, depth: float, profile, face, rows: int =
     return FlankMap.of(np.where(inside, depth * rng.uniform(0.7, 1.0, roll.shape), 0.0))
 
 
-def bench_fault(health_state: str, faults: dict, teeth: int, faulty_tooth: int, rng: np.random.Generator):
+def bench_fault(
+    health_state: str, faults: dict, teeth: int, faulty_tooth: int, rng: np.random.Generator
+):
     """(the health state the model runs, per-tooth flank maps) of the bench's own form of
     `health_state` (`faults`: health state -> {form, its keys}); a state without a bench form
     runs the model's own fault (the report says so)."""
@@ -119,12 +150,16 @@ def bench_fault(health_state: str, faults: dict, teeth: int, faulty_tooth: int, 
         return health_state, ()
     form = spec["form"]
     if form not in FAULT_FORMS:
-        raise ValueError(f"virtual_bench.faults.{health_state}.form: unknown form {form!r}; "
-                         f"choose one of {list(FAULT_FORMS)}")
+        raise ValueError(
+            f"virtual_bench.faults.{health_state}.form: unknown form {form!r}; "
+            f"choose one of {list(FAULT_FORMS)}"
+        )
     maps = [None] * teeth
     if form == "pitting":
         for k in range(int(spec["teeth"])):
-            maps[(faulty_tooth + k) % teeth] = pitting_map(rng, spec["pit_depth"], spec["pitted_area"])
+            maps[(faulty_tooth + k) % teeth] = pitting_map(
+                rng, spec["pit_depth"], spec["pitted_area"]
+            )
     elif form == "spall":
         maps[faulty_tooth % teeth] = spall_map(rng, spec["depth"], spec["profile"], spec["face"])
     else:
@@ -132,8 +167,14 @@ def bench_fault(health_state: str, faults: dict, teeth: int, faulty_tooth: int, 
     return "healthy", tuple(maps)
 
 
-def bench_record(true_params: GearDrivetrainParameters, form: BenchForm, settings: SimulationSettings,
-                 rng: np.random.Generator, gears: dict, fault_maps: tuple = ()) -> tuple[dict[str, np.ndarray], float]:
+def bench_record(
+    true_params: GearDrivetrainParameters,
+    form: BenchForm,
+    settings: SimulationSettings,
+    rng: np.random.Generator,
+    gears: dict,
+    fault_maps: tuple = (),
+) -> tuple[dict[str, np.ndarray], float]:
     """One acquisition of the bench at `true_params` (speed and health state the model runs
     included) with its own gears (`bench_gears`) and damage (`fault_maps`, `bench_fault`): random
     phases of the fluctuations and bearing tones, a random start angle of the shafts, then white
@@ -141,29 +182,55 @@ def bench_record(true_params: GearDrivetrainParameters, form: BenchForm, setting
     stand where, the truth a located tooth is scored against)."""
     g = true_params.geometry
     shaft_hz = true_params.speed_rpm / 60.0
-    shaft_frequencies = (shaft_hz, shaft_hz, shaft_hz * g.teeth_pinion / g.teeth_gear,
-                         shaft_hz * g.teeth_pinion / g.teeth_gear)
-    loads = [PeriodicLoad(("motor", None), form.motor_ripple, 2 * form.line_frequency_hz,
-                          float(rng.uniform(0, 2 * math.pi)))] if form.motor_ripple else []
+    shaft_frequencies = (
+        shaft_hz,
+        shaft_hz,
+        shaft_hz * g.teeth_pinion / g.teeth_gear,
+        shaft_hz * g.teeth_pinion / g.teeth_gear,
+    )
+    loads = (
+        [
+            PeriodicLoad(
+                ("motor", None),
+                form.motor_ripple,
+                2 * form.line_frequency_hz,
+                float(rng.uniform(0, 2 * math.pi)),
+            )
+        ]
+        if form.motor_ripple
+        else []
+    )
     if form.bearing_tone_force:
         for housing, frequency in enumerate(shaft_frequencies):
             for order in form.bearing_orders:
-                loads.append(PeriodicLoad(("housing", housing), form.bearing_tone_force, order * frequency,
-                                          float(rng.uniform(0, 2 * math.pi))))
+                loads.append(
+                    PeriodicLoad(
+                        ("housing", housing),
+                        form.bearing_tone_force,
+                        order * frequency,
+                        float(rng.uniform(0, 2 * math.pi)),
+                    )
+                )
     params = true_params.replace(
-        housing_model=form.housing_model, shaft_model=form.shaft_model,
+        housing_model=form.housing_model,
+        shaft_model=form.shaft_model,
         housing_stiffness=tuple(form.housing_stiffness),
-        speed_fluctuation=form.speed_fluctuation, speed_fluctuation_hz=form.speed_fluctuation_hz,
+        speed_fluctuation=form.speed_fluctuation,
+        speed_fluctuation_hz=form.speed_fluctuation_hz,
         speed_fluctuation_phase=float(rng.uniform(0, 2 * math.pi)),
-        load_fluctuation=form.load_fluctuation, load_fluctuation_hz=form.load_fluctuation_hz,
+        load_fluctuation=form.load_fluctuation,
+        load_fluctuation_hz=form.load_fluctuation_hz,
         load_fluctuation_phase=float(rng.uniform(0, 2 * math.pi)),
         # an acquisition starts at any angle of both shafts: which gear teeth the damaged tooth
         # meets within a segment differs from record to record, as on a real rig
         start_mesh_phase=float(rng.uniform(0, math.lcm(g.teeth_pinion, g.teeth_gear))),
-        **dict(gears, damage_maps_pinion=tuple(fault_maps)))
+        **dict(gears, damage_maps_pinion=tuple(fault_maps)),
+    )
     signals = simulate(params, settings, extra_loads=loads)
-    return ({name: signal + sensor_noise(len(signal), form, rng) for name, signal in signals.items()},
-            mesh_phase_at(params, settings.settle_time))
+    return (
+        {name: signal + sensor_noise(len(signal), form, rng) for name, signal in signals.items()},
+        mesh_phase_at(params, settings.settle_time),
+    )
 
 
 def sensor_noise(n: int, form: BenchForm, rng: np.random.Generator) -> np.ndarray:

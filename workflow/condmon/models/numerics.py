@@ -1,5 +1,6 @@
 """What every exudyn model here shares: the one simulation error, explicit RK44 at a fixed step,
 and the FIR filter that decimates the sensors to the output rate."""
+
 from __future__ import annotations
 
 from contextlib import contextmanager
@@ -14,7 +15,9 @@ class SimulationError(RuntimeError):
     retries, scores or reports a failed run the same way for every system."""
 
 
-def decimation_filter(factor: int, passband: float = 0.8, attenuation_db: float = 80.0) -> np.ndarray:
+def decimation_filter(
+    factor: int, passband: float = 0.8, attenuation_db: float = 80.0
+) -> np.ndarray:
     """FIR low-pass for decimation by `factor`: flat to `passband` x the output Nyquist and
     `attenuation_db` down (Kaiser's estimate) from the output Nyquist on, so no harmonic above it
     folds back into the band (scipy's default decimation filter lets them through at -20 dB)."""
@@ -39,8 +42,15 @@ def exudyn_system():
         container.Reset()
 
 
-def solve_rk44(mbs, sensor_rate: float, steps_per_sensor_sample: int, end_time: float,
-               sparse: bool = False, sensed_accelerations: bool = True, solver: str = "RK44") -> None:
+def solve_rk44(
+    mbs,
+    sensor_rate: float,
+    steps_per_sensor_sample: int,
+    end_time: float,
+    sparse: bool = False,
+    sensed_accelerations: bool = True,
+    solver: str = "RK44",
+) -> None:
     """Integrate the assembled system `mbs` with RK44 at h = 1 / (sensor_rate x
     steps_per_sensor_sample) up to `end_time` (rounded to whole steps).
 

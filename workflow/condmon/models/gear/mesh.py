@@ -37,6 +37,7 @@ damaged tooth's slices are grouped by the depth removed and each group touches o
 
 Units: SI (m, N, Pa); stiffness in N/m along the transverse line of action.
 """
+
 from __future__ import annotations
 
 import math
@@ -68,14 +69,15 @@ def involute(angle: float) -> float:
 class GearGeometry:
     """Gear pair geometry and material; lengths in metres. Defaults: the helical-gear study's rig
     (Table 2), with the face width, bores and dedendum as assumptions of this model."""
+
     teeth_pinion: int = 29
     teeth_gear: int = 44
     normal_module: float = 2.25e-3
     pressure_angle_deg: float = 20.0
     helix_angle_deg: float = 26.0
-    face_width: float = 0.020   # not given by the study: an assumption of this model
+    face_width: float = 0.020  # not given by the study: an assumption of this model
     addendum_factor: float = 1.0
-    dedendum_factor: float = 1.25   # (h_a + c) / m_n of the standard basic rack (tip clearance 0.25)
+    dedendum_factor: float = 1.25  # (h_a + c) / m_n of the standard basic rack (tip clearance 0.25)
     youngs_modulus: float = 2.08e11  # Pa; the study's calibrated value (Table 3: 2.08e5 N/mm^2)
     poisson_ratio: float = 0.3
     bore_radius_pinion: float = 0.0125  # inner rim (shaft bore) radii for the fillet foundation
@@ -92,11 +94,15 @@ class GearGeometry:
 
     @property
     def transverse_pressure_angle(self) -> float:
-        return math.atan(math.tan(math.radians(self.pressure_angle_deg)) / math.cos(self.helix_angle))
+        return math.atan(
+            math.tan(math.radians(self.pressure_angle_deg)) / math.cos(self.helix_angle)
+        )
 
     @property
     def base_helix_angle(self) -> float:
-        return math.asin(math.sin(self.helix_angle) * math.cos(math.radians(self.pressure_angle_deg)))
+        return math.asin(
+            math.sin(self.helix_angle) * math.cos(math.radians(self.pressure_angle_deg))
+        )
 
     def pitch_radius(self, teeth: int) -> float:
         return teeth * self.transverse_module / 2.0
@@ -138,19 +144,20 @@ class GearGeometry:
     def line_of_action_length(self) -> float:
         """T1 T2: between the tangent points on the two base circles (standard centre distance)."""
         return (self.base_radius(self.teeth_pinion) + self.base_radius(self.teeth_gear)) * math.tan(
-            self.transverse_pressure_angle)
+            self.transverse_pressure_angle
+        )
 
     @property
     def path_start(self) -> float:
         """Start of contact A (gear tip on the pinion root), as distance from T1."""
         rb2, ra2 = self.base_radius(self.teeth_gear), self.tip_radius(self.teeth_gear)
-        return self.line_of_action_length - math.sqrt(ra2 ** 2 - rb2 ** 2)
+        return self.line_of_action_length - math.sqrt(ra2**2 - rb2**2)
 
     @property
     def path_end(self) -> float:
         """End of contact E (pinion tip), as distance from T1."""
         rb1, ra1 = self.base_radius(self.teeth_pinion), self.tip_radius(self.teeth_pinion)
-        return math.sqrt(ra1 ** 2 - rb1 ** 2)
+        return math.sqrt(ra1**2 - rb1**2)
 
     @property
     def pitch_point(self) -> float:
@@ -178,13 +185,16 @@ class GearGeometry:
 
     def check(self) -> None:
         if self.path_start <= 0.0:
-            raise ValueError("the gear tip reaches below the pinion's base circle (interference); "
-                             "this geometry is outside the model")
+            raise ValueError(
+                "the gear tip reaches below the pinion's base circle (interference); "
+                "this geometry is outside the model"
+            )
         if self.contact_ratio < 1.0:
             raise ValueError(f"transverse contact ratio {self.contact_ratio:.3f} < 1")
 
 
 # --- tooth compliance by the potential-energy method -------------------------------------------
+
 
 @dataclass(frozen=True)
 class ToothDamage:
@@ -197,6 +207,7 @@ class ToothDamage:
     profile: fractions of the active profile, 0 = start of contact at the pinion root, 1 = tip.
     face: fractions of the face width.
     """
+
     kind: str
     teeth: tuple = (0,)
     profile: tuple = (0.0, 1.0)
@@ -211,7 +222,9 @@ class ToothDamage:
         for name in ("profile", "face"):
             a, b = getattr(self, name)
             if not 0.0 <= a < b <= 1.0:
-                raise ValueError(f"damage {name} range must satisfy 0 <= start < end <= 1, got {(a, b)}")
+                raise ValueError(
+                    f"damage {name} range must satisfy 0 <= start < end <= 1, got {(a, b)}"
+                )
         if not 0.0 <= self.crack_depth < 1.0:
             raise ValueError(f"crack_depth must be in [0, 1), got {self.crack_depth}")
 
@@ -260,8 +273,14 @@ def root_geometry(g: GearGeometry, teeth: int):
     return rr, theta, rr * math.sin(theta)
 
 
-def tooth_compliances(g: GearGeometry, teeth: int, alpha1, width: float = 1.0, crack_depth: float = 0.0,
-                      bore_radius: float | None = None) -> dict:
+def tooth_compliances(
+    g: GearGeometry,
+    teeth: int,
+    alpha1,
+    width: float = 1.0,
+    crack_depth: float = 0.0,
+    bore_radius: float | None = None,
+) -> dict:
     """Bending, shear, axial and fillet-foundation compliances (1/K_b, 1/K_s, 1/K_a, 1/K_f in m/N) of
     one tooth of `width`, loaded along the line of action at the contact points given by alpha1
     (angle between the load and the normal of the tooth centre line; alpha1 = tan(alpha_r) - alpha2
@@ -278,32 +297,44 @@ def tooth_compliances(g: GearGeometry, teeth: int, alpha1, width: float = 1.0, c
     rr, theta_f, h_root = root_geometry(g, teeth)
     thickness = 2 * h if crack_depth <= 0 else h + np.minimum(h, (1.0 - crack_depth) * h_root)
     area = thickness * width
-    inertia = thickness ** 3 * width / 12.0
+    inertia = thickness**3 * width / 12.0
     c1, s1 = np.cos(alpha1)[:, None], np.sin(alpha1)[:, None]
     # Contact point: x_c along the centre line, h_c off it.
     x_c = rb * (np.cos(alpha1) + (alpha1 + a2) * np.sin(alpha1))[:, None]
     h_c = rb * ((alpha1 + a2) * np.cos(alpha1) - np.sin(alpha1))[:, None]
     moment = c1 * (x_c - x) - s1 * h_c  # bending moment per unit load at section x
-    bending = np.sum(w * moment ** 2 / (e_mod * inertia), axis=1)
-    shear = np.sum(w * 1.2 * c1 ** 2 / (shear_mod * area), axis=1)
-    axial = np.sum(w * s1 ** 2 / (e_mod * area), axis=1)
+    bending = np.sum(w * moment**2 / (e_mod * inertia), axis=1)
+    shear = np.sum(w * 1.2 * c1**2 / (shear_mod * area), axis=1)
+    axial = np.sum(w * s1**2 / (e_mod * area), axis=1)
     # Fillet foundation (Sainsot et al. 2004): u_f from the root circle to where the load line
     # crosses the centre line, S_f the tooth thickness (arc) on the root circle.
-    bore = bore_radius if bore_radius is not None else (
-        g.bore_radius_pinion if teeth == g.teeth_pinion else g.bore_radius_gear)
+    bore = (
+        bore_radius
+        if bore_radius is not None
+        else (g.bore_radius_pinion if teeth == g.teeth_pinion else g.bore_radius_gear)
+    )
     h_f = rr / bore
-    coeff = {k: a / theta_f ** 2 + b * h_f ** 2 + c * h_f / theta_f + d / theta_f + e * h_f + f
-             for k, (a, b, c, d, e, f) in SAINSOT_COEFFICIENTS.items()}
+    coeff = {
+        k: a / theta_f**2 + b * h_f**2 + c * h_f / theta_f + d / theta_f + e * h_f + f
+        for k, (a, b, c, d, e, f) in SAINSOT_COEFFICIENTS.items()
+    }
     u_f = (x_c - h_c * np.tan(alpha1)[:, None])[:, 0] - rr * math.cos(theta_f)
     ratio = u_f / (2 * rr * theta_f)
-    fillet = np.cos(alpha1) ** 2 / (e_mod * width) * (
-        coeff["L"] * ratio ** 2 + coeff["M"] * ratio + coeff["P"] * (1 + coeff["Q"] * np.tan(alpha1) ** 2))
+    fillet = (
+        np.cos(alpha1) ** 2
+        / (e_mod * width)
+        * (
+            coeff["L"] * ratio**2
+            + coeff["M"] * ratio
+            + coeff["P"] * (1 + coeff["Q"] * np.tan(alpha1) ** 2)
+        )
+    )
     return {"bending": bending, "shear": shear, "axial": axial, "fillet": fillet}
 
 
 def hertz_compliance(g: GearGeometry, width: float = 1.0) -> float:
     """1/K_h of the study's eq. 1, K_h = pi E L / (4 (1 - nu^2)), both gears of the same material."""
-    return 4 * (1 - g.poisson_ratio ** 2) / (math.pi * g.youngs_modulus * width)
+    return 4 * (1 - g.poisson_ratio**2) / (math.pi * g.youngs_modulus * width)
 
 
 def pair_stiffness_per_width(g: GearGeometry, s, pinion_crack: float = 0.0) -> np.ndarray:
@@ -326,12 +357,12 @@ def iso6336_mesh_stiffness(g: GearGeometry) -> float:
     beta, beta_b = g.helix_angle, g.base_helix_angle
     zn1 = g.teeth_pinion / (math.cos(beta_b) ** 2 * math.cos(beta))
     zn2 = g.teeth_gear / (math.cos(beta_b) ** 2 * math.cos(beta))
-    q_min = 0.04723 + 0.15551 / zn1 + 0.25791 / zn2   # mm um / N, x1 = x2 = 0
+    q_min = 0.04723 + 0.15551 / zn1 + 0.25791 / zn2  # mm um / N, x1 = x2 = 0
     c_th = 1.0 / q_min
     c_b = (1 + 0.5 * (1.2 - g.dedendum_factor)) * (1 - 0.02 * (20.0 - g.pressure_angle_deg))
-    c_single = c_th * 0.8 * 1.0 * c_b * math.cos(beta)          # c', N/(mm um)
+    c_single = c_th * 0.8 * 1.0 * c_b * math.cos(beta)  # c', N/(mm um)
     c_gamma_alpha = c_single * (0.75 * g.contact_ratio + 0.25)  # N/(mm um)
-    return c_gamma_alpha * 1e9 * g.face_width                   # N/(mm um) = 1e9 N/m per m
+    return c_gamma_alpha * 1e9 * g.face_width  # N/(mm um) = 1e9 N/m per m
 
 
 # --- tables over the mesh phase -------------------------------------------------------------------
@@ -346,6 +377,7 @@ class ContactGroup:
     """One contact of a tooth pair over its mesh phase u = i / points_per_pitch:
     stiffness K(u) (N/m, linear TVMS of this group) and profile deviation e(u) (m; the group's
     deflection is the mesh deflection minus e)."""
+
     stiffness: np.ndarray
     deviation: np.ndarray
 
@@ -355,6 +387,7 @@ class ProfileDeviation:
     """Profile deviations of every tooth pair (static transmission error): a sinusoid of
     `amplitude` with one period per base pitch (zero at the pitch point) and linear tip relief of
     `tip_relief` depth at both tips, from the highest / lowest point of single tooth contact."""
+
     amplitude: float = 0.0
     tip_relief: float = 0.0
 
@@ -362,8 +395,10 @@ class ProfileDeviation:
         e = self.amplitude * np.sin(2 * math.pi * (s - g.pitch_point) / g.base_pitch)
         if self.tip_relief:
             start, end, pb = g.path_start, g.path_end, g.base_pitch
-            e = e + self.tip_relief * (np.clip((s - (start + pb)) / (end - start - pb), 0, 1)
-                                       + np.clip(((end - pb) - s) / (end - start - pb), 0, 1))
+            e = e + self.tip_relief * (
+                np.clip((s - (start + pb)) / (end - start - pb), 0, 1)
+                + np.clip(((end - pb) - s) / (end - start - pb), 0, 1)
+            )
         return e
 
 
@@ -372,6 +407,7 @@ class GearMesh:
     """Potential-energy TVMS of a gear pair, sliced over the face width, as tables over the mesh
     phase of one tooth pair. Build once per parameter set; `groups(tooth)` are what the
     drivetrain's mesh force interpolates."""
+
     geometry: GearGeometry = field(default_factory=GearGeometry)
     slices: int = 80
     points_per_pitch: int = 200
@@ -405,7 +441,9 @@ class GearMesh:
         # Contact position of every slice's centre at every phase (n, M), and the share of its
         # contact line inside the path of contact
         shift = self.z * math.tan(g.base_helix_angle)
-        self.slice_span = dz * math.tan(g.base_helix_angle)  # the positions one slice's contact line covers
+        self.slice_span = dz * math.tan(
+            g.base_helix_angle
+        )  # the positions one slice's contact line covers
         self.s_slice = g.path_start + self.u[:, None] * g.base_pitch - shift[None, :]
         self.inside = self._profile_coverage(g.path_start, g.path_end)
         self.slice_stiffness = self.inside * np.interp(self.s_slice, self.s, self.k_per_width) * dz
@@ -417,8 +455,11 @@ class GearMesh:
                 raise ValueError(
                     f"overlap ratio {g.overlap_ratio:.3f} (near a whole number) averages a sinusoidal "
                     f"profile deviation out of the transmission error (gain {self.sine_te_gain:.3f}); "
-                    "set transmission_error to 0 or change the face width")
-            deviation = ProfileDeviation(self.transmission_error / self.sine_te_gain, deviation.tip_relief)
+                    "set transmission_error to 0 or change the face width"
+                )
+            deviation = ProfileDeviation(
+                self.transmission_error / self.sine_te_gain, deviation.tip_relief
+            )
         self.flank_amplitude = deviation.amplitude
         self.slice_deviation = deviation(g, self.s_slice)
         self._healthy = self._groups_from(self.slice_stiffness, None)
@@ -447,11 +488,16 @@ class GearMesh:
                 extra = None if flank is None else points.values(flank)
                 if damage is not None:
                     if damaged:
-                        raise ValueError(f"pinion tooth {tooth}: a damage map and a {self.damage.kind} at once")
+                        raise ValueError(
+                            f"pinion tooth {tooth}: a damage map and a {self.damage.kind} at once"
+                        )
                     cache[key] = self._damage_groups(extra, points.values(damage))
                 else:
-                    cache[key] = (self._damaged_groups(extra) if damaged
-                                  else self._groups_from(self.slice_stiffness, extra))
+                    cache[key] = (
+                        self._damaged_groups(extra)
+                        if damaged
+                        else self._groups_from(self.slice_stiffness, extra)
+                    )
             groups.append(cache[key])
         return groups
 
@@ -483,16 +529,21 @@ class GearMesh:
         k_mesh, ke_mesh = np.zeros(ppp), np.zeros(ppp)
         for shift in range(0, len(k), ppp):  # pairs j = 0, -1, ... at u = phase + |j|
             part = slice(shift, min(shift + ppp, len(k)))
-            k_mesh[:part.stop - part.start] += k[part]
-            ke_mesh[:part.stop - part.start] += ke[part]
+            k_mesh[: part.stop - part.start] += k[part]
+            ke_mesh[: part.stop - part.start] += ke[part]
         te = ke_mesh / k_mesh
         return float(2 * abs(np.fft.rfft(te)[1]) / ppp)
 
     def _groups_from(self, stiffness: np.ndarray, extra_deviation) -> list[ContactGroup]:
         total = stiffness.sum(axis=1)
-        deviation = self.slice_deviation if extra_deviation is None else self.slice_deviation + extra_deviation
-        weighted = np.divide((stiffness * deviation).sum(axis=1), total, out=np.zeros_like(total),
-                             where=total > 0)
+        deviation = (
+            self.slice_deviation
+            if extra_deviation is None
+            else self.slice_deviation + extra_deviation
+        )
+        weighted = np.divide(
+            (stiffness * deviation).sum(axis=1), total, out=np.zeros_like(total), where=total > 0
+        )
         # Outside the group's contact, hold the nearest deviation (no jumps at the edges).
         if np.any(total > 0):
             idx = np.flatnonzero(total > 0)
@@ -529,7 +580,9 @@ class GearMesh:
             return self._groups_from(stiffness, extra)
         coverage = self._face_coverage(d.face)[None, :]
         g = self.geometry
-        at = [g.path_start + fraction * (g.path_end - g.path_start) for fraction in d.profile]  # along the path
+        at = [
+            g.path_start + fraction * (g.path_end - g.path_start) for fraction in d.profile
+        ]  # along the path
         if d.kind == "chip":
             region = coverage * self._profile_coverage(at[0], g.path_end)
             return self._groups_from(self.slice_stiffness * (1 - region), extra)

@@ -1,4 +1,5 @@
-"""Small but contract-conforming train and calibration outputs for report/tracking tests.
+"""Small but contract-conforming train and calibration outputs for the report and tracking tests
+and the tracking benchmark (benchmarks/track_logging.py; the tests find it through conftest.py).
 
 By default two classifiers x two protocols (record_split; condition_holdout over two speeds),
 measured percentages 0 and 50, two repeats; real fitted sklearn pipelines on a six-feature table.
@@ -6,6 +7,7 @@ Every size is a parameter of ``build`` (the tracking benchmark builds a default-
 see ``default_run_size``); the models, their ``info.json`` and the CNN's training history are
 written by condmon.train itself.
 """
+
 from __future__ import annotations
 
 import inspect
@@ -30,31 +32,43 @@ SPEEDS = [600.0, 900.0]
 PERCENTS = [0, 50]
 REPEATS = [0, 1]
 CLASSIFIERS = {"knn": {"n_neighbors": 3}, "logreg": {"C": 1.0, "max_iter": 200}}
-PROTOCOL_HOLDOUTS = {"record_split": [""],
-                     "condition_holdout": ["speed_rpm=600", "speed_rpm=900"]}
+PROTOCOL_HOLDOUTS = {"record_split": [""], "condition_holdout": ["speed_rpm=600", "speed_rpm=900"]}
 FEATURES = [f"fft_A1_x_{f:06.1f}Hz" for f in (10, 20, 30, 40, 50, 60)]
 ID_COLUMNS = ["record_id", "segment", "source", "health_state", "speed_rpm", "load", "fs_hz"]
 
 
-def _features_table(rng, source: str, n_per_stratum: int, speeds=SPEEDS,
-                    features=FEATURES) -> pd.DataFrame:
+def _features_table(
+    rng, source: str, n_per_stratum: int, speeds=SPEEDS, features=FEATURES
+) -> pd.DataFrame:
     rows = []
     for label_index, label in enumerate(LABELS):
         for speed in speeds:
             for k in range(n_per_stratum):
                 for segment in range(2):
                     values = rng.normal(label_index, 1.1, len(features)).astype(np.float32)
-                    rows.append({"record_id": f"{source}_{label}_{speed:g}_{k}",
-                                 "segment": segment, "source": source, "health_state": label,
-                                 "speed_rpm": speed, "load": 1.0, "fs_hz": 5000.0,
-                                 **dict(zip(features, values))})
+                    rows.append(
+                        {
+                            "record_id": f"{source}_{label}_{speed:g}_{k}",
+                            "segment": segment,
+                            "source": source,
+                            "health_state": label,
+                            "speed_rpm": speed,
+                            "load": 1.0,
+                            "fs_hz": 5000.0,
+                            **dict(zip(features, values)),
+                        }
+                    )
     return pd.DataFrame(rows)
 
 
 def _write_features(frame: pd.DataFrame, path: Path, features=FEATURES) -> None:
     table = pa.Table.from_pandas(frame, preserve_index=False)
-    table = table.replace_schema_metadata({b"condmon.feature_names": json.dumps(features).encode(),
-                                           b"condmon.feature_kind": b"spectrum"})
+    table = table.replace_schema_metadata(
+        {
+            b"condmon.feature_names": json.dumps(features).encode(),
+            b"condmon.feature_kind": b"spectrum",
+        }
+    )
     path.parent.mkdir(parents=True, exist_ok=True)
     pq.write_table(table, path)
 
@@ -81,18 +95,35 @@ def default_run_size(cnn: dict | None = None) -> dict:
     features (4 channels x 1000 bands). ``cnn``: the CNN's settings (the default run's, unless
     given: ten members, 25 epochs)."""
     speeds = [450.0, 775.0, 1100.0]
-    features = [f"fft_{ch}_{f:07.1f}Hz" for ch in ("A1_x", "A1_y", "A2_x", "A2_y")
-                for f in np.arange(1.0, 2000.0, 2.0)]
+    features = [
+        f"fft_{ch}_{f:07.1f}Hz"
+        for ch in ("A1_x", "A1_y", "A2_x", "A2_y")
+        for f in np.arange(1.0, 2000.0, 2.0)
+    ]
     cnn = cnn or {"members": 10, "epochs": 25, "conv_channels": [4, 8], "dense_units": [16]}
-    return dict(classifiers={"svm": {"C": 1.2, "gamma": "scale"},
-                             "knn": {"n_neighbors": 5, "weights": "uniform"}, "cnn": cnn},
-                percents=list(range(0, 101, 10)), repeats=[0, 1, 2], speeds=speeds,
-                features=features, selection={"cnn": {"measured_percent": [0, 50, 100],
-                                                      "repeats": 2}})
+    return dict(
+        classifiers={
+            "svm": {"C": 1.2, "gamma": "scale"},
+            "knn": {"n_neighbors": 5, "weights": "uniform"},
+            "cnn": cnn,
+        },
+        percents=list(range(0, 101, 10)),
+        repeats=[0, 1, 2],
+        speeds=speeds,
+        features=features,
+        selection={"cnn": {"measured_percent": [0, 50, 100], "repeats": 2}},
+    )
 
 
-def build(root: Path, classifiers: dict | None = None, percents=PERCENTS, repeats=REPEATS,
-          speeds=SPEEDS, features=FEATURES, selection: dict | None = None) -> dict:
+def build(
+    root: Path,
+    classifiers: dict | None = None,
+    percents=PERCENTS,
+    repeats=REPEATS,
+    speeds=SPEEDS,
+    features=FEATURES,
+    selection: dict | None = None,
+) -> dict:
     """Write the fake outputs under ``root`` (a results/<run> directory); returns the paths.
 
     ``classifiers``: name -> params (default CLASSIFIERS); ``selection``: name -> the
@@ -113,14 +144,16 @@ def build(root: Path, classifiers: dict | None = None, percents=PERCENTS, repeat
         simulated[simulated["health_state"] == label][ID_COLUMNS].to_parquet(path, index=False)
         simulated_signals.append(path)
     records = measured["record_id"].unique()
-    protocol_holdouts = {"record_split": [""],
-                         "condition_holdout": [f"speed_rpm={s:g}" for s in speeds]}
+    protocol_holdouts = {
+        "record_split": [""],
+        "condition_holdout": [f"speed_rpm={s:g}" for s in speeds],
+    }
 
     paths = {"metrics": [], "predictions": [], "models": [], "info": []}
     for clf, params in classifiers.items():
         subset = (selection or {}).get(clf, {})
         clf_percents = subset.get("measured_percent") or percents
-        clf_repeats = list(repeats)[:subset.get("repeats") or len(repeats)]
+        clf_repeats = list(repeats)[: subset.get("repeats") or len(repeats)]
         for protocol, holdouts in protocol_holdouts.items():
             out = root / "train" / clf / protocol
             out.mkdir(parents=True, exist_ok=True)
@@ -134,65 +167,112 @@ def build(root: Path, classifiers: dict | None = None, percents=PERCENTS, repeat
                             test_mask = measured["speed_rpm"] == held_speed
                             candidates = measured.loc[~test_mask, "record_id"].unique()
                         else:
-                            test_records = split_rng.choice(records, len(records) // 2,
-                                                            replace=False)
+                            test_records = split_rng.choice(
+                                records, len(records) // 2, replace=False
+                            )
                             test_mask = measured["record_id"].isin(test_records)
                             candidates = measured.loc[~test_mask, "record_id"].unique()
                         n_train = int(round(len(candidates) * percent / 100))
                         train_records = split_rng.choice(candidates, n_train, replace=False)
-                        train = pd.concat([simulated,
-                                           measured[measured["record_id"].isin(train_records)]])
+                        train = pd.concat(
+                            [simulated, measured[measured["record_id"].isin(train_records)]]
+                        )
                         test = measured[test_mask]
                         # bare float32 arrays, as the train stage fits them
-                        model = _fit(_make_classifier(clf, params),
-                                     train[features].to_numpy(np.float32),
-                                     train["health_state"].to_numpy(),
-                                     train["record_id"].to_numpy(), features)
+                        model = _fit(
+                            _make_classifier(clf, params),
+                            train[features].to_numpy(np.float32),
+                            train["health_state"].to_numpy(),
+                            train["record_id"].to_numpy(),
+                            features,
+                        )
                         models[(percent, repeat, holdout)] = model
                         x_test = test[features].to_numpy(np.float32)
                         if hasattr(model, "predict_with_uncertainty"):  # the CNN ensemble
                             predicted, uncertainty = model.predict_with_uncertainty(x_test)
                         else:
                             predicted, uncertainty = model.predict(x_test), np.nan
-                        prediction_frames.append(pd.DataFrame({
-                            "protocol": protocol, "measured_percent": np.int32(percent),
-                            "repeat": np.int32(repeat), "holdout": holdout,
-                            "record_id": test["record_id"].to_numpy(),
-                            "segment": test["segment"].to_numpy(np.int32),
-                            "speed_rpm": test["speed_rpm"].to_numpy(),
-                            "true_label": test["health_state"].to_numpy(),
-                            "predicted_label": predicted, "uncertainty": uncertainty}))
-                        common = {"classifier": clf, "protocol": protocol,
-                                  "measured_percent": percent, "repeat": repeat,
-                                  "holdout": holdout,
-                                  "n_train_simulated": len(simulated),
-                                  "n_train_measured": len(train) - len(simulated),
-                                  "fit_seconds": 0.01}
+                        prediction_frames.append(
+                            pd.DataFrame(
+                                {
+                                    "protocol": protocol,
+                                    "measured_percent": np.int32(percent),
+                                    "repeat": np.int32(repeat),
+                                    "holdout": holdout,
+                                    "record_id": test["record_id"].to_numpy(),
+                                    "segment": test["segment"].to_numpy(np.int32),
+                                    "speed_rpm": test["speed_rpm"].to_numpy(),
+                                    "true_label": test["health_state"].to_numpy(),
+                                    "predicted_label": predicted,
+                                    "uncertainty": uncertainty,
+                                }
+                            )
+                        )
+                        common = {
+                            "classifier": clf,
+                            "protocol": protocol,
+                            "measured_percent": percent,
+                            "repeat": repeat,
+                            "holdout": holdout,
+                            "n_train_simulated": len(simulated),
+                            "n_train_measured": len(train) - len(simulated),
+                            "fit_seconds": 0.01,
+                        }
                         truth = test["health_state"].to_numpy()
-                        metric_rows.append({**common, "speed_rpm": None,
-                                            "accuracy": accuracy_score(truth, predicted),
-                                            "macro_f1": f1_score(truth, predicted, average="macro"),
-                                            "n_test": len(test)})
+                        metric_rows.append(
+                            {
+                                **common,
+                                "speed_rpm": None,
+                                "accuracy": accuracy_score(truth, predicted),
+                                "macro_f1": f1_score(truth, predicted, average="macro"),
+                                "n_test": len(test),
+                            }
+                        )
                         for speed in sorted(test["speed_rpm"].unique()):
                             at = (test["speed_rpm"] == speed).to_numpy()
-                            metric_rows.append({
-                                **common, "speed_rpm": speed,
-                                "accuracy": accuracy_score(truth[at], predicted[at]),
-                                "macro_f1": f1_score(truth[at], predicted[at], average="macro"),
-                                "n_test": int(at.sum())})
-            columns = ["classifier", "protocol", "measured_percent", "repeat", "holdout",
-                       "speed_rpm", "accuracy", "macro_f1", "n_train_simulated",
-                       "n_train_measured", "n_test", "fit_seconds"]
+                            metric_rows.append(
+                                {
+                                    **common,
+                                    "speed_rpm": speed,
+                                    "accuracy": accuracy_score(truth[at], predicted[at]),
+                                    "macro_f1": f1_score(truth[at], predicted[at], average="macro"),
+                                    "n_test": int(at.sum()),
+                                }
+                            )
+            columns = [
+                "classifier",
+                "protocol",
+                "measured_percent",
+                "repeat",
+                "holdout",
+                "speed_rpm",
+                "accuracy",
+                "macro_f1",
+                "n_train_simulated",
+                "n_train_measured",
+                "n_test",
+                "fit_seconds",
+            ]
             metrics = pd.DataFrame(metric_rows)[columns]
             metrics.to_csv(out / "metrics.csv", index=False)
             pd.concat(prediction_frames).to_parquet(out / "predictions.parquet", index=False)
             # named and listed as the train stage does (zero-padded percent, holdout index)
             entries = write_models(models, out / "models", features)
-            complete = (registry.classifier_params(clf, params)
-                        if clf in registry.CLASSIFIERS else params)
-            (out / "info.json").write_text(json.dumps({  # the keys of condmon.train.train_info used
-                "classifier": clf, "classifier_params": complete, "protocol": protocol,
-                "labels": LABELS, "models": entries, "selection": subset}))
+            complete = (
+                registry.classifier_params(clf, params) if clf in registry.CLASSIFIERS else params
+            )
+            (out / "info.json").write_text(
+                json.dumps(
+                    {  # the keys of condmon.train.train_info used
+                        "classifier": clf,
+                        "classifier_params": complete,
+                        "protocol": protocol,
+                        "labels": LABELS,
+                        "models": entries,
+                        "selection": subset,
+                    }
+                )
+            )
             paths["metrics"].append(out / "metrics.csv")
             paths["predictions"].append(out / "predictions.parquet")
             paths["models"].append(out / "models")
@@ -200,31 +280,53 @@ def build(root: Path, classifiers: dict | None = None, percents=PERCENTS, repeat
 
     calibration = root / "calibration"
     calibration.mkdir(parents=True, exist_ok=True)
-    (calibration / "params.json").write_text(json.dumps({
-        "model_variant": "hertz", "parameters": {"stiffness": 1.2e8, "damping": 0.02},
-        "cost": 0.031, "evaluations": 40}))
+    (calibration / "params.json").write_text(
+        json.dumps(
+            {
+                "model_variant": "hertz",
+                "parameters": {"stiffness": 1.2e8, "damping": 0.02},
+                "cost": 0.031,
+                "evaluations": 40,
+            }
+        )
+    )
     freqs = np.linspace(5, 2500, 200)
     spectra = []
     for speed in SPEEDS:
         for channel in ("A1_x", "A1_y"):
-            base = 1.0 / (1 + freqs / 200) + 0.5 * np.exp(-((freqs - speed / 60 * 23) / 15) ** 2)
-            spectra.append(pd.DataFrame({"speed_rpm": speed, "channel": channel, "freq_hz": freqs,
-                                         "measured": base * rng.uniform(0.8, 1.2, len(freqs)),
-                                         "calibrated": base}))
+            base = 1.0 / (1 + freqs / 200) + 0.5 * np.exp(-(((freqs - speed / 60 * 23) / 15) ** 2))
+            spectra.append(
+                pd.DataFrame(
+                    {
+                        "speed_rpm": speed,
+                        "channel": channel,
+                        "freq_hz": freqs,
+                        "measured": base * rng.uniform(0.8, 1.2, len(freqs)),
+                        "calibrated": base,
+                    }
+                )
+            )
     pd.concat(spectra).to_parquet(calibration / "spectra.parquet", index=False)
-    history = pd.DataFrame({"generation": np.arange(40) // 8, "evaluation": np.arange(40),
-                            "model_variant": np.where(np.arange(40) % 2, "hertz", "linear"),
-                            "cost": np.abs(rng.normal(1, 0.5, 40)) / (1 + np.arange(40) / 4),
-                            "stiffness": rng.uniform(1e7, 1e9, 40)})
+    history = pd.DataFrame(
+        {
+            "generation": np.arange(40) // 8,
+            "evaluation": np.arange(40),
+            "model_variant": np.where(np.arange(40) % 2, "hertz", "linear"),
+            "cost": np.abs(rng.normal(1, 0.5, 40)) / (1 + np.arange(40) / 4),
+            "stiffness": rng.uniform(1e7, 1e9, 40),
+        }
+    )
     history.loc[5, "cost"] = np.inf  # a failed simulation
     history.to_parquet(calibration / "history.parquet", index=False)
-    paths.update(calibration_params=calibration / "params.json",
-                 calibration_spectra=calibration / "spectra.parquet",
-                 calibration_history=calibration / "history.parquet",
-                 features_measured=root / "features/measured.parquet",
-                 features_simulated=root / "features/simulated.parquet",
-                 measured_signals=root / "measured_signals.parquet",
-                 simulated_signals=simulated_signals)
+    paths.update(
+        calibration_params=calibration / "params.json",
+        calibration_spectra=calibration / "spectra.parquet",
+        calibration_history=calibration / "history.parquet",
+        features_measured=root / "features/measured.parquet",
+        features_simulated=root / "features/simulated.parquet",
+        measured_signals=root / "measured_signals.parquet",
+        simulated_signals=simulated_signals,
+    )
     return paths
 
 
@@ -240,34 +342,53 @@ exec(compile(open(args["script"]).read(), args["script"], "exec"),
 """
 
 
-def track_job(paths: dict, tracking_uri: str, workdir: Path, config_hash: str = "h",
-              run_name: str = "demo", config: dict | None = None, log_models="all") -> list[str]:
+def track_job(
+    paths: dict,
+    tracking_uri: str,
+    workdir: Path,
+    config_hash: str = "h",
+    run_name: str = "demo",
+    config: dict | None = None,
+    log_models="all",
+) -> list[str]:
     """The command line that runs workflow/scripts/track.py as the `track` rule does (a fresh
     Python, `snakemake` injected) on the outputs of ``build``; log and mlflow_run.json go to
     ``workdir``."""
     import sys
 
-    from conftest import SCRIPTS
-    script = SCRIPTS / "track.py"
-    args = dict(script=str(script), log=str(workdir / "track.log"),
-                params=dict(tracking_uri=tracking_uri, run_name=run_name, config_hash=config_hash,
-                            data_source="virtual_bench", config=config or {"run_name": run_name},
-                            log_models=log_models, healthy_state="healthy"),
-                input=dict(info=list(map(str, paths["info"])),
-                           features_measured=str(paths["features_measured"]),
-                           features_simulated=str(paths["features_simulated"]),
-                           measured_signals=str(paths["measured_signals"]),
-                           simulated_signals=list(map(str, paths["simulated_signals"]))),
-                output=dict(run_info=str(workdir / "mlflow_run.json")))
+    script = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "track.py"
+    args = dict(
+        script=str(script),
+        log=str(workdir / "track.log"),
+        params=dict(
+            tracking_uri=tracking_uri,
+            run_name=run_name,
+            config_hash=config_hash,
+            data_source="virtual_bench",
+            config=config or {"run_name": run_name},
+            log_models=log_models,
+            healthy_state="healthy",
+        ),
+        input=dict(
+            info=list(map(str, paths["info"])),
+            features_measured=str(paths["features_measured"]),
+            features_simulated=str(paths["features_simulated"]),
+            measured_signals=str(paths["measured_signals"]),
+            simulated_signals=list(map(str, paths["simulated_signals"])),
+        ),
+        output=dict(run_info=str(workdir / "mlflow_run.json")),
+    )
     return [sys.executable, "-c", TRACK_RUNNER, json.dumps(args)]
 
 
 def datasets(paths: dict) -> dict:
     """``log_pipeline_run``'s datasets argument for the outputs of ``build``."""
-    return {"measured_signals": [paths["measured_signals"]],
-            "simulated_signals": paths["simulated_signals"],
-            "measured_features": [paths["features_measured"]],
-            "simulated_features": [paths["features_simulated"]]}
+    return {
+        "measured_signals": [paths["measured_signals"]],
+        "simulated_signals": paths["simulated_signals"],
+        "measured_features": [paths["features_measured"]],
+        "simulated_features": [paths["features_simulated"]],
+    }
 
 
 def train_dirs(paths: dict) -> list[Path]:
@@ -282,26 +403,41 @@ def report_inputs(paths: dict, out: Path, **parts):
     takes tables by name beside summary and plots, e.g. outputs={"headline": out / "headline.csv"}."""
     from dataclasses import replace
 
-    from condmon.report.inputs import (CalibrationOutputs, EvaluationInputs, ReportInputs,
-                                       ReportOutputs, RunIdentity, TrainOutputs)
+    from condmon.report.inputs import (
+        CalibrationOutputs,
+        EvaluationInputs,
+        ReportInputs,
+        ReportOutputs,
+        RunIdentity,
+        TrainOutputs,
+    )
 
     outputs = dict(parts.pop("outputs", {}))
     files = {key: outputs.pop(key) for key in ("summary", "plots") if key in outputs}
     inputs = ReportInputs(
         run=RunIdentity(run_name="demo", data_source="virtual_bench", healthy_state="healthy"),
         train=TrainOutputs(metrics=paths["metrics"], predictions=paths["predictions"]),
-        calibration=CalibrationOutputs(params=paths["calibration_params"],
-                                       spectra=paths["calibration_spectra"],
-                                       history=paths["calibration_history"]),
+        calibration=CalibrationOutputs(
+            params=paths["calibration_params"],
+            spectra=paths["calibration_spectra"],
+            history=paths["calibration_history"],
+        ),
         evaluation=EvaluationInputs(confusion_percent=[0]),
-        outputs=ReportOutputs(summary=files.get("summary", out / "summary.json"),
-                              plots=files.get("plots", out / "plots"),
-                              tables={"accuracy": out / "accuracy.csv",
-                                      "evaluation": out / "evaluation.csv",
-                                      "evaluation_summary": out / "evaluation_summary.csv",
-                                      **outputs}))
-    return replace(inputs, **{group: replace(getattr(inputs, group), **fields)
-                              for group, fields in parts.items()})
+        outputs=ReportOutputs(
+            summary=files.get("summary", out / "summary.json"),
+            plots=files.get("plots", out / "plots"),
+            tables={
+                "accuracy": out / "accuracy.csv",
+                "evaluation": out / "evaluation.csv",
+                "evaluation_summary": out / "evaluation_summary.csv",
+                **outputs,
+            },
+        ),
+    )
+    return replace(
+        inputs,
+        **{group: replace(getattr(inputs, group), **fields) for group, fields in parts.items()},
+    )
 
 
 def write_report(paths: dict, out: Path, **parts) -> dict:

@@ -18,6 +18,7 @@ pinion root, 1 at its tip) and the face (columns: fraction of the face width). T
 (`mesh.GearMesh`) lowers the contact of every slice by the map at its contact point, so
 manufacturing deviations, wear and a virtual bench's own damage are one kind of input.
 """
+
 from __future__ import annotations
 
 import math
@@ -31,28 +32,34 @@ GRADE_STEP = math.sqrt(2.0)
 @dataclass(frozen=True)
 class IsoTolerances:
     """ISO 1328-1 tolerances of one gear at one grade, m."""
-    single_pitch: float       # f_pt
-    cumulative_pitch: float   # F_p
-    profile: float            # F_alpha
-    helix: float              # F_beta
-    runout: float             # F_r (radial run-out, twice the eccentricity)
+
+    single_pitch: float  # f_pt
+    cumulative_pitch: float  # F_p
+    profile: float  # F_alpha
+    helix: float  # F_beta
+    runout: float  # F_r (radial run-out, twice the eccentricity)
 
 
-def iso1328_tolerances(grade: float, normal_module: float, reference_diameter: float,
-                       face_width: float) -> IsoTolerances:
+def iso1328_tolerances(
+    grade: float, normal_module: float, reference_diameter: float, face_width: float
+) -> IsoTolerances:
     """The unrounded ISO 1328-1:1995 tolerances (SI in, m out) of a gear of accuracy `grade`
     (grade 5 formulas times sqrt(2)^(grade - 5); fractional grades interpolate geometrically)."""
     if not 1 <= grade <= 12:
-        raise ValueError(f"ISO 1328-1 accuracy grade {grade}: the standard defines grades 1 to 12 "
-                         "(ground gears 4-6, hobbed 7-9)")
+        raise ValueError(
+            f"ISO 1328-1 accuracy grade {grade}: the standard defines grades 1 to 12 "
+            "(ground gears 4-6, hobbed 7-9)"
+        )
     m, d, b = normal_module * 1e3, reference_diameter * 1e3, face_width * 1e3
     scale = GRADE_STEP ** (grade - 5) * 1e-6
     cumulative = 0.3 * m + 1.25 * math.sqrt(d) + 7
-    return IsoTolerances(single_pitch=(0.3 * (m + 0.4 * math.sqrt(d)) + 4) * scale,
-                         cumulative_pitch=cumulative * scale,
-                         profile=(3.2 * math.sqrt(m) + 0.22 * math.sqrt(d) + 0.7) * scale,
-                         helix=(0.1 * math.sqrt(d) + 0.63 * math.sqrt(b) + 4.2) * scale,
-                         runout=0.8 * cumulative * scale)
+    return IsoTolerances(
+        single_pitch=(0.3 * (m + 0.4 * math.sqrt(d)) + 4) * scale,
+        cumulative_pitch=cumulative * scale,
+        profile=(3.2 * math.sqrt(m) + 0.22 * math.sqrt(d) + 0.7) * scale,
+        helix=(0.1 * math.sqrt(d) + 0.63 * math.sqrt(b) + 4.2) * scale,
+        runout=0.8 * cumulative * scale,
+    )
 
 
 @dataclass(frozen=True)
@@ -60,6 +67,7 @@ class FlankMap:
     """Material removed from a tooth flank (m; negative: proud material) on a grid: rows over the
     active profile (roll fraction 0..1), columns over the face width (0..1), both evenly spaced.
     One row or one column means constant along that direction."""
+
     values: tuple  # rows of columns
 
     @staticmethod
@@ -110,11 +118,24 @@ class FlankPoints:
             i, fx = _cell(self.roll, rows)
             j, fy = _cell(self.face, cols)
             i1, j1 = np.minimum(i + 1, rows - 1), np.minimum(j + 1, cols - 1)
-            cells = self._cells[grid.shape] = (i * cols + j, i1 * cols + j, i * cols + j1, i1 * cols + j1,
-                                               (1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy)
+            cells = self._cells[grid.shape] = (
+                i * cols + j,
+                i1 * cols + j,
+                i * cols + j1,
+                i1 * cols + j1,
+                (1 - fx) * (1 - fy),
+                fx * (1 - fy),
+                (1 - fx) * fy,
+                fx * fy,
+            )
         c00, c10, c01, c11, w00, w10, w01, w11 = cells
         flat = grid.ravel()  # take on the flat grid: a tenth of the time of 2-d fancy indexing
-        return w00 * flat.take(c00) + w10 * flat.take(c10) + w01 * flat.take(c01) + w11 * flat.take(c11)
+        return (
+            w00 * flat.take(c00)
+            + w10 * flat.take(c10)
+            + w01 * flat.take(c01)
+            + w11 * flat.take(c11)
+        )
 
 
 def _cell(fraction: np.ndarray, points: int) -> tuple[np.ndarray, np.ndarray]:
@@ -141,6 +162,7 @@ def add_flank_maps(first: tuple, second: tuple) -> tuple:
 class GearErrors:
     """One manufactured gear: tooth position (cumulative pitch) deviations, m, per tooth; the flank
     map of every tooth (profile and helix deviations); the eccentricity (m) and its phase."""
+
     grade: float
     tolerances: IsoTolerances
     pitch_deviations: tuple
@@ -159,9 +181,17 @@ class GearErrors:
         return float(p.max() - p.min())
 
 
-def draw_gear_errors(rng: np.random.Generator, grade: float, teeth: int, normal_module: float,
-                     reference_diameter: float, face_width: float, deviation_share: float = 0.7,
-                     misalignment: float = 0.0, profile_rows: int = 5) -> GearErrors:
+def draw_gear_errors(
+    rng: np.random.Generator,
+    grade: float,
+    teeth: int,
+    normal_module: float,
+    reference_diameter: float,
+    face_width: float,
+    deviation_share: float = 0.7,
+    misalignment: float = 0.0,
+    profile_rows: int = 5,
+) -> GearErrors:
     """One gear of accuracy `grade`: every deviation `deviation_share` (0..1] of its tolerance at
     most, shaped as follows.
 
@@ -173,32 +203,50 @@ def draw_gear_errors(rng: np.random.Generator, grade: float, teeth: int, normal_
       share x F_alpha; helix: one slope across the face for all teeth plus `misalignment` (m of
       mesh misalignment across the face: the shafts' non-parallelism seen at the flank)."""
     if not 0 <= deviation_share <= 1:
-        raise ValueError(f"deviation_share {deviation_share}: a share of the tolerance in [0, 1] (0: a perfect gear)")
+        raise ValueError(
+            f"deviation_share {deviation_share}: a share of the tolerance in [0, 1] (0: a perfect gear)"
+        )
     tol = iso1328_tolerances(grade, normal_module, reference_diameter, face_width)
     angle = 2 * math.pi * np.arange(teeth) / teeth
-    smooth = sum(rng.normal(0.0, 1.0 / order) * np.sin(order * angle + rng.uniform(0, 2 * math.pi))
-                 for order in (1, 2, 3))
+    smooth = sum(
+        rng.normal(0.0, 1.0 / order) * np.sin(order * angle + rng.uniform(0, 2 * math.pi))
+        for order in (1, 2, 3)
+    )
     scatter = rng.normal(0.0, 1.0, teeth)
     smooth = smooth / max(np.ptp(smooth), 1e-12)
     scatter = scatter / max(np.abs(scatter - np.roll(scatter, 1)).max(), 1e-12)
     # cumulative pattern near the F_p limit, scatter near the f_pt limit, then both scaled together
-    positions = smooth * tol.cumulative_pitch * rng.uniform(0.5, 1.0) + scatter * tol.single_pitch * rng.uniform(0.5, 1.0)
+    positions = smooth * tol.cumulative_pitch * rng.uniform(
+        0.5, 1.0
+    ) + scatter * tol.single_pitch * rng.uniform(0.5, 1.0)
     single = np.abs(positions - np.roll(positions, 1)).max()
-    scale = deviation_share * min(tol.cumulative_pitch / max(np.ptp(positions), 1e-18),
-                                  tol.single_pitch / max(single, 1e-18), 1.0)
+    scale = deviation_share * min(
+        tol.cumulative_pitch / max(np.ptp(positions), 1e-18),
+        tol.single_pitch / max(single, 1e-18),
+        1.0,
+    )
     positions = (positions - positions.mean()) * scale
 
     eccentricity = 0.5 * tol.runout * deviation_share * rng.uniform(0.0, 1.0)
     # profile slopes: material removed rising linearly from root to tip (negative: falling)
     common = rng.uniform(-1.0, 1.0)
-    slopes = deviation_share * tol.profile * np.clip(0.6 * common + 0.4 * rng.uniform(-1.0, 1.0, teeth), -1.0, 1.0)
+    slopes = (
+        deviation_share
+        * tol.profile
+        * np.clip(0.6 * common + 0.4 * rng.uniform(-1.0, 1.0, teeth), -1.0, 1.0)
+    )
     helix = deviation_share * tol.helix * rng.uniform(-1.0, 1.0) + misalignment
     roll = np.linspace(0.0, 1.0, profile_rows)[:, None]
     face = np.array([[0.0, 1.0]])
     maps = tuple(FlankMap.of(slope * (roll - 0.5) + helix * (face - 0.5)) for slope in slopes)
-    return GearErrors(grade=float(grade), tolerances=tol, pitch_deviations=tuple(positions.tolist()),
-                      flank_maps=maps, eccentricity=float(eccentricity),
-                      eccentricity_phase=float(rng.uniform(0, 2 * math.pi)))
+    return GearErrors(
+        grade=float(grade),
+        tolerances=tol,
+        pitch_deviations=tuple(positions.tolist()),
+        flank_maps=maps,
+        eccentricity=float(eccentricity),
+        eccentricity_phase=float(rng.uniform(0, 2 * math.pi)),
+    )
 
 
 def contact_fatigue_band(geometry) -> tuple[float, float]:
@@ -213,8 +261,14 @@ def contact_fatigue_band(geometry) -> tuple[float, float]:
     return low, high
 
 
-def wear_flank_map(depth: float, roughness: float, rng: np.random.Generator, pitch_line: float = 0.5,
-                   rows: int = 21, columns: int = 11) -> FlankMap:
+def wear_flank_map(
+    depth: float,
+    roughness: float,
+    rng: np.random.Generator,
+    pitch_line: float = 0.5,
+    rows: int = 21,
+    columns: int = 11,
+) -> FlankMap:
     """Sliding wear of a flank (the gear model's surface fault): material removed in proportion to
     the sliding distance (Archard's law), which grows with the distance from the pitch line (roll
     fraction `pitch_line`: the geometry's `roll_fraction` of the pitch point), so the depth is
@@ -228,21 +282,30 @@ def wear_flank_map(depth: float, roughness: float, rng: np.random.Generator, pit
     return FlankMap.of(np.maximum(removed, 0.0))
 
 
-def broken_tooth_flank_map(missing_share: float, slant: float = 0.2, rows: int = 41,
-                            columns: int = 11) -> FlankMap:
+def broken_tooth_flank_map(
+    missing_share: float, slant: float = 0.2, rows: int = 41, columns: int = 11
+) -> FlankMap:
     """A tooth broken off (the gear model's missing tooth short of a whole tooth): the flank above a
     fracture line is gone (1 mm removed: it never touches). The fracture runs diagonally across the
     face, as tooth breakage of a helical gear does: at face position f it leaves the profile below
     roll fraction 1 - `missing_share` + `slant` (f - 0.5), clipped to [0, 1]."""
     if not 0.0 < missing_share <= 1.0:
-        raise ValueError(f"missing_share {missing_share}: the share of the profile lost lies in (0, 1]")
+        raise ValueError(
+            f"missing_share {missing_share}: the share of the profile lost lies in (0, 1]"
+        )
     roll, face = np.meshgrid(np.linspace(0, 1, rows), np.linspace(0, 1, columns), indexing="ij")
     fracture = np.clip(1.0 - missing_share + slant * (face - 0.5), 0.0, 1.0)
     return FlankMap.of(np.where(roll >= fracture, 1.0e-3, 0.0))
 
 
-def pitted_flank_map(pit_depth: float, pitted_area: float, band: tuple, rng: np.random.Generator,
-                     rows: int = 31, columns: int = 16) -> FlankMap:
+def pitted_flank_map(
+    pit_depth: float,
+    pitted_area: float,
+    band: tuple,
+    rng: np.random.Generator,
+    rows: int = 31,
+    columns: int = 16,
+) -> FlankMap:
     """Pitting of a flank (the gear model's other surface fault): craters where contact fatigue
     starts (`band`: roll fractions, `contact_fatigue_band`), each a Gaussian bowl up to
     `pit_depth` deep, centred in the band, added until `pitted_area` of the band is pitted."""
@@ -259,7 +322,16 @@ def pitted_flank_map(pit_depth: float, pitted_area: float, band: tuple, rng: np.
             break
         centre_roll, centre_face = rng.uniform(low, high), rng.uniform(0.0, 1.0)
         width_roll, width_face = rng.uniform(0.02, 0.06), rng.uniform(0.04, 0.12)
-        bowl = pit_depth * rng.uniform(0.4, 1.0) * np.exp(-0.5 * (((roll - centre_roll) / width_roll) ** 2
-                                                                  + ((face - centre_face) / width_face) ** 2))
+        bowl = (
+            pit_depth
+            * rng.uniform(0.4, 1.0)
+            * np.exp(
+                -0.5
+                * (
+                    ((roll - centre_roll) / width_roll) ** 2
+                    + ((face - centre_face) / width_face) ** 2
+                )
+            )
+        )
         removed = np.maximum(removed, bowl)
     return FlankMap.of(removed)

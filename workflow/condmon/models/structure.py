@@ -25,6 +25,7 @@ Cartesian spring-dampers and compares), but exudyn's item version costs 2.1 s of
 simulated second before any mesh force, the assembled sparse ObjectGenericODE2 0.2-0.4 s
 (measured on this 2-core machine, RK44 at 19.5 us).
 """
+
 from __future__ import annotations
 
 import math
@@ -40,6 +41,7 @@ class Section:
     axial EA (N), bending EI (N m^2, the same about x and y), torsion GJ (N m^2), shear kappa G A
     (N), mass per length rho A (kg/m), rotary inertia per length rho I (kg m, about a transverse
     axis) and rho J (kg m, polar)."""
+
     axial: float
     bending: float
     torsion: float
@@ -49,22 +51,39 @@ class Section:
     polar_inertia_per_length: float
 
     @classmethod
-    def tube(cls, outer_diameter: float, inner_diameter: float, youngs_modulus: float,
-             poisson_ratio: float, density: float) -> "Section":
+    def tube(
+        cls,
+        outer_diameter: float,
+        inner_diameter: float,
+        youngs_modulus: float,
+        poisson_ratio: float,
+        density: float,
+    ) -> "Section":
         """An isotropic circular tube (inner_diameter 0: a solid shaft). The shear coefficient
         kappa is Cowper's for a thin or solid circular section."""
         if not 0.0 <= inner_diameter < outer_diameter:
-            raise ValueError(f"tube: inner diameter {inner_diameter} must be in [0, {outer_diameter})")
-        area = math.pi / 4 * (outer_diameter ** 2 - inner_diameter ** 2)
-        second_moment = math.pi / 64 * (outer_diameter ** 4 - inner_diameter ** 4)
+            raise ValueError(
+                f"tube: inner diameter {inner_diameter} must be in [0, {outer_diameter})"
+            )
+        area = math.pi / 4 * (outer_diameter**2 - inner_diameter**2)
+        second_moment = math.pi / 64 * (outer_diameter**4 - inner_diameter**4)
         shear_modulus = youngs_modulus / (2 * (1 + poisson_ratio))
         m = inner_diameter / outer_diameter
-        kappa = 6 * (1 + poisson_ratio) * (1 + m * m) ** 2 / (
-            (7 + 6 * poisson_ratio) * (1 + m * m) ** 2 + (20 + 12 * poisson_ratio) * m * m)
-        return cls(axial=youngs_modulus * area, bending=youngs_modulus * second_moment,
-                   torsion=shear_modulus * 2 * second_moment, shear=kappa * shear_modulus * area,
-                   mass_per_length=density * area, rotary_inertia_per_length=density * second_moment,
-                   polar_inertia_per_length=density * 2 * second_moment)
+        kappa = (
+            6
+            * (1 + poisson_ratio)
+            * (1 + m * m) ** 2
+            / ((7 + 6 * poisson_ratio) * (1 + m * m) ** 2 + (20 + 12 * poisson_ratio) * m * m)
+        )
+        return cls(
+            axial=youngs_modulus * area,
+            bending=youngs_modulus * second_moment,
+            torsion=shear_modulus * 2 * second_moment,
+            shear=kappa * shear_modulus * area,
+            mass_per_length=density * area,
+            rotary_inertia_per_length=density * second_moment,
+            polar_inertia_per_length=density * 2 * second_moment,
+        )
 
 
 # The element coordinates of each bending plane, (w1, w1', w2, w2') = sign pattern x coordinates:
@@ -77,11 +96,18 @@ def bending_stiffness(length: float, bending: float, shear: float) -> np.ndarray
     bending stiffness EI and shear stiffness kappa G A (Przemieniecki 1968)."""
     L = length
     phi = 12 * bending / (shear * L * L)  # shear flexibility
-    return bending / ((1 + phi) * L ** 3) * np.array([
-        [12, 6 * L, -12, 6 * L],
-        [6 * L, (4 + phi) * L * L, -6 * L, (2 - phi) * L * L],
-        [-12, -6 * L, 12, -6 * L],
-        [6 * L, (2 - phi) * L * L, -6 * L, (4 + phi) * L * L]])
+    return (
+        bending
+        / ((1 + phi) * L**3)
+        * np.array(
+            [
+                [12, 6 * L, -12, 6 * L],
+                [6 * L, (4 + phi) * L * L, -6 * L, (2 - phi) * L * L],
+                [-12, -6 * L, 12, -6 * L],
+                [6 * L, (2 - phi) * L * L, -6 * L, (4 + phi) * L * L],
+            ]
+        )
+    )
 
 
 def timoshenko_beam(length: float, section: Section) -> tuple[np.ndarray, np.ndarray]:
@@ -91,16 +117,31 @@ def timoshenko_beam(length: float, section: Section) -> tuple[np.ndarray, np.nda
     plane y with -rx."""
     L = length
     kb = bending_stiffness(L, section.bending, section.shear)
-    mt = section.mass_per_length * L / 420 * np.array([
-        [156, 22 * L, 54, -13 * L],
-        [22 * L, 4 * L * L, 13 * L, -3 * L * L],
-        [54, 13 * L, 156, -22 * L],
-        [-13 * L, -3 * L * L, -22 * L, 4 * L * L]])
-    mr = section.rotary_inertia_per_length / (30 * L) * np.array([
-        [36, 3 * L, -36, 3 * L],
-        [3 * L, 4 * L * L, -3 * L, -L * L],
-        [-36, -3 * L, 36, -3 * L],
-        [3 * L, -L * L, -3 * L, 4 * L * L]])
+    mt = (
+        section.mass_per_length
+        * L
+        / 420
+        * np.array(
+            [
+                [156, 22 * L, 54, -13 * L],
+                [22 * L, 4 * L * L, 13 * L, -3 * L * L],
+                [54, 13 * L, 156, -22 * L],
+                [-13 * L, -3 * L * L, -22 * L, 4 * L * L],
+            ]
+        )
+    )
+    mr = (
+        section.rotary_inertia_per_length
+        / (30 * L)
+        * np.array(
+            [
+                [36, 3 * L, -36, 3 * L],
+                [3 * L, 4 * L * L, -3 * L, -L * L],
+                [-36, -3 * L, 36, -3 * L],
+                [3 * L, -L * L, -3 * L, 4 * L * L],
+            ]
+        )
+    )
     stiffness, mass = np.zeros((12, 12)), np.zeros((12, 12))
     for dofs, sign in BENDING_PLANES:
         flip = np.diag([1.0, sign, 1.0, sign])
@@ -108,8 +149,10 @@ def timoshenko_beam(length: float, section: Section) -> tuple[np.ndarray, np.nda
         mass[np.ix_(dofs, dofs)] += flip @ (mt + mr) @ flip
     pair = np.array([[1.0, -1.0], [-1.0, 1.0]])
     consistent = np.array([[2.0, 1.0], [1.0, 2.0]]) / 6
-    for dofs, k, m in (((2, 8), section.axial / L, section.mass_per_length * L),
-                       ((5, 11), section.torsion / L, section.polar_inertia_per_length * L)):
+    for dofs, k, m in (
+        ((2, 8), section.axial / L, section.mass_per_length * L),
+        ((5, 11), section.torsion / L, section.polar_inertia_per_length * L),
+    ):
         stiffness[np.ix_(dofs, dofs)] += k * pair
         mass[np.ix_(dofs, dofs)] += m * consistent
     return stiffness, mass
@@ -145,16 +188,18 @@ class LinearStructure:
         """3 x n matrix: displacement of `point` (global position, rigidly attached to `node`)."""
         rows = np.zeros((3, self.n))
         start = self.offsets[node]
-        rows[:, start:start + 3] = np.eye(3)
+        rows[:, start : start + 3] = np.eye(3)
         if self.sizes[node] == 6:
             rx, ry, rz = np.asarray(point, dtype=float) - self.positions[node]
             # theta x r = [ry_ rz - rz_ ry, rz_ rx - rx_ rz, rx_ ry - ry_ rx] with theta = (rx_, ry_, rz_)
-            rows[:, start + 3:start + 6] = np.array([[0.0, rz, -ry], [-rz, 0.0, rx], [ry, -rx, 0.0]])
+            rows[:, start + 3 : start + 6] = np.array(
+                [[0.0, rz, -ry], [-rz, 0.0, rx], [ry, -rx, 0.0]]
+            )
         return rows
 
     def rotation_rows(self, node: int) -> np.ndarray:
         rows = np.zeros((3, self.n))
-        rows[:, self.offsets[node] + 3:self.offsets[node] + 6] = np.eye(3)
+        rows[:, self.offsets[node] + 3 : self.offsets[node] + 6] = np.eye(3)
         return rows
 
     def add_rigid_mass(self, node: int, mass: float, center=None, inertia=(0.0, 0.0, 0.0)) -> None:
@@ -173,19 +218,30 @@ class LinearStructure:
         self._stiffness.append((a, b, np.asarray(stiffness, dtype=float)))
         self._damping.append((a, b, np.asarray(damping, dtype=float)))
 
-    def add_coordinate_spring(self, node: int, coordinate: int, stiffness: float, damping: float) -> None:
+    def add_coordinate_spring(
+        self, node: int, coordinate: int, stiffness: float, damping: float
+    ) -> None:
         """Spring-damper on one coordinate of `node` against the base."""
         self._stiffness.append(("coordinate", self.dof(node, coordinate), float(stiffness)))
         self._damping.append(("coordinate", self.dof(node, coordinate), float(damping)))
 
-    def add_beam(self, node_a: int, node_b: int, section: Section, damping_ratio_per_hz: float = 0.0) -> None:
+    def add_beam(
+        self, node_a: int, node_b: int, section: Section, damping_ratio_per_hz: float = 0.0
+    ) -> None:
         """Timoshenko beam between two 6-coordinate nodes on one line along z; stiffness-
         proportional damping C = damping_ratio_per_hz / pi * K (damping ratio x frequency in Hz)."""
         pa, pb = self.positions[node_a], self.positions[node_b]
-        if self.sizes[node_a] != 6 or self.sizes[node_b] != 6 or not np.allclose(pa[:2], pb[:2]) or pb[2] <= pa[2]:
+        if (
+            self.sizes[node_a] != 6
+            or self.sizes[node_b] != 6
+            or not np.allclose(pa[:2], pb[:2])
+            or pb[2] <= pa[2]
+        ):
             raise ValueError(f"beam {node_a}-{node_b}: nodes must have rotations and lie along +z")
         stiffness, mass = timoshenko_beam(float(pb[2] - pa[2]), section)
-        dofs = [self.offsets[node_a] + i for i in range(6)] + [self.offsets[node_b] + i for i in range(6)]
+        dofs = [self.offsets[node_a] + i for i in range(6)] + [
+            self.offsets[node_b] + i for i in range(6)
+        ]
         self._stiffness.append(("block", dofs, stiffness))
         self._damping.append(("block", dofs, stiffness * damping_ratio_per_hz / math.pi))
         self._mass.append(("block", dofs, mass))

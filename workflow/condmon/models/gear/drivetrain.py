@@ -33,6 +33,7 @@ The same model is the CFRP rig (`systems/cfrp`): tube shafts of a laminate (`sha
 structure by Craig-Bampton (`model_matrices`), which the flexible shafts need to keep one step
 per sensor sample.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -44,11 +45,22 @@ import numpy as np
 from scipy.signal import resample_poly
 
 from condmon.models.gear.mesh import GearGeometry
-from condmon.models.gear.mesh_force import (HEALTH_STATES, MESH_STIFFNESS_MODELS, MeshForce, mesh_damping,
-                                            operating_stiffness)
-from condmon.models.gear.shaft_damage import (RELATIVE_ROTATION, SHAFT_HEALTH_STATES, DamagedElement,
-                                              ShaftDamageForce, crack_section_ratios, delamination_section_ratios,
-                                              removed_rotational_stiffness)
+from condmon.models.gear.mesh_force import (
+    HEALTH_STATES,
+    MESH_STIFFNESS_MODELS,
+    MeshForce,
+    mesh_damping,
+    operating_stiffness,
+)
+from condmon.models.gear.shaft_damage import (
+    RELATIVE_ROTATION,
+    SHAFT_HEALTH_STATES,
+    DamagedElement,
+    ShaftDamageForce,
+    crack_section_ratios,
+    delamination_section_ratios,
+    removed_rotational_stiffness,
+)
 from condmon.models.numerics import SimulationError, decimation_filter, exudyn_system, solve_rk44
 from condmon.models.structure import BENDING_PLANES, LinearStructure, Section
 
@@ -67,14 +79,25 @@ def sensor_channels(sensors=SENSORS) -> tuple[str, ...]:
 
 CHANNELS = sensor_channels()
 
-__all__ = ["CHANNELS", "HEALTH_STATES", "MESH_STIFFNESS_MODELS", "GearDrivetrainParameters", "ShaftLayout",
-           "SimulationSettings", "PeriodicLoad", "Drivetrain", "simulate", "operating_mesh_stiffness"]
+__all__ = [
+    "CHANNELS",
+    "HEALTH_STATES",
+    "MESH_STIFFNESS_MODELS",
+    "GearDrivetrainParameters",
+    "ShaftLayout",
+    "SimulationSettings",
+    "PeriodicLoad",
+    "Drivetrain",
+    "simulate",
+    "operating_mesh_stiffness",
+]
 
 
 @dataclass(frozen=True)
 class ShaftLayout:
     """A shaft along z from 0 to `length` (m): solid diameter, bearing and gear positions, and
     the position of its coupling (pinion shaft) or brake (gear shaft) hub."""
+
     length: float
     diameter: float
     bearings: tuple
@@ -83,20 +106,31 @@ class ShaftLayout:
     inner_diameter: float = 0.0  # a tube's bore (0: solid)
 
     def check(self, name: str) -> None:
-        for label, z in (("bearings", self.bearings[0]), ("bearings", self.bearings[1]), ("gear", self.gear),
-                         ("hub", self.hub)):
+        for label, z in (
+            ("bearings", self.bearings[0]),
+            ("bearings", self.bearings[1]),
+            ("gear", self.gear),
+            ("hub", self.hub),
+        ):
             if not 0.0 <= z <= self.length:
-                raise ValueError(f"{name}.{label}: position {z} m outside the shaft (0..{self.length} m)")
+                raise ValueError(
+                    f"{name}.{label}: position {z} m outside the shaft (0..{self.length} m)"
+                )
         if len(self.bearings) != 2 or self.bearings[0] >= self.bearings[1]:
-            raise ValueError(f"{name}.bearings: two increasing axial positions, got {self.bearings}")
+            raise ValueError(
+                f"{name}.bearings: two increasing axial positions, got {self.bearings}"
+            )
         if not 0.0 <= self.inner_diameter < self.diameter:
-            raise ValueError(f"{name}.inner_diameter: {self.inner_diameter} m must lie in [0, diameter "
-                             f"{self.diameter} m)")
+            raise ValueError(
+                f"{name}.inner_diameter: {self.inner_diameter} m must lie in [0, diameter "
+                f"{self.diameter} m)"
+            )
 
 
 class DamageZone(NamedTuple):
     """The damaged stretch of a shaft: its section (with the damage's shear loss) and the
     `DamagedElement` of an element of a given length in it."""
+
     shaft: int
     start: float
     end: float
@@ -108,6 +142,7 @@ class DamageZone(NamedTuple):
 class PeriodicLoad:
     """A sinusoidal generalized force on one coordinate: `target` is ("motor", None) for a torque
     on the pinion shaft's coupling node, or ("housing", i) for a radial (y) force on housing i."""
+
     target: tuple
     amplitude: float
     frequency_hz: float
@@ -117,6 +152,7 @@ class PeriodicLoad:
 @dataclass
 class GearDrivetrainParameters:
     """Physical parameters; SI units. Defaults are the nominal (uncalibrated) rig."""
+
     geometry: GearGeometry = field(default_factory=GearGeometry)
     # Shafts (steel) and what sits on them.
     input_shaft: ShaftLayout = ShaftLayout(0.24, 0.025, (0.04, 0.16), 0.12, 0.0)
@@ -128,15 +164,15 @@ class GearDrivetrainParameters:
     shaft_youngs_modulus: float = 2.1e11
     shaft_poisson_ratio: float = 0.3
     shaft_density: float = 7850.0
-    shaft_element_length: float = 0.08     # longest beam element of a flexible shaft, m
-    shaft_damping: float = 2.0e-6          # flexible shafts: C = shaft_damping x K (s)
-    pinion_mass: float = 0.57              # gear bodies (without shaft), kg
-    pinion_inertia: float = 4.2e-4         # polar, kg m^2 (transverse: half)
+    shaft_element_length: float = 0.08  # longest beam element of a flexible shaft, m
+    shaft_damping: float = 2.0e-6  # flexible shafts: C = shaft_damping x K (s)
+    pinion_mass: float = 0.57  # gear bodies (without shaft), kg
+    pinion_inertia: float = 4.2e-4  # polar, kg m^2 (transverse: half)
     gear_mass: float = 1.38
     gear_inertia: float = 2.2e-3
-    coupling_mass: float = 0.5             # coupling half on the pinion shaft
+    coupling_mass: float = 0.5  # coupling half on the pinion shaft
     coupling_inertia: float = 3.0e-4
-    brake_mass: float = 0.8                # brake hub on the gear shaft
+    brake_mass: float = 0.8  # brake hub on the gear shaft
     brake_inertia: float = 1.0e-3
     # Bearings as bushings (CFRP study Table 3: 1.825e5 N/mm, 12.3 N s/mm radial).
     bushing_stiffness: float = 1.825e8
@@ -150,19 +186,19 @@ class GearDrivetrainParameters:
     housing_damping: tuple = (2.0e3, 3.0e3, 2.0e3)
     # Block housings (housing_model: block): inertia, and the feet relative to the bearing centre.
     housing_inertia: tuple = (4.0e-3, 3.0e-3, 4.0e-3)
-    housing_foot_height: float = 0.06      # bearing centre above the feet, m
+    housing_foot_height: float = 0.06  # bearing centre above the feet, m
     housing_foot_span: tuple = (0.05, 0.03)  # half distances of the four feet in x and z, m
-    sensor_height: float = 0.04            # accelerometer above the bearing centre, m
+    sensor_height: float = 0.04  # accelerometer above the bearing centre, m
     sensors: tuple = SENSORS
     # Drive and load.
-    coupling_stiffness: float = 2.0e3      # N m/rad, motor to pinion shaft
-    coupling_damping: float = 0.5          # N m s/rad
-    load_torque: float = 10.0              # on the gear shaft, N m
-    load_fluctuation: float = 0.0          # relative amplitude of a slow sinusoidal load variation
+    coupling_stiffness: float = 2.0e3  # N m/rad, motor to pinion shaft
+    coupling_damping: float = 0.5  # N m s/rad
+    load_torque: float = 10.0  # on the gear shaft, N m
+    load_fluctuation: float = 0.0  # relative amplitude of a slow sinusoidal load variation
     load_fluctuation_hz: float = 0.8
     load_fluctuation_phase: float = 0.0
-    speed_rpm: float = 1100.0              # input shaft
-    speed_fluctuation: float = 0.0         # relative amplitude of a slow sinusoidal speed variation
+    speed_rpm: float = 1100.0  # input shaft
+    speed_fluctuation: float = 0.0  # relative amplitude of a slow sinusoidal speed variation
     speed_fluctuation_hz: float = 1.5
     speed_fluctuation_phase: float = 0.0
     # Mesh periods already run at t = 0: which tooth pair meshes when the run starts (an acquisition
@@ -172,12 +208,12 @@ class GearDrivetrainParameters:
     mesh_stiffness_model: str = "potential_energy"
     helix_slices: int = 80
     contact_law: str = "lankarani_nikravesh"
-    mesh_stiffness: float = 4.0e8          # mean mesh stiffness at 1 um deflection, N/m
+    mesh_stiffness: float = 4.0e8  # mean mesh stiffness at 1 um deflection, N/m
     contact_exponent: float = 1.5
     restitution: float = 0.9
     mesh_damping_ratio: float = 0.05
-    backlash: float = 1.0e-4               # along the line of action, m
-    transmission_error: float = 0.3e-6     # static TE amplitude at mesh frequency, m
+    backlash: float = 1.0e-4  # along the line of action, m
+    transmission_error: float = 0.3e-6  # static TE amplitude at mesh frequency, m
     tip_relief: float = 0.0
     # Manufacturing: run-out (eccentricity) of each shaft along the line of action and the
     # single pitch deviation of every tooth (empty: none), m.
@@ -197,13 +233,15 @@ class GearDrivetrainParameters:
     health_state: str = "healthy"
     faulty_tooth: int = 0
     surface_fault_teeth: int = 3
-    surface_fault_model: str = "pitting"   # or "stiffness_loss" / "mesh_stiffness_loss" (the CFRP study's)
-    wear_depth: float = 2.0e-5             # wear: material removed at root and tip, m
-    wear_roughness: float = 2.0e-6         # rms of the worn surface, m
-    pit_depth: float = 3.0e-5              # pitting: the deepest crater, m
-    pitted_area: float = 0.3               # pitting: share of the contact-fatigue band pitted
-    pitting_growth: float = 0.0            # pitting: roll fraction it spread beyond that band, each side
-    wear_seed: int = 0                     # the damaged surfaces' draw
+    surface_fault_model: str = (
+        "pitting"  # or "stiffness_loss" / "mesh_stiffness_loss" (the CFRP study's)
+    )
+    wear_depth: float = 2.0e-5  # wear: material removed at root and tip, m
+    wear_roughness: float = 2.0e-6  # rms of the worn surface, m
+    pit_depth: float = 3.0e-5  # pitting: the deepest crater, m
+    pitted_area: float = 0.3  # pitting: share of the contact-fatigue band pitted
+    pitting_growth: float = 0.0  # pitting: roll fraction it spread beyond that band, each side
+    wear_seed: int = 0  # the damaged surfaces' draw
     surface_fault_stiffness_loss: float = 0.15
     spall_profile: tuple = (0.35, 0.65)
     spall_face: tuple = (0.25, 0.75)
@@ -241,30 +279,51 @@ class Drivetrain:
 
     def __init__(self, p: GearDrivetrainParameters):
         if p.shaft_model not in SHAFT_MODELS:
-            raise ValueError(f"unknown shaft_model {p.shaft_model!r}; choose one of {list(SHAFT_MODELS)}")
+            raise ValueError(
+                f"unknown shaft_model {p.shaft_model!r}; choose one of {list(SHAFT_MODELS)}"
+            )
         if p.housing_model not in HOUSING_MODELS:
-            raise ValueError(f"unknown housing_model {p.housing_model!r}; choose one of {list(HOUSING_MODELS)}")
+            raise ValueError(
+                f"unknown housing_model {p.housing_model!r}; choose one of {list(HOUSING_MODELS)}"
+            )
         p.input_shaft.check("input_shaft")
         p.output_shaft.check("output_shaft")
         self.p = p
         g = p.geometry
         self.center_distance = g.pitch_radius(g.teeth_pinion) + g.pitch_radius(g.teeth_gear)
         s = self.structure = LinearStructure()
-        shafts = ((0.0, p.input_shaft, (p.pinion_mass, p.pinion_inertia), (p.coupling_mass, p.coupling_inertia)),
-                  (self.center_distance, p.output_shaft, (p.gear_mass, p.gear_inertia), (p.brake_mass, p.brake_inertia)))
+        shafts = (
+            (
+                0.0,
+                p.input_shaft,
+                (p.pinion_mass, p.pinion_inertia),
+                (p.coupling_mass, p.coupling_inertia),
+            ),
+            (
+                self.center_distance,
+                p.output_shaft,
+                (p.gear_mass, p.gear_inertia),
+                (p.brake_mass, p.brake_inertia),
+            ),
+        )
         self.sections = self._shaft_sections()
         self.damage = self._damage_zone()
         self.damaged_elements = []  # (node a, node b, DamagedElement)
-        self.shaft_nodes = [self._add_shaft(shaft, x, layout, gear, hub)
-                            for shaft, (x, layout, gear, hub) in enumerate(shafts)]
+        self.shaft_nodes = [
+            self._add_shaft(shaft, x, layout, gear, hub)
+            for shaft, (x, layout, gear, hub) in enumerate(shafts)
+        ]
         self.housings = []
         for shaft, (x, layout, _, _) in enumerate(shafts):
             for z in layout.bearings:
                 housing = self._add_housing((x, 0.0, z))
                 self.housings.append(housing)
-                s.add_spring((self.node_at(shaft, z), (x, 0.0, z)), (housing, (x, 0.0, z)),
-                             [p.bushing_stiffness, p.bushing_stiffness, p.bushing_axial_stiffness],
-                             [p.bushing_damping, p.bushing_damping, p.bushing_axial_damping])
+                s.add_spring(
+                    (self.node_at(shaft, z), (x, 0.0, z)),
+                    (housing, (x, 0.0, z)),
+                    [p.bushing_stiffness, p.bushing_stiffness, p.bushing_axial_stiffness],
+                    [p.bushing_damping, p.bushing_damping, p.bushing_axial_damping],
+                )
         self.coupling_node = self.node_at(0, p.input_shaft.hub)
         s.add_coordinate_spring(self.coupling_node, 5, p.coupling_stiffness, p.coupling_damping)
         self.load_dof = s.dof(self.node_at(1, p.output_shaft.hub), 5)
@@ -274,18 +333,26 @@ class Drivetrain:
         direction = np.array([math.sin(alpha), math.cos(alpha), math.tan(beta_b)])
         pitch_point = (g.pitch_radius(g.teeth_pinion), 0.0, p.input_shaft.gear)
         if abs(p.input_shaft.gear - p.output_shaft.gear) > 1e-12:
-            raise ValueError("input_shaft.gear and output_shaft.gear: the gears must sit in one plane")
-        self.mesh_row = direction @ (s.point_rows(self.node_at(0, p.input_shaft.gear), pitch_point)
-                                     - s.point_rows(self.node_at(1, p.output_shaft.gear), pitch_point))
+            raise ValueError(
+                "input_shaft.gear and output_shaft.gear: the gears must sit in one plane"
+            )
+        self.mesh_row = direction @ (
+            s.point_rows(self.node_at(0, p.input_shaft.gear), pitch_point)
+            - s.point_rows(self.node_at(1, p.output_shaft.gear), pitch_point)
+        )
         # The model coordinate replaced by delta: the pinion's radial x, which carries no load (the
         # motor and brake torques and the bench's bearing forces stay on plain coordinates).
         self.mesh_dof = s.dof(self.node_at(0, p.input_shaft.gear), 0)
         self.sensor_rows = {}
         for name, housing in p.sensors:
             if not 0 <= housing < len(self.housings):
-                raise ValueError(f"sensors: {name} on housing {housing}; the rig has housings 0..{len(self.housings) - 1}")
+                raise ValueError(
+                    f"sensors: {name} on housing {housing}; the rig has housings 0..{len(self.housings) - 1}"
+                )
             node = self.housings[housing]
-            top = s.positions[node] + np.array([0.0, p.sensor_height if p.housing_model == "block" else 0.0, 0.0])
+            top = s.positions[node] + np.array(
+                [0.0, p.sensor_height if p.housing_model == "block" else 0.0, 0.0]
+            )
             self.sensor_rows[name] = s.point_rows(node, top)[:2]  # x, y
 
     # -- building --------------------------------------------------------------------------
@@ -293,10 +360,20 @@ class Drivetrain:
         p = self.p
         if p.shaft_sections:
             if len(p.shaft_sections) != 2:
-                raise ValueError(f"shaft_sections: one Section per shaft (2), got {len(p.shaft_sections)}")
+                raise ValueError(
+                    f"shaft_sections: one Section per shaft (2), got {len(p.shaft_sections)}"
+                )
             return list(p.shaft_sections)
-        return [Section.tube(layout.diameter, layout.inner_diameter, p.shaft_youngs_modulus, p.shaft_poisson_ratio,
-                             p.shaft_density) for layout in (p.input_shaft, p.output_shaft)]
+        return [
+            Section.tube(
+                layout.diameter,
+                layout.inner_diameter,
+                p.shaft_youngs_modulus,
+                p.shaft_poisson_ratio,
+                p.shaft_density,
+            )
+            for layout in (p.input_shaft, p.output_shaft)
+        ]
 
     def _damage_zone(self) -> DamageZone | None:
         """The `DamageZone` of a shaft_crack or delamination state, else None. Its section carries
@@ -305,38 +382,60 @@ class Drivetrain:
         if p.health_state not in SHAFT_HEALTH_STATES:
             return None
         if p.shaft_model != "flexible":
-            raise ValueError(f"health state {p.health_state}: a damaged shaft needs shaft_model: flexible")
+            raise ValueError(
+                f"health state {p.health_state}: a damaged shaft needs shaft_model: flexible"
+            )
         if p.damaged_shaft not in (0, 1):
-            raise ValueError(f"damaged_shaft: 0 (pinion shaft) or 1 (gear shaft), got {p.damaged_shaft}")
+            raise ValueError(
+                f"damaged_shaft: 0 (pinion shaft) or 1 (gear shaft), got {p.damaged_shaft}"
+            )
         layout = (p.input_shaft, p.output_shaft)[p.damaged_shaft]
         section = self.sections[p.damaged_shaft]
         g = p.geometry
-        spin_hz = p.speed_rpm / 60 * (1.0 if p.damaged_shaft == 0 else g.teeth_pinion / g.teeth_gear)
+        spin_hz = (
+            p.speed_rpm / 60 * (1.0 if p.damaged_shaft == 0 else g.teeth_pinion / g.teeth_gear)
+        )
         if p.health_state == "shaft_crack":
             start = p.shaft_crack_position - layout.diameter / 2
             end = p.shaft_crack_position + layout.diameter / 2
-            ratios = crack_section_ratios(layout.diameter, layout.inner_diameter, p.shaft_crack_depth)
+            ratios = crack_section_ratios(
+                layout.diameter, layout.inner_diameter, p.shaft_crack_depth
+            )
             breathing, angle = True, math.radians(p.shaft_crack_angle_deg)
         else:
             start, end = p.delamination_start, p.delamination_start + p.delamination_length
-            ratios = delamination_section_ratios(layout.diameter, layout.inner_diameter,
-                                                 p.delamination_interface_depth, p.delamination_arc_deg)
+            ratios = delamination_section_ratios(
+                layout.diameter,
+                layout.inner_diameter,
+                p.delamination_interface_depth,
+                p.delamination_arc_deg,
+            )
             breathing, angle = False, 0.0
         if not (0.0 <= start < end <= layout.length):
-            raise ValueError(f"{p.health_state}: the damaged stretch {start:.4g}..{end:.4g} m lies outside the "
-                             f"shaft (0..{layout.length} m)")
+            raise ValueError(
+                f"{p.health_state}: the damaged stretch {start:.4g}..{end:.4g} m lies outside the "
+                f"shaft (0..{layout.length} m)"
+            )
         bending_xi, bending_eta, area = ratios
         # a crack's shear loss exists only while it is open: its bending flexibility is the model
-        damaged_section = section if breathing else dataclasses.replace(section, shear=section.shear * area)
+        damaged_section = (
+            section if breathing else dataclasses.replace(section, shear=section.shear * area)
+        )
 
         def element(length: float) -> DamagedElement:
-            return DamagedElement(removed_rotational_stiffness(length, section.bending, bending_xi),
-                                  removed_rotational_stiffness(length, section.bending, bending_eta),
-                                  breathing, angle, spin_hz)
+            return DamagedElement(
+                removed_rotational_stiffness(length, section.bending, bending_xi),
+                removed_rotational_stiffness(length, section.bending, bending_eta),
+                breathing,
+                angle,
+                spin_hz,
+            )
 
         return DamageZone(p.damaged_shaft, start, end, damaged_section, element)
 
-    def _add_shaft(self, shaft: int, x: float, layout: ShaftLayout, gear: tuple, hub: tuple) -> dict:
+    def _add_shaft(
+        self, shaft: int, x: float, layout: ShaftLayout, gear: tuple, hub: tuple
+    ) -> dict:
         """Nodes of one shaft {z: node}; masses of the shaft, its gear and hub ((mass, polar
         inertia) each); its damaged elements, if any, in `damaged_elements`."""
         p, s = self.p, self.structure
@@ -347,28 +446,48 @@ class Drivetrain:
             node = s.add_node((x, 0.0, layout.gear))
             mass = section.mass_per_length * layout.length
             radius_of_gyration2 = section.rotary_inertia_per_length / section.mass_per_length
-            transverse = mass * (radius_of_gyration2 + layout.length ** 2 / 12)
-            s.add_rigid_mass(node, mass, (x, 0.0, layout.length / 2),
-                             (transverse, transverse, section.polar_inertia_per_length * layout.length))
+            transverse = mass * (radius_of_gyration2 + layout.length**2 / 12)
+            s.add_rigid_mass(
+                node,
+                mass,
+                (x, 0.0, layout.length / 2),
+                (transverse, transverse, section.polar_inertia_per_length * layout.length),
+            )
             nodes = {None: node}
         else:
             damaged = () if damage is None else (damage.start, damage.end)
-            stations = sorted({0.0, layout.length, layout.gear, layout.hub, *layout.bearings, *damaged})
+            stations = sorted(
+                {0.0, layout.length, layout.gear, layout.hub, *layout.bearings, *damaged}
+            )
             points = [stations[0]]
             for a, b in zip(stations[:-1], stations[1:]):
                 pieces = max(1, math.ceil((b - a) / p.shaft_element_length - 1e-9))
                 points += [a + (b - a) * (k + 1) / pieces for k in range(pieces)]
             nodes = {z: s.add_node((x, 0.0, z)) for z in points}
             for a, b in zip(points[:-1], points[1:]):
-                damaged = damage is not None and damage.start - 1e-12 <= a and b <= damage.end + 1e-12
-                s.add_beam(nodes[a], nodes[b], damage.section if damaged else section,
-                           damping_ratio_per_hz=p.shaft_damping * math.pi)
+                damaged = (
+                    damage is not None and damage.start - 1e-12 <= a and b <= damage.end + 1e-12
+                )
+                s.add_beam(
+                    nodes[a],
+                    nodes[b],
+                    damage.section if damaged else section,
+                    damping_ratio_per_hz=p.shaft_damping * math.pi,
+                )
                 if damaged:
                     self.damaged_elements.append((nodes[a], nodes[b], damage.element(b - a)))
-        s.add_rigid_mass(self._node(nodes, layout.gear), gear_mass, (x, 0.0, layout.gear),
-                         (gear_inertia / 2, gear_inertia / 2, gear_inertia))
-        s.add_rigid_mass(self._node(nodes, layout.hub), hub_mass, (x, 0.0, layout.hub),
-                         (hub_inertia / 2, hub_inertia / 2, hub_inertia))
+        s.add_rigid_mass(
+            self._node(nodes, layout.gear),
+            gear_mass,
+            (x, 0.0, layout.gear),
+            (gear_inertia / 2, gear_inertia / 2, gear_inertia),
+        )
+        s.add_rigid_mass(
+            self._node(nodes, layout.hub),
+            hub_mass,
+            (x, 0.0, layout.hub),
+            (hub_inertia / 2, hub_inertia / 2, hub_inertia),
+        )
         return nodes
 
     @staticmethod
@@ -394,8 +513,12 @@ class Drivetrain:
         for dx in (-p.housing_foot_span[0], p.housing_foot_span[0]):
             for dz in (-p.housing_foot_span[1], p.housing_foot_span[1]):
                 foot = (x0 + dx, y0 - p.housing_foot_height, z0 + dz)
-                s.add_spring((node, foot), None, np.asarray(p.housing_stiffness) / 4,
-                             np.asarray(p.housing_damping) / 4)
+                s.add_spring(
+                    (node, foot),
+                    None,
+                    np.asarray(p.housing_stiffness) / 4,
+                    np.asarray(p.housing_damping) / 4,
+                )
         return node
 
     # -- the linear system in model coordinates ---------------------------------------------
@@ -428,27 +551,39 @@ class Drivetrain:
         from scipy.linalg import eigh
 
         k_mesh = operating_stiffness(self.p) if mesh_stiffness is None else mesh_stiffness
-        stiffness = self.structure.stiffness_matrix() + k_mesh * np.outer(self.mesh_row, self.mesh_row)
+        stiffness = self.structure.stiffness_matrix() + k_mesh * np.outer(
+            self.mesh_row, self.mesh_row
+        )
         values = eigh(stiffness, self.structure.mass_matrix(), eigvals_only=True)
         return np.sqrt(np.clip(values, 0.0, None)) / (2 * math.pi)
 
     def polar_inertias(self) -> tuple[float, float]:
         """Rotational inertia of the pinion and gear shaft assemblies about their axes."""
         mass = self.structure.mass_matrix()
-        return tuple(float(sum(mass[self.structure.dof(node, 5), self.structure.dof(other, 5)]
-                               for node in set(nodes.values()) for other in set(nodes.values())))
-                     for nodes in self.shaft_nodes)
+        return tuple(
+            float(
+                sum(
+                    mass[self.structure.dof(node, 5), self.structure.dof(other, 5)]
+                    for node in set(nodes.values())
+                    for other in set(nodes.values())
+                )
+            )
+            for nodes in self.shaft_nodes
+        )
 
 
 @dataclass
 class SimulationSettings:
     """Numerical settings of one run."""
-    duration: float = 1.0            # recorded seconds (after settling)
-    settle_time: float = 0.15        # simulated then discarded, s
-    output_rate: float = 5120.0      # Hz of the returned signals
-    oversampling: int = 10           # sensors record at output_rate * oversampling
-    steps_per_sensor_sample: int = 1  # integrator steps per sensor sample at least (h = 19.5 us at the defaults)
-    max_deflection: float = 1.0e-3   # |mesh deflection| beyond this is divergence, m
+
+    duration: float = 1.0  # recorded seconds (after settling)
+    settle_time: float = 0.15  # simulated then discarded, s
+    output_rate: float = 5120.0  # Hz of the returned signals
+    oversampling: int = 10  # sensors record at output_rate * oversampling
+    steps_per_sensor_sample: int = (
+        1  # integrator steps per sensor sample at least (h = 19.5 us at the defaults)
+    )
+    max_deflection: float = 1.0e-3  # |mesh deflection| beyond this is divergence, m
     # Craig-Bampton reduction: keep the structure's fixed-interface modes up to this frequency
     # (None: every coordinate). Flexible shafts' axial and torsion modes of short elements reach
     # tens of kHz and would set the step; they carry nothing below the output Nyquist frequency.
@@ -473,6 +608,7 @@ class ModelMatrices:
     The mesh deflection is coordinate `mesh`; `plain` maps a physical coordinate that loads act on
     to its model coordinate; the last `n_damage` coordinates are the damaged shaft elements'
     deformations (`shaft_damage.py`)."""
+
     transform: np.ndarray
     mass: np.ndarray
     stiffness: np.ndarray
@@ -500,7 +636,9 @@ class ModelMatrices:
         return float(np.abs(np.linalg.eigvals(state)).max())
 
 
-def model_matrices(drivetrain: Drivetrain, load_dofs, modal_cutoff_hz: float | None = None) -> ModelMatrices:
+def model_matrices(
+    drivetrain: Drivetrain, load_dofs, modal_cutoff_hz: float | None = None
+) -> ModelMatrices:
     """The structure in model coordinates: the mesh deflection (mesh_row . q) in place of the
     pinion's x, the loaded coordinates, and each damaged element's relative rotations d_x, d_y
     (`damage_rows`) as coordinates of their own, last.
@@ -522,24 +660,41 @@ def model_matrices(drivetrain: Drivetrain, load_dofs, modal_cutoff_hz: float | N
         rows[drivetrain.mesh_dof] = drivetrain.mesh_row
         damage_dofs = []
         for k, (node_a, node_b, _) in enumerate(drivetrain.damaged_elements):
-            node = node_b if all(s.dof(node_b, c) != drivetrain.mesh_dof for c in range(6)) else node_a
+            node = (
+                node_b if all(s.dof(node_b, c) != drivetrain.mesh_dof for c in range(6)) else node_a
+            )
             # d_x (x-z plane) replaces the node's ry, d_y (y-z plane) its rx
-            for row, coordinate in zip(damage_rows[2 * k:2 * k + 2], (4, 3)):
+            for row, coordinate in zip(damage_rows[2 * k : 2 * k + 2], (4, 3)):
                 rows[s.dof(node, coordinate)] = row
                 damage_dofs.append(s.dof(node, coordinate))
         if np.linalg.cond(rows) > 1e12:
-            raise ValueError("the damaged shaft element's coordinates clash with the mesh's: move the damage "
-                             "away from the gear")
+            raise ValueError(
+                "the damaged shaft element's coordinates clash with the mesh's: move the damage "
+                "away from the gear"
+            )
         to_physical = np.linalg.inv(rows)
-        first = [drivetrain.mesh_dof] + [dof for dof in dict.fromkeys(load_dofs) if dof != drivetrain.mesh_dof]
-        order = first + [i for i in range(n) if i not in set(first) | set(damage_dofs)] + damage_dofs
+        first = [drivetrain.mesh_dof] + [
+            dof for dof in dict.fromkeys(load_dofs) if dof != drivetrain.mesh_dof
+        ]
+        order = (
+            first + [i for i in range(n) if i not in set(first) | set(damage_dofs)] + damage_dofs
+        )
         transform = to_physical[:, order]
     else:
         transform, first = _craig_bampton(drivetrain, load_dofs, modal_cutoff_hz, damage_rows)
-    mass, stiffness, damping = (transform.T @ m @ transform for m in
-                                (s.mass_matrix(), s.stiffness_matrix(), s.damping_matrix()))
-    return ModelMatrices(transform, mass, stiffness, damping, 0, {dof: first.index(dof) for dof in load_dofs},
-                         len(damage_rows))
+    mass, stiffness, damping = (
+        transform.T @ m @ transform
+        for m in (s.mass_matrix(), s.stiffness_matrix(), s.damping_matrix())
+    )
+    return ModelMatrices(
+        transform,
+        mass,
+        stiffness,
+        damping,
+        0,
+        {dof: first.index(dof) for dof in load_dofs},
+        len(damage_rows),
+    )
 
 
 def _craig_bampton(drivetrain: Drivetrain, load_dofs, cutoff_hz: float, damage_rows: np.ndarray):
@@ -550,7 +705,9 @@ def _craig_bampton(drivetrain: Drivetrain, load_dofs, cutoff_hz: float, damage_r
     mesh_t = drivetrain.mesh_transform()
     mass, stiffness = mesh_t.T @ s.mass_matrix() @ mesh_t, mesh_t.T @ s.stiffness_matrix() @ mesh_t
     damage = damage_rows @ mesh_t
-    first = [drivetrain.mesh_dof] + [dof for dof in dict.fromkeys(load_dofs) if dof != drivetrain.mesh_dof]
+    first = [drivetrain.mesh_dof] + [
+        dof for dof in dict.fromkeys(load_dofs) if dof != drivetrain.mesh_dof
+    ]
     interior = [i for i in range(s.n) if i not in set(first)]
     ii, ib = np.ix_(interior, interior), np.ix_(interior, first)
     static_shapes = -np.linalg.solve(stiffness[ii], stiffness[ib])
@@ -565,13 +722,17 @@ def _craig_bampton(drivetrain: Drivetrain, load_dofs, cutoff_hz: float, damage_r
         open_stiffness = stiffness.copy()
         for k, (_, _, element) in enumerate(drivetrain.damaged_elements):
             removed = max(element.removed_xi, element.removed_eta)
-            open_stiffness -= removed * (np.outer(damage[2 * k], damage[2 * k])
-                                         + np.outer(damage[2 * k + 1], damage[2 * k + 1]))
+            open_stiffness -= removed * (
+                np.outer(damage[2 * k], damage[2 * k])
+                + np.outer(damage[2 * k + 1], damage[2 * k + 1])
+            )
         basis = np.hstack([basis, modes(open_stiffness)])
         gram_values, gram_vectors = eigh(basis.T @ mass[ii] @ basis)
         independent = gram_values > 1e-10 * gram_values.max()
         basis = basis @ gram_vectors[:, independent] / np.sqrt(gram_values[independent])
-        values, vectors = eigh(basis.T @ (stiffness[ii] + open_stiffness[ii]) @ basis / 2, basis.T @ mass[ii] @ basis)
+        values, vectors = eigh(
+            basis.T @ (stiffness[ii] + open_stiffness[ii]) @ basis / 2, basis.T @ mass[ii] @ basis
+        )
         basis = basis @ vectors[:, np.sqrt(np.clip(values, 0.0, None)) / (2 * math.pi) <= cutoff_hz]
         # make the relative rotations coordinates: boundary shapes free of them, then a basis
         # change inside the modes whose last coordinates are d_x, d_y
@@ -587,28 +748,42 @@ def _craig_bampton(drivetrain: Drivetrain, load_dofs, cutoff_hz: float, damage_r
     return mesh_t @ reduction, first
 
 
-def steps_per_sensor_sample(drivetrain: Drivetrain, settings: SimulationSettings,
-                            matrices: ModelMatrices | None = None) -> int:
+def steps_per_sensor_sample(
+    drivetrain: Drivetrain, settings: SimulationSettings, matrices: ModelMatrices | None = None
+) -> int:
     """Integrator steps per sensor sample: the setting, or more where the highest mode (with the
     mesh at twice its operating stiffness, the peaks of the TVMS; with `matrices`, the damped
     system's fastest eigenvalue) needs a smaller step; times `step_refinement`."""
     mesh_stiffness = 2 * operating_stiffness(drivetrain.p)
-    omega_max = (2 * math.pi * drivetrain.natural_frequencies(mesh_stiffness)[-1] if matrices is None
-                 else matrices.highest_rate(mesh_stiffness))
+    omega_max = (
+        2 * math.pi * drivetrain.natural_frequencies(mesh_stiffness)[-1]
+        if matrices is None
+        else matrices.highest_rate(mesh_stiffness)
+    )
     if settings.integrator not in STABLE_OMEGA_STEP:
-        raise ValueError(f"integrator {settings.integrator!r}: choose one of {list(STABLE_OMEGA_STEP)}")
-    needed = math.ceil(omega_max / (settings.output_rate * settings.oversampling)
-                       / STABLE_OMEGA_STEP[settings.integrator])
+        raise ValueError(
+            f"integrator {settings.integrator!r}: choose one of {list(STABLE_OMEGA_STEP)}"
+        )
+    needed = math.ceil(
+        omega_max
+        / (settings.output_rate * settings.oversampling)
+        / STABLE_OMEGA_STEP[settings.integrator]
+    )
     if needed > MAX_STEPS_PER_SENSOR_SAMPLE:
         raise SimulationError(
             f"the fastest mode ({omega_max / 2 / math.pi:.3g} Hz) needs {needed} {settings.integrator} steps per sensor sample "
             f"(at most {MAX_STEPS_PER_SENSOR_SAMPLE}): a stiffness is out of range "
-            f"(mesh_stiffness {drivetrain.p.mesh_stiffness:.3g} N/m)")
+            f"(mesh_stiffness {drivetrain.p.mesh_stiffness:.3g} N/m)"
+        )
     return max(int(settings.steps_per_sensor_sample), needed) * int(settings.step_refinement)
 
 
-def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = SimulationSettings(),
-             diagnostics: dict | None = None, extra_loads=()):
+def simulate(
+    params: GearDrivetrainParameters,
+    settings: SimulationSettings = SimulationSettings(),
+    diagnostics: dict | None = None,
+    extra_loads=(),
+):
     """Run the model; return {channel: acceleration in m/s^2 at settings.output_rate}.
 
     extra_loads: `PeriodicLoad`s (the virtual bench's motor ripple and bearing tones).
@@ -622,17 +797,31 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
     structure = drivetrain.structure
     # Loads: the brake torque (with its slow fluctuation) and any extra periodic loads; their
     # coordinates stay plain coordinates of the model.
-    loads = [(drivetrain.load_dof, params.load_torque, params.load_torque * params.load_fluctuation,
-              params.load_fluctuation_hz, params.load_fluctuation_phase)]
+    loads = [
+        (
+            drivetrain.load_dof,
+            params.load_torque,
+            params.load_torque * params.load_fluctuation,
+            params.load_fluctuation_hz,
+            params.load_fluctuation_phase,
+        )
+    ]
     for extra in extra_loads:
         kind, index = extra.target
-        dof = (structure.dof(drivetrain.coupling_node, 5) if kind == "motor"
-               else structure.dof(drivetrain.housings[index], 1))
+        dof = (
+            structure.dof(drivetrain.coupling_node, 5)
+            if kind == "motor"
+            else structure.dof(drivetrain.housings[index], 1)
+        )
         loads.append((dof, 0.0, extra.amplitude, extra.frequency_hz, extra.phase))
     if any(dof == drivetrain.mesh_dof for dof, *_ in loads):
-        raise ValueError("a load acts on the pinion's x, which the model replaces by the mesh deflection")
+        raise ValueError(
+            "a load acts on the pinion's x, which the model replaces by the mesh deflection"
+        )
     matrices = model_matrices(drivetrain, [dof for dof, *_ in loads], settings.modal_cutoff_hz)
-    steps = steps_per_sensor_sample(drivetrain, settings, matrices)  # fails fast on an out-of-range stiffness
+    steps = steps_per_sensor_sample(
+        drivetrain, settings, matrices
+    )  # fails fast on an out-of-range stiffness
     n, mesh_dof, transform = matrices.n, matrices.mesh, matrices.transform
     pinion_polar, gear_polar = drivetrain.polar_inertias()
     mesh = MeshForce(params, mesh_damping(params, pinion_polar, gear_polar))
@@ -641,36 +830,59 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
     rb2 = params.geometry.base_radius(params.geometry.teeth_gear)
     delta0 = mesh.static_deflection(params.load_torque / rb2)
     load = np.zeros(n)
-    load[matrices.plain[drivetrain.load_dof]] = params.load_torque  # a resisting load presses the gear onto the pinion
+    load[matrices.plain[drivetrain.load_dof]] = (
+        params.load_torque
+    )  # a resisting load presses the gear onto the pinion
     free = [i for i in range(n) if i != mesh_dof]
     stiffness = matrices.stiffness
     q0 = np.zeros(n)
     q0[mesh_dof] = delta0
-    q0[free] = np.linalg.solve(stiffness[np.ix_(free, free)], load[free] - stiffness[free, mesh_dof] * delta0)
+    q0[free] = np.linalg.solve(
+        stiffness[np.ix_(free, free)], load[free] - stiffness[free, mesh_dof] * delta0
+    )
 
     with exudyn_system() as mbs:
         # The damaged shaft elements' deformation coordinates (the last ones) get a node of their own,
         # so that their Python force function sees those two per element only.
         n_damage = matrices.n_damage
-        nodes = [mbs.AddNode(eii.NodeGenericODE2(referenceCoordinates=[0.0] * size,
-                                                 initialCoordinates=q0[first:first + size].tolist(),
-                                                 initialCoordinates_t=[0.0] * size, numberOfODE2Coordinates=size))
-                 for first, size in ((0, n - n_damage), (n - n_damage, n_damage)) if size]
+        nodes = [
+            mbs.AddNode(
+                eii.NodeGenericODE2(
+                    referenceCoordinates=[0.0] * size,
+                    initialCoordinates=q0[first : first + size].tolist(),
+                    initialCoordinates_t=[0.0] * size,
+                    numberOfODE2Coordinates=size,
+                )
+            )
+            for first, size in ((0, n - n_damage), (n - n_damage, n_damage))
+            if size
+        ]
         node = nodes[0]
         mass = matrices.mass
         if settings.integrator == "central_difference":
             # exudyn's velocity Verlet takes the damping forces at the half-step velocity: with
             # h/2 C in the mass matrix its step is the central difference (second order)
-            mass = mass + 0.5 / (settings.output_rate * settings.oversampling * steps) * matrices.damping
-        mbs.AddObject(eii.ObjectGenericODE2(nodeNumbers=nodes, massMatrix=_sparse(mass),
-                                            stiffnessMatrix=_sparse(stiffness), dampingMatrix=_sparse(matrices.damping)))
+            mass = (
+                mass
+                + 0.5 / (settings.output_rate * settings.oversampling * steps) * matrices.damping
+            )
+        mbs.AddObject(
+            eii.ObjectGenericODE2(
+                nodeNumbers=nodes,
+                massMatrix=_sparse(mass),
+                stiffnessMatrix=_sparse(stiffness),
+                dampingMatrix=_sparse(matrices.damping),
+            )
+        )
         if n_damage:
             damage = ShaftDamageForce([element for *_, element in drivetrain.damaged_elements])
 
             def damage_force(mbs_, t, item, q, q_t):
                 return damage(t, q)
 
-            mbs.AddObject(eii.ObjectGenericODE2(nodeNumbers=[nodes[1]], forceUserFunction=damage_force))
+            mbs.AddObject(
+                eii.ObjectGenericODE2(nodeNumbers=[nodes[1]], forceUserFunction=damage_force)
+            )
         ground = mbs.AddNode(eii.NodePointGround())
         ground_marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=ground, coordinate=0))
         mesh_marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=mesh_dof))
@@ -680,18 +892,26 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
             calls[0] += 1
             return mesh(t, displacement, velocity)
 
-        mbs.AddObject(eii.ObjectConnectorCoordinateSpringDamper(
-            markerNumbers=[ground_marker, mesh_marker],
-            springForceUserFunction=mesh.spring_force if diagnostics is None else counted_mesh_force))
+        mbs.AddObject(
+            eii.ObjectConnectorCoordinateSpringDamper(
+                markerNumbers=[ground_marker, mesh_marker],
+                springForceUserFunction=mesh.spring_force
+                if diagnostics is None
+                else counted_mesh_force,
+            )
+        )
 
         keep = []  # the symbolic load functions live as long as the system
         for dof, mean, amplitude, frequency, phase in loads:  # compiled symbolic functions of time
-            marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=matrices.plain[dof]))
+            marker = mbs.AddMarker(
+                eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=matrices.plain[dof])
+            )
             item = mbs.AddLoad(eii.LoadCoordinate(markerNumber=marker, load=mean))
             if amplitude:
-                function = CreateSymbolicUserFunction(mbs, _sine_load(mean, amplitude, frequency, phase),
-                                                      'loadUserFunction', item)
-                mbs.SetLoadParameter(item, 'loadUserFunction', function)
+                function = CreateSymbolicUserFunction(
+                    mbs, _sine_load(mean, amplitude, frequency, phase), "loadUserFunction", item
+                )
+                mbs.SetLoadParameter(item, "loadUserFunction", function)
                 keep.append(function)
 
         # Velocities, not accelerations: their differences are the mean acceleration over each
@@ -699,35 +919,64 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
         # content that would alias into the output band lies. A point sample of the acceleration
         # folds the mesh's harmonics near the sensor rate into the band (how much depends on the
         # step: the convergence check measured that aliasing, not the model).
-        sensors = [mbs.AddSensor(eii.SensorNode(nodeNumber=each, storeInternal=True, writeToFile=False,
-                                                outputVariableType=exu.OutputVariableType.Coordinates_t))
-                   for each in nodes]
+        sensors = [
+            mbs.AddSensor(
+                eii.SensorNode(
+                    nodeNumber=each,
+                    storeInternal=True,
+                    writeToFile=False,
+                    outputVariableType=exu.OutputVariableType.Coordinates_t,
+                )
+            )
+            for each in nodes
+        ]
         if diagnostics is not None:
-            position_sensor = mbs.AddSensor(eii.SensorNode(
-                nodeNumber=node, storeInternal=True, writeToFile=False,
-                outputVariableType=exu.OutputVariableType.Coordinates))
+            position_sensor = mbs.AddSensor(
+                eii.SensorNode(
+                    nodeNumber=node,
+                    storeInternal=True,
+                    writeToFile=False,
+                    outputVariableType=exu.OutputVariableType.Coordinates,
+                )
+            )
         mbs.Assemble()
 
         try:
-            solve_rk44(mbs, settings.output_rate * settings.oversampling, steps,
-                       settings.settle_time + settings.duration, sparse=True, sensed_accelerations=False,
-                       solver="VelocityVerlet" if settings.integrator == "central_difference" else "RK44")
+            solve_rk44(
+                mbs,
+                settings.output_rate * settings.oversampling,
+                steps,
+                settings.settle_time + settings.duration,
+                sparse=True,
+                sensed_accelerations=False,
+                solver="VelocityVerlet" if settings.integrator == "central_difference" else "RK44",
+            )
         except Exception as exc:
             message = " ".join(str(exc).split())  # one line: exudyn appends the Python traceback
             raise SimulationError(
-                f"exudyn solver failed ({params.health_state}, {params.speed_rpm} rpm): {message}") from exc
+                f"exudyn solver failed ({params.health_state}, {params.speed_rpm} rpm): {message}"
+            ) from exc
 
-        velocities = np.hstack([mbs.GetSensorStoredData(each)[:, 1:] for each in sensors]) @ transform.T  # physical
+        velocities = (
+            np.hstack([mbs.GetSensorStoredData(each)[:, 1:] for each in sensors]) @ transform.T
+        )  # physical
         acc = np.diff(velocities, axis=0) * (settings.output_rate * settings.oversampling)
         deflection = mbs.GetNodeOutput(node, exu.OutputVariableType.Coordinates)[mesh_dof]
         if diagnostics is not None:
             positions = mbs.GetSensorStoredData(position_sensor)
-            diagnostics.update(time=positions[:, 0], deflection=positions[:, 1 + mesh_dof], mesh_calls=calls[0],
-                               steps_per_sensor_sample=steps, accelerations=acc, drivetrain=drivetrain)
+            diagnostics.update(
+                time=positions[:, 0],
+                deflection=positions[:, 1 + mesh_dof],
+                mesh_calls=calls[0],
+                steps_per_sensor_sample=steps,
+                accelerations=acc,
+                drivetrain=drivetrain,
+            )
         if not np.isfinite(acc).all() or abs(deflection) > settings.max_deflection:
             raise SimulationError(
                 f"simulation diverged ({params.health_state}, {params.speed_rpm} rpm): "
-                f"non-finite accelerations or mesh deflection {deflection:.3g} m")
+                f"non-finite accelerations or mesh deflection {deflection:.3g} m"
+            )
     lowpass = decimation_filter(settings.oversampling)
     first = int(round(settings.settle_time * settings.output_rate))
     n_out = int(round(settings.duration * settings.output_rate))
@@ -737,7 +986,7 @@ def simulate(params: GearDrivetrainParameters, settings: SimulationSettings = Si
             # Filter the whole run (settling included) so filter edge effects fall in the
             # discarded part, then decimate to the output rate.
             out = resample_poly(acc @ rows[axis], 1, settings.oversampling, window=lowpass)
-            signals[f"{sensor_name}_{suffix}"] = out[first:first + n_out]
+            signals[f"{sensor_name}_{suffix}"] = out[first : first + n_out]
     for name, signal in signals.items():
         if not np.isfinite(signal).all():
             raise SimulationError(f"channel {name}: non-finite samples after filtering")
@@ -751,8 +1000,12 @@ def _sparse(matrix: np.ndarray):
 
     rows, cols = np.nonzero(matrix)
     container = exu.MatrixContainer()
-    container.SetWithSparseMatrixCSR(matrix.shape[0], matrix.shape[1],
-                                     np.column_stack([rows, cols, matrix[rows, cols]]), useDenseMatrix=False)
+    container.SetWithSparseMatrixCSR(
+        matrix.shape[0],
+        matrix.shape[1],
+        np.column_stack([rows, cols, matrix[rows, cols]]),
+        useDenseMatrix=False,
+    )
     return container
 
 

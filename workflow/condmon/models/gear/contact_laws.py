@@ -8,6 +8,7 @@ References (as cited by the CFRP and helical-gear studies):
 Gharib & Hurmuzlu (2012), Herbert & McWhannell (1977), Flores et al. (2011), Lee & Wang (1983),
 Hunt & Crossley (1975), Lankarani & Nikravesh (1990), Zhiying & Qishao (2006), Gonthier et al. (2004).
 """
+
 from __future__ import annotations
 
 import math
@@ -18,9 +19,9 @@ HYSTERESIS_FACTORS = {
     "flores": lambda cr: 8.0 * (1.0 - cr) / (5.0 * cr),
     "lee_wang": lambda cr: 3.0 * (1.0 - cr) / 4.0,
     "hunt_crossley": lambda cr: 3.0 * (1.0 - cr) / 2.0,
-    "lankarani_nikravesh": lambda cr: 3.0 * (1.0 - cr ** 2) / 4.0,
-    "zhiying_qishao": lambda cr: 3.0 * (1.0 - cr ** 2) * math.exp(2.0 * (1.0 - cr)) / 4.0,
-    "gonthier": lambda cr: (1.0 - cr ** 2) / cr,
+    "lankarani_nikravesh": lambda cr: 3.0 * (1.0 - cr**2) / 4.0,
+    "zhiying_qishao": lambda cr: 3.0 * (1.0 - cr**2) * math.exp(2.0 * (1.0 - cr)) / 4.0,
+    "gonthier": lambda cr: (1.0 - cr**2) / cr,
 }
 CONTACT_LAWS = tuple(HYSTERESIS_FACTORS)
 
@@ -53,9 +54,15 @@ def rebound_restitution(factor: float) -> float:
     return -math.expm1(log_y) / factor
 
 
-def contact_force(deflection, deflection_rate, stiffness, exponent, damping_factor, approach_velocity):
+def contact_force(
+    deflection, deflection_rate, stiffness, exponent, damping_factor, approach_velocity
+):
     """Compressive contact force K d^n (1 + f d_dot / v-), zero when apart and never pulling."""
     if deflection <= 0.0:
         return 0.0
-    force = stiffness * deflection ** exponent * (1.0 + damping_factor * deflection_rate / approach_velocity)
+    force = (
+        stiffness
+        * deflection**exponent
+        * (1.0 + damping_factor * deflection_rate / approach_velocity)
+    )
     return force if force > 0.0 else 0.0

@@ -86,6 +86,7 @@ ratios as close to RK44 at h/4 as RK44 at 20.8 us's: within 0.04 and 0.23 in log
 and 0.21). At 20.8 us it runs 2.9x faster than RK44 (step check 0.11 dB) but its defect runs' line
 ratios move up to 0.45 in log, twice RK44's.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -98,9 +99,11 @@ from scipy.signal import bilinear, lfilter, resample_poly
 
 from condmon.models.numerics import SimulationError, decimation_filter, exudyn_system, solve_rk44
 
-SPEED_NOTE = ("0.5 s of wall time per simulated second on one core of an idle 2-core machine (defaults: "
-              "central difference, oversampling 4, h = 10.4 us, axial preload, modes and rough running in the "
-              "model; RK44 at 20.8 us: 1.1-1.2), up to 2x when the 2 cores are shared")
+SPEED_NOTE = (
+    "0.5 s of wall time per simulated second on one core of an idle 2-core machine (defaults: "
+    "central difference, oversampling 4, h = 10.4 us, axial preload, modes and rough running in the "
+    "model; RK44 at 20.8 us: 1.1-1.2), up to 2x when the 2 cores are shared"
+)
 DEFECT_KINDS = ("none", "outer_race", "inner_race", "ball")
 CHANNELS = ("DE",)
 INCH = 0.0254
@@ -109,6 +112,7 @@ INCH = 0.0254
 @dataclass(frozen=True)
 class BearingGeometry:
     """Deep-groove ball bearing geometry; lengths in m."""
+
     n_balls: int
     ball_diameter: float
     pitch_diameter: float
@@ -118,10 +122,18 @@ class BearingGeometry:
         """Kinematic defect frequencies in orders of the shaft speed (fixed outer race):
         BPFO = Z/2 (1 - r), BPFI = Z/2 (1 + r), FTF = (1 - r)/2, BSF = D/(2d) (1 - r^2)
         (ball spin relative to the cage, as the CWRU table defines it), r = d/D cos(alpha)."""
-        r = self.ball_diameter / self.pitch_diameter * math.cos(math.radians(self.contact_angle_deg))
+        r = (
+            self.ball_diameter
+            / self.pitch_diameter
+            * math.cos(math.radians(self.contact_angle_deg))
+        )
         z = self.n_balls
-        return dict(bpfo=z / 2 * (1 - r), bpfi=z / 2 * (1 + r), ftf=(1 - r) / 2,
-                    bsf=self.pitch_diameter / (2 * self.ball_diameter) * (1 - r ** 2))
+        return dict(
+            bpfo=z / 2 * (1 - r),
+            bpfi=z / 2 * (1 + r),
+            ftf=(1 - r) / 2,
+            bsf=self.pitch_diameter / (2 * self.ball_diameter) * (1 - r**2),
+        )
 
     @property
     def outer_race_radius(self) -> float:  # ball-outer race contact radius
@@ -132,8 +144,8 @@ class BearingGeometry:
         return (self.pitch_diameter - self.ball_diameter) / 2
 
 
-SKF_6205 = BearingGeometry(9, 7.94e-3, 39.04e-3, 0.0)               # drive end (CWRU)
-SKF_6203 = BearingGeometry(8, 0.2656 * INCH, 1.122 * INCH, 0.0)     # fan end (CWRU)
+SKF_6205 = BearingGeometry(9, 7.94e-3, 39.04e-3, 0.0)  # drive end (CWRU)
+SKF_6203 = BearingGeometry(8, 0.2656 * INCH, 1.122 * INCH, 0.0)  # fan end (CWRU)
 
 
 def _resonances_default():
@@ -151,44 +163,45 @@ class BearingRigParameters:
     """Physical parameters of the rig, SI units. Defaults: the nominal (uncalibrated) CWRU rig;
     where each comes from (the CWRU site, an assumption, the records it was read off):
     ARCHITECTURE.md, "Nominal rig values and where they come from"."""
-    speed_rpm: float = 1797.0               # shaft speed
+
+    speed_rpm: float = 1797.0  # shaft speed
     de_geometry: BearingGeometry = SKF_6205
     fe_geometry: BearingGeometry = SKF_6203
     # Rotor (shaft + motor rotor), lumped at the two journals.
-    rotor_mass: float = 8.0                 # kg, total
-    de_mass_share: float = 0.5              # share of the rotor mass at the DE journal
-    shaft_stiffness: float = 5.0e7          # N/m, bending stiffness between the journals
-    shaft_damping_ratio: float = 0.02       # modal damping ratio of the shaft bending mode
-    gravity: float = 9.81                   # m/s^2, acts on rotor and housings (-y)
-    radial_load: float = 0.0                # N, extra downward load on the DE journal
-    unbalance: float = 2.0e-5               # kg m, rotating unbalance m e (split over the journals)
+    rotor_mass: float = 8.0  # kg, total
+    de_mass_share: float = 0.5  # share of the rotor mass at the DE journal
+    shaft_stiffness: float = 5.0e7  # N/m, bending stiffness between the journals
+    shaft_damping_ratio: float = 0.02  # modal damping ratio of the shaft bending mode
+    gravity: float = 9.81  # m/s^2, acts on rotor and housings (-y)
+    radial_load: float = 0.0  # N, extra downward load on the DE journal
+    unbalance: float = 2.0e-5  # kg m, rotating unbalance m e (split over the journals)
     # Ball-race contact (Hertz, point contact, both races in series): F = K delta^1.5.
-    contact_stiffness: float = 8.0e9        # N/m^1.5, DE (6205); FE scaled by (d_FE/d_DE)^0.5
-    radial_clearance: float = 5.0e-6        # m, radial internal clearance (both bearings)
+    contact_stiffness: float = 8.0e9  # N/m^1.5, DE (6205); FE scaled by (d_FE/d_DE)^0.5
+    radial_clearance: float = 5.0e-6  # m, radial internal clearance (both bearings)
     # N, axial preload of a spring-loaded bearing arrangement (a wave spring on one outer ring):
     # it shifts the rings axially until every DE ball touches both races (`preload_deflection`),
     # so balls away from the load zone stay pressed and an outer-race defect at 12:00 or 3:00
     # still strikes (weaker); 0: no spring, the radial clearance stays
     axial_preload: float = 0.0
-    bearing_damping: float = 300.0          # N s/m, linear viscous damping journal-housing
+    bearing_damping: float = 300.0  # N s/m, linear viscous damping journal-housing
     # Housings (end shields) on the motor frame.
-    housing_mass: float = 3.0               # kg, each
-    housing_stiffness: float = 1.5e8        # N/m, each, both directions
-    housing_damping_ratio: float = 0.05     # modal damping ratio of the housing mode
+    housing_mass: float = 3.0  # kg, each
+    housing_stiffness: float = 1.5e8  # N/m, each, both directions
+    housing_damping_ratio: float = 0.05  # modal damping ratio of the housing mode
     # Defect on the DE bearing.
-    defect_kind: str = "none"               # none | outer_race | inner_race | ball
-    defect_width: float = 0.007 * INCH      # m, extent along the rolling direction
-    defect_depth: float = 0.011 * INCH      # m (CWRU EDM pits are 0.011 in deep)
-    defect_drop_scale: float = 1.0          # factor on the drop the ball can reach (edge rounding, wear)
-    defect_clock: float = 6.0               # clock position of an outer-race defect, hours (12 = top)
-    defect_entry: float = 0.3               # entry ramp, fraction of the width (raised cosine)
-    defect_exit: float = 0.1                # exit ramp, fraction of the width
-    defect_depth_variation: float = 0.2     # per-passage depth spread, +/- fraction (uniform)
+    defect_kind: str = "none"  # none | outer_race | inner_race | ball
+    defect_width: float = 0.007 * INCH  # m, extent along the rolling direction
+    defect_depth: float = 0.011 * INCH  # m (CWRU EDM pits are 0.011 in deep)
+    defect_drop_scale: float = 1.0  # factor on the drop the ball can reach (edge rounding, wear)
+    defect_clock: float = 6.0  # clock position of an outer-race defect, hours (12 = top)
+    defect_entry: float = 0.3  # entry ramp, fraction of the width (raised cosine)
+    defect_exit: float = 0.1  # exit ramp, fraction of the width
+    defect_depth_variation: float = 0.2  # per-passage depth spread, +/- fraction (uniform)
     # chance that a passage strikes; None: a race defect every passage, a ball defect the share of
     # its spin turns on which its pit crosses the rolling track (`ball_strike_probability`)
     defect_strike_probability: float | None = None
-    defect_phase: float = 0.0               # rad: inner-race defect angle / ball defect spin angle at t=0
-    slip_std: float = 0.01                  # std of the wandering slip rate, fraction of the passage rate
+    defect_phase: float = 0.0  # rad: inner-race defect angle / ball defect spin angle at t=0
+    slip_std: float = 0.01  # std of the wandering slip rate, fraction of the passage rate
     # Rough running of the damaged contact (rough pit floor, debris, a ball pit rubbing obliquely):
     # a random force (N rms, white up to 24 kHz) between the DE journal and housing, modulated
     # at the defect's passage rate with depth `defect_roughness_modulation` (0 stationary, 1 gated).
@@ -201,8 +214,8 @@ class BearingRigParameters:
     resonances: tuple = field(default_factory=_resonances_default)
     modal_mass_share: float = 0.01
     housing_path_gain: float = 1.0
-    sensor_gain: float = 1.0                # multiplies the whole mechanical signal
-    noise_rms: float = 0.3                  # m/s^2, white broadband noise
+    sensor_gain: float = 1.0  # multiplies the whole mechanical signal
+    noise_rms: float = 0.3  # m/s^2, white broadband noise
     # Background bands (frequency Hz, damping ratio, RMS m/s^2): random noise through a resonance.
     background: tuple = field(default_factory=_background_default)
 
@@ -217,16 +230,17 @@ class BearingRigParameters:
 @dataclass
 class RigSettings:
     """Numerical settings of one run."""
+
     output_rate_hz: float = 12000.0
-    oversampling: int = 4             # sensor rate = oversampling x output rate
+    oversampling: int = 4  # sensor rate = oversampling x output rate
     # step = 1 / (sensor rate x this); 2 with the central difference: 10.4 us, one force call a
     # step (2.4 a sensor sample against RK44's 5 at 20.8 us), its defect features as close to
     # RK44 at h/4 as RK44 at 20.8 us's are
     steps_per_sensor_sample: int = 2
-    settle_time: float = 0.1          # simulated then discarded, s
-    duration: float = 1.0             # recorded seconds
-    max_penetration: float = 2.0e-4   # |journal - housing| beyond clearance + this is divergence, m
-    load_zone_only: bool = True       # sum only the balls near the bottom (checked; else rerun with all)
+    settle_time: float = 0.1  # simulated then discarded, s
+    duration: float = 1.0  # recorded seconds
+    max_penetration: float = 2.0e-4  # |journal - housing| beyond clearance + this is divergence, m
+    load_zone_only: bool = True  # sum only the balls near the bottom (checked; else rerun with all)
     # "rk44" (four force calls a step, a fifth for the sensed accelerations) or
     # "central_difference" (one a step, accelerations included: exudyn's velocity Verlet with the
     # damping correction of `central_difference_mass`, second order)
@@ -252,12 +266,16 @@ def preload_deflection(p: BearingRigParameters) -> float:
     curvature_centres = (2 * GROOVE_CONFORMITY - 1) * g.ball_diameter
     cos_free = 1.0 - p.radial_clearance / curvature_centres
     if not cos_free > 0:
-        raise ValueError(f"radial_clearance {p.radial_clearance:g} m exceeds the groove geometry's "
-                         f"{curvature_centres:g} m: no contact angle")
+        raise ValueError(
+            f"radial_clearance {p.radial_clearance:g} m exceeds the groove geometry's "
+            f"{curvature_centres:g} m: no contact angle"
+        )
 
     def axial_force(delta):
         cos_alpha = curvature_centres * cos_free / (curvature_centres + delta)
-        return g.n_balls * p.contact_stiffness * delta ** 1.5 * math.sqrt(max(1.0 - cos_alpha ** 2, 0.0))
+        return (
+            g.n_balls * p.contact_stiffness * delta**1.5 * math.sqrt(max(1.0 - cos_alpha**2, 0.0))
+        )
 
     if axial_force(1e-3) < p.axial_preload:
         raise ValueError(f"axial_preload {p.axial_preload:g} N: beyond 1 mm of contact deflection")
@@ -285,8 +303,10 @@ def effective_defect_depth(p: BearingRigParameters, race: str | None = None) -> 
     elif race == "inner":
         curvature = 1 / rb + 1 / g.inner_race_radius
     else:
-        raise ValueError(f"defect {p.defect_kind!r}: name the race it meets ('outer' or 'inner'), got {race!r}")
-    return float(min(p.defect_depth, p.defect_drop_scale * p.defect_width ** 2 / 8 * curvature))
+        raise ValueError(
+            f"defect {p.defect_kind!r}: name the race it meets ('outer' or 'inner'), got {race!r}"
+        )
+    return float(min(p.defect_depth, p.defect_drop_scale * p.defect_width**2 / 8 * curvature))
 
 
 # Hertz contact of steel balls on steel races, and the races' groove radius over the ball diameter
@@ -305,13 +325,15 @@ def contact_half_width(geometry: BearingGeometry, ball_load: float, race: str) -
         raise ValueError(f"race {race!r}: 'inner' or 'outer'")
     rb = geometry.ball_diameter / 2
     race_radius = geometry.inner_race_radius if race == "inner" else -geometry.outer_race_radius
-    rx = 1 / (1 / rb + 1 / race_radius)                                      # rolling direction
-    ry = 1 / (1 / rb - 1 / (GROOVE_CONFORMITY * geometry.ball_diameter))     # across, in the groove
+    rx = 1 / (1 / rb + 1 / race_radius)  # rolling direction
+    ry = 1 / (1 / rb - 1 / (GROOVE_CONFORMITY * geometry.ball_diameter))  # across, in the groove
     k = 1.0339 * (ry / rx) ** 0.636
     elliptic = 1.0003 + 0.5968 * rx / ry
-    reduced_modulus = STEEL_YOUNGS_MODULUS / (1 - STEEL_POISSON_RATIO ** 2)
+    reduced_modulus = STEEL_YOUNGS_MODULUS / (1 - STEEL_POISSON_RATIO**2)
     radius = 1 / (1 / rx + 1 / ry)
-    return float((6 * k ** 2 * elliptic * ball_load * radius / (math.pi * reduced_modulus)) ** (1 / 3))
+    return float(
+        (6 * k**2 * elliptic * ball_load * radius / (math.pi * reduced_modulus)) ** (1 / 3)
+    )
 
 
 def ball_deflection_at(p: BearingRigParameters, clock: float) -> float:
@@ -342,7 +364,7 @@ def outer_race_strike(p: BearingRigParameters, clock: float | None = None) -> fl
     outside the load zone does not strike."""
     delta = ball_deflection_at(p, p.defect_clock if clock is None else clock)
     depth = effective_defect_depth(p, "outer")
-    return float(p.contact_stiffness * (delta ** 1.5 - max(delta - depth, 0.0) ** 1.5))
+    return float(p.contact_stiffness * (delta**1.5 - max(delta - depth, 0.0) ** 1.5))
 
 
 def ball_strike_probability(p: BearingRigParameters) -> float:
@@ -362,9 +384,14 @@ def ball_strike_probability(p: BearingRigParameters) -> float:
 def _check(p: BearingRigParameters, s: RigSettings) -> None:
     if p.defect_kind not in DEFECT_KINDS:
         raise ValueError(f"defect_kind {p.defect_kind!r}; choose one of {list(DEFECT_KINDS)}")
-    positive = dict(speed_rpm=p.speed_rpm, rotor_mass=p.rotor_mass, contact_stiffness=p.contact_stiffness,
-                    housing_mass=p.housing_mass, housing_stiffness=p.housing_stiffness,
-                    shaft_stiffness=p.shaft_stiffness)
+    positive = dict(
+        speed_rpm=p.speed_rpm,
+        rotor_mass=p.rotor_mass,
+        contact_stiffness=p.contact_stiffness,
+        housing_mass=p.housing_mass,
+        housing_stiffness=p.housing_stiffness,
+        shaft_stiffness=p.shaft_stiffness,
+    )
     for name, value in positive.items():
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive number, got {value}")
@@ -372,17 +399,25 @@ def _check(p: BearingRigParameters, s: RigSettings) -> None:
         raise ValueError(f"de_mass_share must lie in (0, 1), got {p.de_mass_share}")
     if p.defect_kind != "none":
         if not (p.defect_width > 0 and p.defect_depth > 0 and p.defect_drop_scale > 0):
-            raise ValueError("defect_width, defect_depth and defect_drop_scale must be positive for a defect")
+            raise ValueError(
+                "defect_width, defect_depth and defect_drop_scale must be positive for a defect"
+            )
         if not (0 < p.defect_entry <= 1 and 0 < p.defect_exit <= 1):
             raise ValueError("defect_entry and defect_exit must lie in (0, 1]")
         if p.defect_strike_probability is not None and not 0 < p.defect_strike_probability <= 1:
-            raise ValueError("defect_strike_probability must lie in (0, 1] (or be None: from the contact)")
+            raise ValueError(
+                "defect_strike_probability must lie in (0, 1] (or be None: from the contact)"
+            )
         if not (p.defect_roughness >= 0 and 0 <= p.defect_roughness_modulation <= 1):
-            raise ValueError("defect_roughness must be >= 0 and defect_roughness_modulation in [0, 1]")
+            raise ValueError(
+                "defect_roughness must be >= 0 and defect_roughness_modulation in [0, 1]"
+            )
         if not 0 <= p.defect_depth_variation < 1:
             raise ValueError("defect_depth_variation must lie in [0, 1)")
     if not 0 <= p.slip_std < 0.2:
-        raise ValueError(f"slip_std must lie in [0, 0.2) (fraction of the passage rate), got {p.slip_std}")
+        raise ValueError(
+            f"slip_std must lie in [0, 0.2) (fraction of the passage rate), got {p.slip_std}"
+        )
     if not (np.isfinite(p.radial_clearance) and p.radial_clearance >= 0):
         raise ValueError(f"radial_clearance must be >= 0 m, got {p.radial_clearance}")
     if not (np.isfinite(p.axial_preload) and p.axial_preload >= 0):
@@ -395,20 +430,30 @@ def _check(p: BearingRigParameters, s: RigSettings) -> None:
     step_hz = s.output_rate_hz * s.oversampling * s.steps_per_sensor_sample
     for mode in p.resonances:
         if len(mode) not in (3, 4):
-            raise ValueError(f"resonance {mode}: need (frequency Hz, damping ratio, gain[, tilt deg])")
+            raise ValueError(
+                f"resonance {mode}: need (frequency Hz, damping ratio, gain[, tilt deg])"
+            )
         f, zeta = mode[0], mode[1]
         limit = MODE_STEP_LIMIT.get(s.integrator, 1.0)
         if not (0 < f <= limit * step_hz / (2 * math.pi) and 0 < zeta < 1):
-            raise ValueError(f"resonance ({f}, {zeta}): need 0 < f <= {limit * step_hz / (2 * math.pi):.0f} Hz "
-                             f"(omega h <= {limit} for {s.integrator} at this step) and 0 < zeta < 1")
+            raise ValueError(
+                f"resonance ({f}, {zeta}): need 0 < f <= {limit * step_hz / (2 * math.pi):.0f} Hz "
+                f"(omega h <= {limit} for {s.integrator} at this step) and 0 < zeta < 1"
+            )
         if len(mode) == 4 and not -90 <= mode[3] <= 90:
-            raise ValueError(f"resonance {mode}: the tilt must lie in [-90, 90] degrees from vertical")
+            raise ValueError(
+                f"resonance {mode}: the tilt must lie in [-90, 90] degrees from vertical"
+            )
     if p.resonances and not 0 < p.modal_mass_share <= 0.2:
-        raise ValueError(f"modal_mass_share must lie in (0, 0.2] (light modes), got {p.modal_mass_share}")
+        raise ValueError(
+            f"modal_mass_share must lie in (0, 0.2] (light modes), got {p.modal_mass_share}"
+        )
     for f, zeta, level in p.background:
         if not (0 < f < s.output_rate_hz / 2 and 0 < zeta < 1 and level >= 0):
-            raise ValueError(f"background band ({f}, {zeta}, {level}): need 0 < f < output Nyquist, "
-                             "0 < zeta < 1, rms >= 0")
+            raise ValueError(
+                f"background band ({f}, {zeta}, {level}): need 0 < f < output Nyquist, "
+                "0 < zeta < 1, rms >= 0"
+            )
     if s.integrator not in INTEGRATORS:
         raise ValueError(f"integrator {s.integrator!r}; choose one of {list(INTEGRATORS)}")
     if s.oversampling < 2 or s.steps_per_sensor_sample < 1:
@@ -464,22 +509,28 @@ class _DefectProfile:
             self.psi_rate = z * (w_s - w_c) / (2 * math.pi)
             self.psi0 = z * p.defect_phase / (2 * math.pi)
             self.arc_per_unit = g.inner_race_radius * 2 * math.pi / z
-            self.direction = (w_s, p.defect_phase)     # rotates with the shaft
+            self.direction = (w_s, p.defect_phase)  # rotates with the shaft
         elif self.kind == "ball":
             # two strikes per spin revolution (outer race on even passages, inner race on odd
             # ones), spin = BSF x shaft
             self.psi_rate = 2 * o["bsf"] * p.shaft_hz
             self.psi0 = p.defect_phase / math.pi
             self.arc_per_unit = g.ball_diameter / 2 * math.pi
-            self.direction = (w_c, 0.0)                # carried by the cage (ball 0)
+            self.direction = (w_c, 0.0)  # carried by the cage (ball 0)
         self.period = 1.0 / self.psi_rate if self.kind != "none" else float("nan")
         # slip rate s(t) = sum a cos(w t + phase), std slip_std; psi gains rate x its integral
         wander = np.random.default_rng(int(hash_seed * 1e6))
         omega = 2 * math.pi * wander.uniform(*SLIP_BAND_HZ, SLIP_COMPONENTS)
         phases = wander.uniform(0.0, 2 * math.pi, SLIP_COMPONENTS)
         amplitude = p.slip_std * math.sqrt(2.0 / SLIP_COMPONENTS)
-        self.slip_terms = ([(float(self.psi_rate * amplitude / w), float(w), float(f))
-                            for w, f in zip(omega, phases)] if self.kind != "none" else [])
+        self.slip_terms = (
+            [
+                (float(self.psi_rate * amplitude / w), float(w), float(f))
+                for w, f in zip(omega, phases)
+            ]
+            if self.kind != "none"
+            else []
+        )
 
     def phase(self, t, sin):
         """psi(t): passages since the reference, slip included (`sin`: esym.sin or np.sin)."""
@@ -499,19 +550,23 @@ class _DefectProfile:
     def depth_expr(self, esym, t):
         R = esym.Real
         psi = self.phase(t, esym.sin)
-        k = esym.floor(psi + 0.5)                      # index of the nearest passage
-        u = psi - k                                    # in [-0.5, 0.5): passages from it
-        x = u * (self.arc_per_unit / self.width) + 0.5   # 0..1 across the defect
+        k = esym.floor(psi + 0.5)  # index of the nearest passage
+        u = psi - k  # in [-0.5, 0.5): passages from it
+        x = u * (self.arc_per_unit / self.width) + 0.5  # 0..1 across the defect
         ramp_in = esym.min(esym.max(x * (1.0 / self.entry), R(0.0)), R(1.0))
         ramp_out = esym.min(esym.max((1.0 - x) * (1.0 / self.exit), R(0.0)), R(1.0))
-        shape = esym.min(0.5 - 0.5 * esym.cos(ramp_in * math.pi), 0.5 - 0.5 * esym.cos(ramp_out * math.pi))
+        shape = esym.min(
+            0.5 - 0.5 * esym.cos(ramp_in * math.pi), 0.5 - 0.5 * esym.cos(ramp_out * math.pi)
+        )
         scale = 1.0 + (_hash01(esym, k, 78.233, self.seed + 1.7) - 0.5) * (2 * self.variation)
         if self.strike < 1.0:
-            hit = esym.IfThenElse(_hash01(esym, k, 39.3468, self.seed + 3.1) < R(self.strike), R(1.0), R(0.0))
+            hit = esym.IfThenElse(
+                _hash01(esym, k, 39.3468, self.seed + 3.1) < R(self.strike), R(1.0), R(0.0)
+            )
             scale = scale * hit
         depth = R(self.depth)
         if self.inner_extra:
-            inner = k - esym.floor(k * 0.5) * 2.0        # 1 on odd passages: the inner race
+            inner = k - esym.floor(k * 0.5) * 2.0  # 1 on odd passages: the inner race
             depth = depth + inner * self.inner_extra
         return shape * scale * depth
 
@@ -527,31 +582,42 @@ class _DefectProfile:
 # The rough-running window: cos(pi u)^8 of the passage offset u, about a fifth of the period wide,
 # scaled to unit mean square (mean of cos^16 over a period: C(16, 8) / 2^16).
 ROUGHNESS_WINDOW_POWER = 8
-ROUGHNESS_WINDOW_RMS = math.sqrt(math.comb(16, 8) / 2 ** 16)
+ROUGHNESS_WINDOW_RMS = math.sqrt(math.comb(16, 8) / 2**16)
 # The rough-running force is white up to 24 kHz (held over 1/48000 s), whatever the step, so
 # a finer step does not spread the same force over a wider band.
 ROUGHNESS_HOLD_RATE_HZ = 48000.0
 
 
-def _roughness_force_function(profile: _DefectProfile, level: float, modulation: float, seed: float):
+def _roughness_force_function(
+    profile: _DefectProfile, level: float, modulation: float, seed: float
+):
     """A Python function of exudyn's Cartesian spring-damper signature, recorded symbolically: the
     vertical rough-running force of the damaged contact, level x envelope(t) x n(t), on the
     housing (and its reaction on the journal). n is white up to half of
     ROUGHNESS_HOLD_RATE_HZ (held over each 1/ROUGHNESS_HOLD_RATE_HZ), nearly normal with unit
     variance (the sum of three sine-hash uniforms of the hold index, scaled); the envelope (1 - m) + m window(psi) gates it at the
     defect's passages, slip included."""
+
     def force(mbs, t, item, u, v, k, d, offset):
         import exudyn as exu
+
         esym = exu.symbolic
         R = esym.Real
         k = esym.floor(t * ROUGHNESS_HOLD_RATE_HZ)
-        normal = (_hash01(esym, k, 12.9898, seed) + _hash01(esym, k, 78.233, seed + 0.37)
-                  + _hash01(esym, k, 37.719, seed + 1.91) - 1.5) * 2.0
+        normal = (
+            _hash01(esym, k, 12.9898, seed)
+            + _hash01(esym, k, 78.233, seed + 0.37)
+            + _hash01(esym, k, 37.719, seed + 1.91)
+            - 1.5
+        ) * 2.0
         psi = profile.phase(t, esym.sin)
         u = psi - esym.floor(psi + 0.5)
-        window = esym.pow(esym.cos(u * math.pi), R(ROUGHNESS_WINDOW_POWER)) * (1.0 / ROUGHNESS_WINDOW_RMS)
+        window = esym.pow(esym.cos(u * math.pi), R(ROUGHNESS_WINDOW_POWER)) * (
+            1.0 / ROUGHNESS_WINDOW_RMS
+        )
         envelope = window * modulation + (1.0 - modulation)
         return esym.Vector([R(0.0), normal * envelope * level, R(0.0)])
+
     return force
 
 
@@ -562,11 +628,20 @@ def load_zone_reach(geometry: BearingGeometry) -> int:
     """Balls on each side of the one nearest the bottom that the load-zone sum includes: every
     ball within LOAD_ZONE_DEG of the bottom is always included."""
     spacing = 360.0 / geometry.n_balls
-    return min(int(math.floor((LOAD_ZONE_DEG + spacing / 2) / spacing)), (geometry.n_balls - 1) // 2)
+    return min(
+        int(math.floor((LOAD_ZONE_DEG + spacing / 2) / spacing)), (geometry.n_balls - 1) // 2
+    )
 
 
-def _bearing_force_function(geometry: BearingGeometry, stiffness: float, clearance: float, damping: float,
-                            shaft_hz: float, defect: _DefectProfile | None, zone_only: bool):
+def _bearing_force_function(
+    geometry: BearingGeometry,
+    stiffness: float,
+    clearance: float,
+    damping: float,
+    shaft_hz: float,
+    defect: _DefectProfile | None,
+    zone_only: bool,
+):
     """A Python function of exudyn's Cartesian spring-damper signature, recorded symbolically.
 
     zone_only: sum only the balls near the bottom (`load_zone_reach`), the ones the downward
@@ -579,6 +654,7 @@ def _bearing_force_function(geometry: BearingGeometry, stiffness: float, clearan
 
     def force(mbs, t, item, u, v, k, d, offset):
         import exudyn as exu
+
         esym = exu.symbolic
         R = esym.Real
         zero = R(0.0)
@@ -586,7 +662,10 @@ def _bearing_force_function(geometry: BearingGeometry, stiffness: float, clearan
         fy = v[1] * damping
         if zone_only:
             # offset of the ball nearest the bottom (load direction -y), in [-a/2, a/2)
-            psi = esym.mod(t * w_c + (math.pi / 2 + spacing / 2 + 200 * math.pi), R(spacing)) - spacing / 2
+            psi = (
+                esym.mod(t * w_c + (math.pi / 2 + spacing / 2 + 200 * math.pi), R(spacing))
+                - spacing / 2
+            )
             angles = [psi + (-math.pi / 2 + m * spacing) for m in range(-reach, reach + 1)]
         else:
             angles = [t * w_c + 2 * math.pi * j / z for j in range(z)]
@@ -599,8 +678,10 @@ def _bearing_force_function(geometry: BearingGeometry, stiffness: float, clearan
             c, s = defect.angle_terms(esym, t)
             delta = u[0] * c + u[1] * s - clearance
             p = defect.depth_expr(esym, t)
-            corr = (esym.pow(esym.max(delta - p, zero), R(1.5))
-                    - esym.pow(esym.max(delta, zero), R(1.5))) * stiffness
+            corr = (
+                esym.pow(esym.max(delta - p, zero), R(1.5))
+                - esym.pow(esym.max(delta, zero), R(1.5))
+            ) * stiffness
             # evaluated only while a ball is near the defect (IfThenElse evaluates one branch)
             near = defect.near_expr(esym, t)
             fx = fx + esym.IfThenElse(near, corr * c, zero)
@@ -615,7 +696,9 @@ def _load_zone_ok(displacement: np.ndarray, clearance: float, tolerance: float =
     pressed by more than `tolerance` x the most loaded ball's deflection (5 % of its force).
     displacement: (n, 2) journal minus housing, x and y."""
     r = np.hypot(displacement[:, 0], displacement[:, 1])
-    beta = np.degrees(np.abs(np.arctan2(displacement[:, 0], -displacement[:, 1])))  # from the bottom
+    beta = np.degrees(
+        np.abs(np.arctan2(displacement[:, 0], -displacement[:, 1]))
+    )  # from the bottom
     outside = r * np.cos(np.radians(np.clip(LOAD_ZONE_DEG - beta, 0.0, 180.0))) - clearance
     return bool(np.all(outside <= tolerance * np.maximum(r - clearance, 0.0) + 1e-12))
 
@@ -625,7 +708,7 @@ def _bearing_static_force(geometry, stiffness, clearance, uy):
     z = geometry.n_balls
     phi = 2 * np.pi * np.arange(z) / z
     delta = np.maximum(uy * np.sin(phi) - clearance, 0.0)
-    return float((stiffness * delta ** 1.5 * np.sin(phi)).sum())
+    return float((stiffness * delta**1.5 * np.sin(phi)).sum())
 
 
 def _static_sag(geometry, stiffness, clearance, load):
@@ -647,7 +730,7 @@ def _resonance_filter(freq, zeta, gain, fs):
     w = 2 * np.pi * freq
     warp = 2 * fs * np.tan(w / (2 * fs)) / w
     wn = w * warp
-    return bilinear([gain, 0.0, 0.0], [1.0, 2 * zeta * wn, wn ** 2], fs)
+    return bilinear([gain, 0.0, 0.0], [1.0, 2 * zeta * wn, wn**2], fs)
 
 
 # -- the run ----------------------------------------------------------------------------------
@@ -677,8 +760,16 @@ def central_difference_mass(nodes: list, dampers: list, step: float) -> np.ndarr
     return 0.5 * step * matrix
 
 
-def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, unbalance_phase: float,
-                   rough_seed: float, zone_only: tuple[bool, bool], where: str, record_force: bool = False):
+def _run_mechanics(
+    p: BearingRigParameters,
+    s: RigSettings,
+    hash_seed: float,
+    unbalance_phase: float,
+    rough_seed: float,
+    zone_only: tuple[bool, bool],
+    where: str,
+    record_force: bool = False,
+):
     """The exudyn part: returns (housing acceleration, DE bearing force, DE bearing displacement)
     sensor arrays (time in column 0) and the modes' accelerations (shape (samples, modes, 2): x
     and y) at the sensor rate, settling included. zone_only: whether the DE and the FE bearing
@@ -688,7 +779,9 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
 
     g = p.gravity
     m_de, m_fe = p.rotor_mass * p.de_mass_share, p.rotor_mass * (1 - p.de_mass_share)
-    k_fe = p.contact_stiffness * math.sqrt(p.fe_geometry.ball_diameter / p.de_geometry.ball_diameter)
+    k_fe = p.contact_stiffness * math.sqrt(
+        p.fe_geometry.ball_diameter / p.de_geometry.ball_diameter
+    )
     c_h = 2 * p.housing_damping_ratio * math.sqrt(p.housing_stiffness * p.housing_mass)
     c_shaft = 2 * p.shaft_damping_ratio * math.sqrt(p.shaft_stiffness * min(m_de, m_fe))
     # static sag of the journals in their bearings and of the housings on the frame
@@ -705,7 +798,9 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
         eii = exu.itemInterface
 
         def point(mass, y0, force_y):
-            node = mbs.AddNode(eii.NodePoint2D(referenceCoordinates=[0.0, 0.0], initialCoordinates=[0.0, y0]))
+            node = mbs.AddNode(
+                eii.NodePoint2D(referenceCoordinates=[0.0, 0.0], initialCoordinates=[0.0, y0])
+            )
             mbs.AddObject(eii.ObjectMassPoint2D(mass=mass, nodeNumber=node))
             marker = mbs.AddMarker(eii.MarkerNodePosition(nodeNumber=node))
             mbs.AddLoad(eii.LoadForceVector(markerNumber=marker, loadVector=[0.0, force_y, 0.0]))
@@ -717,115 +812,205 @@ def _run_mechanics(p: BearingRigParameters, s: RigSettings, hash_seed: float, un
         rfe_node, rfe = point(m_fe, h_fe + sag_fe, -m_fe * g)
         # every linear damper (node, node or None for the ground, N s/m in x and y), for the
         # central difference's mass correction
-        dampers = [(hde_node, None, c_h), (hfe_node, None, c_h), (rde_node, rfe_node, c_shaft),
-                   (hde_node, rde_node, p.bearing_damping), (hfe_node, rfe_node, p.bearing_damping)]
+        dampers = [
+            (hde_node, None, c_h),
+            (hfe_node, None, c_h),
+            (rde_node, rfe_node, c_shaft),
+            (hde_node, rde_node, p.bearing_damping),
+            (hfe_node, rfe_node, p.bearing_damping),
+        ]
         ground = mbs.AddObject(eii.ObjectGround())
-        ground_marker = mbs.AddMarker(eii.MarkerBodyPosition(bodyNumber=ground, localPosition=[0.0, 0.0, 0.0]))
+        ground_marker = mbs.AddMarker(
+            eii.MarkerBodyPosition(bodyNumber=ground, localPosition=[0.0, 0.0, 0.0])
+        )
         for marker in (hde, hfe):
-            mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
-                markerNumbers=[ground_marker, marker], stiffness=[p.housing_stiffness] * 2 + [0.0],
-                damping=[c_h] * 2 + [0.0]))
-        mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
-            markerNumbers=[rde, rfe], stiffness=[p.shaft_stiffness] * 2 + [0.0], damping=[c_shaft] * 2 + [0.0],
-            offset=[0.0, (h_fe + sag_fe) - (h_de + sag_de), 0.0]))
+            mbs.AddObject(
+                eii.ObjectConnectorCartesianSpringDamper(
+                    markerNumbers=[ground_marker, marker],
+                    stiffness=[p.housing_stiffness] * 2 + [0.0],
+                    damping=[c_h] * 2 + [0.0],
+                )
+            )
+        mbs.AddObject(
+            eii.ObjectConnectorCartesianSpringDamper(
+                markerNumbers=[rde, rfe],
+                stiffness=[p.shaft_stiffness] * 2 + [0.0],
+                damping=[c_shaft] * 2 + [0.0],
+                offset=[0.0, (h_fe + sag_fe) - (h_de + sag_de), 0.0],
+            )
+        )
         # Rotating unbalance, split over the journals: symbolic load functions (compiled).
         w_s = 2 * np.pi * p.shaft_hz
-        f_unb = p.unbalance * w_s ** 2 / 2
+        f_unb = p.unbalance * w_s**2 / 2
         keep = []  # symbolic functions must live as long as the system
 
         def unbalance_load(mbs_, t, load):
             esym = exu.symbolic
-            return esym.Vector([esym.cos(t * w_s + unbalance_phase) * f_unb,
-                                esym.sin(t * w_s + unbalance_phase) * f_unb, esym.Real(0.0)])
+            return esym.Vector(
+                [
+                    esym.cos(t * w_s + unbalance_phase) * f_unb,
+                    esym.sin(t * w_s + unbalance_phase) * f_unb,
+                    esym.Real(0.0),
+                ]
+            )
 
         if f_unb > 0:
             for marker in (rde, rfe):
-                load = mbs.AddLoad(eii.LoadForceVector(markerNumber=marker, loadVector=[0.0, 0.0, 0.0]))
-                fn = CreateSymbolicUserFunction(mbs, unbalance_load, 'loadVectorUserFunction', load)
-                mbs.SetLoadParameter(load, 'loadVectorUserFunction', fn)
+                load = mbs.AddLoad(
+                    eii.LoadForceVector(markerNumber=marker, loadVector=[0.0, 0.0, 0.0])
+                )
+                fn = CreateSymbolicUserFunction(mbs, unbalance_load, "loadVectorUserFunction", load)
+                mbs.SetLoadParameter(load, "loadVectorUserFunction", fn)
                 keep.append(fn)
         # Structural modes of the DE housing: modal masses on spring-dampers tuned to each mode.
         mode_nodes = []
         for freq, zeta, *_ in p.resonances:
             omega = 2 * math.pi * freq
-            node, mode = point(modal_mass, h_de - g / omega ** 2, -modal_mass * g)
-            mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
-                markerNumbers=[hde, mode], stiffness=[modal_mass * omega ** 2] * 2 + [0.0],
-                damping=[2 * zeta * omega * modal_mass] * 2 + [0.0]))
+            node, mode = point(modal_mass, h_de - g / omega**2, -modal_mass * g)
+            mbs.AddObject(
+                eii.ObjectConnectorCartesianSpringDamper(
+                    markerNumbers=[hde, mode],
+                    stiffness=[modal_mass * omega**2] * 2 + [0.0],
+                    damping=[2 * zeta * omega * modal_mass] * 2 + [0.0],
+                )
+            )
             mode_nodes.append(node)
             dampers.append((hde_node, node, 2 * zeta * omega * modal_mass))
         defect = _DefectProfile(p, hash_seed) if p.defect_kind != "none" else None
         if defect is not None and p.defect_roughness > 0:
             # rough running: a random force between the DE housing and journal, evaluated once a
             # stage by a force-only connector (action on the housing, reaction on the journal)
-            item = mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
-                markerNumbers=[hde, rde], stiffness=[0.0, 0.0, 0.0], damping=[0.0, 0.0, 0.0]))
+            item = mbs.AddObject(
+                eii.ObjectConnectorCartesianSpringDamper(
+                    markerNumbers=[hde, rde], stiffness=[0.0, 0.0, 0.0], damping=[0.0, 0.0, 0.0]
+                )
+            )
             fn = CreateSymbolicUserFunction(
-                mbs, _roughness_force_function(defect, p.defect_roughness, p.defect_roughness_modulation,
-                                               rough_seed), 'springForceUserFunction', item)
-            mbs.SetObjectParameter(item, 'springForceUserFunction', fn)
+                mbs,
+                _roughness_force_function(
+                    defect, p.defect_roughness, p.defect_roughness_modulation, rough_seed
+                ),
+                "springForceUserFunction",
+                item,
+            )
+            mbs.SetObjectParameter(item, "springForceUserFunction", fn)
             keep.append(fn)
         bearings = []
         for housing, journal, geometry, stiffness, clearance, dfct, zone in (
-                (hde, rde, p.de_geometry, p.contact_stiffness, clearance_de, defect, zone_only[0]),
-                (hfe, rfe, p.fe_geometry, k_fe, p.radial_clearance, None, zone_only[1])):
-            item = mbs.AddObject(eii.ObjectConnectorCartesianSpringDamper(
-                markerNumbers=[housing, journal], stiffness=[0.0, 0.0, 0.0], damping=[0.0, 0.0, 0.0]))
+            (hde, rde, p.de_geometry, p.contact_stiffness, clearance_de, defect, zone_only[0]),
+            (hfe, rfe, p.fe_geometry, k_fe, p.radial_clearance, None, zone_only[1]),
+        ):
+            item = mbs.AddObject(
+                eii.ObjectConnectorCartesianSpringDamper(
+                    markerNumbers=[housing, journal],
+                    stiffness=[0.0, 0.0, 0.0],
+                    damping=[0.0, 0.0, 0.0],
+                )
+            )
             fn = CreateSymbolicUserFunction(
-                mbs, _bearing_force_function(geometry, stiffness, clearance, p.bearing_damping,
-                                             p.shaft_hz, dfct, zone), 'springForceUserFunction', item)
-            mbs.SetObjectParameter(item, 'springForceUserFunction', fn)
+                mbs,
+                _bearing_force_function(
+                    geometry, stiffness, clearance, p.bearing_damping, p.shaft_hz, dfct, zone
+                ),
+                "springForceUserFunction",
+                item,
+            )
+            mbs.SetObjectParameter(item, "springForceUserFunction", fn)
             keep.append(fn)
             bearings.append(item)
 
         def node_sensor(node, variable):
-            return mbs.AddSensor(eii.SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
-                                                outputVariableType=variable))
+            return mbs.AddSensor(
+                eii.SensorNode(
+                    nodeNumber=node,
+                    storeInternal=True,
+                    writeToFile=False,
+                    outputVariableType=variable,
+                )
+            )
 
         # the DE bearing's displacement from its two nodes' positions (a sensor on the connector
         # evaluates its force function once more per sample); its force only for diagnostics
-        sensors = [node_sensor(hde_node, exu.OutputVariableType.Acceleration),
-                   node_sensor(rde_node, exu.OutputVariableType.Position),
-                   node_sensor(hde_node, exu.OutputVariableType.Position)]
+        sensors = [
+            node_sensor(hde_node, exu.OutputVariableType.Acceleration),
+            node_sensor(rde_node, exu.OutputVariableType.Position),
+            node_sensor(hde_node, exu.OutputVariableType.Position),
+        ]
         if record_force:
-            sensors.append(mbs.AddSensor(eii.SensorObject(objectNumber=bearings[0], storeInternal=True,
-                                                          writeToFile=False,
-                                                          outputVariableType=exu.OutputVariableType.Force)))
-        mode_sensors = [mbs.AddSensor(eii.SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
-                                                     outputVariableType=exu.OutputVariableType.Acceleration))
-                        for node in mode_nodes]
+            sensors.append(
+                mbs.AddSensor(
+                    eii.SensorObject(
+                        objectNumber=bearings[0],
+                        storeInternal=True,
+                        writeToFile=False,
+                        outputVariableType=exu.OutputVariableType.Force,
+                    )
+                )
+            )
+        mode_sensors = [
+            mbs.AddSensor(
+                eii.SensorNode(
+                    nodeNumber=node,
+                    storeInternal=True,
+                    writeToFile=False,
+                    outputVariableType=exu.OutputVariableType.Acceleration,
+                )
+            )
+            for node in mode_nodes
+        ]
         sensor_rate = s.output_rate_hz * s.oversampling
         if s.integrator == "central_difference":
             nodes = [hde_node, hfe_node, rde_node, rfe_node, *mode_nodes]
             step = 1.0 / (sensor_rate * s.steps_per_sensor_sample)
             # no stiffness or damping: the correction's mass alone, added to the point masses'
-            mbs.AddObject(eii.ObjectGenericODE2(nodeNumbers=nodes,
-                                                massMatrix=central_difference_mass(nodes, dampers, step)))
+            mbs.AddObject(
+                eii.ObjectGenericODE2(
+                    nodeNumbers=nodes, massMatrix=central_difference_mass(nodes, dampers, step)
+                )
+            )
         mbs.Assemble()
 
         try:
-            solve_rk44(mbs, sensor_rate, s.steps_per_sensor_sample, s.settle_time + s.duration,
-                       solver="VelocityVerlet" if s.integrator == "central_difference" else "RK44")
+            solve_rk44(
+                mbs,
+                sensor_rate,
+                s.steps_per_sensor_sample,
+                s.settle_time + s.duration,
+                solver="VelocityVerlet" if s.integrator == "central_difference" else "RK44",
+            )
         except Exception as exc:
             raise SimulationError(f"exudyn solver failed ({where}): {exc}") from exc
         acc, journal, housing, *force = (mbs.GetSensorStoredData(sensor) for sensor in sensors)
         disp = np.column_stack([journal[:, 0], journal[:, 1:] - housing[:, 1:]])
         force = force[0] if force else None
-        modes = (np.stack([mbs.GetSensorStoredData(sensor)[:, 1:3] for sensor in mode_sensors], axis=1)
-                 if mode_sensors else np.empty((len(acc), 0, 2)))
+        modes = (
+            np.stack([mbs.GetSensorStoredData(sensor)[:, 1:3] for sensor in mode_sensors], axis=1)
+            if mode_sensors
+            else np.empty((len(acc), 0, 2))
+        )
     del keep
-    if not (np.isfinite(acc).all() and np.isfinite(disp).all() and np.isfinite(modes).all()
-            and (force is None or np.isfinite(force).all())):
+    if not (
+        np.isfinite(acc).all()
+        and np.isfinite(disp).all()
+        and np.isfinite(modes).all()
+        and (force is None or np.isfinite(force).all())
+    ):
         raise SimulationError(f"simulation diverged ({where}): non-finite states")
     radial = np.hypot(disp[:, 1], disp[:, 2])
     if radial.max() > max(clearance_de, 0.0) + s.max_penetration:
-        raise SimulationError(f"simulation diverged ({where}): journal displacement {radial.max():.3g} m "
-                              f"beyond the clearance + {s.max_penetration:g} m")
+        raise SimulationError(
+            f"simulation diverged ({where}): journal displacement {radial.max():.3g} m "
+            f"beyond the clearance + {s.max_penetration:g} m"
+        )
     return acc, force, disp, modes
 
 
-def simulate_rig(params: BearingRigParameters, settings: RigSettings | None = None,
-                 rng: np.random.Generator | None = None, diagnostics: dict | None = None) -> dict:
+def simulate_rig(
+    params: BearingRigParameters,
+    settings: RigSettings | None = None,
+    rng: np.random.Generator | None = None,
+    diagnostics: dict | None = None,
+) -> dict:
     """Run the rig; return {"DE": drive-end housing acceleration at 12 o'clock, m/s^2, at
     settings.output_rate_hz, settings.duration long}. `rng` draws the per-run random parts
     (defect hash seed, unbalance phase, background noise): equal seeds give identical arrays.
@@ -839,28 +1024,43 @@ def simulate_rig(params: BearingRigParameters, settings: RigSettings | None = No
     _check(p, s)
     hash_seed = float(rng.uniform(0.0, 100.0))
     unbalance_phase = float(rng.uniform(0.0, 2 * np.pi))
-    noise_seed = int(rng.integers(2 ** 32))
+    noise_seed = int(rng.integers(2**32))
     rough_seed = float(rng.uniform(0.0, 100.0))
     sensor_rate = s.output_rate_hz * s.oversampling
-    where = (f"defect {p.defect_kind}, {p.speed_rpm:g} rpm, contact_stiffness={p.contact_stiffness:.3g}, "
-             f"radial_clearance={p.radial_clearance:.3g}, axial_preload={p.axial_preload:.3g}, "
-             f"radial_load={p.radial_load:.3g}, "
-             f"defect_width={p.defect_width:.3g}, h={1 / (sensor_rate * s.steps_per_sensor_sample):.3g} s")
+    where = (
+        f"defect {p.defect_kind}, {p.speed_rpm:g} rpm, contact_stiffness={p.contact_stiffness:.3g}, "
+        f"radial_clearance={p.radial_clearance:.3g}, axial_preload={p.axial_preload:.3g}, "
+        f"radial_load={p.radial_load:.3g}, "
+        f"defect_width={p.defect_width:.3g}, h={1 / (sensor_rate * s.steps_per_sensor_sample):.3g} s"
+    )
     # an axial preload presses every DE ball: its load-zone sum cannot hold (the fan end keeps
     # its clearance in the model)
     clearance_de = de_clearance(p)
     zone_only = s.load_zone_only and clearance_de > 0
     record_force = diagnostics is not None
-    acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed,
-                                             (zone_only, s.load_zone_only), where, record_force)
+    acc, force, disp, modes = _run_mechanics(
+        p,
+        s,
+        hash_seed,
+        unbalance_phase,
+        rough_seed,
+        (zone_only, s.load_zone_only),
+        where,
+        record_force,
+    )
     if zone_only and not _load_zone_ok(disp[:, 1:3], clearance_de):
         zone_only = False  # a ball outside the zone would have touched: run again with all balls
-        acc, force, disp, modes = _run_mechanics(p, s, hash_seed, unbalance_phase, rough_seed, (False, False),
-                                                 where, record_force)
+        acc, force, disp, modes = _run_mechanics(
+            p, s, hash_seed, unbalance_phase, rough_seed, (False, False), where, record_force
+        )
     if diagnostics is not None:
-        diagnostics.update(time=acc[:, 0], de_force=force[:, 1:3], de_force_y=force[:, 2],
-                           de_displacement=disp[:, 1:3],
-                           load_zone_only=zone_only)
+        diagnostics.update(
+            time=acc[:, 0],
+            de_force=force[:, 1:3],
+            de_force_y=force[:, 2],
+            de_displacement=disp[:, 1:3],
+            load_zone_only=zone_only,
+        )
 
     # The accelerometer (+y = 12 o'clock): the housing's acceleration and each mode's relative
     # acceleration along its tilt, with its participation (the mode's gain per N times the
@@ -876,7 +1076,7 @@ def simulate_rig(params: BearingRigParameters, settings: RigSettings | None = No
     out = resample_poly(signal, 1, s.oversampling, window=decimation_filter(s.oversampling))
     first = int(round(s.settle_time * s.output_rate_hz))
     n_out = int(round(s.duration * s.output_rate_hz))
-    out = p.sensor_gain * out[first:first + n_out]
+    out = p.sensor_gain * out[first : first + n_out]
     if len(out) < n_out:
         raise SimulationError(f"simulation too short ({where}): {len(out)} of {n_out} samples")
     # Background: sensor/electronic white noise and band-limited random vibration from the rest

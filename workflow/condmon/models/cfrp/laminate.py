@@ -16,6 +16,7 @@ matrices govern bending of the wall itself (ovalisation, local buckling), not be
 
 The damaged sections of a tube (a crack, a delamination) are the shaft damage's: `gear/shaft_damage.py`.
 """
+
 from __future__ import annotations
 
 import math
@@ -31,6 +32,7 @@ class Ply:
     """A unidirectional ply: moduli E1 (fibre), E2 (transverse), in-plane shear G12, major
     Poisson ratio nu12, density (kg/m^3), transverse shear moduli G1z, G2z (Pa). G1z and G2z
     are kept for shell models; the membrane (thin-tube) stiffness here does not use them."""
+
     E1: float
     E2: float
     G12: float
@@ -50,8 +52,9 @@ class Ply:
 
 # The CFRP study's Table 2. Table 2 gives no Poisson ratio: nu12 = 0.3 is a typical
 # carbon/epoxy value (T300/5208: 0.28); between 0.25 and 0.35 the laminate moduli change by ~1 % at most.
-CFRP_STUDY_PLY = Ply(E1=138.945e9, E2=6.6154e9, G12=3.387e9, nu12=0.3, density=1560.0,
-                     G1z=3.387e9, G2z=2.2864e9)
+CFRP_STUDY_PLY = Ply(
+    E1=138.945e9, E2=6.6154e9, G12=3.387e9, nu12=0.3, density=1560.0, G1z=3.387e9, G2z=2.2864e9
+)
 
 
 def reduced_stiffness(ply: Ply) -> np.ndarray:
@@ -59,9 +62,13 @@ def reduced_stiffness(ply: Ply) -> np.ndarray:
     strain) of a ply in its own axes."""
     nu21 = ply.nu12 * ply.E2 / ply.E1
     denominator = 1 - ply.nu12 * nu21
-    return np.array([[ply.E1 / denominator, ply.nu12 * ply.E2 / denominator, 0.0],
-                     [ply.nu12 * ply.E2 / denominator, ply.E2 / denominator, 0.0],
-                     [0.0, 0.0, ply.G12]])
+    return np.array(
+        [
+            [ply.E1 / denominator, ply.nu12 * ply.E2 / denominator, 0.0],
+            [ply.nu12 * ply.E2 / denominator, ply.E2 / denominator, 0.0],
+            [0.0, 0.0, ply.G12],
+        ]
+    )
 
 
 def transformed_reduced_stiffness(ply: Ply, angle_deg: float) -> np.ndarray:
@@ -83,6 +90,7 @@ def transformed_reduced_stiffness(ply: Ply, angle_deg: float) -> np.ndarray:
 class Laminate:
     """Plies of one material and thickness at `angles_deg` (degrees from the shaft axis toward
     the hoop direction), stacked from the inner surface outward."""
+
     ply: Ply
     angles_deg: tuple
     ply_thickness: float
@@ -138,19 +146,28 @@ def laminate_tube_section(outer_diameter: float, laminate: Laminate) -> Section:
     kappa G_xy A with kappa = 0.5, the shear coefficient of a thin-walled circular tube (the
     wall's shear stress goes as sin(theta) around the circumference)."""
     if not outer_diameter > 0:
-        raise ValueError(f"laminate_tube_section: outer_diameter must be positive, got {outer_diameter}")
+        raise ValueError(
+            f"laminate_tube_section: outer_diameter must be positive, got {outer_diameter}"
+        )
     if laminate.thickness > outer_diameter / 2:
-        raise ValueError(f"laminate_tube_section: wall thickness {laminate.thickness} exceeds the "
-                         f"outer radius {outer_diameter / 2}")
+        raise ValueError(
+            f"laminate_tube_section: wall thickness {laminate.thickness} exceeds the "
+            f"outer radius {outer_diameter / 2}"
+        )
     inner_diameter = outer_diameter - 2 * laminate.thickness
     area = math.pi / 4 * (outer_diameter**2 - inner_diameter**2)
     second_moment = math.pi / 64 * (outer_diameter**4 - inner_diameter**4)
     # the wall's membrane stiffness carries the tube's beam bending (thin-wall assumption)
     E_x, G_xy, rho = laminate.axial_modulus, laminate.shear_modulus, laminate.ply.density
-    return Section(axial=E_x * area, bending=E_x * second_moment, torsion=G_xy * 2 * second_moment,
-                   shear=0.5 * G_xy * area, mass_per_length=rho * area,
-                   rotary_inertia_per_length=rho * second_moment,
-                   polar_inertia_per_length=rho * 2 * second_moment)
+    return Section(
+        axial=E_x * area,
+        bending=E_x * second_moment,
+        torsion=G_xy * 2 * second_moment,
+        shear=0.5 * G_xy * area,
+        mass_per_length=rho * area,
+        rotary_inertia_per_length=rho * second_moment,
+        polar_inertia_per_length=rho * 2 * second_moment,
+    )
 
 
 QUASI_ISOTROPIC_LAYUP = (0, 45, -45, 90, 90, -45, 45, 0)
