@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from condmon.features import FamilyInputs
 from condmon.models.gear.drivetrain import GearDrivetrainParameters, SimulationSettings, simulate
 from condmon.models.gear.errors import draw_gear_errors
 from condmon.models.gear.mesh_force import mesh_phase_at
@@ -140,7 +141,6 @@ def test_a_missing_tooth_is_located_on_its_tooth_on_a_pair_with_grade_6_errors()
             ],
             "damaged_shafts": ["pinion"],
             "contact_ratio": g.total_contact_ratio,
-            "against": spec,
             "samples_per_revolution": P,
             "bands_per_mesh": 4,
             "mesh_harmonics": 3,
@@ -149,6 +149,7 @@ def test_a_missing_tooth_is_located_on_its_tooth_on_a_pair_with_grade_6_errors()
             "phase_band_orders": 0.3,
             "phase_min_snr": 5.0,
         },
+        FamilyInputs(healthy_reference=spec),
     )
     located = record_locations(
         table.attrs["fault_locations"].query("health_state == 'missing_tooth'")
