@@ -105,3 +105,22 @@ def test_an_angular_grid_that_folds_is_refused_when_the_config_is_read():
         validate_config(config, schema)
     config["features"]["residual"]["samples_per_revolution"] = 1024
     validate_config(config, schema)
+
+
+def test_the_check_reads_the_first_healthy_rows_of_each_speed_from_their_row_groups(tmp_path):
+    """Only the row groups holding the chosen rows are read; what comes back is those rows."""
+    import pandas as pd
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from condmon.systems.gear.mesh_lines import healthy_records
+
+    path = table(tmp_path, FS)
+    frame = pd.read_parquet(path)
+    frame.loc[frame.index[:3], "health_state"] = "pitting"  # the first rows are not healthy
+    pq.write_table(pa.Table.from_pandas(frame, preserve_index=False), path, row_group_size=3)
+    assert pq.ParquetFile(path).num_row_groups > 3
+    records = healthy_records(path, "healthy", max_rows=4)
+    expected = np.vstack(frame[frame["health_state"] == "healthy"]["signal"].head(4).tolist())
+    assert list(records) == [(RPM, FS)]
+    np.testing.assert_array_equal(records[RPM, FS], expected)

@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 from scipy.signal import welch
 
+from condmon.systems.gear.order_features import spectrum_line_to_floor
+
 # A line: its peak power within LINE_WIDTH (relative, at least two bins) over the median power of
 # the band around it (FLOOR_BAND), the line's own neighbourhood (FLOOR_GAP) left out.
 LINE_WIDTH, FLOOR_BAND, FLOOR_GAP = 0.004, 0.15, 0.03
@@ -36,18 +38,15 @@ def power_spectrum(signals: np.ndarray, fs_hz: float, resolution_hz: float):
 
 
 def line_to_floor(freqs, power, line_hz: float) -> float:
-    """Peak power within `LINE_WIDTH` of `line_hz` over the median of its band's floor; 0 where
-    the line lies beyond the spectrum or no floor bins remain."""
+    """Peak power within `LINE_WIDTH` of `line_hz` (at least two bins) over the median power of
+    its band's floor (`spectrum_line_to_floor`, the tracking's measure on powers); 0 where the
+    line lies beyond the spectrum."""
     step = freqs[1] - freqs[0]
     half = max(LINE_WIDTH * line_hz, 2 * step)
     if line_hz + half > freqs[-1] or line_hz - half < freqs[0]:
         return 0.0
-    near = np.abs(freqs - line_hz)
-    floor = power[(near <= FLOOR_BAND * line_hz) & (near > max(FLOOR_GAP * line_hz, 3 * step))]
-    peak = power[near <= half]
-    if not len(floor) or not len(peak) or np.median(floor) <= 0:
-        return 0.0
-    return float(peak.max() / np.median(floor))
+    gap = max(FLOOR_GAP * line_hz, 3 * step)
+    return spectrum_line_to_floor(freqs, power, line_hz, half, FLOOR_BAND * line_hz, gap_hz=gap)
 
 
 def strongest_line(freqs, power, low_hz: float, high_hz: float) -> tuple[float, float]:
@@ -106,25 +105,38 @@ def rate_problem(findings: dict, fs_hz: float, teeth: int) -> str | None:
 
 def healthy_records(measured_table, healthy_state: str, max_rows: int = 64):
     """{(speed_rpm, fs_hz): signals (rows x samples)} of the table's healthy records, at most
-    `max_rows` rows (a channel's segment each) per speed and rate: a spectrum's lines need no more;
+    `max_rows` rows (a channel's segment each) per speed and rate: a spectrum's lines need no more,
+    and the config check runs at every start, so only the row groups holding them are read;
     {} where the table cannot be read (the measured job names its problem)."""
     if not measured_table or not Path(measured_table).is_file():
         return {}
     import pyarrow.parquet as pq
 
     try:
-        table = pq.read_table(
-            measured_table,
-            columns=["health_state", "speed_rpm", "fs_hz", "signal"],
-            filters=[("health_state", "=", healthy_state)],
-        ).to_pandas()
+        parquet = pq.ParquetFile(measured_table)
+        keys = parquet.read(columns=["health_state", "speed_rpm", "fs_hz"]).to_pandas()
+        chosen = (
+            keys[keys["health_state"] == healthy_state]
+            .groupby(["speed_rpm", "fs_hz"])
+            .head(max_rows)
+        )
+        sizes = [parquet.metadata.row_group(i).num_rows for i in range(parquet.num_row_groups)]
+        starts = np.cumsum([0, *sizes])
+        groups = sorted(set(np.searchsorted(starts, chosen.index, side="right") - 1))
+        signals = parquet.read_row_groups(groups, columns=["signal"]).column("signal")
     except Exception:  # pyarrow raises several types
         return {}
+    # a chosen row's place among the row groups read
+    read_before = dict(zip(groups, np.cumsum([0, *(sizes[g] for g in groups)])))
+    group_of = np.searchsorted(starts, chosen.index, side="right") - 1
+    chosen = chosen.assign(
+        at=[read_before[g] + i - starts[g] for g, i in zip(group_of, chosen.index)]
+    )
     out = {}
-    for (speed, fs), rows in table.groupby(["speed_rpm", "fs_hz"], sort=True):
-        signals = [np.asarray(signal, float) for signal in rows["signal"].head(max_rows)]
-        if len({len(signal) for signal in signals}) == 1:  # the measured job checks segment lengths
-            out[float(speed), float(fs)] = np.vstack(signals)
+    for (speed, fs), rows in chosen.groupby(["speed_rpm", "fs_hz"], sort=True):
+        rows_signals = [np.asarray(signals[int(at)].as_py(), float) for at in rows["at"]]
+        if len({len(signal) for signal in rows_signals}) == 1:  # the measured job checks lengths
+            out[float(speed), float(fs)] = np.vstack(rows_signals)
     return out
 
 

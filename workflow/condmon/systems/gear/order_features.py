@@ -99,12 +99,24 @@ def line_to_floor(
     the bins within line_hz +/- floor_halfwidth_hz outside that band (Hann amplitude spectrum).
     About 1-3 where there is no line."""
     freqs, amps = amplitude_spectrum(x, fs_hz)
+    return spectrum_line_to_floor(freqs, amps, line_hz, half_width_hz, floor_halfwidth_hz)
+
+
+def spectrum_line_to_floor(
+    freqs, spectrum, line_hz: float, half_width_hz: float, floor_halfwidth_hz: float, gap_hz=None
+) -> float:
+    """`line_to_floor` of a spectrum already taken (amplitudes, or powers for a power ratio): the
+    strongest bin within line_hz +/- half_width_hz over the median of the bins within
+    line_hz +/- floor_halfwidth_hz farther than `gap_hz` (default half_width_hz) from it; 0 where
+    either holds no bin."""
     offset = np.abs(freqs - line_hz)
     in_line = offset <= half_width_hz
-    around = (offset <= floor_halfwidth_hz) & ~in_line
+    around = (offset <= floor_halfwidth_hz) & (
+        offset > (half_width_hz if gap_hz is None else gap_hz)
+    )
     if not in_line.any() or not around.any():
         return 0.0
-    return float(amps[in_line].max() / max(np.median(amps[around]), np.finfo(float).tiny))
+    return float(spectrum[in_line].max() / max(np.median(spectrum[around]), np.finfo(float).tiny))
 
 
 def band_phase(x, fs_hz: float, line_hz: float, half_width_hz: float) -> np.ndarray:
