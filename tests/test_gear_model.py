@@ -13,6 +13,7 @@ from condmon.models.gear.drivetrain import (
     GearDrivetrainParameters,
     GearGeometry,
     SimulationSettings,
+    sensor_channels,
     simulate,
     steps_per_sensor_sample,
 )
@@ -255,6 +256,38 @@ def test_simulation_output_is_finite_at_the_output_rate(healthy_run):
     assert sorted(signals) == ["A1_x", "A1_y", "A2_x", "A2_y"]
     for signal in signals.values():
         assert len(signal) == 2560 and np.isfinite(signal).all() and signal.std() > 0
+
+
+def test_sensors_as_the_rig_has_them_project_the_housing_acceleration(healthy_run):
+    """One-axis sensors are channels of their own name; an angled one reads the housing's x and y
+    acceleration projected on its direction, on the same run as the two-axis sensors."""
+    params, signals = healthy_run
+    sensors = (("A1", 0), ("v1", 0, ("y",)), ("d2", 2, (45.0, "x")))
+    assert sensor_channels(sensors) == ("A1_x", "A1_y", "v1", "d2_45", "d2_x")
+    mapped = simulate(
+        params.replace(sensors=sensors), SimulationSettings(duration=0.5, settle_time=0.1)
+    )
+    assert sorted(mapped) == ["A1_x", "A1_y", "d2_45", "d2_x", "v1"]
+    np.testing.assert_allclose(mapped["A1_y"], signals["A1_y"], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(mapped["v1"], signals["A1_y"], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(mapped["d2_x"], signals["A2_x"], rtol=1e-9, atol=1e-12)
+    diagonal = (signals["A2_x"] + signals["A2_y"]) / math.sqrt(2.0)
+    np.testing.assert_allclose(
+        mapped["d2_45"], diagonal, rtol=1e-9, atol=1e-9 * np.abs(diagonal).max()
+    )
+
+
+@pytest.mark.parametrize(
+    "sensors, message",
+    [
+        ((("a", 0, ("z",)),), "direction 'z'"),
+        ((("a", 0, ("x", "x")),), "distinct"),
+        ((("a", 0), ("a_x", 1, ("y",))), "not distinct"),
+    ],
+)
+def test_bad_sensors_are_named(sensors, message):
+    with pytest.raises(ValueError, match=message):
+        sensor_channels(sensors)
 
 
 def test_healthy_spectrum_peaks_at_gear_mesh_harmonics(healthy_run):

@@ -234,6 +234,19 @@ def test_health_states_and_features_agree_with_the_config(system_and_config):
     assert np.isfinite(features.iloc[:, 7:].to_numpy()).all()
 
 
+def test_a_gear_rigs_own_sensors_name_its_channels():
+    """Sensors as a rig has them (one axis, an angle, x and y) are the gear system's channels, and
+    `features.channels` is checked against them; a direction the model cannot read is refused."""
+    sensors = {"a1": {"housing": 0, "directions": ["y"]}, "a2": {"housing": 2, "directions": [30]}}
+    own = {"model": {"sensors": sensors}, "features": {"channels": ["a1", "a2"]}}
+    system = get_system(config_of(changes=own))
+    assert system.channels == ["a1", "a2"]
+    assert not [p for p in system.problems() if "channels" in p]
+    wrong = {"model": {"sensors": {"a1": {"housing": 0, "directions": ["z"]}}}}
+    with pytest.raises(ConfigError, match="sensors"):
+        config_of(changes=wrong)
+
+
 def test_model_stages_carry_the_model_digest(system_and_config):
     """The bench, calibrate and simulate jobs' param changes with the model code (so Snakemake
     reruns them); the stages that do not run the model do not carry it."""

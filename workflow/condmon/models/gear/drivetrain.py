@@ -66,15 +66,55 @@ from condmon.models.structure import BENDING_PLANES, LinearStructure, Section
 
 SHAFT_MODELS = ("rigid", "flexible")
 HOUSING_MODELS = ("point", "block")
-# Accelerometers: (name, bearing housing), housings 0 and 1 carry the pinion shaft's bearings, 2 and
-# 3 the gear shaft's. The helical rig: A1 on the pinion shaft's drive-side bearing, A2 on the gear
-# shaft's first bearing.
+# Accelerometers: (name, bearing housing[, directions]), housings 0 and 1 carry the pinion shaft's
+# bearings, 2 and 3 the gear shaft's. The helical rig: A1 on the pinion shaft's drive-side bearing,
+# A2 on the gear shaft's first bearing, each along x and y.
 SENSORS = (("A1", 0), ("A2", 2))
+AXES = ("x", "y")
+
+
+def sensor_directions(sensor) -> tuple:
+    """The directions one accelerometer (name, housing[, directions]) measures along: "x", "y"
+    (the housing's horizontal and vertical axes, across the shaft) or an angle in degrees from x
+    towards y; x and y when none are given."""
+    directions = tuple(sensor[2]) if len(sensor) > 2 else AXES
+    for direction in directions:
+        if direction not in AXES and not isinstance(direction, (int, float)):
+            raise ValueError(
+                f"sensors: {sensor[0]} direction {direction!r}; give x, y or an angle in degrees"
+            )
+    if not directions or len(set(directions)) != len(directions):
+        raise ValueError(
+            f"sensors: {sensor[0]} directions {list(directions)}: one or more, distinct"
+        )
+    return directions
+
+
+def direction_weights(direction) -> tuple[float, float]:
+    """(x, y) weights of the housing's acceleration an accelerometer along `direction` reads."""
+    angle = math.radians({"x": 0.0, "y": 90.0}.get(direction, direction))
+    return math.cos(angle), math.sin(angle)
+
+
+def sensor_outputs(sensors=SENSORS) -> list[tuple[str, str, tuple]]:
+    """(channel, sensor name, direction) of every channel a set of accelerometers records: a
+    one-axis sensor's channel is its name; a sensor of several axes gives <name>_<axis> each."""
+    outputs = []
+    for sensor in sensors:
+        directions = sensor_directions(sensor)
+        for direction in directions:
+            suffix = direction if isinstance(direction, str) else f"{direction:g}"
+            channel = sensor[0] if len(directions) == 1 else f"{sensor[0]}_{suffix}"
+            outputs.append((channel, sensor[0], direction))
+    channels = [channel for channel, _, _ in outputs]
+    if len(set(channels)) != len(channels):
+        raise ValueError(f"sensors: channels {channels} are not distinct")
+    return outputs
 
 
 def sensor_channels(sensors=SENSORS) -> tuple[str, ...]:
-    """The channels a set of accelerometers records: x and y of each."""
-    return tuple(f"{name}_{axis}" for name, _ in sensors for axis in "xy")
+    """The channels a set of accelerometers records (`sensor_outputs`)."""
+    return tuple(channel for channel, _, _ in sensor_outputs(sensors))
 
 
 CHANNELS = sensor_channels()
@@ -344,7 +384,7 @@ class Drivetrain:
         # motor and brake torques and the bench's bearing forces stay on plain coordinates).
         self.mesh_dof = s.dof(self.node_at(0, p.input_shaft.gear), 0)
         self.sensor_rows = {}
-        for name, housing in p.sensors:
+        for name, housing, *_ in p.sensors:
             if not 0 <= housing < len(self.housings):
                 raise ValueError(
                     f"sensors: {name} on housing {housing}; the rig has housings 0..{len(self.housings) - 1}"
@@ -981,12 +1021,14 @@ def simulate(
     first = int(round(settings.settle_time * settings.output_rate))
     n_out = int(round(settings.duration * settings.output_rate))
     signals = {}
-    for sensor_name, rows in drivetrain.sensor_rows.items():
-        for axis, suffix in ((0, "x"), (1, "y")):
-            # Filter the whole run (settling included) so filter edge effects fall in the
-            # discarded part, then decimate to the output rate.
-            out = resample_poly(acc @ rows[axis], 1, settings.oversampling, window=lowpass)
-            signals[f"{sensor_name}_{suffix}"] = out[first : first + n_out]
+    for channel, sensor_name, direction in sensor_outputs(params.sensors):
+        rows = drivetrain.sensor_rows[sensor_name]
+        along_x, along_y = direction_weights(direction)
+        # Filter the whole run (settling included) so filter edge effects fall in the discarded
+        # part, then decimate to the output rate.
+        along = along_x * rows[0] + along_y * rows[1]
+        out = resample_poly(acc @ along, 1, settings.oversampling, window=lowpass)
+        signals[channel] = out[first : first + n_out]
     for name, signal in signals.items():
         if not np.isfinite(signal).all():
             raise SimulationError(f"channel {name}: non-finite samples after filtering")

@@ -54,9 +54,17 @@ def build_parameters(model: dict, **overrides) -> GearDrivetrainParameters:
                 **{k: tuple(v) if isinstance(v, list) else v for k, v in values[key].items()}
             )
     if isinstance(values.get("sensors"), dict):
-        values["sensors"] = tuple(values["sensors"].items())
+        values["sensors"] = tuple(_sensor(name, spec) for name, spec in values["sensors"].items())
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
     return GearDrivetrainParameters(geometry=GearGeometry(**geometry), **values)
+
+
+def _sensor(name: str, spec) -> tuple:
+    """The model's (name, housing[, directions]) of one `model.sensors` entry: a housing (x and
+    y) or {housing, directions}."""
+    if isinstance(spec, dict):
+        return (name, int(spec["housing"]), tuple(spec.get("directions", ("x", "y"))))
+    return (name, int(spec))
 
 
 def simulation_settings(numerics: dict, duration: float) -> SimulationSettings:
