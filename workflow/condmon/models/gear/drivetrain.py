@@ -91,8 +91,11 @@ def sensor_directions(sensor) -> tuple:
 
 
 def direction_weights(direction) -> tuple[float, float]:
-    """(x, y) weights of the housing's acceleration an accelerometer along `direction` reads."""
-    angle = math.radians({"x": 0.0, "y": 90.0}.get(direction, direction))
+    """(x, y) weights of the housing's acceleration an accelerometer along `direction` reads (exact
+    for x and y: their channels are the housing's own coordinates to the last bit)."""
+    if direction in AXES:
+        return (1.0, 0.0) if direction == "x" else (0.0, 1.0)
+    angle = math.radians(direction)
     return math.cos(angle), math.sin(angle)
 
 
