@@ -6,6 +6,7 @@ import pandas as pd
 import pytest
 
 from conftest import CWRU, DATA_FOLDERS, ROOT
+from condmon.report.calibration_set import calibration_summary
 from condmon.hybrid import (
     SPLIT_COLUMNS,
     SplitError,
@@ -362,6 +363,32 @@ def test_of_several_healthy_records_per_condition_the_first_calibrates():
     # load 1's lone record is never cut in time: its healthy data test away from calibration
     assert set(layout.unit[layout.record_id == "normal-1"]) == {"normal-1"}
     assert set(layout.fixed_role[layout.record_id == "normal-1"]) == {""}
+
+
+def test_with_each_condition_every_lone_healthy_record_is_split_in_time():
+    """A rig whose segments are taken against each condition's own calibration data (the gear
+    rigs' healthy reference) with one healthy record per condition: every condition's record
+    gives its calibration block and test blocks, no record calibrates whole; a condition with
+    several healthy records still calibrates on its first, whole."""
+    segments = bearing_segments()  # one healthy record at each of loads 0 and 1
+    layout = measured_layout(segments, "normal", "load", dict(RESERVE, each_condition=True))
+    for record in ("normal-0", "normal-1"):
+        own = layout[layout.record_id == record]
+        assert (own.fixed_role == "calibration").sum() == 4
+        assert set(own.unit[own.fixed_role == ""]) == {f"{record}@block0", f"{record}@block1"}
+    splits = with_healthy("record_split", segments, reserve=dict(RESERVE, each_condition=True))
+    tested = splits[(splits.role == "test") & splits.record_id.str.startswith("normal")]
+    assert set(tested.record_id.str.split("@").str[0]) == {"normal-0", "normal-1"}
+    second = segments[segments.record_id == "normal-0"].assign(record_id="normal-0b")
+    table = pd.concat([segments, second])
+    layout = measured_layout(table, "normal", "load", dict(RESERVE, each_condition=True))
+    calibrating = layout[layout.fixed_role == "calibration"].groupby("record_id").size()
+    assert calibrating.to_dict() == {"normal-0": 10, "normal-1": 4}
+    # the report states it (summary.json `calibration_set`)
+    assert calibration_summary(layout) == {
+        "whole": ["normal-0"],
+        "split_in_time": {"normal-1": "4 of 10 segments calibrate, 2 time blocks test"},
+    }
 
 
 def test_healthy_records_calibrate_per_condition_and_leave_one_to_test():

@@ -121,6 +121,14 @@ def test_every_design_output_is_written(smoke):
         and (results / "report" / "plots" / "job_timings.png").is_file()
     )
     assert set(summary["job_timings"]) == set(timings.index)
+    # the bench's first healthy record per speed calibrates whole (no healthy reference here)
+    assert summary["calibration_set"] == {
+        "whole": ["vb-healthy-1100rpm-r00", "vb-healthy-450rpm-r00"],
+        "split_in_time": {},
+    }
+    # the Hz spectra track no shaft: the shaft tracking table is written, empty
+    tracking = pd.read_csv(results / "report" / "shaft_tracking.csv")
+    assert tracking.empty and "nominal_segments" in tracking and "shaft_tracking" not in summary
 
 
 def test_mlflow_has_one_parent_and_nested_runs(smoke):

@@ -7,6 +7,7 @@ import pandas as pd
 import pytest
 
 from condmon.features import FamilyInputs, FeatureTableError
+from condmon.report.shaft_tracking import record_tracking
 from condmon.systems.gear import residual_features as rf
 
 P = 1024
@@ -365,6 +366,56 @@ def test_the_family_takes_references_covering_the_hunting_cycle_against_it():
     )
     names = rf.feature_names(["A1_x"], SHAFTS, 12)
     np.testing.assert_allclose(packaged[names].to_numpy(), written[names].to_numpy(), atol=1e-5)
+
+
+def test_a_record_without_a_mesh_line_falls_back_on_the_nominal_speed_and_says_so(caplog):
+    """A segment whose mesh line can be followed is tracked on it; one of noise alone (a rate or
+    tooth count that puts the line elsewhere looks the same) falls back on the nominal speed,
+    counted per record in the table the report reads and in the log."""
+    rng = np.random.default_rng(9)
+    pinion, gear = (
+        pitch_pattern(PINION, rng),
+        rf.without_orders(pitch_pattern(GEAR, rng)[None, :], GEAR)[0],
+    )
+    fs, speed = 5120.0, 1100.0
+    x, _ = in_time([pinion, gear], fs, speed, 2.6, start=(0.0, 0.2), noise=0.01, rng=rng)
+    half = x.shape[-1] // 2
+    rows = []
+    for segment in range(2):
+        chunk = x[0, segment * half : (segment + 1) * half]
+        rows += signal_rows("vb-healthy-1100rpm-r00", "healthy", speed, segment, chunk, fs)
+        rows += signal_rows(
+            "noise-r01", "healthy", speed, segment, rng.normal(0.0, chunk.std(), half), fs
+        )
+    params = {
+        "shafts": [list(s) for s in SHAFTS],
+        "samples_per_revolution": P,
+        "bands_per_mesh": 4,
+        "mesh_harmonics": 3,
+        "shaft_orders": 2,
+        "phase_harmonic": 1,
+        "phase_band_orders": 0.3,
+        "phase_min_snr": 5.0,
+    }
+    spec = {"source": "measured", "healthy_state": "healthy", "condition": "speed_rpm"}
+    with caplog.at_level("WARNING"):
+        written = rf.residual_feature_table(
+            pd.DataFrame(rows).assign(source="measured"),
+            ["A1_x"],
+            params,
+            FamilyInputs(healthy_reference=dict(spec, reserve={})),
+        )
+    tracking = written.attrs["shaft_tracking"].set_index(["record_id", "segment"])
+    assert (tracking.loc["vb-healthy-1100rpm-r00", "method"] == "mesh_phase").all()
+    assert (tracking.loc["vb-healthy-1100rpm-r00", "line_to_floor"] > 5.0).all()
+    assert (tracking.loc["noise-r01", "method"] == "nominal").all()
+    assert (
+        "fell back to the nominal speed on 2 of 4 segments, in 1 records: noise-r01 (2 of 2)"
+        in caplog.text
+    )
+    counted = record_tracking(written.attrs["shaft_tracking"]).set_index("record_id")
+    assert counted["nominal_segments"].to_dict() == {"noise-r01": 2, "vb-healthy-1100rpm-r00": 0}
+    assert counted.loc["vb-healthy-1100rpm-r00", "line_to_floor_median"] > 5.0
 
 
 def signal_rows(record_id, health, speed, segment, x, fs):

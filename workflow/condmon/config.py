@@ -99,6 +99,9 @@ def validate_config(config: dict, schema: dict) -> dict:
         config["hybrid"]["condition"] = system.default_condition
     if config["hybrid"]["measured_classes"] is None:
         config["hybrid"]["measured_classes"] = [system.healthy_state]
+    reserve = config["calibration"]["reserve"]
+    if reserve["each_condition"] is None:  # a per-condition reference needs per-condition data
+        reserve["each_condition"] = bool(config["features"]["healthy_reference"]["enabled"])
     problems = cross_field_problems(config) + system.problems()
     if problems:
         raise ConfigError("invalid config:\n  " + "\n  ".join(problems))

@@ -127,7 +127,10 @@ def measured_layout(
       calibrate, then `blocks` blocks of equal length follow, each after a guard gap of
       `guard_segments`; every block is a split unit (a record to the protocols), so healthy
       data can train and test without a segment on both sides. With `segment_samples`
-      (length, hop) a guard gap shorter than one segment in samples is refused (`time_blocks`).
+      (length, hop) a guard gap shorter than one segment in samples is refused (`time_blocks`);
+    - `each_condition` (every condition takes its segments against calibration records of its
+      own: the healthy reference): a condition with one healthy record has that record split
+      in time, whatever the other conditions hold, rather than the first overall calibrating.
     - `fault_states` (calibration.per_state.states): per condition the first (by id) of each
       listed fault state's records tunes that state's model, whole; the state needs two records
       or more at every condition it has, so the others test.
@@ -173,18 +176,23 @@ def measured_layout(
     # bench: one or two per speed), at least one left to test; with one healthy record per
     # condition (CWRU: one per load), the first overall
     per_condition = int(reserve.get("healthy_records", 1))
-    calibrating = []
+    calibrating, lone = [], []
     for _, group in healthy.groupby("condition", sort=True)["record_id"]:
         records = sorted(group.unique())
         calibrating += records[: min(per_condition, len(records) - 1)]
-    if not calibrating and len(ids) > 1:
-        calibrating = ids[:1]
-    if calibrating:  # calibrate on whole records, test healthy data on the others
-        frame.loc[frame["record_id"].isin(calibrating), "fixed_role"] = CALIBRATION
-    elif ids:
-        rows = healthy.index  # sorted by segment
+        lone += records if len(records) == 1 else []
+    if reserve.get("each_condition"):  # every condition its own calibration block
+        splitting = lone
+    elif not calibrating and len(ids) > 1:
+        calibrating, splitting = ids[:1], []
+    else:
+        splitting = [] if calibrating else ids[:1]
+    # calibrate on whole records, test healthy data on the others
+    frame.loc[frame["record_id"].isin(calibrating), "fixed_role"] = CALIBRATION
+    for record in splitting:
+        rows = healthy.index[healthy["record_id"] == record]  # sorted by segment
         units, roles = time_blocks(
-            ids[0],
+            record,
             len(rows),
             int(reserve["calibration_segments"]),
             int(reserve["guard_segments"]),

@@ -315,18 +315,18 @@ def measured_reference_output():
         )
         # ... and where on the machine each measured segment's change sits
         outputs["fault_locations"] = f"{RESULTS}/features/measured_fault_locations.csv"
+        # ... and how each measured segment's shaft angle was found
+        outputs["shaft_tracking"] = f"{RESULTS}/features/measured_shaft_tracking.csv"
     return outputs
 
 
 def measured_fault_locations_input():
-    """The report's input of where on the machine each measured segment's change sits, where a
-    feature family locates faults."""
+    """The report's inputs of where on the machine each measured segment's change sits and how
+    its shaft angle was found, where a feature family locates faults."""
     output = measured_reference_output()
-    return (
-        {"fault_locations": output["fault_locations"]}
-        if "fault_locations" in output
-        else {}
-    )
+    return {
+        key: output[key] for key in ("fault_locations", "shaft_tracking") if key in output
+    }
 
 
 def measured_family_references_input():

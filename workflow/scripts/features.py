@@ -63,6 +63,7 @@ family_references = frame.attrs.get("references")  # ... and its measured refere
 fault_locations = frame.attrs.get(
     "fault_locations"
 )  # ... and where on the machine each segment's change sits
+shaft_tracking = frame.attrs.get("shaft_tracking")  # ... and how each segment's angle was found
 frame.attrs = {}
 config = {"channels": channels, "spectrum": spectrum, "kind": kind, "statistical": statistical}
 config.update(
@@ -91,6 +92,8 @@ if against:
             write_frame(family_references, snakemake.output.family_references)
         if "fault_locations" in snakemake.output.keys():
             write_text(fault_locations.to_csv(index=False), snakemake.output.fault_locations)
+        if "shaft_tracking" in snakemake.output.keys():
+            write_text(shaft_tracking.to_csv(index=False), snakemake.output.shaft_tracking)
         write_frame(
             reference.reference_table(table, against["condition"]), snakemake.output.reference
         )

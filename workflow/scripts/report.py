@@ -67,6 +67,7 @@ summary = write_report(
             unmodelled=params.get("unmodelled", {}),
             calibration_set=params.get("calibration_set"),
             fault_locations=inputs.get("fault_locations"),
+            shaft_tracking=inputs.get("shaft_tracking"),
             confusion_percent=params.get("confusion_percent", [0]),
         ),
         upstream=StageRecords(

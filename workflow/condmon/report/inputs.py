@@ -136,6 +136,8 @@ class EvaluationInputs(_Frozen):
     # where on the machine each measured segment's change sits (measured_fault_locations.csv, a
     # system family's), or None
     fault_locations: Path_ | None = None
+    # how each measured segment's shaft angle was found (measured_shaft_tracking.csv), or None
+    shaft_tracking: Path_ | None = None
     confusion_percent: tuple[int, ...] = (0,)  # report.confusion_percent (+ the largest)
     _sequences = ("design_records", "design_specimens", "confusion_percent")
 

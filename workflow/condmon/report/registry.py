@@ -8,6 +8,7 @@ from __future__ import annotations
 from condmon.report import (
     accuracy,
     calibration,
+    calibration_set,
     ceiling,
     conditions,
     evaluation_tables,
@@ -21,6 +22,7 @@ from condmon.report import (
     stages,
     timings,
     fault_location,
+    shaft_tracking,
 )
 from condmon.report.section import Section, Table
 
@@ -31,6 +33,7 @@ SECTIONS: list[Section] = [
     stages.SECTION,
     timings.SECTION,
     evaluation_tables.SECTION,
+    calibration_set.SECTION,
     ceiling.SECTION,
     signatures.SECTION,
     gain.SECTION,
@@ -40,6 +43,7 @@ SECTIONS: list[Section] = [
     recall_per_record.SECTION,
     measured_share.SECTION,
     fault_location.SECTION,
+    shaft_tracking.SECTION,
 ]
 
 

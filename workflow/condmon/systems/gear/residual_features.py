@@ -591,12 +591,13 @@ def band_names(n_bands: int) -> list[str]:
 
 
 def input_angle(segment: np.ndarray, fs_hz: float, speed_rpm: float, shafts, phase: tuple):
-    """(input-shaft angle, phase method) of a segment (n_channels, n_samples): tacholess tracking
-    of the first shaft's mesh phase (`order_features.segment_angle`); `phase`: (harmonic, band
-    orders, minimum SNR)."""
+    """(input-shaft angle, phase method, the mesh line's level over its floor) of a segment
+    (n_channels, n_samples): tacholess tracking of the first shaft's mesh phase
+    (`order_features.segment_angle`: "mesh_phase", or "nominal" where no line can be followed);
+    `phase`: (harmonic, band orders, minimum SNR)."""
     phase_harmonic, phase_band_orders, phase_min_snr = phase
     _, ratio, teeth = shafts[0]
-    angle, method, _ = segment_angle(
+    return segment_angle(
         segment,
         fs_hz,
         speed_rpm / 60.0,
@@ -604,7 +605,6 @@ def input_angle(segment: np.ndarray, fs_hz: float, speed_rpm: float, shafts, pha
         phase_band_orders,
         phase_min_snr,
     )
-    return angle, method
 
 
 def segment_patterns(
@@ -619,13 +619,13 @@ def segment_patterns(
     cycle: np.ndarray | None = None,
     top_order: int | None = None,
 ):
-    """(patterns per shaft, phase method, origin) of one segment (n_channels, n_samples): its
+    """(patterns per shaft, (phase method, line to floor), origin) of one segment (n_channels, n_samples): its
     angle (`input_angle`), then `shaft_patterns`. With its machine's healthy hunting-cycle average
     (`cycle`), the patterns of its residual against it (`cycle_residual`, on the orders up to
     `top_order`): the shafts' residual patterns, and `origin`, where their first sample lies in
     the cycle (input-shaft revolutions from the cycle's start: the same frame on every record of
     the machine); None without a cycle."""
-    angle, method = input_angle(
+    angle, *tracking = input_angle(
         segment, fs_hz, speed_rpm, shafts, (phase_harmonic, phase_band_orders, phase_min_snr)
     )
     origin = None
@@ -646,7 +646,7 @@ def segment_patterns(
         segment = residual
         # the patterns start at the (trimmed) segment's first angle, the segment at `offset` in the cycle
         origin = offset / samples_per_revolution + float(angle[0]) - start
-    return shaft_patterns(segment, angle, shafts, samples_per_revolution), method, origin
+    return shaft_patterns(segment, angle, shafts, samples_per_revolution), tuple(tracking), origin
 
 
 # the hunting-cycle averages of the machines, {key: (n_channels, L)}, for the worker processes:
@@ -656,7 +656,7 @@ _CYCLES: dict = {}
 
 def _patterns_of(task):
     segment, fs_hz, speed, shafts, samples_per_revolution, phase, key, top_order = task
-    patterns, _, origin = segment_patterns(
+    patterns, tracking, origin = segment_patterns(
         segment,
         fs_hz,
         speed,
@@ -666,7 +666,7 @@ def _patterns_of(task):
         cycle=_CYCLES.get(key),
         top_order=top_order,
     )
-    return patterns, origin
+    return patterns, origin, tracking
 
 
 def every_segments_patterns(
@@ -684,7 +684,8 @@ def every_segments_patterns(
     """`segment_patterns` of every segment (arrays (n_segments, n_channels, n_samples)) at its
     speed, against its key's hunting cycle where `cycles` holds one, in `processes` worker
     processes: the costly part of the family, and each segment's patterns depend on that segment
-    alone, so the split changes no number. [(patterns per shaft, origin in the cycle or None)]."""
+    alone, so the split changes no number. [(patterns per shaft, origin in the cycle or None,
+    (phase method, line to floor))]."""
     keys = [None] * len(arrays) if keys is None else list(keys)
     tasks = [
         (segment, fs_hz, float(speed), shafts, samples_per_revolution, phase, key, top_order)
@@ -725,7 +726,7 @@ def record_cycles(
     chosen = ids.loc[list(rows)].sort_values(["record_id", "segment"])
     for _, record in chosen.groupby("record_id", sort=True):
         joined = np.concatenate([arrays[i] for i in record.index], axis=-1)
-        angle, _ = input_angle(joined, fs_hz, float(record["speed_rpm"].iloc[0]), shafts, phase)
+        angle, _, _ = input_angle(joined, fs_hz, float(record["speed_rpm"].iloc[0]), shafts, phase)
         cycle = hunting_cycle(joined, angle, revolutions, P)
         if cycle is None:
             return None
@@ -869,7 +870,7 @@ def frame_origin_phase(
     )
     if has_cycle:
         joined = np.concatenate([arrays[i] for i in chosen.index], axis=-1)
-        angle, _ = input_angle(joined, fs_hz, speed, shafts, phase)
+        angle, _, _ = input_angle(joined, fs_hz, speed, shafts, phase)
         n_grid = int(np.floor((angle[-1] - angle[0]) * P + 1e-9)) + 1
         origin += teeth * cycle_start(n_grid, hunting_revolutions(shafts) * P, P) / P
     return float(origin)
@@ -1439,7 +1440,7 @@ def residual_frame(
     top = top_band_order(s.shafts[0][2] / s.bands_per_mesh, n_bands)
     if not packaged:
         machine.cycles = own_cycles(ids, machine, fs_hz, s, top)
-    patterns, origins = map(
+    patterns, origins, tracking = map(
         list,
         zip(
             *every_segments_patterns(
@@ -1479,6 +1480,7 @@ def residual_frame(
     frame = pd.concat([ids, pd.DataFrame(values.astype(np.float32), columns=names)], axis=1)
     frame.attrs["referenced_columns"] = names
     frame.attrs["fault_locations"] = fault_locations(ids, locations)
+    frame.attrs["shaft_tracking"] = shaft_tracking(ids, tracking)
     if measured:
         frame.attrs["references"] = patterns_table(
             machine.references,
@@ -1490,6 +1492,41 @@ def residual_frame(
             machine.window or (machine.mesh_harmonics, np.nan, np.nan),
         )
     return frame
+
+
+def shaft_tracking(ids: pd.DataFrame, tracking: list[tuple]) -> pd.DataFrame:
+    """How each segment's shaft angle was found, beside its ids: `method` "mesh_phase" (the mesh
+    line followed) or "nominal" (no line to follow: the nominal speed, which smears the high
+    orders of a speed that wanders), and the line's level over its floor. The segments on the
+    nominal speed are counted per record in the job's log."""
+    table = pd.concat(
+        [
+            ids[["record_id", "segment", "source", "health_state", "speed_rpm"]].reset_index(
+                drop=True
+            ),
+            pd.DataFrame(tracking, columns=["method", "line_to_floor"]),
+        ],
+        axis=1,
+    )
+    counts = table.groupby("record_id", sort=True)["method"].agg(
+        nominal=lambda m: int((m == "nominal").sum()), segments="size"
+    )
+    fell_back = counts[counts["nominal"] > 0]
+    if len(fell_back):
+        listed = ", ".join(
+            f"{record} ({row.nominal} of {row.segments})"
+            for record, row in fell_back.iloc[:10].iterrows()
+        )
+        log.warning(
+            "shaft tracking fell back to the nominal speed on %d of %d segments, in %d records: "
+            "%s%s (no mesh line where rate, speed and teeth put it, or one lost in noise)",
+            int(fell_back["nominal"].sum()),
+            len(table),
+            len(fell_back),
+            listed,
+            ", ..." if len(fell_back) > 10 else "",
+        )
+    return table
 
 
 def fault_locations(ids: pd.DataFrame, locations: list[dict]) -> pd.DataFrame:
