@@ -4,6 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from condmon.config import ConfigError
 from condmon.measured import read_user_table, read_user_table_checked
 from condmon.signals import SignalTableError, make_rows, write_signal_table
 
@@ -33,6 +34,24 @@ def test_a_good_table_is_read(tmp_path):
     write_signal_table(rows() + rows("rig-2", "missing_tooth"), path)
     frame = read(path)
     assert set(frame["record_id"]) == {"rig-1", "rig-2"} and len(frame) == 8
+
+
+def test_a_table_without_params_is_read_and_one_without_a_column_refused_at_the_config_check(
+    tmp_path,
+):
+    """`params` (a simulated sample's parameters) is no column a rig's table needs; a missing
+    signal-table column is named when the config is read, before any job."""
+    from conftest import system_of
+
+    frame = pd.DataFrame(rows() + rows("rig-2", "missing_tooth"))
+    frame.drop(columns="params").to_parquet(tmp_path / "rig.parquet")
+    assert set(read(tmp_path / "rig.parquet")["record_id"]) == {"rig-1", "rig-2"}
+    rig = {"rig": {"speeds_rpm": [775]}, "hybrid": {"protocols": ["record_split"]}}
+    system = system_of(changes=dict(rig, measured_table=str(tmp_path / "rig.parquet")))
+    assert not [p for p in system.problems() if "lacks" in p]
+    frame.drop(columns=["params", "fs_hz"]).to_parquet(tmp_path / "bad.parquet")
+    with pytest.raises(ConfigError, match=r"lacks the signal-table columns \['fs_hz'\]"):
+        system_of(changes=dict(rig, measured_table=str(tmp_path / "bad.parquet")))
 
 
 @pytest.mark.parametrize(

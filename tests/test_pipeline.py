@@ -16,6 +16,7 @@ import pytest
 import yaml
 from scipy.signal import find_peaks
 
+from condmon.hybrid import read_split_table
 from condmon.signals import read_signal_table, to_arrays
 from conftest import SNAKEMAKE, config_file, copy_project, snakemake
 
@@ -527,32 +528,53 @@ def test_simulated_files_do_not_depend_on_the_core_count(smoke, tmp_path):
 
 
 def test_a_users_measured_table_replaces_the_virtual_bench(smoke, tmp_path):
+    """A user's table as a rig gives it: its own single-axis sensor names, one record per state
+    and speed, no `params` column; each speed's lone healthy record is split in time (calibration
+    block, test blocks) and the table runs through the hybrid splits."""
     _, results = smoke
     workdir = copy_project(tmp_path)
     bench = read_signal_table(results / "measured" / "signals.parquet")
+    bench = bench[bench["channel"].isin(["A1_y", "A2_y"])].drop(columns="params")
+    bench["channel"] = bench["channel"].map({"A1_y": "v1", "A2_y": "v2"})
     bench["source"] = "measured"
-    bench["record_id"] = "rig-" + bench["record_id"]
-    from condmon.signals import write_signal_table
-
-    write_signal_table(bench, tmp_path / "rig.parquet")
-    target = "results/rig/measured/signals.parquet"
-    snakemake(
-        workdir,
-        "--cores",
-        "1",
-        target,
-        "--configfile",
-        ".test/config/smoke.yaml",
-        "--config",
-        f"measured_table={tmp_path / 'rig.parquet'}",
-        "run_name=rig",
+    # the bench's records of a state and speed, one after another, as one record of the rig
+    bench = bench.sort_values(["health_state", "speed_rpm", "record_id", "segment"])
+    bench["record_id"] = (
+        "rig-" + bench["health_state"] + "-" + bench["speed_rpm"].map("{:g}".format)
     )
-    measured = read_signal_table(workdir / target)
+    bench["segment"] = bench.groupby(["record_id", "channel"]).cumcount().astype("int32")
+    bench.to_parquet(tmp_path / "rig.parquet")
+    (tmp_path / "rig.yaml").write_text(
+        yaml.safe_dump(
+            {
+                "base": ".test/config/smoke.yaml",
+                "run_name": "rig",
+                "measured_table": str(tmp_path / "rig.parquet"),
+                "model": {
+                    "sensors": {
+                        "v1": {"housing": 0, "directions": ["y"]},
+                        "v2": {"housing": 2, "directions": ["y"]},
+                    }
+                },
+                "features": {"channels": ["v1", "v2"]},
+                "calibration": {"reserve": {"each_condition": True, "calibration_segments": 2}},
+            }
+        )
+    )
+    snakemake(
+        workdir, "--cores", "1", "--until", "hybrid", "--configfile", str(tmp_path / "rig.yaml")
+    )
+    measured = read_signal_table(workdir / "results/rig/measured/signals.parquet")
     assert (
         set(measured["source"]) == {"measured"}
         and measured["record_id"].str.startswith("rig-").all()
+        and set(measured["channel"]) == {"v1", "v2"}
     )
     assert not (workdir / "results" / "rig" / "measured" / "virtual_bench").exists()
+    splits = read_split_table(workdir / "results/rig/hybrid/record_split.parquet")
+    healthy = splits[splits["record_id"].str.startswith("rig-healthy")]
+    roles = healthy.groupby("record_id")["role"].agg(set)
+    assert len(roles) == 2 and all({"calibration", "unused", "test"} <= r for r in roles)
 
 
 def run_until(workdir, marker: Path, sig, timeout=600):

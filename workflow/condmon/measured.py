@@ -7,9 +7,17 @@ import logging
 import numpy as np
 import pandas as pd
 
-from condmon.signals import SPECIMEN_COLUMNS, SignalTableError, read_unvalidated, validate
+from condmon.signals import (
+    COLUMNS,
+    SPECIMEN_COLUMNS,
+    SignalTableError,
+    read_unvalidated,
+    validate,
+)
 
 log = logging.getLogger(__name__)
+# the columns a user's table must have: `params` (a simulated sample's parameters) may be absent
+USER_COLUMNS = [column for column in COLUMNS if column != "params"]
 
 
 ON_BAD_RECORD = ("stop", "skip")
@@ -46,7 +54,9 @@ def read_user_table_checked(
     """
     if on_bad_record not in ON_BAD_RECORD:
         raise ValueError(f"on_bad_record={on_bad_record!r}; choose one of {list(ON_BAD_RECORD)}")
-    frame = read_unvalidated(path)
+    frame = read_unvalidated(path, USER_COLUMNS)
+    if "params" not in frame:  # a simulated sample's parameters: nothing of a measured record
+        frame["params"] = ""
     if frame.empty:
         raise SignalTableError(f"{path}: the signal table has no rows")
     for column in SPECIMEN_COLUMNS:  # optional; where given, one value per record

@@ -215,6 +215,7 @@ class System(ABC):
         """Cross-field problems of the whole config that concern this system (messages name the
         key). Subclasses extend this list."""
         config, problems = self.config, []
+        problems += self.measured_table_problems()
         unknown = sorted(set(config["features"]["channels"]) - set(self.channels))
         if unknown:
             problems.append(
@@ -310,6 +311,29 @@ class System(ABC):
             if name in REGISTRY
             for need in sorted(REGISTRY[name].needs - offers)
         ]
+
+    def measured_table_problems(self) -> list[str]:
+        """A measured_table whose file lacks signal-table columns (read from its schema alone;
+        a file that cannot be read is the measured job's to name, with its reason)."""
+        if not self.measured_table:
+            return []
+        import pyarrow.parquet as pq
+
+        from condmon.measured import USER_COLUMNS
+
+        try:
+            columns = set(pq.read_schema(self.measured_table).names)
+        except Exception:  # no such file, not Parquet: pyarrow raises several types
+            return []
+        missing = [column for column in USER_COLUMNS if column not in columns]
+        return (
+            [
+                f"measured_table: {self.measured_table} lacks the signal-table columns {missing} "
+                "(docs/architecture.md, Signal table)"
+            ]
+            if missing
+            else []
+        )
 
     def measured_offers(self) -> set[str] | None:
         """What the measured data carry beyond the signal table, of what protocols may need
