@@ -13,6 +13,17 @@ from condmon.systems.gear import residual_features as rf
 P = 1024
 PINION, GEAR = 29, 44
 SHAFTS = [("pinion", 1.0, PINION), ("gear", PINION / GEAR, GEAR)]
+# the family's settings as the gear system gives them (`residual_settings`), for these shafts
+SETTINGS = {
+    "shafts": [list(s) for s in SHAFTS],
+    "samples_per_revolution": P,
+    "bands_per_mesh": 4,
+    "mesh_harmonics": 3,
+    "shaft_orders": 2,
+    "phase_harmonic": 1,
+    "phase_band_orders": 0.3,
+    "phase_min_snr": 5.0,
+}
 
 
 def pitch_pattern(
@@ -337,16 +348,7 @@ def test_the_family_takes_references_covering_the_hunting_cycle_against_it():
         )
         rows += signal_rows(record_id, health, speed, 0, x[0, :half], fs)
     frame = pd.DataFrame(rows).assign(source="virtual_bench")
-    params = {
-        "shafts": [list(s) for s in SHAFTS],
-        "samples_per_revolution": P,
-        "bands_per_mesh": 4,
-        "mesh_harmonics": 3,
-        "shaft_orders": 2,
-        "phase_harmonic": 1,
-        "phase_band_orders": 0.3,
-        "phase_min_snr": 5.0,
-    }
+    params = dict(SETTINGS)
     spec = {
         "source": "measured",
         "healthy_state": "healthy",
@@ -387,16 +389,7 @@ def test_a_record_without_a_mesh_line_falls_back_on_the_nominal_speed_and_says_s
         rows += signal_rows(
             "noise-r01", "healthy", speed, segment, rng.normal(0.0, chunk.std(), half), fs
         )
-    params = {
-        "shafts": [list(s) for s in SHAFTS],
-        "samples_per_revolution": P,
-        "bands_per_mesh": 4,
-        "mesh_harmonics": 3,
-        "shaft_orders": 2,
-        "phase_harmonic": 1,
-        "phase_band_orders": 0.3,
-        "phase_min_snr": 5.0,
-    }
+    params = dict(SETTINGS)
     spec = {"source": "measured", "healthy_state": "healthy", "condition": "speed_rpm"}
     with caplog.at_level("WARNING"):
         written = rf.residual_feature_table(
@@ -461,16 +454,7 @@ def test_the_family_takes_simulated_twins_and_packaged_references():
     )
     rows += signal_rows("sim-surface_fault-1100rpm-b000-s000", "surface_fault", speed, 0, x[0], fs)
     frame = pd.DataFrame(rows)
-    params = {
-        "shafts": [list(s) for s in SHAFTS],
-        "samples_per_revolution": P,
-        "bands_per_mesh": 4,
-        "mesh_harmonics": 3,
-        "shaft_orders": 2,
-        "phase_harmonic": 1,
-        "phase_band_orders": 0.3,
-        "phase_min_snr": 5.0,
-    }
+    params = dict(SETTINGS)
     against = {"source": "simulated", "healthy_state": "healthy", "segments_per_sample": 1}
     table = rf.residual_feature_table(
         frame, ["A1_x"], params, FamilyInputs(healthy_reference=against)
@@ -561,17 +545,7 @@ def test_a_packaged_model_takes_a_new_record_against_its_reference_waveforms():
         x, _ = in_time([pattern, gear], fs, speed, 0.6, start=(start, 0.2), noise=0.01, rng=rng)
         rows += signal_rows(record_id, health, speed, 0, x[0], fs)
     frame = pd.DataFrame(rows)
-    params = {
-        "shafts": [list(s) for s in SHAFTS],
-        "damaged_shafts": ["pinion"],
-        "samples_per_revolution": P,
-        "bands_per_mesh": 4,
-        "mesh_harmonics": 3,
-        "shaft_orders": 2,
-        "phase_harmonic": 1,
-        "phase_band_orders": 0.3,
-        "phase_min_snr": 5.0,
-    }
+    params = dict(SETTINGS, damaged_shafts=["pinion"])
     spec = {
         "source": "measured",
         "healthy_state": "healthy",
@@ -787,16 +761,7 @@ def test_settings_and_run_time_inputs_stay_apart():
     from condmon.features import SystemFamily
     from conftest import system_of
 
-    params = {
-        "shafts": [list(s) for s in SHAFTS],
-        "samples_per_revolution": P,
-        "bands_per_mesh": 4,
-        "mesh_harmonics": 3,
-        "shaft_orders": 2,
-        "phase_harmonic": 1,
-        "phase_band_orders": 0.3,
-        "phase_min_snr": 5.0,
-    }
+    params = dict(SETTINGS)
     for leaked in (
         {"against": {"source": "measured"}},
         {"processes": 2},
