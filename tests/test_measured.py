@@ -54,6 +54,23 @@ def test_a_table_without_params_is_read_and_one_without_a_column_refused_at_the_
         system_of(changes=dict(rig, measured_table=str(tmp_path / "bad.parquet")))
 
 
+def test_condition_holdout_over_loads_counts_the_tables_loads(tmp_path):
+    """Loads as the operating condition: condition_holdout needs two loads in the table, however
+    many speeds the rig lists."""
+    from conftest import system_of
+
+    frame = pd.DataFrame(rows() + rows("rig-2", "missing_tooth"))
+    frame.to_parquet(tmp_path / "one-load.parquet")
+    frame.assign(load=np.where(frame["record_id"] == "rig-1", 10.0, 20.0)).to_parquet(
+        tmp_path / "two-loads.parquet"
+    )
+    rig = {"rig": {"speeds_rpm": [775]}, "hybrid": {"condition": "load"}}
+    with pytest.raises(ConfigError, match=r"condition_holdout .* \(load\) .* the run has \[10.0\]"):
+        system_of(changes=dict(rig, measured_table=str(tmp_path / "one-load.parquet")))
+    system = system_of(changes=dict(rig, measured_table=str(tmp_path / "two-loads.parquet")))
+    assert not [p for p in system.problems() if "condition_holdout" in p]
+
+
 @pytest.mark.parametrize(
     "case, message",
     [

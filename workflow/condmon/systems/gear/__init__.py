@@ -232,8 +232,8 @@ class GearSystem(System):
                     f"calibration.parameters: {both} are drawn per sample by model.mesh_compliance; "
                     "calibrate them or draw them, not both"
                 )
-        if "condition_holdout" in config["hybrid"]["protocols"] and len(rig["speeds_rpm"]) < 2:
-            problems.append("hybrid.protocols: condition_holdout needs at least two rig.speeds_rpm")
+        if "condition_holdout" in config["hybrid"]["protocols"]:
+            problems += self.condition_holdout_problems()
         problems += unlisted_measured_speeds(config["measured_table"], rig["speeds_rpm"])
         # a rate the healthy records' mesh lines contradict (a guessed fs_hz), named with the rate they imply
         problems += mesh_line_problems(
@@ -424,6 +424,35 @@ class GearSystem(System):
                 duration=duration_s, step_refinement=int(step_refinement), **self.numerics
             ),
         )
+
+    def condition_holdout_problems(self) -> list[str]:
+        """condition_holdout holds out one value of `hybrid.condition` at a time: the run needs
+        two or more (speeds: rig.speeds_rpm; loads: those of the measured table, the bench's
+        one load otherwise)."""
+        config, condition = self.config, self.config["hybrid"]["condition"]
+        if condition == "speed_rpm":
+            values = sorted(set(config["rig"]["speeds_rpm"]))
+        elif config["measured_table"] is not None:
+            import pyarrow.parquet as pq
+
+            try:
+                values = sorted(
+                    set(
+                        pq.read_table(config["measured_table"], columns=[condition])[
+                            condition
+                        ].to_pylist()
+                    )
+                )
+            except Exception:  # an unreadable table: the measured job names it
+                return []
+        else:
+            values = [float(config["model"]["load_torque"])]
+        if len(values) >= 2:
+            return []
+        return [
+            f"hybrid.protocols: condition_holdout holds out one hybrid.condition ({condition}) at "
+            f"a time and needs two or more; the run has {values}"
+        ]
 
     def diverging(self, parameters: dict) -> dict:
         # a mesh a million times stiffer needs a step far below any physical range: SimulationError
