@@ -226,6 +226,44 @@ def test_a_healthy_twin_pair_lies_within_noise_and_a_pitted_twin_does_not():
     assert damaged["tooth_peak3"][0] > 2 * max(t["tooth_peak3"][0] for t in twins)
 
 
+def test_the_cnns_input_carries_no_machines_healthy_pattern():
+    """The CNN ensemble reads the residual bands alone (`condmon.cnn`'s RESIDUAL_NAME): two
+    machines of other gears (other pitch patterns), each healthy against its own reference, give
+    it inputs no further apart than two records of one machine (noise alone); a pitted one
+    stands out."""
+    from condmon.cnn import band_pattern
+
+    rng = np.random.default_rng(6)
+    fs, speed, noise = 5120.0, 775.0, 0.1
+    gear = rf.without_orders(pitch_pattern(GEAR, rng)[None, :], GEAR)[0]
+
+    def bands(pinion_pattern, reference_pattern):
+        """The CNN's input (log10 residual bands) of a record against its machine's reference."""
+        taken = [
+            rf.shaft_patterns(
+                *in_time([pattern, gear], fs, speed, 1.5, start=start, noise=noise, rng=rng),
+                SHAFTS,
+                P,
+            )[0]
+            for pattern, start in (
+                (pinion_pattern, tuple(rng.uniform(size=2))),
+                (reference_pattern, tuple(rng.uniform(size=2))),
+            )
+        ]
+        features = rf.residual_features(taken[0], taken[1], PINION, PINION / 4, 12)
+        names = {f"res_A1_x_pinion_{key}": key for key in features}
+        read = [key for name, key in names.items() if band_pattern(list(names)).fullmatch(name)]
+        assert len(read) == 12  # the bands: no indicator rides along
+        return np.log10([features[key][0] for key in read])
+
+    first, other = (pitch_pattern(PINION, rng) for _ in range(2))
+    pitted = first + sum(tooth_bump(PINION, k, 0.5) for k in (5, 6, 7))
+    within = np.mean([np.abs(bands(first, first) - bands(first, first)).mean() for _ in range(4)])
+    between = np.mean([np.abs(bands(first, first) - bands(other, other)).mean() for _ in range(4)])
+    damaged = np.mean([np.abs(bands(pitted, first) - bands(first, first)).mean() for _ in range(4)])
+    assert between < 1.5 * within and damaged > 3 * within
+
+
 def band_limited_pattern(pattern: np.ndarray, top_order: int) -> np.ndarray:
     """A pattern without its orders above `top_order`: what an anti-aliased sensor records."""
     spectrum = np.fft.rfft(pattern)
