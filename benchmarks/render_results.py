@@ -333,7 +333,7 @@ def other_section(records: list[dict]) -> list[str]:
         return lines + [
             "No record yet of the other benchmarks (hunting_cycle.py, track_logging.py, "
             "join_candidates.py, measured_holdout.py, gear_signatures.py, bench_separability.py, "
-            "mesh_stiffness_cost.py).",
+            "mesh_stiffness_cost.py, study_table.py).",
             "",
         ]
     for record in records:

@@ -85,3 +85,48 @@ def test_every_benchmark_writes_a_record(script):
     its own baseline file; the renderer reads the records; fake_train_outputs.py is no benchmark
     but the synthetic train outputs the tracking benchmark and the tests build)."""
     assert "save_record(" in (ROOT / "benchmarks" / script).read_text()
+
+
+def test_a_study_table_reads_a_runs_report_beside_the_studys_figures(tmp_path, monkeypatch):
+    """benchmarks/study_table.py: per speed the SVM's accuracy and balanced accuracy at 0 %
+    measured (record_split), each class's recall and the study's figure beside it."""
+    import importlib.util
+
+    import pandas as pd
+
+    spec = importlib.util.spec_from_file_location(
+        "study_table", ROOT / "benchmarks" / "study_table.py"
+    )
+    study_table = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(study_table)
+    report = tmp_path / "results" / "run" / "report"
+    report.mkdir(parents=True)
+    keys = {"classifier": "svm", "protocol": "record_split", "measured_percent": 0}
+    pd.DataFrame(
+        [
+            dict(keys, speed_rpm=450.0, true_label=t, predicted_label=p, share=s, n=10)
+            for t, p, s in [
+                ("healthy", "healthy", 0.5),
+                ("healthy", "fault", 0.5),
+                ("fault", "fault", 1.0),
+            ]
+        ]
+    ).to_csv(report / "prediction_shares.csv", index=False)
+    pd.DataFrame([dict(keys, repeat=0, speed_rpm=450.0, accuracy=0.75)]).to_csv(
+        report / "accuracy.csv", index=False
+    )
+    (report / "summary.json").write_text(
+        json.dumps({"job_timings": {"simulate": {"cpu_seconds_total": 5.0}}})
+    )
+    monkeypatch.setattr(study_table, "ROOT", tmp_path)
+    figures = study_table.study_table("run", [0.99])
+    assert figures["per_speed"] == {
+        "450 rpm": {
+            "accuracy": 0.75,
+            "balanced_accuracy": 0.75,
+            "recall fault": 1.0,
+            "recall healthy": 0.5,
+            "study": 0.99,
+        }
+    }
+    assert figures["cpu_seconds"] == 5.0 and figures["simulated_validation_accuracy"] is None
