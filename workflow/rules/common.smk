@@ -325,7 +325,9 @@ def measured_fault_locations_input():
     its shaft angle was found, where a feature family locates faults."""
     output = measured_reference_output()
     return {
-        key: output[key] for key in ("fault_locations", "shaft_tracking") if key in output
+        key: output[key]
+        for key in ("fault_locations", "shaft_tracking")
+        if key in output
     }
 
 

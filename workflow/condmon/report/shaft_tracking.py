@@ -1,9 +1,10 @@
 """The shaft tracking section: shaft_tracking.csv, per measured record how many of its segments had
-their shaft angle from the mesh line (a system family's tacholess tracking,
-measured_shaft_tracking.csv) and how many fell back on the nominal speed, with the line's level
-over its floor. A record on the nominal speed has its high orders smeared wherever its speed
-wanders: a sampling rate, tooth count or speed that puts the mesh line elsewhere, or a line lost
-in noise. summary.json `shaft_tracking`: the counts and the records that fell back."""
+their shaft angle from the spectral line a system family follows (its tacholess tracking,
+measured_shaft_tracking.csv; the system's docs say which line) and how many fell back on the
+nominal speed, with the line's level over its floor. A record on the nominal speed has its high
+orders smeared wherever its speed wanders: a sampling rate, geometry or speed that puts the line
+elsewhere, or a line lost in noise. summary.json `shaft_tracking`: the counts and the records
+that fell back."""
 
 from __future__ import annotations
 
@@ -63,9 +64,9 @@ SECTION = Section(
             "shaft_tracking",
             "shaft_tracking.csv",
             "How the shafts were tracked (shaft_tracking.csv)",
-            "Per measured record: its segments whose shaft angle came from the mesh line, those "
-            "that fell back on the nominal speed (a rate, tooth count or speed that puts the line "
-            "elsewhere, or a line lost in noise), and the line's median level over its floor.",
+            "Per measured record: its segments whose shaft angle came from the tracked line, "
+            "those that fell back on the nominal speed (a rate, geometry or speed that puts the "
+            "line elsewhere, or a line lost in noise), and the line's median level over its floor.",
         ),
     ),
     summary_keys=("shaft_tracking",),
