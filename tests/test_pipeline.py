@@ -374,12 +374,17 @@ def test_choosing_which_models_mlflow_logs_reruns_only_the_tracking(smoke):
 
 
 def test_editing_a_simulation_setting_reruns_simulation_and_downstream_not_calibration(smoke):
+    """The gear's own simulation knob (model.variability.perturbation_sigma; test_systems.py
+    checks its job specs, test_cwru_pipeline.py that a bearing run refuses it): the simulations
+    and exactly what follows them, and the report's pages (they show the full config)."""
     workdir, _ = smoke
     config = smoke_config()
     config["model"]["variability"]["perturbation_sigma"] = 0.05
     jobs = planned_jobs(workdir, config)
     assert {"simulate", "features_simulated", "train", "track", "report"} <= set(jobs)
     assert not {"calibrate", "measured", "measured_part", "features_measured", "hybrid"} & set(jobs)
+    after = {"train", "track", "report", "run_config", "report_pages", "all"}
+    assert set(jobs) == {"simulate", "features_simulated", *after}
 
 
 def test_editing_the_background_reruns_calibration_and_simulation_not_the_bench(smoke):
