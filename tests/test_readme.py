@@ -17,7 +17,7 @@ from conftest import CWRU, ROOT
 README = ROOT / "README.md"
 INSTALL = "python3 -m pip install -r environment.txt"
 MAIN_RUN = f"{INSTALL} && snakemake --cores all"
-TEST_RUN = f"{INSTALL} && python3 -m pytest -q"
+TEST_RUN = f"{INSTALL} && python3 -m pytest -q --durations=25"
 # set-up steps that install or change the shell: shown, not run by a test
 SET_UP = ("sudo apt-get install", "python3 -m venv", ". .venv/bin/activate", INSTALL)
 # files a command names that the user brings (their own rig's table): made empty in the copy
