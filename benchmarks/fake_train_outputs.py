@@ -5,7 +5,8 @@ By default two classifiers x two protocols (record_split; condition_holdout over
 measured percentages 0 and 50, two repeats; real fitted sklearn pipelines on a six-feature table.
 Every size is a parameter of ``build`` (the tracking benchmark builds a default-run-sized set,
 see ``default_run_size``); the models, their ``info.json`` and the CNN's training history are
-written by condmon.train itself.
+written by condmon.train itself, the split tables by condmon.hybrid, and ``model_store`` packages
+the models as the `track` job does (condmon.model_store).
 """
 
 from __future__ import annotations
@@ -25,7 +26,10 @@ from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 
 from condmon import classifiers as registry
+from condmon.hybrid import WHOLE_RECORD, write_split_table
 from condmon.train import write_models
+
+ROOT = Path(__file__).resolve().parents[1]
 
 LABELS = ["healthy", "missing_tooth", "surface_fault"]
 SPEEDS = [600.0, 900.0]
@@ -35,6 +39,7 @@ CLASSIFIERS = {"knn": {"n_neighbors": 3}, "logreg": {"C": 1.0, "max_iter": 200}}
 PROTOCOL_HOLDOUTS = {"record_split": [""], "condition_holdout": ["speed_rpm=600", "speed_rpm=900"]}
 FEATURES = [f"fft_A1_x_{f:06.1f}Hz" for f in (10, 20, 30, 40, 50, 60)]
 ID_COLUMNS = ["record_id", "segment", "source", "health_state", "speed_rpm", "load", "fs_hz"]
+SAMPLES = 256  # per segment of the signal tables' stand-ins
 
 
 def _features_table(
@@ -79,6 +84,40 @@ def _make_classifier(name: str, params: dict):
     if name.startswith("knn"):
         return make_pipeline(StandardScaler(), KNeighborsClassifier(**params))
     return registry.make_classifier(name, params, seed=0)  # svm, cnn: the project's own
+
+
+def feature_settings(features=FEATURES) -> dict:
+    """What a packaged model of these outputs says it computes (`SignalModel.features`): FFT band
+    spectra of the channels its feature names give."""
+    channels = sorted({"_".join(name.split("_")[1:3]) for name in features})
+    return {"kind": "spectrum", "channels": channels, "spectrum": {}}
+
+
+def _signals(frame: pd.DataFrame, rng) -> pd.DataFrame:
+    """A signal table's stand-in for the rows of a features table: their ids, one channel and a
+    noise segment each (the tracking logs the digest of its files, the store reads its shape)."""
+    return frame[ID_COLUMNS].assign(
+        channel="A1_x",
+        signal=[rng.normal(0, 1, SAMPLES).astype(np.float32) for _ in range(len(frame))],
+    )
+
+
+def _split_rows(protocol, percent, repeat, holdout, records, train, test) -> list[dict]:
+    """One split's rows of a split table (condmon.hybrid): train, test, the other records unused."""
+    role = {**dict.fromkeys(records, "unused"), **dict.fromkeys(test, "test")}
+    role.update(dict.fromkeys(train, "train"))
+    return [
+        {
+            "protocol": protocol,
+            "measured_percent": percent,
+            "repeat": repeat,
+            "holdout": holdout,
+            "record_id": record,
+            "segment": WHOLE_RECORD,
+            "role": role[record],
+        }
+        for record in records
+    ]
 
 
 def _fit(model, x, y, records, features):
@@ -136,12 +175,12 @@ def build(
     _write_features(simulated, root / "features/simulated.parquet", features)
     _write_features(measured, root / "features/measured.parquet", features)
     # stand-ins for the signal tables (the tracking logs their digests, not their contents)
-    measured[ID_COLUMNS].to_parquet(root / "measured_signals.parquet", index=False)
+    _signals(measured, rng).to_parquet(root / "measured_signals.parquet", index=False)
     simulated_signals = []
     for label in LABELS:
         path = root / "simulated" / label / "batch000.parquet"
         path.parent.mkdir(parents=True, exist_ok=True)
-        simulated[simulated["health_state"] == label][ID_COLUMNS].to_parquet(path, index=False)
+        _signals(simulated[simulated["health_state"] == label], rng).to_parquet(path, index=False)
         simulated_signals.append(path)
     records = measured["record_id"].unique()
     protocol_holdouts = {
@@ -149,7 +188,8 @@ def build(
         "condition_holdout": [f"speed_rpm={s:g}" for s in speeds],
     }
 
-    paths = {"metrics": [], "predictions": [], "models": [], "info": []}
+    paths = {"metrics": [], "predictions": [], "models": [], "info": [], "splits": {}}
+    split_rows = {}  # {(protocol, percent, repeat, holdout): its rows of the split table}
     for clf, params in classifiers.items():
         subset = (selection or {}).get(clf, {})
         clf_percents = subset.get("measured_percent") or percents
@@ -174,6 +214,19 @@ def build(
                             candidates = measured.loc[~test_mask, "record_id"].unique()
                         n_train = int(round(len(candidates) * percent / 100))
                         train_records = split_rng.choice(candidates, n_train, replace=False)
+                        # a split is the same for every classifier (its seed is the split's)
+                        split_rows.setdefault(
+                            (protocol, percent, repeat, holdout),
+                            _split_rows(
+                                protocol,
+                                percent,
+                                repeat,
+                                holdout,
+                                records,
+                                train_records,
+                                measured.loc[test_mask, "record_id"].unique(),
+                            ),
+                        )
                         train = pd.concat(
                             [simulated, measured[measured["record_id"].isin(train_records)]]
                         )
@@ -278,6 +331,12 @@ def build(
             paths["models"].append(out / "models")
             paths["info"].append(out / "info.json")
 
+    for protocol in protocol_holdouts:
+        rows = [row for key, rows in split_rows.items() if key[0] == protocol for row in rows]
+        paths["splits"][protocol] = root / "hybrid" / f"{protocol}.parquet"
+        paths["splits"][protocol].parent.mkdir(parents=True, exist_ok=True)
+        write_split_table(pd.DataFrame(rows), paths["splits"][protocol])
+
     calibration = root / "calibration"
     calibration.mkdir(parents=True, exist_ok=True)
     (calibration / "params.json").write_text(
@@ -326,8 +385,39 @@ def build(
         features_simulated=root / "features/simulated.parquet",
         measured_signals=root / "measured_signals.parquet",
         simulated_signals=simulated_signals,
+        feature_names=list(features),
     )
     return paths
+
+
+def model_store(paths: dict, directory: Path, config_hash: str = "h") -> Path:
+    """The outputs of ``build`` packaged into ``directory`` as the `track` job packages a run's
+    models (condmon.model_store.build_store; no system reads their records); returns it."""
+    from condmon.model_store import build_store
+
+    build_store(
+        directory,
+        train_dirs(paths),
+        paths["splits"],
+        paths["measured_signals"],
+        paths["features_simulated"],
+        paths["features_measured"],
+        feature_settings(paths["feature_names"]),
+        "healthy",
+        None,
+        config_hash,
+    )
+    return Path(directory)
+
+
+def system_specs() -> tuple[dict, dict]:
+    """The `features` and `measured` job specs of the default config's system (the gear rig), as
+    the `track` rule passes them."""
+    from condmon.config import load_config
+    from condmon.systems import get_system
+
+    system = get_system(load_config([], {"run_name": "demo"}, project=ROOT))
+    return system.job_spec("features"), system.job_spec("measured")
 
 
 TRACK_RUNNER = """
@@ -352,13 +442,14 @@ def track_job(
     log_models="all",
 ) -> list[str]:
     """The command line that runs workflow/scripts/track.py as the `track` rule does (a fresh
-    Python, `snakemake` injected) on the outputs of ``build``; log and mlflow_run.json go to
-    ``workdir``."""
+    Python, `snakemake` injected) on the outputs of ``build``: it packages the models into
+    ``workdir``/models (the default config's system as the features' and records' reader) and
+    logs them; log and mlflow_run.json go to ``workdir``."""
     import sys
 
-    script = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "track.py"
+    features_system, measured_system = system_specs()
     args = dict(
-        script=str(script),
+        script=str(ROOT / "workflow" / "scripts" / "track.py"),
         log=str(workdir / "track.log"),
         params=dict(
             tracking_uri=tracking_uri,
@@ -368,6 +459,11 @@ def track_job(
             config=config or {"run_name": run_name},
             log_models=log_models,
             healthy_state="healthy",
+            protocols=list(paths["splits"]),
+            features=feature_settings(paths["feature_names"]),
+            features_system=features_system,
+            measured_system=measured_system,
+            condition="speed_rpm",
         ),
         input=dict(
             info=list(map(str, paths["info"])),
@@ -375,8 +471,9 @@ def track_job(
             features_simulated=str(paths["features_simulated"]),
             measured_signals=str(paths["measured_signals"]),
             simulated_signals=list(map(str, paths["simulated_signals"])),
+            splits=list(map(str, paths["splits"].values())),
         ),
-        output=dict(run_info=str(workdir / "mlflow_run.json")),
+        output=dict(run_info=str(workdir / "mlflow_run.json"), models=str(workdir / "models")),
     )
     return [sys.executable, "-c", TRACK_RUNNER, json.dumps(args)]
 

@@ -9,6 +9,7 @@ pytest-xdist hands a whole file to one worker (`--dist loadfile`, pyproject.toml
 """
 
 import copy
+import json
 import logging
 import os
 import shutil
@@ -46,10 +47,76 @@ PIPELINE_FIXTURES = {"smoke", "cwru_run"}
 
 
 def pytest_collection_modifyitems(items):
-    """A test that reads a pipeline fixture is a pipeline test, marked or not."""
+    """A test that reads a pipeline fixture is a pipeline test, marked or not. The test files
+    go longest first: those with the most pipeline tests, then the most slow ones, then the rest
+    as collected, each file's tests together and in order. pytest-xdist hands the files out in
+    this order (`--no-loadscope-reorder`, pyproject.toml; its own order is by number of tests),
+    so the smoke runs start at once, side by side, and the short files fill in around them."""
     for item in items:
         if PIPELINE_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.pipeline)
+    weight = {}
+    for item in items:
+        pipeline, slow = weight.get(file_of(item.nodeid), (0, 0))
+        weight[file_of(item.nodeid)] = (
+            pipeline + (item.get_closest_marker("pipeline") is not None),
+            slow + (item.get_closest_marker("slow") is not None),
+        )
+    first = {name: n for n, name in enumerate(weight)}  # collection order
+    items.sort(
+        key=lambda item: (
+            *(-n for n in weight[file_of(item.nodeid)]),
+            first[file_of(item.nodeid)],
+        )
+    )
+
+
+def file_of(nodeid: str) -> str:
+    """The test file of a test's node id (`tests/test_x.py::test_y[1]`: `tests/test_x.py`)."""
+    return nodeid.split("::", 1)[0]
+
+
+def file_times(stats: dict) -> dict[str, dict]:
+    """{test file: {"seconds", "tests"}} from the terminal reporter's reports, longest first:
+    each test's setup, call and teardown summed (a session fixture's run counts in the first test
+    that reads it), on the worker that ran the file; `tests` counts each test once."""
+    seconds, tests = {}, {}
+    for reports in stats.values():
+        for report in reports:
+            if getattr(report, "when", None) not in ("setup", "call", "teardown"):
+                continue
+            name = file_of(report.nodeid)
+            seconds[name] = seconds.get(name, 0.0) + report.duration
+            tests.setdefault(name, set()).add(report.nodeid)
+    return {
+        name: {"seconds": round(seconds[name], 1), "tests": len(tests[name])}
+        for name in sorted(seconds, key=seconds.get, reverse=True)
+    }
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    """With --durations (the README's test command has it): beside the slowest tests, the time
+    per test file, longest first (as many files as --durations names tests; 0: all). Where
+    CONDMON_TEST_TIMES names a file, the times of every file and the outcomes go there as JSON
+    (benchmarks/suite_times.py records them)."""
+    if hasattr(config, "workerinput"):  # a pytest-xdist worker: the controller reports
+        return
+    times = file_times(terminalreporter.stats)
+    if config.option.durations is not None and times:
+        shown = list(times.items())[: config.option.durations or None]
+        terminalreporter.write_sep("=", f"time per test file (the {len(shown)} longest)")
+        for name, entry in shown:
+            terminalreporter.write_line(
+                f"{entry['seconds']:8.1f}s {entry['tests']:4d} tests  {name}"
+            )
+    path = os.environ.get("CONDMON_TEST_TIMES")
+    if path:
+        outcomes = {
+            key: len(reports)
+            for key, reports in terminalreporter.stats.items()
+            if key in ("passed", "failed", "skipped", "error", "xfailed", "xpassed")
+        }
+        Path(path).write_text(json.dumps({"outcomes": outcomes, "files": times}, indent=1) + "\n")
 
 
 def logical_lines(text: str) -> int:

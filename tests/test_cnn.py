@@ -5,6 +5,7 @@ ensembles keep this file at a few seconds.
 """
 
 import json
+from pathlib import Path
 
 import joblib
 import mlflow
@@ -22,6 +23,8 @@ from condmon.cnn import (
     validation_split,
 )
 from condmon.features import write_feature_table
+from condmon.hybrid import write_split_table
+from condmon.model_store import build_store
 from condmon.protocols import make_splits
 from condmon.train import (
     HISTORY_FILE,
@@ -283,7 +286,10 @@ def test_subset_errors_name_the_config_key():
         run_protocol("cnn", SMALL, SIMULATED, MEASURED, splits, FEATURES, 1, repeats=2)
 
 
-def test_tracking_logs_curves_and_the_ensemble_as_a_pytorch_model(tmp_path):
+def test_tracking_logs_curves_and_the_ensemble_as_a_signal_model(tmp_path):
+    """The track job's logging of a CNN fit: its members' mean curves and their table, and the
+    packaged ensemble (the run's model store) as an MLflow pyfunc model whose estimator is the
+    fitted one, torch among its requirements."""
     root = tmp_path / "results" / "cnn_demo"
     write_feature_table(MEASURED, FEATURES, root / "features/measured.parquet")
     write_feature_table(SIMULATED, FEATURES, root / "features/simulated.parquet")
@@ -308,13 +314,30 @@ def test_tracking_logs_curves_and_the_ensemble_as_a_pytorch_model(tmp_path):
             )
         )
     )
-    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
+    write_split_table(splits, root / "hybrid/record_split.parquet")
+    signals = MEASURED.iloc[:1].assign(channel="A1_x", signal=[np.zeros(256, np.float32)])
+    signals.drop(columns=FEATURES).to_parquet(root / "signals.parquet")
     tables = [root / "features/measured.parquet", root / "features/simulated.parquet"]
+    store = root / "models/hash-c"
+    build_store(
+        store,
+        [out],
+        {"record_split": root / "hybrid/record_split.parquet"},
+        root / "signals.parquet",
+        tables[1],
+        tables[0],
+        {"kind": "spectrum", "channels": list(CHANNELS)},
+        "healthy",
+        None,
+        "hash-c",
+    )
+    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
     info = tracking.log_pipeline_run(
         uri,
         tracking.TrackedRun("cnn_demo", "hash-c", "virtual_bench"),
         [out],
         {"measured_features": tables[:1], "simulated_features": tables[1:]},
+        store,
         log_models="all",
         workdir=tmp_path,
     )
@@ -341,13 +364,11 @@ def test_tracking_logs_curves_and_the_ensemble_as_a_pytorch_model(tmp_path):
     assert len(logged) == 1 and logged[0].source_run_id == run.info.run_id
     # the run's metrics, the curves among them, are the model's
     assert {m.key for m in logged[0].metrics} >= {"accuracy", "val_loss", "uncertainty_mean"}
-    loaded = mlflow.pytorch.load_model(logged[0].model_uri)
-    with torch.no_grad():
-        probabilities = loaded(torch.from_numpy(X[:3])).numpy()
-    np.testing.assert_allclose(probabilities, model.predict_proba(X[:3]), rtol=1e-5, atol=1e-6)
-    signature = mlflow.models.get_model_info(logged[0].model_uri).signature
-    assert list(signature.inputs.to_dict()[0]["tensor-spec"]["shape"]) == [-1, len(FEATURES)]
-    classes = json.loads(
-        open(client.download_artifacts(run.info.run_id, "model_classes.json")).read()
+    loaded = mlflow.pyfunc.load_model(logged[0].model_uri).unwrap_python_model().model
+    np.testing.assert_allclose(
+        loaded.estimator.predict_proba(X[:3]), model.predict_proba(X[:3]), rtol=1e-5, atol=1e-6
     )
-    assert classes["classes"] == list(model.classes_)
+    assert loaded.classes == list(model.classes_)
+    assert run.data.params["device"] == "cpu"
+    requirements = Path(mlflow.pyfunc.get_model_dependencies(logged[0].model_uri)).read_text()
+    assert "torch==" in requirements

@@ -88,9 +88,12 @@ def test_load_config_names_a_missing_file_and_takes_overrides_as_the_command_lin
     assert load_config([], {"run_name": "mine"}, project=ROOT)["rig"]["segment_seconds"] == 0.5
 
 
-def planned_jobs(*configfiles) -> dict:
+def planned_jobs(*configfiles, config=()) -> dict:
+    """{rule: jobs} of a dry run with `configfiles` (and `--config` entries `config`)."""
+    entries = ["--config", *config] if config else []
     result = subprocess.run(
-        [sys.executable, "-m", "snakemake", "-n", "--forceall", "--configfile", *configfiles],
+        [sys.executable, "-m", "snakemake", "-n", "--forceall", "--configfile", *configfiles]
+        + entries,
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -105,3 +108,16 @@ def test_snakemake_plans_a_layer_alone_as_stacked_over_its_base():
     alone = planned_jobs("config/per-state.yaml")
     assert alone == planned_jobs("config/config.yaml", "config/per-state.yaml")
     assert int(alone["calibrate_state"]) == 2  # the layer's own two states: it was not dropped
+
+
+@pytest.mark.slow  # a Snakemake dry run a config file: 5-10 s each
+@pytest.mark.parametrize("path", [p for p in run_configs() if p.startswith("config/")])
+def test_every_config_file_plans_its_run_alone(path):
+    """`snakemake -n --configfile <it>` for every config file under config/, alone (a data
+    folder it names is this machine's copy). A layer's plan is its base's plus its own changes:
+    the config it loads alone is the stacked one (test_a_layer_alone_is_the_run_it_is_stacked_
+    over_its_base), and the Snakefile plans from that config only (condmon.config.load_config)."""
+    named = read_config([path], project=ROOT)
+    config = [f"{key}={folder}" for key, folder in DATA_FOLDERS.items() if key in named]
+    jobs = planned_jobs(path, config=config)
+    assert jobs.get("all") == "1", jobs

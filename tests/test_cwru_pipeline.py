@@ -9,13 +9,14 @@ simulate every class and test the ones present.
 
 import json
 import os
+import re
 import time
 
 import pandas as pd
 import pytest
 import yaml
 
-from conftest import CWRU, CWRU_SLICE as SLICE, cwru_folder, snakemake
+from conftest import CWRU, CWRU_SLICE as SLICE, cwru_folder, deep_update, snakemake
 
 pytestmark = pytest.mark.pipeline
 # another set: 0.021 in faults at 0 and 1 HP, and no healthy record
@@ -220,3 +221,50 @@ def test_data_files_whose_times_change_but_not_their_contents_rerun_nothing(cwru
     finally:  # the fixture's files are read only: their times go back
         for link, stat in times.items():
             os.utime(link, ns=(stat.st_atime_ns, stat.st_mtime_ns), follow_symlinks=False)
+
+
+def planned_rules(workdir, edited: dict, folder) -> set | str:
+    """The rules a params-triggered dry run of the finished run plans after the config edit
+    `edited` (merged into .test/config/cwru-smoke.yaml), or the config error's message."""
+    config = yaml.safe_load((workdir / ".test" / "config" / "cwru-smoke.yaml").read_text())
+    path = workdir / "edited.yaml"
+    path.write_text(yaml.safe_dump(deep_update(config, edited)))
+    try:
+        result = snakemake(
+            workdir,
+            "-n",
+            "--rerun-triggers",
+            "params",
+            "--configfile",
+            path.name,
+            "--config",
+            f"measured_dir={folder}",
+            check=False,
+        )
+    finally:
+        path.unlink()
+    if result.returncode != 0:
+        return result.stdout + result.stderr
+    if "Nothing to be done" in result.stdout:
+        return set()
+    return set(re.findall(r"^rule (\w+):", result.stdout, flags=re.M))
+
+
+def test_a_bearing_runs_simulation_knob_reruns_its_simulations_and_a_gear_knob_is_refused(
+    cwru_run,
+):
+    """Snakemake's plans on the finished run (test_systems.py checks the job specs): the shared
+    simulation section reruns the simulations and what follows, the joined method included (it
+    reads the SVM's predictions), never the ingestion or the calibration; the gear's own knob
+    (model.variability.perturbation_sigma) is no key of a bearing run."""
+    workdir, _ = cwru_run
+    folder = workdir.parent / "slice"  # the fixture's folder of links to the shared files
+    after = {"train", "track", "report", "run_config", "report_pages", "all"}
+    assert planned_rules(workdir, {"simulation": {"max_failed_share": 0.2}}, folder) == {
+        "simulate",
+        "features_simulated",
+        "joined",
+        *after,
+    }
+    knob = {"model": {"variability": {"perturbation_sigma": 0.05}}}
+    assert "unknown key model" in planned_rules(workdir, knob, folder)

@@ -383,12 +383,17 @@ def test_choosing_which_models_mlflow_logs_reruns_only_the_tracking(smoke):
 
 
 def test_editing_a_simulation_setting_reruns_simulation_and_downstream_not_calibration(smoke):
+    """The gear's own simulation knob (model.variability.perturbation_sigma; test_systems.py
+    checks its job specs, test_cwru_pipeline.py that a bearing run refuses it): the simulations
+    and exactly what follows them, and the report's pages (they show the full config)."""
     workdir, _ = smoke
     config = smoke_config()
     config["model"]["variability"]["perturbation_sigma"] = 0.05
     jobs = planned_jobs(workdir, config)
     assert {"simulate", "features_simulated", "train", "track", "report"} <= set(jobs)
     assert not {"calibrate", "measured", "measured_part", "features_measured", "hybrid"} & set(jobs)
+    after = {"train", "track", "report", "run_config", "report_pages", "all"}
+    assert set(jobs) == {"simulate", "features_simulated", *after}
 
 
 def test_editing_the_background_reruns_calibration_and_simulation_not_the_bench(smoke):
@@ -713,7 +718,17 @@ def screenshot(chromium, page: Path, png: Path) -> np.ndarray:
     return np.asarray(Image.open(png).convert("RGB"), dtype=float)
 
 
-def test_snakemake_report_embeds_the_plots_and_chromium_renders_them(smoke, tmp_path):
+@pytest.fixture(scope="module")
+def smoke_report(smoke, tmp_path_factory) -> Path:
+    """`snakemake --report report.html` on the smoke run (the README's report command), made
+    once for the tests that read the page; read only."""
+    workdir, _ = smoke
+    report = tmp_path_factory.mktemp("report") / "report.html"
+    snakemake(workdir, "--configfile", ".test/config/smoke.yaml", "--report", str(report))
+    return report
+
+
+def test_snakemake_report_embeds_the_plots_and_chromium_renders_them(smoke, smoke_report, tmp_path):
     """`snakemake --report report.html` on the smoke run: every report plot is embedded, byte for
     byte, in its section; the page renders; and the accuracy plot shows when opened as the
     report's own buttons open it (its classifiers' line colours fill the screenshot)."""
@@ -724,8 +739,7 @@ def test_snakemake_report_embeds_the_plots_and_chromium_renders_them(smoke, tmp_
     if chromium is None:
         pytest.skip("headless Chromium is not installed (Debian package `chromium`)")
     workdir, results = smoke
-    report = tmp_path / "report.html"
-    snakemake(workdir, "--configfile", ".test/config/smoke.yaml", "--report", str(report))
+    report = smoke_report
     html = report.read_text()
     entries = json.loads(re.search(r"var results = (\{.*?\});\n", html, re.S).group(1))
     categories = json.loads(re.search(r"var categories = (\{.*?\});\n", html, re.S).group(1))
@@ -790,7 +804,7 @@ def test_snakemake_report_embeds_the_plots_and_chromium_renders_them(smoke, tmp_
 
 
 def test_the_report_front_page_opens_on_the_headline_table_and_shows_tables_as_tables(
-    smoke, tmp_path
+    smoke, smoke_report
 ):
     """`snakemake --report`: the front page holds the headline table with accuracy.csv's numbers
     (mean over repeats at 0 and 100 % measured); every report table is an HTML page; a result's
@@ -798,8 +812,7 @@ def test_the_report_front_page_opens_on_the_headline_table_and_shows_tables_as_t
     import re
 
     workdir, results = smoke
-    report = tmp_path / "report.html"
-    snakemake(workdir, "--configfile", ".test/config/smoke.yaml", "--report", str(report))
+    report = smoke_report
     html = report.read_text()
     front = json.loads(re.search(r"var workflow_desc = (.*?);\n", html, re.S).group(1))
     assert (

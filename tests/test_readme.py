@@ -2,6 +2,8 @@
 CI runs them, and every command in it runs in a fresh copy of the project (Snakemake ones as a dry
 run, the others as far as they run without a finished run: `--help`)."""
 
+import importlib.util
+import json
 import os
 import re
 import shlex
@@ -17,7 +19,7 @@ from conftest import CWRU, ROOT
 README = ROOT / "README.md"
 INSTALL = "python3 -m pip install -r environment.txt"
 MAIN_RUN = f"{INSTALL} && snakemake --cores all"
-TEST_RUN = f"{INSTALL} && python3 -m pytest -q"
+TEST_RUN = f"{INSTALL} && python3 -m pytest -q --durations=25"
 # set-up steps that install or change the shell: shown, not run by a test
 SET_UP = ("sudo apt-get install", "python3 -m venv", ". .venv/bin/activate", INSTALL)
 # files a command names that the user brings (their own rig's table): made empty in the copy
@@ -85,6 +87,34 @@ def test_the_two_main_commands_are_as_ci_runs_them():
         if line and not line.startswith("#")
     ]
     assert ci[-1] == TEST_RUN
+
+
+def test_the_suite_times_benchmark_times_the_readme_test_command(monkeypatch):
+    """benchmarks/suite_times.py runs the README's test command (its pytest step) and records
+    the outcomes and the time per test file that conftest.py writes where CONDMON_TEST_TIMES
+    points, beside the wall and CPU seconds (a fake suite here)."""
+    spec = importlib.util.spec_from_file_location(
+        "suite_times", ROOT / "benchmarks" / "suite_times.py"
+    )
+    suite_times = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(suite_times)
+    assert [" ".join(suite_times.COMMAND)] == steps(TEST_RUN)
+    files = {"tests/test_a.py": {"seconds": 2.0, "tests": 4}}
+
+    def fake_suite(command, cwd, env):
+        assert command == [sys.executable, *suite_times.COMMAND[1:], "-k", "a"] and cwd == ROOT
+        outcomes = {"passed": 3, "skipped": 1}
+        Path(env["CONDMON_TEST_TIMES"]).write_text(
+            json.dumps({"outcomes": outcomes, "files": files})
+        )
+        return subprocess.CompletedProcess(command, 0)
+
+    monkeypatch.setattr(suite_times.subprocess, "run", fake_suite)
+    figures = suite_times.time_suite(["-k", "a"])
+    assert figures["command"] == "python3 -m pytest -q --durations=25 -k a"
+    assert figures["tests"] == 4 and figures["files"] == files and figures["returncode"] == 0
+    assert figures["wall_seconds"] >= 0 and figures["cpu_seconds"] >= 0
+    assert set(figures["machine"]) == {"cores", "load_average_at_start", "load_average_at_end"}
 
 
 def test_every_readme_command_is_one_the_test_can_run():

@@ -19,7 +19,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from conftest import CWRU, ROOT, config_file, config_of
+from conftest import ROOT, config_file, config_of
 from condmon.calibrate import FAILED_COST, Bound, Calibrator, SpectrumModel
 from condmon.config import ConfigError
 from condmon.features import compute_feature_table
@@ -279,68 +279,14 @@ def test_the_source_digest_follows_every_model_file(tmp_path):
     assert digest(deep=(moved,)) == digest(deep=(tmp_path,))
 
 
-def touched_project(tmp_path, configfile: str, *config_args: str):
-    """A copy of the project whose every job of `configfile` looks done: Snakemake's metadata
-    (params, code) recorded by `--touch`, every output an empty file. A dry run with
-    `--rerun-triggers params` then plans exactly the jobs whose params an edit changes."""
-    from conftest import copy_project, snakemake
-
-    workdir = copy_project(tmp_path / "project")
-    run = ("--configfile", configfile, *(("--config", *config_args) if config_args else ()))
-    snakemake(
-        workdir, "--touch", "--cores", "1", *run
-    )  # records every job's params, writes no file
-    for _ in range(5):
-        out = snakemake(workdir, "-n", "--rerun-triggers", "params", *run).stdout
-        missing = [
-            name.strip()
-            for line in re.findall(r"reason: Missing output files: ([^;\n]+)", out)
-            for name in line.split(",")
-        ]
-        if not missing:
-            break
-        for name in missing:
-            (workdir / name).parent.mkdir(parents=True, exist_ok=True)
-            (workdir / name).touch()
-    snakemake(workdir, "--touch", "--cores", "1", *run)  # outputs newer than their inputs
-    assert (
-        "Nothing to be done" in snakemake(workdir, "-n", "--rerun-triggers", "params", *run).stdout
-    )
-    return workdir, run
-
-
-def planned_rules(workdir, run, edited: dict) -> set:
-    """The rules a params-triggered dry run plans after the config edit `edited` (merged into the
-    run's config file), or the config error's message."""
-    from conftest import deep_update, snakemake
-
-    config = yaml.safe_load((workdir / run[1]).read_text())
-    (workdir / "edited.yaml").write_text(yaml.safe_dump(deep_update(config, edited)))
-    result = snakemake(
-        workdir,
-        "-n",
-        "--rerun-triggers",
-        "params",
-        "--configfile",
-        "edited.yaml",
-        *run[2:],
-        check=False,
-    )
-    if result.returncode != 0:
-        return result.stdout + result.stderr
-    if "Nothing to be done" in result.stdout:
-        return set()
-    return set(re.findall(r"^rule (\w+):", result.stdout, flags=re.M))
-
-
-@pytest.mark.slow
-def test_a_systems_own_simulation_knob_reruns_its_simulations_only_and_never_another_systems(
-    tmp_path,
-):
+def test_a_systems_own_simulation_knob_reruns_its_simulations_only_and_never_another_systems():
     """The gear's per-sample perturbation lives in the gear's own section: the simulate rule's
     params are the system's job_spec("simulate") plus the shared simulation section, so an edit
     of it reruns the gear's simulations and what follows (not the bench or calibration), and a
-    bearing (CWRU) run has no such knob at all: nothing of it reaches a bearing job."""
+    bearing (CWRU) run has no such knob at all: nothing of it reaches a bearing job. Here the
+    job specs and configs; Snakemake's plans for the edits on the finished smoke runs, which
+    every test that reads a run shares (conftest's `smoke`, `cwru_run`): test_pipeline.py
+    (the gear's knob) and test_cwru_pipeline.py (a bearing run's own knob, and the gear's)."""
     gear = config_of(".test/config/smoke.yaml")
     assert "perturbation_sigma" not in gear["simulation"]
     system = get_system(gear)
@@ -361,24 +307,6 @@ def test_a_systems_own_simulation_knob_reruns_its_simulations_only_and_never_ano
         )
     with pytest.raises(ConfigError, match="unknown key simulation.perturbation_sigma"):
         config_of(".test/config/cwru-smoke.yaml", {"simulation": {"perturbation_sigma": 0.05}})
-
-    # real Snakemake plans (params trigger) on a project whose jobs look done
-    workdir, run = touched_project(tmp_path / "gear", ".test/config/smoke.yaml")
-    knob = {"model": {"variability": {"perturbation_sigma": 0.05}}}
-    # and the report's pages (they show the full config)
-    after = {"train", "track", "report", "run_config", "report_pages", "all"}
-    assert planned_rules(workdir, run, knob) == {"simulate", "features_simulated", *after}
-    workdir, run = touched_project(
-        tmp_path / "bearing", ".test/config/cwru-smoke.yaml", f"measured_dir={CWRU}"
-    )
-    # + the joined method (joined.classifiers: [svm]), which reads the SVM's predictions
-    assert planned_rules(workdir, run, {"simulation": {"max_failed_share": 0.2}}) == {
-        "simulate",
-        "features_simulated",
-        "joined",
-        *after,
-    }
-    assert "unknown key model" in planned_rules(workdir, run, knob)  # a CWRU run has no gear knob
 
 
 def test_the_benchs_records_never_move_with_the_models_numerics():

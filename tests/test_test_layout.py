@@ -5,7 +5,7 @@ once, in conftest.py (`ROOT`, `SCRIPTS`, `CWRU`)."""
 import ast
 import re
 
-from conftest import ROOT
+from conftest import ROOT, file_times, pytest_collection_modifyitems
 
 TESTS = ROOT / "tests"
 OWN_LOCATION = re.compile(r"Path\(__file__\)|dirname\(__file__\)")
@@ -70,3 +70,60 @@ def test_a_fixture_two_test_files_share_lives_in_conftest():
         for name, code in fixtures(path).items():
             seen.setdefault(code, []).append(f"{path.name}::{name}")
     assert [where for where in seen.values() if len(where) > 1] == []
+
+
+class Item:
+    """What conftest's collection hook reads of a collected test."""
+
+    def __init__(self, nodeid, marks=(), fixturenames=()):
+        self.nodeid, self.marks, self.fixturenames = nodeid, set(marks), fixturenames
+
+    def add_marker(self, mark):
+        self.marks.add(mark.name)
+
+    def get_closest_marker(self, name):
+        return name if name in self.marks else None
+
+
+def test_the_pipeline_files_go_first_each_file_together_and_in_order():
+    """pytest-xdist hands the files out in the collection's order (--no-loadscope-reorder): the
+    files with the most pipeline tests first (a test that reads a smoke run is one), then the
+    most slow ones, then the rest as collected."""
+    items = [
+        Item("tests/test_a.py::fast"),
+        Item("tests/test_b.py::one", ["slow"]),
+        Item("tests/test_c.py::reads_the_run", fixturenames=["smoke", "tmp_path"]),
+        Item("tests/test_c.py::plain"),
+        Item("tests/test_d.py::fast"),
+        Item("tests/test_e.py::first", ["pipeline"]),
+        Item("tests/test_e.py::second", ["pipeline"]),
+    ]
+    pytest_collection_modifyitems(items)
+    assert [item.nodeid for item in items] == [
+        "tests/test_e.py::first",
+        "tests/test_e.py::second",
+        "tests/test_c.py::reads_the_run",
+        "tests/test_c.py::plain",
+        "tests/test_b.py::one",
+        "tests/test_a.py::fast",
+        "tests/test_d.py::fast",
+    ]
+    assert items[2].marks == {"pipeline"}
+
+
+def test_the_time_per_test_file_sums_each_tests_setup_call_and_teardown():
+    from types import SimpleNamespace as Report
+
+    stats = {
+        "passed": [Report(when="call", nodeid="tests/test_a.py::t[1]", duration=2.0)],
+        "": [
+            Report(when="setup", nodeid="tests/test_a.py::t[1]", duration=30.0),
+            Report(when="setup", nodeid="tests/test_a.py::t[2]", duration=0.25),
+            Report(when="teardown", nodeid="tests/test_b.py::u", duration=40.0),
+        ],
+        "warnings": [object()],
+    }
+    assert file_times(stats) == {
+        "tests/test_b.py": {"seconds": 40.0, "tests": 1},
+        "tests/test_a.py": {"seconds": 32.2, "tests": 2},
+    }

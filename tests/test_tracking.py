@@ -8,6 +8,7 @@ import re
 import sqlite3
 import subprocess
 import time
+from pathlib import Path
 
 import mlflow
 import pandas as pd
@@ -22,12 +23,22 @@ CONFIG_B = {"run_name": "demo", "classifiers": {"svm": {"C": 0.02}, "knn": {"n_n
 N_RUNS = 2 * len(fake.PERCENTS) * len(fake.REPEATS) * 3  # record_split + two held-out speeds
 
 
+def store_of(paths, config_hash) -> Path:
+    """The model store of the outputs of fake.build under `config_hash` (as results/<run>/models/)."""
+    return Path(paths["features_measured"]).parents[1] / "models" / config_hash
+
+
 def log(paths, uri, config_hash, config, **options):
+    """log_pipeline_run as the track job calls it, on the outputs of fake.build packaged into
+    their run's model store of `config_hash` (once)."""
     run = tracking.TrackedRun(
         "demo", config_hash, "virtual_bench", config=config, healthy_state="healthy"
     )
+    store = store_of(paths, config_hash)
+    if not store.exists():
+        fake.model_store(paths, store, config_hash)
     return tracking.log_pipeline_run(
-        uri, run, fake.train_dirs(paths), fake.datasets(paths), **options
+        uri, run, fake.train_dirs(paths), fake.datasets(paths), store, **options
     )
 
 
@@ -122,7 +133,7 @@ def test_nested_run_values_model_and_its_linked_metrics(logged):
     listed = next(
         m["file"] for m in info["models"] if (m["measured_percent"], m["repeat"]) == (50, 1)
     )
-    assert run.data.tags["model_file"].endswith(f"svm/record_split/models/{listed}")
+    assert run.data.tags["model_file"].endswith(f"models/hash-a/svm/record_split/{listed}")
 
     # its confusion matrix, in the parent's table of them
     client = mlflow.MlflowClient(uri)
@@ -153,28 +164,42 @@ def test_nested_run_values_model_and_its_linked_metrics(logged):
     assert (
         models[0].params["classifier.C"] == "1.0" and models[0].tags["protocol"] == "record_split"
     )
-    loaded = mlflow.sklearn.load_model(models[0].model_uri)
+    # the packaged model (a signal table in), its estimator the fitted one
+    loaded = mlflow.pyfunc.load_model(models[0].model_uri).unwrap_python_model().model
     example = pd.read_parquet(paths["features_measured"]).iloc[:2][fake.FEATURES].to_numpy()
-    assert len(loaded.predict(example)) == 2
-    assert mlflow.models.get_model_info(models[0].model_uri).signature is not None
+    assert len(loaded.estimator.predict(example)) == 2
+    assert loaded.info["config_hash"] == "hash-a" and models[0].tags["model_digest"]
+    signature = mlflow.models.get_model_info(models[0].model_uri).signature
+    assert "signal" in signature.inputs.input_names()
 
 
 @pytest.mark.slow
 def test_the_config_chooses_which_models_are_logged(logged):
-    uri, _, first, second, other = logged
+    """The runs the policy picks have their model logged, or linked to the one logged with the
+    same digest (at 0 % measured every repeat and held-out speed fits the same model); no other
+    run logs one."""
+    uri, paths, first, second, other = logged
     assert other["n_models_logged"] == 0
     assert second["n_models_logged"] == N_RUNS // len(fake.REPEATS)  # first_repeat
+    assert second["n_models_linked_not_logged"] > 0
     models = mlflow.search_logged_models(
         experiment_ids=[first["experiment_id"]], output_format="list"
     )
+    store = store_of(paths, "hash-a")
+    index = json.loads((store / "index.json").read_text())
+    digest_of = {str((store / e["file"]).resolve()): e["digest"] for e in index["models"]}
     for info, expected in [
         (first, lambda r: r.data.tags["measured_percent"] == "50" and r.data.tags["repeat"] == "1"),
         (second, lambda r: r.data.tags["repeat"] == "0"),
     ]:
         _, children = nested_runs(uri, info["parent_run_id"])
-        with_model = {m.source_run_id for m in models}
-        assert {r.info.run_id for r in children if r.info.run_id in with_model} == {
-            r.info.run_id for r in children if expected(r)
+        sources = {m.source_run_id for m in models}
+        picked = [r for r in children if expected(r)]
+        assert {r.info.run_id for r in children if r.info.run_id in sources} <= {
+            r.info.run_id for r in picked
+        }
+        assert {digest_of[r.data.tags["model_file"]] for r in picked} <= {
+            m.tags["model_digest"] for m in models
         }
         assert all(
             os.path.exists(r.data.tags["model_file"]) for r in children
@@ -367,7 +392,9 @@ def test_unreachable_server_fails_fast_naming_the_uri(tmp_path):
     uri = "http://127.0.0.1:9"
     started = time.perf_counter()
     with pytest.raises(tracking.TrackingError, match="http://127.0.0.1:9.*unreachable"):
-        tracking.log_pipeline_run(uri, tracking.TrackedRun("demo", "h", "virtual_bench"), [], {})
+        tracking.log_pipeline_run(
+            uri, tracking.TrackedRun("demo", "h", "virtual_bench"), [], {}, tmp_path
+        )
     assert time.perf_counter() - started < 10
     assert compare.main(["--tracking-uri", uri]) == 2
 
@@ -457,9 +484,10 @@ def test_track_script_fails_in_seconds_naming_a_dead_server(tmp_path):
     uri = f"http://127.0.0.1:{closed_port()}"
     paths = fake.build(tmp_path / "demo")
     env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_HTTP_REQUEST")}
+    command = fake.track_job(paths, uri, tmp_path)
     started = time.perf_counter()
     result = subprocess.run(
-        fake.track_job(paths, uri, tmp_path),
+        command,
         cwd=tmp_path,
         env=env,
         capture_output=True,
@@ -471,7 +499,7 @@ def test_track_script_fails_in_seconds_naming_a_dead_server(tmp_path):
     assert result.returncode == 1, result.stderr[-2000:]
     assert f"MLflow tracking server {uri} is unreachable" in log_text, log_text
     assert "Traceback" not in log_text  # a plain message, not a stack
-    assert not (tmp_path / "mlflow_run.json").exists()
+    assert not (tmp_path / "mlflow_run.json").exists() and not (tmp_path / "models").exists()
     assert elapsed < 30, elapsed  # imports included; MLflow's own retries would take minutes
 
 

@@ -21,12 +21,12 @@
   one log_batch (MLflow splits it) and one terminate each; their confusion matrices in the
   parent's ``confusion_matrices.csv``;
 - the models ``tracking.log_models`` picks (see ``wants_model``) as LoggedModels of their nested
-  run, with a signature, the run's metrics linked to them (``model_id``, on the measured features).
-  With the run's model store (``condmon.model_store``, the pipeline's case) they are the packaged
-  SignalModels as pyfunc models that take a signal table; one whose digest the experiment already
-  has is linked, not logged again; the store's best model is registered (``register_best``:
-  ``condmon-<run>``, aliases ``best`` and ``config-<hash>``), the parent tagged ``best_model_id``,
-  and the report's plots logged as its artifacts.
+  run, with a signature, the run's metrics linked to them (``model_id``, on the measured features):
+  the run's packaged SignalModels (its model store, ``condmon.model_store``) as pyfunc models that
+  take a signal table; one whose digest the experiment already has is linked, not logged again;
+  the store's best model is registered (``register_best``: ``condmon-<run>``, aliases ``best`` and
+  ``config-<hash>``), the parent tagged ``best_model_id``, and the report's plots logged as its
+  artifacts.
 
 Older runs are never rewritten: a rerun logs a new parent, and queries keep the newest finished
 parent per config hash (``condmon.compare``). A remote server (http/https) is probed first and
@@ -369,17 +369,6 @@ def read_train_outputs(train_dirs) -> tuple[pd.DataFrame, pd.DataFrame, dict, di
     return metrics, predictions, params, files, histories
 
 
-def feature_example(path, n_rows: int = 2) -> pd.DataFrame:
-    """The first rows of a features table's feature columns (float32): the models' signatures."""
-    parquet = pq.ParquetFile(path)
-    names = json.loads((parquet.schema_arrow.metadata or {}).get(b"condmon.feature_names", b"null"))
-    if not names:
-        raise TrackingError(f"{path}: no condmon.feature_names metadata; not a features table")
-    return (
-        next(parquet.iter_batches(batch_size=n_rows, columns=names)).to_pandas().astype(np.float32)
-    )
-
-
 def wants_model(policy, key: dict) -> bool:
     """``tracking.log_models``: "all", "first_repeat" (repeat 0 of every setting), "none", or a
     filter {classifier/protocol/measured_percent/repeat: [values]} (a key left out matches all)."""
@@ -479,36 +468,29 @@ class TrackInputs:
     metrics: pd.DataFrame
     predictions: pd.DataFrame
     histories: dict  # {run key: training history} (CNN)
-    files: dict  # {run key: the model file each nested run names}
+    files: dict  # {run key: the packaged model each nested run names}
     datasets: dict  # {name: MLflow dataset}
-    example: pd.DataFrame  # the models' signatures (without a model store)
     runs: list  # (key, params, metrics) of every nested run
     confusion: pd.DataFrame
-    store: dict | None = None  # the model store's index
-    by_key: dict | None = None  # {run key: its store entry}
+    store: dict  # the model store's index
+    by_key: dict  # {run key: its store entry}
 
 
 def read_track_inputs(train_dirs, datasets: dict, model_store, healthy_state) -> TrackInputs:
     """The train outputs, datasets and model store of a run, every nested run checked to have
-    its model (in info.json, and in the store where there is one)."""
+    its model (in info.json and in the store)."""
+    from condmon.model_store import read_index
+
     metrics, predictions, clf_params, files, histories = read_train_outputs(train_dirs)
     inputs = {name: file_dataset(name, paths) for name, paths in datasets.items()}
-    example = feature_example(datasets["measured_features"][0])
     runs = nested_runs(metrics, predictions, clf_params, histories)
     if missing := [key for key, _, _ in runs if tuple(key.values()) not in files]:
         raise TrackingError(f"no model file in info.json for {missing[:3]}")
-    store = by_key = None
-    if model_store is not None:
-        from condmon.model_store import read_index
-
-        store = read_index(model_store)
-        by_key = {
-            (e["classifier"], e["protocol"], e["measured_percent"], e["repeat"], e["holdout"]): e
-            for e in store["models"]
-        }
-        if missing := [key for key, _, _ in runs if tuple(key.values()) not in by_key]:
-            raise TrackingError(f"{model_store}: no packaged model for {missing[:3]}")
-        files = {key: Path(model_store) / entry["file"] for key, entry in by_key.items()}
+    store = read_index(model_store)
+    by_key = {tuple(e[k] for k in KEYS): e for e in store["models"]}
+    if missing := [key for key, _, _ in runs if tuple(key.values()) not in by_key]:
+        raise TrackingError(f"{model_store}: no packaged model for {missing[:3]}")
+    files = {key: Path(model_store) / entry["file"] for key, entry in by_key.items()}
     labels = label_order(
         [*predictions["true_label"], *predictions["predicted_label"]], healthy_state
     )
@@ -519,7 +501,7 @@ def read_track_inputs(train_dirs, datasets: dict, model_store, healthy_state) ->
         .reindex(columns=labels, fill_value=0)
     )
     return TrackInputs(
-        metrics, predictions, histories, files, inputs, example, runs, confusion, store, by_key
+        metrics, predictions, histories, files, inputs, runs, confusion, store, by_key
     )
 
 
@@ -566,27 +548,22 @@ def nested_run_model(
     logged_digests: dict,
 ) -> tuple[str | None, bool]:
     """The model a nested run logs (its id, None if the policy logs none) and whether it was
-    linked, not logged again: the packaged SignalModel (a digest the experiment has is linked),
-    or without a store the fitted estimator."""
+    linked, not logged again: the packaged SignalModel (a digest the experiment has is linked)."""
     if not wants_model(log_models, key):
         return None, False
-    if data.store:
-        digest = data.by_key[run_key]["digest"]
-        model_id = logged_digests.get(digest)
-        if model_id is not None:  # unchanged models are linked, not logged again
-            return model_id, True
-        model_id = log_signal_model(
-            data.files[run_key],
-            run_id,
-            re.sub(r"[^\w-]+", "-", name),
-            params,
-            {**run_tags, "model_digest": digest},
-        )
-        logged_digests[digest] = model_id
-        return model_id, False
-    return log_model(
-        data.files[run_key], data.example, run_id, re.sub(r"[^\w-]+", "-", name), params, run_tags
-    ), False
+    digest = data.by_key[run_key]["digest"]
+    model_id = logged_digests.get(digest)
+    if model_id is not None:  # unchanged models are linked, not logged again
+        return model_id, True
+    model_id = log_signal_model(
+        data.files[run_key],
+        run_id,
+        re.sub(r"[^\w-]+", "-", name),
+        params,
+        {**run_tags, "model_digest": digest},
+    )
+    logged_digests[digest] = model_id
+    return model_id, False
 
 
 def log_nested_run(
@@ -616,8 +593,8 @@ def log_nested_run(
     run_id = client.create_run(
         experiment_id, run_name=name, tags={**run_tags, "mlflow.parentRunId": parent_id}
     ).info.run_id
-    if data.store:  # the device it was fitted on (the CNN: cpu or cuda:<n> (<GPU>))
-        params = {**params, "device": data.by_key[run_key]["device"]}
+    # the device it was fitted on (the CNN: cpu or cuda:<n> (<GPU>))
+    params = {**params, "device": data.by_key[run_key]["device"]}
     model_id, linked = nested_run_model(
         data, run_key, key, run_id, name, params, run_tags, log_models, logged_digests
     )
@@ -684,7 +661,7 @@ def register_store_best(
     this experiment logged it; {} otherwise."""
     import mlflow
 
-    if not data.store or data.store["best"] is None:
+    if data.store["best"] is None:
         return {}
     best = next(e for e in data.store["models"] if e["file"] == data.store["best"])
     best_id = logged_digests.get(best["digest"])
@@ -721,20 +698,20 @@ def log_pipeline_run(
     run: TrackedRun,
     train_dirs,
     datasets: dict,
+    model_store,
     log_models="all",
     workdir=".",
-    model_store=None,
     artifacts: dict | None = None,
 ) -> dict:
     """Log one pipeline invocation (see module docstring); returns the run_info dict.
 
     ``train_dirs``: the train/<classifier>/<protocol> folders; ``datasets``: name -> files, with
-    ``measured_features`` among them (the models' signatures); ``log_models``: see wants_model.
-    ``model_store``: the run's packaged models (``condmon.model_store``): then the logged models are
-    those SignalModels (pyfunc, a signal table in), a model already logged in the experiment (same
-    digest) is linked rather than logged again, and the store's best model is registered
-    (``register_best``); ``artifacts``: {artifact folder: local file or folder} of the parent
-    (the report's plots). Every input is read and checked before the first MLflow call.
+    ``measured_features`` among them; ``model_store``: the run's packaged models
+    (``condmon.model_store``), logged as those SignalModels (pyfunc, a signal table in), a model
+    already logged in the experiment (same digest) linked rather than logged again, the store's
+    best model registered (``register_best``); ``log_models``: see wants_model; ``artifacts``:
+    {artifact folder: local file or folder} of the parent (the report's plots). Every input is
+    read and checked before the first MLflow call.
     """
     if not isinstance(log_models, dict) and log_models not in MODEL_POLICIES:
         raise ValueError(f"log_models={log_models!r}; expected one of {MODEL_POLICIES} or a filter")
@@ -754,7 +731,7 @@ def log_pipeline_run(
             experiment_id=experiment_id, tags=tags, run_name=name
         ).info.run_id
         log_parent_contents(data, params, artifacts)
-        logged_digests = logged_model_digests(experiment_id) if data.store else {}
+        logged_digests = logged_model_digests(experiment_id)
         model_ids, n_reused = log_nested_runs(
             client, experiment_id, parent_id, data, run.config_hash, log_models, logged_digests
         )
@@ -806,59 +783,11 @@ def run_info(
         "models_logged": log_models,
         "n_models_logged": len(model_ids),
         "config_hash": run.config_hash,
-        **(
-            {"n_models_linked_not_logged": n_reused, "best_model": registered} if data.store else {}
-        ),
+        "n_models_linked_not_logged": n_reused,
+        "best_model": registered,
         "datasets": {name: dataset.digest for name, dataset in data.datasets.items()},
         "seconds": round(elapsed, 2),
     }
-
-
-def log_model(
-    path: Path, features: pd.DataFrame, run_id: str, name: str, params: dict, tags: dict
-) -> str:
-    """The fitted model of ``path`` as a LoggedModel of ``run_id``, with a signature from the
-    ``features`` rows. No input example: MLflow would load and run each model to check it (and
-    trace the CNN into its pt2 format, seconds each); the CNN is pickled (loading it needs
-    condmon, as the joblib file does)."""
-    import joblib
-    import mlflow
-    from mlflow.models import infer_signature
-
-    model = joblib.load(path)
-    common = dict(name=name, run_id=run_id, params=params, tags=tags)
-    if hasattr(model, "to_torch_module"):  # the CNN ensemble: raw features -> probabilities
-        import mlflow.pytorch
-        import torch
-
-        module = model.to_torch_module()
-        example = features.to_numpy(np.float32).copy()
-        with torch.no_grad():
-            probabilities = module(torch.from_numpy(example)).numpy()
-        info = mlflow.pytorch.log_model(
-            module,
-            serialization_format="pickle",
-            signature=infer_signature(example, probabilities),
-            pip_requirements=list(pip_requirements("torch")),
-            **common,
-        )
-        mlflow.MlflowClient().log_dict(run_id, {"classes": module.classes}, "model_classes.json")
-        return info.model_id
-    import mlflow.sklearn
-    import skops.io
-
-    names = getattr(model, "feature_names_in_", None)  # fitted on a named frame, or a bare array
-    example = features[list(names)] if names is not None else features.to_numpy()
-    info = mlflow.sklearn.log_model(
-        model,
-        signature=infer_signature(example, model.predict(example)),
-        pip_requirements=list(pip_requirements()),
-        # skops refuses types it does not trust on load (k-NN's KD-tree, say): these are the
-        # pipeline's own outputs, so their types are listed with the model; others stay refused
-        skops_trusted_types=skops.io.get_untrusted_types(data=skops.io.dumps(model)),
-        **common,
-    )
-    return info.model_id
 
 
 def logged_model_digests(experiment_id: str) -> dict[str, str]:

@@ -30,43 +30,39 @@ try:
     check_tracking_server(
         resolve_tracking_uri(params.tracking_uri)
     )  # a dead server: before any work
-    # every fit as a model from raw segments (the features and training domain with it), where
-    # the job declares the store (the rule always does; a bare logging job, as the tracking-server
-    # tests run, logs the fitted estimators as they are)
-    store = snakemake.output.models if "models" in snakemake.output.keys() else None
-    if store is not None:
-        system = load_system(params.features_system)
-        reference = None
-        if (
-            "reference" in inputs.keys()
-        ):  # features.healthy_reference: new records taken against it too
-            reference = {
-                "condition": params.condition,
-                "table": pd.read_parquet(inputs.reference).to_dict("list"),
-            }
-        family_references = None  # a family's own references (waveforms), packaged in its settings
-        if "family_references" in inputs.keys():
-            family_references = pd.read_parquet(inputs.family_references)
-        features = packaged_features(
-            dict(params.features),
-            system.defect_orders(),
-            system.feature_families(),
-            reference,
-            family_references,
-        )
-        index = build_store(
-            store,
-            train_dirs,
-            dict(zip(params.protocols, inputs.splits)),
-            inputs.measured_signals,
-            inputs.features_simulated,
-            inputs.features_measured,
-            features,
-            params.healthy_state,
-            dict(params.measured_system),
-            params.config_hash,
-        )
-        log.info("packaged %d models in %s; best %s", len(index["models"]), store, index["best"])
+    # every fit as a model from raw segments (the features and training domain with it): what
+    # MLflow logs, and what `condmon predict` takes
+    store = snakemake.output.models
+    system = load_system(params.features_system)
+    reference = None
+    if "reference" in inputs.keys():  # features.healthy_reference: new records taken against it
+        reference = {
+            "condition": params.condition,
+            "table": pd.read_parquet(inputs.reference).to_dict("list"),
+        }
+    family_references = None  # a family's own references (waveforms), packaged in its settings
+    if "family_references" in inputs.keys():
+        family_references = pd.read_parquet(inputs.family_references)
+    features = packaged_features(
+        dict(params.features),
+        system.defect_orders(),
+        system.feature_families(),
+        reference,
+        family_references,
+    )
+    index = build_store(
+        store,
+        train_dirs,
+        dict(zip(params.protocols, inputs.splits)),
+        inputs.measured_signals,
+        inputs.features_simulated,
+        inputs.features_measured,
+        features,
+        params.healthy_state,
+        dict(params.measured_system),
+        params.config_hash,
+    )
+    log.info("packaged %d models in %s; best %s", len(index["models"]), store, index["best"])
     info = log_pipeline_run(
         tracking_uri=params.tracking_uri,
         run=TrackedRun(
