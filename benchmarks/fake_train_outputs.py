@@ -27,7 +27,7 @@ from sklearn.preprocessing import StandardScaler
 
 from condmon import classifiers as registry
 from condmon.hybrid import WHOLE_RECORD, write_split_table
-from condmon.train import write_models
+from condmon.train import METRIC_COLUMNS, write_models
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -292,21 +292,7 @@ def build(
                                     "n_test": int(at.sum()),
                                 }
                             )
-            columns = [
-                "classifier",
-                "protocol",
-                "measured_percent",
-                "repeat",
-                "holdout",
-                "speed_rpm",
-                "accuracy",
-                "macro_f1",
-                "n_train_simulated",
-                "n_train_measured",
-                "n_test",
-                "fit_seconds",
-            ]
-            metrics = pd.DataFrame(metric_rows)[columns]
+            metrics = pd.DataFrame(metric_rows)[METRIC_COLUMNS]
             metrics.to_csv(out / "metrics.csv", index=False)
             pd.concat(prediction_frames).to_parquet(out / "predictions.parquet", index=False)
             # named and listed as the train stage does (zero-padded percent, holdout index)

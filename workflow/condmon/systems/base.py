@@ -312,20 +312,24 @@ class System(ABC):
             for need in sorted(REGISTRY[name].needs - offers)
         ]
 
-    def measured_table_problems(self) -> list[str]:
-        """A measured_table whose file lacks signal-table columns (read from its schema alone;
-        a file that cannot be read is the measured job's to name, with its reason)."""
+    def measured_table_columns(self) -> set[str] | None:
+        """The columns of the measured_table's file, read from its schema alone; None where
+        there is no table or it cannot be read (the measured job names why)."""
         if not self.measured_table:
-            return []
+            return None
         import pyarrow.parquet as pq
 
+        try:
+            return set(pq.read_schema(self.measured_table).names)
+        except Exception:  # no such file, not Parquet: pyarrow raises several types
+            return None
+
+    def measured_table_problems(self) -> list[str]:
+        """A measured_table whose file lacks signal-table columns."""
         from condmon.measured import USER_COLUMNS
 
-        try:
-            columns = set(pq.read_schema(self.measured_table).names)
-        except Exception:  # no such file, not Parquet: pyarrow raises several types
-            return []
-        missing = [column for column in USER_COLUMNS if column not in columns]
+        columns = self.measured_table_columns()
+        missing = [c for c in USER_COLUMNS if columns is not None and c not in columns]
         return (
             [
                 f"measured_table: {self.measured_table} lacks the signal-table columns {missing} "
@@ -342,11 +346,8 @@ class System(ABC):
         measured job names it)."""
         if not self.measured_table:
             return set()
-        import pyarrow.parquet as pq
-
-        try:
-            columns = set(pq.read_schema(self.measured_table).names)
-        except Exception:  # no such file, not Parquet: pyarrow raises several types
+        columns = self.measured_table_columns()
+        if columns is None:
             return None
         return {"specimens"} if set(SPECIMEN_COLUMNS) <= columns else set()
 
