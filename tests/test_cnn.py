@@ -206,6 +206,40 @@ def test_joblib_round_trip_and_torch_export(tmp_path):
     assert module.classes == list(model.classes_)
 
 
+def test_side_features_join_after_the_convolutions(tmp_path):
+    """Residual bands as their shape cannot show a fault that raises every band alike; an
+    indicator beside them can. With `side_features` the ensemble reads it (standardised on the
+    training data), without it the indicator is left out and the classes stay apart only by
+    chance; the exported module and a pickled model give the same probabilities."""
+    rng = np.random.default_rng(3)
+    names = [f"res_{c}_pinion_b{b:02d}" for c in CHANNELS for b in range(12)] + [
+        f"res_{c}_pinion_tooth_peak1" for c in CHANNELS
+    ]
+    labels = np.repeat(["healthy", "missing_tooth"], 40)
+    bands = rng.normal(0.0, 1.0, (80, 24))  # the same shapes in both classes
+    peaks = rng.normal(0.0, 0.2, (80, 2)) + 3.0 * (labels == "missing_tooth")[:, None] + 50.0
+    x = np.hstack([bands, peaks]).astype(np.float32)
+    params = {**SMALL, "epochs": 20, "input_pool": 1, "kernel_size": 3, "pool_size": 2}
+    side = CNNEnsembleClassifier(**params, side_features=True).fit(x, labels, feature_names=names)
+    np.testing.assert_array_equal(side.side_columns_, [24, 25])
+    np.testing.assert_allclose(side.side_mean_, peaks.mean(axis=0), rtol=1e-5)
+    assert side.input_shape_ == (2, 12)
+    test = np.hstack(
+        [rng.normal(0.0, 1.0, (40, 24)), peaks[::2] + rng.normal(0.0, 0.2, (40, 2))]
+    ).astype(np.float32)
+    assert (side.predict(test) == labels[::2]).mean() > 0.95
+    alone = CNNEnsembleClassifier(**params).fit(x, labels, feature_names=names)
+    assert alone.side_columns_ is None and (alone.predict(test) == labels[::2]).mean() < 0.8
+    joblib.dump(side, tmp_path / "side.joblib")
+    loaded = joblib.load(tmp_path / "side.joblib")
+    np.testing.assert_array_equal(loaded.predict_proba(test), side.predict_proba(test))
+    with torch.no_grad():
+        exported = loaded.to_torch_module()(torch.from_numpy(test)).numpy()
+    np.testing.assert_allclose(exported, side.predict_proba(test), rtol=1e-5, atol=1e-6)
+    with pytest.raises(CNNConfigError, match="side_features"):
+        CNNEnsembleClassifier(side_features="yes").fit(x, labels, feature_names=names)
+
+
 def test_channels_from_feature_names():
     assert channels_from_feature_names(FEATURES) == 2
     assert channels_from_feature_names(["fft_A1_x_0010.0Hz", "fft_A1_x_0020.0Hz"]) == 1

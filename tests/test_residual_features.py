@@ -227,10 +227,10 @@ def test_a_healthy_twin_pair_lies_within_noise_and_a_pitted_twin_does_not():
 
 
 def test_the_cnns_input_carries_no_machines_healthy_pattern():
-    """The CNN ensemble reads the residual bands alone (`condmon.cnn`'s RESIDUAL_NAME): two
-    machines of other gears (other pitch patterns), each healthy against its own reference, give
-    it inputs no further apart than two records of one machine (noise alone); a pitted one
-    stands out."""
+    """The CNN ensemble reads the residual bands (`condmon.cnn`'s RESIDUAL_NAME) and, with
+    `side_features`, the size-free indicators beside them: two machines of other gears (other
+    pitch patterns), each healthy against its own reference, give it inputs no further apart
+    than two records of one machine (noise alone); a pitted one stands out."""
     from condmon.cnn import band_pattern
 
     rng = np.random.default_rng(6)
@@ -253,15 +253,21 @@ def test_the_cnns_input_carries_no_machines_healthy_pattern():
         features = rf.residual_features(taken[0], taken[1], PINION, PINION / 4, 12)
         names = {f"res_A1_x_pinion_{key}": key for key in features}
         read = [key for name, key in names.items() if band_pattern(list(names)).fullmatch(name)]
-        assert len(read) == 12  # the bands: no indicator rides along
-        return np.log10([features[key][0] for key in read])
+        assert len(read) == 12
+        side = rf.kept_features(magnitudes=False)  # the size-free indicators
+        return np.log10([features[key][0] for key in read + side])
 
     first, other = (pitch_pattern(PINION, rng) for _ in range(2))
     pitted = first + sum(tooth_bump(PINION, k, 0.5) for k in (5, 6, 7))
-    within = np.mean([np.abs(bands(first, first) - bands(first, first)).mean() for _ in range(4)])
-    between = np.mean([np.abs(bands(first, first) - bands(other, other)).mean() for _ in range(4)])
-    damaged = np.mean([np.abs(bands(pitted, first) - bands(first, first)).mean() for _ in range(4)])
-    assert between < 1.5 * within and damaged > 3 * within
+    for read in (slice(0, 12), slice(12, None)):  # the bands, then the side features
+
+        def apart(a, b):
+            return np.mean([np.abs(bands(*a)[read] - bands(*b)[read]).mean() for _ in range(4)])
+
+        within = apart((first, first), (first, first))
+        between = apart((first, first), (other, other))
+        damaged = apart((pitted, first), (first, first))
+        assert between < 1.5 * within and damaged > 3 * within
 
 
 def band_limited_pattern(pattern: np.ndarray, top_order: int) -> np.ndarray:

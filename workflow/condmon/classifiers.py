@@ -134,6 +134,7 @@ CNN_PARAMS = {
     "dropout": {**_SHARE, "default": 0.3},
     "batch_norm": {"type": "boolean", "default": True},
     "standardize": {"type": "string", "enum": ["channel", "feature"], "default": "channel"},
+    "side_features": {"type": "boolean", "default": False},
     "validation_fraction": {**_SHARE, "default": 0.2},
     "patience": {**_COUNT, "default": 5},
     "input_channels": {

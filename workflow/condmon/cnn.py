@@ -8,10 +8,13 @@ cross-entropy). ``CNNEnsembleClassifier`` is that classifier as a scikit-learn e
   concatenated), reshaped to (input channels, bands): one input channel per sensor channel, so
   the convolutions slide along frequency over all sensors at once. When other feature families
   sit beside the spectra (``features.kind: spectrum+order``) and ``fit`` gets the feature names,
-  it reads the spectrum columns only and says so in the log (``feature_columns_``). Standardisation uses the
-  data given to ``fit`` only, never the test set: ``standardize="channel"`` (default) one mean
-  and std per sensor channel, which keeps the shape of each spectrum (its peaks over the
-  floor); ``"feature"`` per band as the SVM does. On the virtual bench, per-band scaling made
+  it reads the spectrum columns only and says so in the log (``feature_columns_``); with
+  ``side_features`` the others (condition indicators: the residual's FM4 and tooth peaks, how its
+  change spreads over the teeth) join the network after the convolutions (``side_columns_``),
+  each standardised as the SVM standardises it. Standardisation uses the data given to ``fit``
+  only, never the test set: ``standardize="channel"`` (default) one mean and std per sensor
+  channel, which keeps the shape of each spectrum (its peaks over the floor); ``"feature"`` per
+  band as the SVM does. On the virtual bench, per-band scaling made
   the members learn simulation-only details (healthy measured records read as surface faults,
   about 0.75 accuracy without measured data, against 0.95+ per channel).
 - network per member: optional average pooling of the input (``input_pool``, coarser bands,
@@ -20,6 +23,9 @@ cross-entropy). ``CNNEnsembleClassifier`` is that classifier as a scikit-learn e
   -> Dropout] per ``dense_units`` entry, Linear to the classes. Batch normalisation matters:
   without it the members sat for many epochs on the plateau "missing tooth found, healthy vs
   surface fault at chance" (loss 2/3 ln 2) and early stopping kept that state.
+  Side features: residual bands given as their shape (``magnitudes: false``) hardly move when a
+  broken tooth raises every band alike; its tooth peak does. Without them the ensemble called
+  the broken tooth healthy at the lowest speed on some virtual benches.
 - ensemble: ``members`` networks, each with its own seed (weights, batch order, validation
   split); the prediction is the class of the mean member probability, and the spread of the
   members' probability of that class (std) is the uncertainty of the prediction.
@@ -79,7 +85,7 @@ class CNNConfigError(ValueError):
 
 
 class SpectrumCNN(nn.Module):
-    """One member: (N, channels, bands) -> class logits (N, n_classes).
+    """One member: (N, channels, bands) and any side features (N, k) -> class logits (N, n_classes).
 
     ``prepare`` (the fixed input pooling) and ``body`` (everything learnable) are separate so
     training can pool the inputs once instead of in every step.
@@ -97,6 +103,7 @@ class SpectrumCNN(nn.Module):
         dense_units,
         dropout: float,
         batch_norm: bool = False,
+        side_features: int = 0,
     ):
         super().__init__()
         layers, in_length = [], length
@@ -117,15 +124,25 @@ class SpectrumCNN(nn.Module):
                     "x pool_size^(number of conv layers) must not exceed the bands per channel"
                 )
         layers.append(nn.Flatten())
-        width = channels * length
+        width = channels * length + side_features
+        head = []
         for units in dense_units:
-            layers += [nn.Linear(width, units), nn.ReLU(), nn.Dropout(dropout)]
+            head += [nn.Linear(width, units), nn.ReLU(), nn.Dropout(dropout)]
             width = units
-        layers.append(nn.Linear(width, n_classes))
-        self.body = nn.Sequential(*layers)
+        head.append(nn.Linear(width, n_classes))
+        # without side features one sequence, as the models fitted before them hold it
+        self.body = nn.Sequential(*layers) if side_features else nn.Sequential(*layers, *head)
+        self.head = nn.Sequential(*head) if side_features else None
 
-    def forward(self, x):
-        return self.body(self.prepare(x))
+    def learn(self, x, side=None):
+        """Logits of prepared inputs `x` (N, channels, bands after `prepare`) and, with side
+        features, `side` (N, side features), joined after the convolutions."""
+        if self.head is None:
+            return self.body(x)
+        return self.head(torch.cat([self.body(x), side], dim=1))
+
+    def forward(self, x, side=None):
+        return self.learn(self.prepare(x), side)
 
 
 class EnsembleModule(nn.Module):
@@ -135,24 +152,38 @@ class EnsembleModule(nn.Module):
     models; ``classes`` names the output columns.
     """
 
-    def __init__(self, members, mean, scale, input_shape, classes, columns=None):
+    def __init__(self, members, mean, scale, input_shape, classes, columns=None, side=None):
         super().__init__()
         self.members = nn.ModuleList(members)
         # the spectrum columns among the raw features (None: all of them)
-        self.register_buffer(
-            "columns", None if columns is None else torch.as_tensor(columns, dtype=torch.long)
-        )
+        self.register_buffer("columns", _long(columns))
         self.register_buffer("mean", torch.as_tensor(mean, dtype=torch.float32))
         self.register_buffer("scale", torch.as_tensor(scale, dtype=torch.float32))
+        # the side features' columns, mean and scale (None: no side features)
+        side_columns, side_mean, side_scale = side if side is not None else (None, None, None)
+        self.register_buffer("side_columns", _long(side_columns))
+        self.register_buffer("side_mean", _float(side_mean))
+        self.register_buffer("side_scale", _float(side_scale))
         self.input_shape = tuple(int(n) for n in input_shape)
         self.classes = [str(c) for c in classes]
 
     def forward(self, x):
         x = torch.as_tensor(x, dtype=torch.float32)
+        side = None
+        if self.side_columns is not None:
+            side = (x[:, self.side_columns] - self.side_mean) / self.side_scale
         if self.columns is not None:
             x = x[:, self.columns]
         x = ((x - self.mean) / self.scale).reshape(-1, *self.input_shape)
-        return torch.stack([torch.softmax(m(x), dim=1) for m in self.members]).mean(dim=0)
+        return torch.stack([torch.softmax(m(x, side), dim=1) for m in self.members]).mean(dim=0)
+
+
+def _long(values):
+    return None if values is None else torch.as_tensor(values, dtype=torch.long)
+
+
+def _float(values):
+    return None if values is None else torch.as_tensor(values, dtype=torch.float32)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -288,6 +319,7 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
         dropout=0.3,
         batch_norm=True,
         standardize="channel",
+        side_features=False,
         validation_fraction=0.2,
         patience=5,
         input_channels="auto",
@@ -312,6 +344,7 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
         self.device = device
         self.threads = threads
         self.standardize = standardize
+        self.side_features = side_features
         self.random_state = random_state
 
     # -- checks ---------------------------------------------------------------------------
@@ -347,6 +380,10 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
             )
         if not (0 <= self.dropout < 1):
             raise CNNConfigError(f"cnn parameter dropout={self.dropout!r}: must be in [0, 1)")
+        if not isinstance(self.side_features, (bool, np.bool_)):
+            raise CNNConfigError(
+                f"cnn parameter side_features={self.side_features!r}: must be true or false"
+            )
         if self.standardize not in STANDARDIZE:
             raise CNNConfigError(
                 f"cnn parameter standardize={self.standardize!r}: choose one of {STANDARDIZE}"
@@ -399,6 +436,7 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
             list(self.dense_units),
             float(self.dropout),
             bool(self.batch_norm),
+            0 if getattr(self, "side_columns_", None) is None else len(self.side_columns_),
         )
 
     def fit(self, X, y, feature_names=None, groups=None):
@@ -417,35 +455,10 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
         if len(self.classes_) < 2:
             raise CNNConfigError(f"training data has only class(es) {list(self.classes_)}")
         self.n_features_in_ = X.shape[1]
-        self.feature_columns_ = spectrum_columns(feature_names)
-        if self.feature_columns_ is not None:
-            others = [
-                str(feature_names[i])
-                for i in sorted(set(range(X.shape[1])) - set(self.feature_columns_))
-            ]
-            log.info(
-                "CNN: reads the %d band-spectrum features (per channel) and leaves out the %d "
-                "others (%s ...)",
-                len(self.feature_columns_),
-                len(others),
-                ", ".join(others[:3]),
-            )
-            X = X[:, self.feature_columns_]
-            feature_names = [feature_names[i] for i in self.feature_columns_]
-        self.input_shape_ = self._input_shape(X.shape[1], feature_names)
-        # standardisation from the training data only (constant inputs keep scale 1 rather
-        # than dividing by zero)
-        if self.standardize == "feature":
-            mean, scale = X.mean(axis=0, dtype=np.float64), X.std(axis=0, dtype=np.float64)
-        else:
-            # one mean/std per input channel keeps the shape of each spectrum (its peaks)
-            blocks = X.reshape(len(X), *self.input_shape_)
-            mean = np.repeat(blocks.mean(axis=(0, 2), dtype=np.float64), self.input_shape_[1])
-            scale = np.repeat(blocks.std(axis=(0, 2), dtype=np.float64), self.input_shape_[1])
-        self.mean_ = mean.astype(np.float32)
-        self.scale_ = np.where(scale > 1e-12, scale, 1.0).astype(np.float32)
+        self._choose_columns(X.shape[1], feature_names)
+        self._fit_standardisation(X)
         device = resolve_device(self.device)
-        x_all = torch.from_numpy((X - self.mean_) / self.scale_).reshape(-1, *self.input_shape_)
+        x_all, side_all = self._standardised(X)
         # the input pooling has no weights: apply it once here, train the body on the result
         x_all = self._new_member(len(self.classes_)).prepare(x_all)
         y_all = torch.from_numpy(codes.astype(np.int64))
@@ -458,7 +471,11 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
                 rng = np.random.default_rng(seed)
                 val = validation_split(codes, groups, float(self.validation_fraction), rng)
                 state, history, info = self._fit_member(
-                    member, seed, x_all[~val], y_all[~val], x_all[val], y_all[val], device
+                    member,
+                    seed,
+                    (x_all[~val], side_all[~val], y_all[~val]),
+                    (x_all[val], side_all[val], y_all[val]),
+                    device,
                 )
                 self.members_.append(state)
                 self.history_ += history
@@ -473,14 +490,70 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
         self._modules = None
         return self
 
-    def _fit_member(self, member, seed, x_train, y_train, x_val, y_val, device):
+    def _choose_columns(self, n_features: int, feature_names) -> None:
+        """The band-spectrum columns (`feature_columns_`, None: every column) and, with
+        `side_features`, the others as side features (`side_columns_`, else None); the input
+        shape of the bands."""
+        self.feature_columns_ = spectrum_columns(feature_names)
+        self.side_columns_ = None
+        if self.feature_columns_ is None:
+            self.input_shape_ = self._input_shape(n_features, feature_names)
+            return
+        others = np.array(
+            sorted(set(range(n_features)) - set(self.feature_columns_)), dtype=np.int64
+        )
+        if self.side_features:
+            self.side_columns_ = others
+        log.info(
+            "CNN: reads the %d band-spectrum features (per channel) and %s the %d others (%s ...)",
+            len(self.feature_columns_),
+            "joins after its convolutions" if self.side_features else "leaves out",
+            len(others),
+            ", ".join(str(feature_names[i]) for i in others[:3]),
+        )
+        self.input_shape_ = self._input_shape(
+            len(self.feature_columns_), [feature_names[i] for i in self.feature_columns_]
+        )
+
+    def _fit_standardisation(self, X: np.ndarray) -> None:
+        """Means and scales from the training data only (a constant input keeps scale 1 rather
+        than dividing by zero): the bands per `standardize`, the side features each its own."""
+        bands = X if self.feature_columns_ is None else X[:, self.feature_columns_]
+        if self.standardize == "feature":
+            mean, scale = bands.mean(axis=0, dtype=np.float64), bands.std(axis=0, dtype=np.float64)
+        else:
+            # one mean/std per input channel keeps the shape of each spectrum (its peaks)
+            blocks = bands.reshape(len(bands), *self.input_shape_)
+            mean = np.repeat(blocks.mean(axis=(0, 2), dtype=np.float64), self.input_shape_[1])
+            scale = np.repeat(blocks.std(axis=(0, 2), dtype=np.float64), self.input_shape_[1])
+        self.mean_ = mean.astype(np.float32)
+        self.scale_ = np.where(scale > 1e-12, scale, 1.0).astype(np.float32)
+        side = X[:, self.side_columns_ if self.side_columns_ is not None else []]
+        side_scale = side.std(axis=0, dtype=np.float64)
+        self.side_mean_ = side.mean(axis=0, dtype=np.float64).astype(np.float32)
+        self.side_scale_ = np.where(side_scale > 1e-12, side_scale, 1.0).astype(np.float32)
+
+    def _standardised(self, X: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
+        """(bands (N, channels, bands), side features (N, k; k 0 without them)) of raw features
+        `X`, standardised as fitted."""
+        columns = getattr(self, "feature_columns_", None)  # absent in models fitted before it
+        side_columns = getattr(self, "side_columns_", None)
+        bands = X if columns is None else X[:, columns]
+        x = torch.from_numpy((bands - self.mean_) / self.scale_).reshape(-1, *self.input_shape_)
+        if side_columns is None:
+            return x, torch.zeros((len(X), 0))
+        return x, torch.from_numpy((X[:, side_columns] - self.side_mean_) / self.side_scale_)
+
+    def _fit_member(self, member, seed, train, validation, device):
+        """One member trained on `train` and stopped early on `validation`, each (inputs,
+        side features, class codes): (its best state, its history, its info)."""
         torch.manual_seed(seed)  # weight initialisation and dropout masks
         generator = torch.Generator().manual_seed(seed)  # batch order
         net = self._new_member(len(self.classes_)).to(device)
         optimiser = torch.optim.Adam(net.parameters(), lr=float(self.learning_rate))
         loss_fn = nn.CrossEntropyLoss()
-        x_train, y_train = x_train.to(device), y_train.to(device)
-        x_val, y_val = x_val.to(device), y_val.to(device)
+        x_train, side_train, y_train = (t.to(device) for t in train)
+        x_val, side_val, y_val = (t.to(device) for t in validation)
         has_val = len(y_val) > 0
         best = (np.inf, 0, None)  # validation loss, epoch, state
         history, waited = [], 0
@@ -492,7 +565,7 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
             for start in range(0, len(order), int(self.batch_size)):
                 batch = order[start : start + int(self.batch_size)]
                 optimiser.zero_grad()
-                logits = net.body(x_train[batch])
+                logits = net.learn(x_train[batch], side_train[batch])
                 loss = loss_fn(logits, y_train[batch])
                 loss.backward()
                 optimiser.step()
@@ -509,7 +582,7 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
             if has_val:
                 net.eval()
                 with torch.no_grad():
-                    logits = net.body(x_val)
+                    logits = net.learn(x_val, side_val)
                     row["val_loss"] = float(loss_fn(logits, y_val))
                     row["val_accuracy"] = float((logits.argmax(dim=1) == y_val).float().mean())
             history.append(row)
@@ -575,13 +648,12 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
             raise CNNConfigError(
                 f"X has shape {X.shape}; the ensemble was fitted on {self.n_features_in_} features"
             )
-        columns = getattr(self, "feature_columns_", None)  # absent in models fitted before it
-        if columns is not None:
-            X = X[:, columns]
-        x = torch.from_numpy((X - self.mean_) / self.scale_).reshape(-1, *self.input_shape_)
+        x, side = self._standardised(X)
         # prediction on the CPU: cheap, and the same numbers wherever the model was trained
         with torch_settings(self.threads, torch.device("cpu")), torch.no_grad():
-            return np.stack([torch.softmax(m(x), dim=1).numpy() for m in self._member_modules()])
+            return np.stack(
+                [torch.softmax(m(x, side), dim=1).numpy() for m in self._member_modules()]
+            )
 
     def predict_proba(self, X) -> np.ndarray:
         return self.member_proba(X).mean(axis=0)
@@ -608,6 +680,9 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
             self.input_shape_,
             self.classes_,
             getattr(self, "feature_columns_", None),
+            None
+            if getattr(self, "side_columns_", None) is None
+            else (self.side_columns_, self.side_mean_, self.side_scale_),
         ).eval()
 
     def __getstate__(self):
