@@ -23,9 +23,10 @@ cross-entropy). ``CNNEnsembleClassifier`` is that classifier as a scikit-learn e
   -> Dropout] per ``dense_units`` entry, Linear to the classes. Batch normalisation matters:
   without it the members sat for many epochs on the plateau "missing tooth found, healthy vs
   surface fault at chance" (loss 2/3 ln 2) and early stopping kept that state.
-  Side features: residual bands given as their shape (``magnitudes: false``) hardly move when a
-  broken tooth raises every band alike; its tooth peak does. Without them the ensemble called
-  the broken tooth healthy at the lowest speed on some virtual benches.
+  Side features: on the residual bands alone (given as their shape, ``magnitudes: false``) the
+  ensemble called a broken tooth healthy at the lowest speed on some virtual benches, where the
+  SVM, which reads the indicators too, found it; with them joined the ensemble finds it as well
+  (docs/experiments/2026-12-06-cnn-side-features.md).
 - ensemble: ``members`` networks, each with its own seed (weights, batch order, validation
   split); the prediction is the class of the mean member probability, and the spread of the
   members' probability of that class (std) is the uncertainty of the prediction.
