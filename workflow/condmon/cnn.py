@@ -86,10 +86,11 @@ class CNNConfigError(ValueError):
 
 
 class SpectrumCNN(nn.Module):
-    """One member: (N, channels, bands) and any side features (N, k) -> class logits (N, n_classes).
+    """One member: (N, channels, bands) [and side features (N, k)] -> logits (N, n_classes).
 
-    ``prepare`` (the fixed input pooling) and ``body`` (everything learnable) are separate so
-    training can pool the inputs once instead of in every step.
+    ``prepare`` (the fixed input pooling) and the learnable rest (``learn``: ``body``, and with
+    side features ``head``, the dense layers they join) are separate so training can pool the
+    inputs once instead of in every step.
     """
 
     def __init__(
