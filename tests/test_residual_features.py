@@ -227,11 +227,11 @@ def test_a_healthy_twin_pair_lies_within_noise_and_a_pitted_twin_does_not():
 
 
 def test_the_cnns_input_carries_no_machines_healthy_pattern():
-    """The CNN ensemble reads the residual bands (`condmon.cnn`'s RESIDUAL_NAME) and, with
+    """The CNN ensemble reads the residual bands (`condmon.bands`' RESIDUAL_NAME) and, with
     `side_features`, the size-free indicators beside them: two machines of other gears (other
     pitch patterns), each healthy against its own reference, give it inputs no further apart
     than two records of one machine (noise alone); a pitted one stands out."""
-    from condmon.cnn import band_pattern
+    from condmon.bands import band_pattern
 
     rng = np.random.default_rng(6)
     fs, speed, noise = 5120.0, 775.0, 0.1

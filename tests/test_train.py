@@ -363,7 +363,12 @@ def test_scripts_run_end_to_end(tmp_path, isolated_logging):
     ]
     info = json.loads((out / "info.json").read_text())
     assert info["labels"] == sorted(CLASSES) and info["n_features"] == 8
-    assert info["classifier_params"] == {"C": 1.2, "gamma": "scale", "class_weight": None}
+    assert info["classifier_params"] == {
+        "C": 1.2,
+        "gamma": "scale",
+        "class_weight": None,
+        "standardize": "feature",
+    }
     assert "accuracy 1.000" in (tmp_path / "logs/train.log").read_text()
     assert not list(out.glob(".*tmp*"))  # no temporary files left behind
 

@@ -2,7 +2,8 @@
 carrying its config section's schema (the only home of its parameters' defaults).
 
 The CFRP study's classifier is an RBF SVM (C=1.2, gamma="scale") on standardised FFT inputs;
-SVM and KNN are Pipelines (StandardScaler + classifier). The helical-gear study's ensemble of
+SVM and KNN are Pipelines (a scaler, then the classifier; `standardize`: every feature on its own,
+or each channel's band spectrum as one block, ``condmon.bands.BandScaler``). The helical-gear study's ensemble of
 1D-CNNs is ``condmon.cnn.CNNEnsembleClassifier``, which standardises inside (so its exported
 PyTorch model takes the same raw features); its sizes are the study's training on a network
 small enough for CPU training (config/README.md).
@@ -70,9 +71,18 @@ class ClassifierSpec:
         }
 
 
+def _scaler(standardize: str):
+    """Every feature standardised on its own (sklearn's StandardScaler), or each channel's band
+    spectrum as one block (`condmon.bands.BandScaler`)."""
+    from sklearn.preprocessing import StandardScaler
+
+    from condmon.bands import BandScaler
+
+    return StandardScaler() if standardize == "feature" else BandScaler(standardize)
+
+
 def _svm(params: dict, seed: int):
     from sklearn.pipeline import Pipeline
-    from sklearn.preprocessing import StandardScaler
     from sklearn.svm import SVC
 
     # No probability estimates: predict() does not need them, and SVC(probability=...) is
@@ -84,16 +94,15 @@ def _svm(params: dict, seed: int):
         class_weight=params["class_weight"],
         random_state=seed,
     )
-    return Pipeline([("scale", StandardScaler()), ("svm", svc)])
+    return Pipeline([("scale", _scaler(params["standardize"])), ("svm", svc)])
 
 
 def _knn(params: dict, seed: int):
     from sklearn.neighbors import KNeighborsClassifier
     from sklearn.pipeline import Pipeline
-    from sklearn.preprocessing import StandardScaler
 
     knn = KNeighborsClassifier(n_neighbors=params["n_neighbors"], weights=params["weights"])
-    return Pipeline([("scale", StandardScaler()), ("knn", knn)])
+    return Pipeline([("scale", _scaler(params["standardize"])), ("knn", knn)])
 
 
 def _cnn(params: dict, seed: int):
@@ -114,10 +123,13 @@ SVM_PARAMS = {
     },
     # balanced: weights inversely proportional to class frequencies (sklearn's SVC)
     "class_weight": {"type": ["string", "null"], "enum": ["balanced", None], "default": None},
+    # feature: every feature on its own; channel: each channel's band spectrum as one block
+    "standardize": {"type": "string", "enum": ["feature", "channel"], "default": "feature"},
 }
 KNN_PARAMS = {
     "n_neighbors": {"type": "integer", "minimum": 1, "default": 5},
     "weights": {"type": "string", "enum": ["uniform", "distance"], "default": "uniform"},
+    "standardize": {"type": "string", "enum": ["feature", "channel"], "default": "feature"},
 }
 _COUNT = {"type": "integer", "minimum": 1}
 _SHARE = {"type": "number", "minimum": 0, "exclusiveMaximum": 1}

@@ -51,7 +51,6 @@ import contextlib
 import copy
 import logging
 import os
-import re
 import time
 
 import numpy as np
@@ -60,6 +59,7 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.validation import check_is_fitted
 from torch import nn
 
+from condmon.bands import channels_from_feature_names, spectrum_columns
 from condmon.seeds import derive_seed
 
 log = logging.getLogger(__name__)
@@ -67,12 +67,6 @@ log = logging.getLogger(__name__)
 # alive without thousands of lines in the job log.
 EPOCH_LOG_SECONDS = 10.0
 
-# band spectra the CNN reads, per channel: Hz bands, or a system's order bands (``ord_<channel>_<order>x``)
-# when there are no Hz bands (features.kind: order), or else the residual signatures' bands of each
-# channel and shaft (``res_<channel>_<shaft>_b<k>``, features.kind: residual)
-FEATURE_NAME = re.compile(r"fft_(?P<channel>.+)_(?P<band>[0-9.]+)Hz")
-ORDER_NAME = re.compile(r"ord_(?P<channel>.+)_(?P<band>[0-9.]+)x")
-RESIDUAL_NAME = re.compile(r"res_(?P<channel>.+)_b(?P<band>[0-9]+)")
 HISTORY_COLUMNS = ["member", "epoch", "train_loss", "train_accuracy", "val_loss", "val_accuracy"]
 DEVICES = ("auto", "cpu", "cuda")
 STANDARDIZE = ("channel", "feature")
@@ -189,56 +183,6 @@ def _float(values):
 
 
 # --------------------------------------------------------------------------- helpers
-
-
-def band_pattern(feature_names):
-    """The band-spectrum names among `feature_names`: the Hz bands if there are any, else the
-    order bands if any, else the residual bands."""
-    names = [str(name) for name in feature_names]
-    return next(
-        (
-            pattern
-            for pattern in (FEATURE_NAME, ORDER_NAME)
-            if any(pattern.fullmatch(n) for n in names)
-        ),
-        RESIDUAL_NAME,
-    )
-
-
-def channels_from_feature_names(feature_names) -> int | None:
-    """Number of sensor channels in band-spectrum names (``fft_<channel>_<band>Hz``, or
-    ``ord_<channel>_<order>x`` without Hz bands; concatenated channel blocks of equal size), or
-    None if the names do not follow that pattern."""
-    channels = []
-    pattern = band_pattern(feature_names)
-    for name in feature_names:
-        match = pattern.fullmatch(str(name))
-        if match is None:
-            return None
-        channel = match["channel"]
-        if not channels or channels[-1] != channel:
-            if channel in channels:
-                return None  # not contiguous blocks
-            channels.append(channel)
-    if not channels or len(feature_names) % len(channels):
-        return None
-    return len(channels)
-
-
-def spectrum_columns(feature_names) -> np.ndarray | None:
-    """Positions of the band-spectrum names when other features sit beside them (``spectrum+order``:
-    the Hz bands; ``order``: the order bands, not the condition indicators); None when all or none
-    of the names are spectrum bands (then every column is an input, as before)."""
-    if feature_names is None:
-        return None
-    names = [str(name) for name in feature_names]
-    pattern = band_pattern(names)
-    columns = np.array(
-        [i for i, name in enumerate(names) if pattern.fullmatch(name)], dtype=np.int64
-    )
-    if len(columns) in (0, len(names)):
-        return None
-    return columns
 
 
 def resolve_device(device: str) -> torch.device:

@@ -211,9 +211,12 @@ def build_model(classifier_name, classifier_params, seed, feature_selection=None
         cv=int(feature_selection.get("cv", 3)),
         random_state=seed,
     )
+    # the names name the columns before selection: no step of the classifier takes them
+    steps = [step for _, step in model.steps] if hasattr(model, "steps") else [model]
     with sklearn.config_context(enable_metadata_routing=True):
-        if get_routing_for_object(model).consumes("fit", ["feature_names"]):
-            model.set_fit_request(feature_names=False)  # they name the columns before selection
+        for step in steps:
+            if get_routing_for_object(step).consumes("fit", ["feature_names"]):
+                step.set_fit_request(feature_names=False)
     return select_then_classify(selector, model)
 
 
