@@ -117,10 +117,8 @@ def test_every_design_output_is_written(smoke):
     assert timings.loc["simulate", "jobs"] == 6 and (timings["peak_rss_mb_max"] > 0).all()
     run = timings.loc["run"]  # elapsed time at least the CPU work over the cores
     assert run["cores"] >= 1 and 0 < run["parallel_efficiency"] <= 1.05
-    assert (
-        "job_timings.png" in summary["plots"]
-        and (results / "report" / "plots" / "job_timings.png").is_file()
-    )
+    for plot in ("job_timings.png", "job_timeline.png"):
+        assert plot in summary["plots"] and (results / "report" / "plots" / plot).is_file()
     assert set(summary["job_timings"]) == set(timings.index)
     # the bench's first healthy record per speed calibrates whole (no healthy reference here)
     assert summary["calibration_set"] == {

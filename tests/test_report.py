@@ -375,6 +375,37 @@ def test_job_timings_summarise_snakemake_benchmark_files(tmp_path):
     assert [t.get_text() for t in figure.axes[0].get_yticklabels()] == ["simulate", "track"]
 
 
+def test_the_job_timeline_says_when_each_job_ran_and_how_many_cores_it_kept_busy(tmp_path):
+    """Two jobs side by side, then one alone: the timeline starts at the first job, counts the
+    jobs running and the cores their CPU work filled (a job's CPU seconds over its wall time)."""
+    import os
+
+    from condmon.job_timings import busy_cores, timeline
+    from condmon.plots import job_timeline
+
+    header = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
+    files = {}
+    for rule, name, wall, cpu, end in (
+        ("simulate", "a", 10.0, 10.0, 110.0),
+        ("simulate", "b", 10.0, 5.0, 110.0),
+        ("features", "c", 4.0, 4.0, 114.0),
+    ):
+        path = tmp_path / f"{name}.tsv"
+        path.write_text(header + f"{wall}\t0:00:10\t100\t1\t1\t1\t0\t0\t90\t{cpu}\n")
+        os.utime(path, (end, end))
+        files.setdefault(rule, []).append(path)
+    jobs = timeline(files)
+    assert list(jobs["job"]) == ["a", "b", "c"]
+    assert list(jobs["start"]) == [0.0, 0.0, 10.0] and list(jobs["end"]) == [10.0, 10.0, 14.0]
+    busy = busy_cores(jobs).set_index("time")
+    assert busy.loc[5.0, "jobs"] == 2 and busy.loc[5.0, "cores"] == 1.5
+    assert busy.loc[12.0, "jobs"] == 1 and busy.loc[12.0, "cores"] == 1.0
+    assert busy.loc[14.0, "jobs"] == 0
+    figure = job_timeline(jobs, busy.reset_index(), 2, "note")
+    assert [ax.get_xlabel() for ax in figure.axes][-1] == "seconds from the first job's start"
+    assert timeline({}).empty
+
+
 def test_accuracy_rows_carry_leaky_wilson_interval_and_small_test_flag():
     import pandas as pd
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 COLUMNS = [
@@ -70,6 +71,43 @@ def summarise(files_by_rule: dict, cores: int | None = None) -> pd.DataFrame:
     if cores:
         out = pd.concat([out, run_row(jobs, cores)], ignore_index=True)
     return out.round(2)
+
+
+def timeline(files_by_rule: dict) -> pd.DataFrame:
+    """One row per job, in the order the jobs started: `rule`, `job`, `start` and `end` in seconds
+    from the first job's start, `cpu_seconds`; empty where no job was measured."""
+    jobs = read_benchmarks(files_by_rule)
+    if jobs.empty:
+        return pd.DataFrame(columns=["rule", "job", "start", "end", "cpu_seconds"])
+    wall = pd.to_numeric(jobs["s"], errors="coerce")
+    start = jobs["end"] - wall
+    cpu = pd.to_numeric(jobs.get("cpu_time", pd.Series(float("nan"), index=jobs.index)), "coerce")
+    out = pd.DataFrame(
+        {
+            "rule": jobs["rule"],
+            "job": jobs["job"],
+            "start": start - start.min(),
+            "end": jobs["end"] - start.min(),
+            "cpu_seconds": cpu,
+        }
+    )
+    return out.sort_values(["start", "rule", "job"], kind="stable").reset_index(drop=True)
+
+
+def busy_cores(jobs: pd.DataFrame, step: float = 1.0) -> pd.DataFrame:
+    """The timeline's jobs running at each `step` seconds (`time`, `jobs`) and the cores their CPU
+    work kept busy on average (`cores`: each job's CPU seconds spread evenly over its wall time)."""
+    end = float(jobs["end"].max()) if len(jobs) else 0.0
+    times = np.arange(0.0, end + step, step)
+    running = np.zeros_like(times)
+    cores = np.zeros_like(times)
+    for row in jobs.itertuples():
+        inside = (times >= row.start) & (times < row.end)
+        running += inside
+        wall = row.end - row.start
+        if wall > 0 and np.isfinite(row.cpu_seconds):
+            cores += inside * row.cpu_seconds / wall
+    return pd.DataFrame({"time": times, "jobs": running, "cores": cores})
 
 
 def run_row(jobs: pd.DataFrame, cores: int) -> pd.DataFrame:

@@ -683,6 +683,42 @@ def job_timings(timings, note: str):
     return _finish(fig, "Job timings per rule (Snakemake benchmark files)", note, legend_from=wall)
 
 
+def job_timeline(jobs, busy, cores: int | None, note: str):
+    """When each job ran (one bar per job, coloured by rule, in the order they started) and, below,
+    the jobs running and the cores their CPU work kept busy against the run's cores: where a run
+    waits on one job while cores idle. ``jobs``, ``busy``: condmon.job_timings.timeline and
+    busy_cores."""
+    rules = list(dict.fromkeys(jobs["rule"]))
+    colours = dict(zip(rules, [f"C{k % 10}" for k in range(len(rules))]))
+    fig, (bars, load) = plt.subplots(
+        2,
+        1,
+        figsize=(10, 2.5 + 0.12 * len(jobs)),
+        sharex=True,
+        gridspec_kw={"height_ratios": [max(2.0, 0.12 * len(jobs)), 1.5]},
+    )
+    labelled = set()
+    for k, row in enumerate(jobs.itertuples()):
+        label = None if row.rule in labelled else row.rule  # one legend entry per rule
+        labelled.add(row.rule)
+        bars.barh(
+            k, row.end - row.start, left=row.start, color=colours[row.rule], height=0.8, label=label
+        )
+    bars.set_yticks([])
+    bars.set_ylabel("jobs, in the order they started")
+    bars.invert_yaxis()
+    load.step(busy["time"], busy["jobs"], where="post", color="0.3", label="jobs running")
+    load.step(busy["time"], busy["cores"], where="post", color="C0", label="cores busy (CPU work)")
+    if cores:
+        load.axhline(cores, color="C3", linestyle=":", label=f"cores given ({cores})")
+    load.set_xlabel("seconds from the first job's start")
+    load.set_ylabel("count")
+    load.legend(loc="upper right", fontsize="small")
+    for ax in (bars, load):
+        ax.grid(axis="x", alpha=0.3)
+    return _finish(fig, "When each job ran (Snakemake benchmark files)", note, legend_from=bars)
+
+
 def accuracy_per_subset(summary, column: str, chance: float, note: str, title: str):
     """One panel per protocol: accuracy against the measured share per value of ``column``
     (colour; e.g. `condition`: the load) and classifier (line style), with the 95 % Wilson

@@ -1,7 +1,7 @@
 """The job timings section: per rule the jobs' wall time and peak memory (condmon.job_timings,
 from the benchmark files of every job before the report) and the run's elapsed time against its
-CPU seconds over the cores (row `run`): job_timings.csv, its plot and summary.json's `job_timings`
-({rule: figures})."""
+CPU seconds over the cores (row `run`): job_timings.csv, its plot, the jobs' timeline (when each
+ran, and how many cores were busy) and summary.json's `job_timings` ({rule: figures})."""
 
 from __future__ import annotations
 
@@ -15,9 +15,11 @@ def write(report) -> dict:
     timings = job_timings.summarise(upstream.benchmarks, cores=upstream.cores)
     rules = timings[timings["rule"] != job_timings.RUN_ROW]
     if not rules.empty:
-        report.save(
-            plots.job_timings(rules, _note(report.run.run_name, timings)), "job_timings.png"
-        )
+        note = _note(report.run.run_name, timings)
+        report.save(plots.job_timings(rules, note), "job_timings.png")
+        jobs = job_timings.timeline(upstream.benchmarks)
+        busy = job_timings.busy_cores(jobs)
+        report.save(plots.job_timeline(jobs, busy, upstream.cores, note), "job_timeline.png")
     report.summary["job_timings"] = {row.pop("rule"): row for row in timings.to_dict("records")}
     return {"job_timings": timings}
 
