@@ -9,8 +9,8 @@ cross-entropy). ``CNNEnsembleClassifier`` is that classifier as a scikit-learn e
   the convolutions slide along frequency over all sensors at once. When other feature families
   sit beside the spectra (``features.kind: spectrum+order``) and ``fit`` gets the feature names,
   it reads the spectrum columns only and says so in the log (``feature_columns_``); with
-  ``side_features`` the others (condition indicators: the residual's FM4 and tooth peaks, how its
-  change spreads over the teeth) join the network after the convolutions (``side_columns_``),
+  ``side_features`` the others (the condition indicators a feature family gives beside its bands)
+  join the network after the convolutions (``side_columns_``),
   each standardised as the SVM standardises it. Standardisation uses the data given to ``fit``
   only, never the test set: ``standardize="channel"`` (default) one mean and std per sensor
   channel, which keeps the shape of each spectrum (its peaks over the floor); ``"feature"`` per
@@ -23,10 +23,9 @@ cross-entropy). ``CNNEnsembleClassifier`` is that classifier as a scikit-learn e
   -> Dropout] per ``dense_units`` entry, Linear to the classes. Batch normalisation matters:
   without it the members sat for many epochs on the plateau "missing tooth found, healthy vs
   surface fault at chance" (loss 2/3 ln 2) and early stopping kept that state.
-  Side features: on the residual bands alone (given as their shape, ``magnitudes: false``) the
-  ensemble called a broken tooth healthy at the lowest speed on some virtual benches, where the
-  SVM, which reads the indicators too, found it; with them joined the ensemble finds it as well
-  (docs/experiments/2026-12-06-cnn-side-features.md).
+  Side features: on the gear rig's residual bands alone the ensemble missed at the lowest speed,
+  on some virtual benches, a fault the SVM (which reads the indicators too) found; with them
+  joined it finds it as well (docs/experiments/2026-12-06-cnn-side-features.md).
 - ensemble: ``members`` networks, each with its own seed (weights, batch order, validation
   split); the prediction is the class of the mean member probability, and the spread of the
   members' probability of that class (std) is the uncertainty of the prediction.
@@ -89,8 +88,7 @@ class SpectrumCNN(nn.Module):
 
     def __init__(
         self,
-        in_channels: int,
-        length: int,
+        input_shape: tuple[int, int],
         n_classes: int,
         conv_channels,
         kernel_size: int,
@@ -102,6 +100,7 @@ class SpectrumCNN(nn.Module):
         side_features: int = 0,
     ):
         super().__init__()
+        in_channels, length = input_shape
         layers, in_length = [], length
         self.prepare = nn.AvgPool1d(input_pool) if input_pool > 1 else nn.Identity()
         length //= input_pool
@@ -372,8 +371,7 @@ class CNNEnsembleClassifier(ClassifierMixin, BaseEstimator):
     # -- fitting --------------------------------------------------------------------------
     def _new_member(self, n_classes: int) -> SpectrumCNN:
         return SpectrumCNN(
-            self.input_shape_[0],
-            self.input_shape_[1],
+            tuple(self.input_shape_),
             n_classes,
             list(self.conv_channels),
             int(self.kernel_size),
