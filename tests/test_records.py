@@ -130,3 +130,36 @@ def test_a_study_table_reads_a_runs_report_beside_the_studys_figures(tmp_path, m
         }
     }
     assert figures["cpu_seconds"] == 5.0 and figures["simulated_validation_accuracy"] is None
+
+
+def test_the_run_times_benchmark_reads_a_runs_job_timings(tmp_path):
+    """benchmarks/run_times.py records a run's jobs from its report/job_timings.csv: the window
+    of its jobs against their CPU seconds over the cores, and each rule's row."""
+    import importlib.util
+
+    import pandas as pd
+
+    spec = importlib.util.spec_from_file_location("run_times", ROOT / "benchmarks" / "run_times.py")
+    run_times = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(run_times)
+    (tmp_path / "report").mkdir()
+    pd.DataFrame(
+        [
+            {"rule": "simulate", "jobs": 4, "wall_seconds_total": 80.0, "cpu_seconds_total": 76.0},
+            {"rule": "train", "jobs": 1, "wall_seconds_total": 20.0, "cpu_seconds_total": 18.0},
+            {
+                "rule": "run",
+                "jobs": 5,
+                "wall_seconds_total": 70.0,
+                "cpu_seconds_total": 94.0,
+                "cores": 2.0,
+                "cpu_seconds_per_core": 47.0,
+                "parallel_efficiency": 0.67,
+            },
+        ]
+    ).to_csv(tmp_path / "report" / "job_timings.csv", index=False)
+    figures = run_times.job_figures(tmp_path)
+    assert figures["jobs_window_seconds"] == 70.0 and figures["jobs_cpu_seconds"] == 94.0
+    assert figures["cores"] == 2 and figures["window_over_cpu_per_core"] == round(70 / 47, 3)
+    assert [rule["rule"] for rule in figures["rules"]] == ["simulate", "train"]
+    assert "parallel_efficiency" not in figures["rules"][0]
