@@ -2,11 +2,11 @@
 carrying its config section's schema (the only home of its parameters' defaults).
 
 The CFRP study's classifier is an RBF SVM (C=1.2, gamma="scale") on standardised FFT inputs;
-SVM and KNN are Pipelines (a scaler, then the classifier; `standardize`: every feature on its own,
-or each channel's band spectrum as one block, ``condmon.bands.BandScaler``). The helical-gear study's ensemble of
-1D-CNNs is ``condmon.cnn.CNNEnsembleClassifier``, which standardises inside (so its exported
-PyTorch model takes the same raw features); its sizes are the study's training on a network
-small enough for CPU training (config/README.md).
+SVM and KNN are Pipelines (a scaler, then the classifier; `standardize`: every feature on its
+own, or each channel's band spectrum as one block, ``condmon.bands.BandScaler``). The helical-gear
+study's ensemble of 1D-CNNs is ``condmon.cnn.CNNEnsembleClassifier``, which standardises inside
+(so its exported PyTorch model takes the same raw features); its sizes are the study's training
+on a network small enough for CPU training (config/README.md).
 
 A new classifier is one file (a builder taking (complete params, seed) and the JSON schema of its
 parameters, each with its default) plus one registry line: ``register_classifier(name, build,
