@@ -2,9 +2,9 @@
 checkout, or read a run that finished here (`--collect-only`), and record its elapsed time against
 its CPU work: Snakemake's own wall and CPU seconds (every process it waited for) where it ran here,
 and from the run's `report/job_timings.csv` the jobs' window (first job's start to the last job
-before the report), their CPU seconds, the parallel efficiency and the figures per rule. A run timed here
-names the load average at its start and end: one timed beside other work says so; a collected
-run's record says it was collected. `benchmarks/records/run_times-<name>.json`.
+before the report), their CPU seconds, the parallel efficiency and the figures per rule. A run
+timed here names the load average at its start and end: one timed beside other work says so; a
+collected run's record says it was collected. `benchmarks/records/run_times-<name>.json`.
 
     python3 benchmarks/run_times.py [--cores 2] [--name default] [-- more snakemake arguments]
     python3 benchmarks/run_times.py --collect-only --run default [--name default]
