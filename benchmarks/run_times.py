@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import resource
 import subprocess
 import sys
 import time
@@ -23,15 +22,10 @@ from pathlib import Path
 import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT / "workflow")]  # condmon
+sys.path[:0] = [str(ROOT / "workflow"), str(ROOT / "benchmarks")]  # condmon, suite_times
 from condmon.job_timings import RUN_ROW  # noqa: E402
 from condmon.records import run_configfiles, save_record  # noqa: E402
-
-
-def cpu_seconds() -> float:
-    """User and system seconds of the processes this one has waited for, theirs included."""
-    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return usage.ru_utime + usage.ru_stime
+from suite_times import cpu_seconds  # noqa: E402
 
 
 def run_workflow(cores: int, extra: list[str]) -> dict:

@@ -380,7 +380,7 @@ def test_the_job_timeline_says_when_each_job_ran_and_how_many_cores_it_kept_busy
     jobs running and the cores their CPU work filled (a job's CPU seconds over its wall time)."""
     import os
 
-    from condmon.job_timings import busy_cores, timeline
+    from condmon.job_timings import busy_cores, read_benchmarks, timeline
     from condmon.plots import job_timeline
 
     header = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
@@ -394,7 +394,7 @@ def test_the_job_timeline_says_when_each_job_ran_and_how_many_cores_it_kept_busy
         path.write_text(header + f"{wall}\t0:00:10\t100\t1\t1\t1\t0\t0\t90\t{cpu}\n")
         os.utime(path, (end, end))
         files.setdefault(rule, []).append(path)
-    jobs = timeline(files)
+    jobs = timeline(read_benchmarks(files))
     assert list(jobs["job"]) == ["a", "b", "c"]
     assert list(jobs["start"]) == [0.0, 0.0, 10.0] and list(jobs["end"]) == [10.0, 10.0, 14.0]
     busy = busy_cores(jobs).set_index("time")
@@ -403,7 +403,7 @@ def test_the_job_timeline_says_when_each_job_ran_and_how_many_cores_it_kept_busy
     assert busy.loc[14.0, "jobs"] == 0
     figure = job_timeline(jobs, busy.reset_index(), 2, "note")
     assert [ax.get_xlabel() for ax in figure.axes][-1] == "seconds from the first job's start"
-    assert timeline({}).empty
+    assert timeline(read_benchmarks({})).empty
 
 
 def test_accuracy_rows_carry_leaky_wilson_interval_and_small_test_flag():

@@ -45,7 +45,11 @@ def read_benchmarks(files_by_rule: dict) -> pd.DataFrame:
 def summarise(files_by_rule: dict, cores: int | None = None) -> pd.DataFrame:
     """Per rule: jobs, total / median / longest wall seconds, CPU seconds, largest peak RSS (MB);
     with `cores` (the run's `--cores`) a last row `run` (`run_row`)."""
-    jobs = read_benchmarks(files_by_rule)
+    return summarise_jobs(read_benchmarks(files_by_rule), cores)
+
+
+def summarise_jobs(jobs: pd.DataFrame, cores: int | None = None) -> pd.DataFrame:
+    """`summarise` of the jobs `read_benchmarks` read."""
     if jobs.empty:
         return pd.DataFrame(columns=COLUMNS)
     numeric = {
@@ -73,10 +77,10 @@ def summarise(files_by_rule: dict, cores: int | None = None) -> pd.DataFrame:
     return out.round(2)
 
 
-def timeline(files_by_rule: dict) -> pd.DataFrame:
-    """One row per job, in the order the jobs started: `rule`, `job`, `start` and `end` in seconds
-    from the first job's start, `cpu_seconds`; empty where no job was measured."""
-    jobs = read_benchmarks(files_by_rule)
+def timeline(jobs: pd.DataFrame) -> pd.DataFrame:
+    """One row per job of those `read_benchmarks` read, in the order the jobs started: `rule`,
+    `job`, `start` and `end` in seconds from the first job's start, `cpu_seconds`; empty where no
+    job was measured."""
     if jobs.empty:
         return pd.DataFrame(columns=["rule", "job", "start", "end", "cpu_seconds"])
     wall = pd.to_numeric(jobs["s"], errors="coerce")

@@ -12,14 +12,15 @@ from condmon.report.section import Section, Table
 def write(report) -> dict:
     """job_timings.csv, summary.json's `job_timings`, and the plot where any job was measured."""
     upstream = report.inputs.upstream
-    timings = job_timings.summarise(upstream.benchmarks, cores=upstream.cores)
+    jobs = job_timings.read_benchmarks(upstream.benchmarks)  # every benchmark file read once
+    timings = job_timings.summarise_jobs(jobs, cores=upstream.cores)
     rules = timings[timings["rule"] != job_timings.RUN_ROW]
     if not rules.empty:
         note = _note(report.run.run_name, timings)
         report.save(plots.job_timings(rules, note), "job_timings.png")
-        jobs = job_timings.timeline(upstream.benchmarks)
-        busy = job_timings.busy_cores(jobs)
-        report.save(plots.job_timeline(jobs, busy, upstream.cores, note), "job_timeline.png")
+        started = job_timings.timeline(jobs)
+        busy = job_timings.busy_cores(started)
+        report.save(plots.job_timeline(started, busy, upstream.cores, note), "job_timeline.png")
     report.summary["job_timings"] = {row.pop("rule"): row for row in timings.to_dict("records")}
     return {"job_timings": timings}
 
