@@ -104,6 +104,37 @@ def test_a_flank_map_of_constant_depth_is_a_later_contact():
     )
 
 
+SPUR = GearGeometry(
+    teeth_pinion=20, teeth_gear=30, normal_module=2e-3, helix_angle_deg=0.0, face_width=0.012
+)
+
+
+def test_a_lead_slope_many_times_the_deflection_loads_one_face_end():
+    """A spur pair's lead slope s (across the face b) under a load that deflects the whole face by
+    d0 << s: the contact lines averaged at their mean deviation ignore it (the mesh deflects d0
+    past the mean), while face strips of their own touch from the proud end only, over
+    c = b sqrt(2 d0 / s) (linear slices), which deflects by s c / b."""
+    slope = 15e-6
+    lead = FlankMap.from_function(lambda roll, face: slope * face, rows=2, columns=2)
+    maps = (lead,) * SPUR.teeth_pinion
+    phase = np.linspace(3.0, 5.0, 201)
+    load = 100.0
+    whole_face = GearMesh(SPUR, slices=40).loaded_transmission_error(phase, load)
+    line = GearMesh(SPUR, slices=40, flank_maps=maps).loaded_transmission_error(phase, load)
+    strips = GearMesh(SPUR, slices=40, flank_maps=maps, contact_step=0.25e-6)
+    edge = strips.loaded_transmission_error(phase, load)
+    assert np.allclose(line - slope / 2, whole_face)
+    d0 = whole_face.mean()
+    assert slope > 20 * d0
+    assert edge.mean() == pytest.approx(slope * np.sqrt(2 * d0 / slope), rel=0.05)
+    # the strips far above the proud end (they never touch) are one contact
+    assert len(strips.groups(0)) <= strips.contact_strips + 1
+    # a flank without deviations stays one contact
+    assert len(GearMesh(SPUR, slices=40, contact_step=0.25e-6).groups(0)) == 1
+    with pytest.raises(ValueError, match="contact_step"):
+        GearMesh(SPUR, slices=40, contact_step=0.0)
+
+
 def _sideband(signal, fs, gmf, shaft):
     window = np.hanning(len(signal))
     amplitude = np.abs(np.fft.rfft(signal * window)) / window.sum() * 2

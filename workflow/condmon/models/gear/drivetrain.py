@@ -250,6 +250,9 @@ class GearDrivetrainParameters:
     # Gear mesh: F = K delta^n per pair, viscous damping of ratio zeta, Table-1 law on impacts.
     mesh_stiffness_model: str = "potential_energy"
     helix_slices: int = 80
+    # Face strips a flank's contact line splits into, in fractions of the operating deflection
+    # (0: the line touches at its slices' mean deviation); see GearMesh.contact_step.
+    flank_contact_step: float = 0.0
     contact_law: str = "lankarani_nikravesh"
     mesh_stiffness: float = 4.0e8  # mean mesh stiffness at 1 um deflection, N/m
     contact_exponent: float = 1.5

@@ -425,12 +425,22 @@ class GearMesh:
     # contact line is split by the depth removed (`DAMAGE_DEPTH_LEVELS`): a slice that lies deeper
     # than the deflection leaves the contact, and the rest of the line carries the load.
     damage_maps: tuple = ()
+    # If set (m): each tooth's contact line is split into face strips whose flank deviation
+    # (`flank_maps`) lies within this step of each other, each strip a contact of its own, so a
+    # flank standing proud of the rest carries the load alone (edge contact under a lead slope
+    # many times the deflection). None: the line touches at its slices' mean deviation.
+    contact_step: float | None = None
+    # Strips above a flank's proudest that are contacts of their own; the slices deeper than
+    # that (they never touch) are one contact.
+    contact_strips: int = 16
 
     def __post_init__(self):
         g = self.geometry
         g.check()
         if self.slices < 1:
             raise ValueError("slices must be at least 1")
+        if self.contact_step is not None and not self.contact_step > 0.0:
+            raise ValueError(f"contact_step {self.contact_step} m: a step must be positive")
         self.s = np.linspace(g.path_start, g.path_end, self.profile_samples)
         self.k_per_width = pair_stiffness_per_width(g, self.s)
         self.window = g.total_contact_ratio  # phase range of one pair's mesh, base pitches
@@ -462,7 +472,7 @@ class GearMesh:
             )
         self.flank_amplitude = deviation.amplitude
         self.slice_deviation = deviation(g, self.s_slice)
-        self._healthy = self._groups_from(self.slice_stiffness, None)
+        self._healthy = self._groups_from(self.slice_stiffness, None, None)
         self._damaged = self._damaged_groups() if self.damage is not None else None
         self.mean_stiffness = float(self._healthy[0].stiffness.sum() / self.points_per_pitch)
         self._tooth_groups = self._flank_groups() if (self.flank_maps or self.damage_maps) else None
@@ -496,7 +506,7 @@ class GearMesh:
                     cache[key] = (
                         self._damaged_groups(extra)
                         if damaged
-                        else self._groups_from(self.slice_stiffness, extra)
+                        else self._groups_from(self.slice_stiffness, extra, extra)
                     )
             groups.append(cache[key])
         return groups
@@ -512,7 +522,7 @@ class GearMesh:
         groups = []
         for index in np.unique(level[self.slice_stiffness > 0]):
             stiffness = self.slice_stiffness * (level == index)
-            groups += self._groups_from(stiffness, deviation)
+            groups += self._groups_from(stiffness, deviation, flank=extra)
         return groups
 
     def _is_damaged(self, tooth: int) -> bool:
@@ -534,13 +544,39 @@ class GearMesh:
         te = ke_mesh / k_mesh
         return float(2 * abs(np.fft.rfft(te)[1]) / ppp)
 
-    def _groups_from(self, stiffness: np.ndarray, extra_deviation) -> list[ContactGroup]:
-        total = stiffness.sum(axis=1)
+    def _groups_from(self, stiffness: np.ndarray, extra_deviation, flank) -> list[ContactGroup]:
+        """The contact groups of slices `stiffness` (n, M) lowered by `extra_deviation` (n, M or
+        None): one group, or with `contact_step` one per face strip of the flank deviation
+        `flank` (n, M or None: no strips) within a step."""
         deviation = (
             self.slice_deviation
             if extra_deviation is None
             else self.slice_deviation + extra_deviation
         )
+        if self.contact_step is None or flank is None:
+            return [self._group(stiffness, deviation)]
+        return [
+            self._group(stiffness * strip[None, :], deviation)
+            for strip in self._face_strips(stiffness, flank)
+        ]
+
+    def _face_strips(self, stiffness: np.ndarray, flank: np.ndarray) -> list[np.ndarray]:
+        """Masks (M,) of the slices whose flank deviation (their stiffness-weighted mean over the
+        mesh phase, so a slice stays in one strip) lies in the same `contact_step` above the
+        lowest slice's; slices over `contact_strips` steps above it (they never touch) are one."""
+        weight = stiffness.sum(axis=0)
+        touching = weight > 0
+        if not touching.any():
+            return [touching]
+        level_of = np.zeros(self.slices)
+        level_of[touching] = (stiffness * flank).sum(axis=0)[touching] / weight[touching]
+        lowest = level_of[touching].min()
+        level = np.minimum(np.floor((level_of - lowest) / self.contact_step), self.contact_strips)
+        return [touching & (level == index) for index in np.unique(level[touching])]
+
+    def _group(self, stiffness: np.ndarray, deviation: np.ndarray) -> ContactGroup:
+        """One contact of slices `stiffness` (n, M) at their stiffness-weighted mean deviation."""
+        total = stiffness.sum(axis=1)
         weighted = np.divide(
             (stiffness * deviation).sum(axis=1), total, out=np.zeros_like(total), where=total > 0
         )
@@ -548,7 +584,7 @@ class GearMesh:
         if np.any(total > 0):
             idx = np.flatnonzero(total > 0)
             weighted = np.interp(np.arange(len(total)), idx, weighted[idx])
-        return [ContactGroup(total, weighted)]
+        return ContactGroup(total, weighted)
 
     def _profile_coverage(self, low: float, high: float) -> np.ndarray:
         """Share of every slice's contact line (n, M) whose position along the path lies in
@@ -577,7 +613,7 @@ class GearMesh:
             k = pair_stiffness_per_width(self.geometry, self.s, pinion_crack=d.crack_depth)
             dz = self.geometry.face_width / self.slices
             stiffness = self.inside * np.interp(self.s_slice, self.s, k) * dz
-            return self._groups_from(stiffness, extra)
+            return self._groups_from(stiffness, extra, extra)
         coverage = self._face_coverage(d.face)[None, :]
         g = self.geometry
         at = [
@@ -585,13 +621,13 @@ class GearMesh:
         ]  # along the path
         if d.kind == "chip":
             region = coverage * self._profile_coverage(at[0], g.path_end)
-            return self._groups_from(self.slice_stiffness * (1 - region), extra)
+            return self._groups_from(self.slice_stiffness * (1 - region), extra, extra)
         # Spall: the region is a separate contact, `depth` below the flank, softer by stiffness_loss.
         region = coverage * self._profile_coverage(at[0], at[1])
-        groups = self._groups_from(self.slice_stiffness * (1 - region), extra)
+        groups = self._groups_from(self.slice_stiffness * (1 - region), extra, extra)
         pit = self.slice_stiffness * region * (1 - d.stiffness_loss)
         if pit.sum() > 0:
-            groups += self._groups_from(pit, d.depth if extra is None else d.depth + extra)
+            groups += self._groups_from(pit, d.depth if extra is None else d.depth + extra, extra)
         return groups
 
     @property

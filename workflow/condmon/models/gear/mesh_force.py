@@ -97,7 +97,10 @@ MAX_DEFLECTION = 1.0e-3  # m; a mesh deflection beyond this is divergence
 EDGE_CONTACT = (
     0.02  # a pair stiffness at its window's edge above this share of the peak: extended contact
 )
-MAX_CONTACTS = 64  # tooth contacts one call can hold (a helical pair: about 3, a spur pair in extended contact: 6)
+# How deep below a flank's proudest strip (in operating deflections) its strips still touch on
+# their own (the dynamic mesh force reaches a few times the static one); deeper ones are one contact
+CONTACT_DEPTH = 8.0
+MAX_CONTACTS = 256  # tooth contacts one call can hold (a helical pair: about 3; face strips: up to 17 a pair)
 
 
 def whole_tooth_missing(p) -> bool:
@@ -217,6 +220,13 @@ def gear_mesh(p) -> GearMesh:
         transmission_error=p.transmission_error,
         flank_maps=tuple(p.flank_maps_pinion),
         damage_maps=damage_maps(p),
+        contact_step=(
+            p.flank_contact_step * operating_deflection(p) if p.flank_contact_step else None
+        ),
+        # face strips down to CONTACT_DEPTH operating deflections below a flank's proudest
+        contact_strips=math.ceil(CONTACT_DEPTH / p.flank_contact_step)
+        if p.flank_contact_step
+        else 0,
     )
 
 
