@@ -259,7 +259,7 @@ def test_a_bearing_runs_simulation_knob_reruns_its_simulations_and_a_gear_knob_i
     (model.variability.perturbation_sigma) is no key of a bearing run."""
     workdir, _ = cwru_run
     folder = workdir.parent / "slice"  # the fixture's folder of links to the shared files
-    after = {"train", "track", "report", "run_config", "report_pages", "all"}
+    after = {"train", "track", "track_plots", "report", "run_config", "report_pages", "all"}
     assert planned_rules(workdir, {"simulation": {"max_failed_share": 0.2}}, folder) == {
         "simulate",
         "features_simulated",

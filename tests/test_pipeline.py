@@ -186,7 +186,15 @@ def test_two_runs_differing_in_svm_C_compared_through_mlflow(smoke, tmp_path):
     config["classifiers"]["svm"]["C"] = 2.5
     jobs = planned_jobs(workdir, config)
     # and the report's pages with the edited config
-    assert set(jobs) == {"train", "track", "report", "run_config", "report_pages", "all"}
+    assert set(jobs) == {
+        "train",
+        "track",
+        "track_plots",
+        "report",
+        "run_config",
+        "report_pages",
+        "all",
+    }
     assert jobs["train"] == len(config["hybrid"]["protocols"])  # the SVM's jobs only
     snakemake(workdir, "--cores", "2", "--configfile", "edited.yaml")
 
@@ -360,6 +368,7 @@ def test_a_nested_or_dotted_config_override_is_typed_and_reruns_only_the_svm(smo
         "train": len(smoke_config()["hybrid"]["protocols"]),
         "report": 1,
         "track": 1,
+        "track_plots": 1,
         "run_config": 1,
         "report_pages": 1,
         "all": 1,
@@ -377,7 +386,13 @@ def test_choosing_which_models_mlflow_logs_reruns_only_the_tracking(smoke):
     workdir, _ = smoke
     config = smoke_config()
     config["tracking"]["log_models"] = "first_repeat"
-    assert set(planned_jobs(workdir, config)) == {"track", "run_config", "report_pages", "all"}
+    assert set(planned_jobs(workdir, config)) == {
+        "track",
+        "track_plots",
+        "run_config",
+        "report_pages",
+        "all",
+    }
 
 
 def test_editing_a_simulation_setting_reruns_simulation_and_downstream_not_calibration(smoke):
@@ -390,7 +405,7 @@ def test_editing_a_simulation_setting_reruns_simulation_and_downstream_not_calib
     jobs = planned_jobs(workdir, config)
     assert {"simulate", "features_simulated", "train", "track", "report"} <= set(jobs)
     assert not {"calibrate", "measured", "measured_part", "features_measured", "hybrid"} & set(jobs)
-    after = {"train", "track", "report", "run_config", "report_pages", "all"}
+    after = {"train", "track", "track_plots", "report", "run_config", "report_pages", "all"}
     assert set(jobs) == {"simulate", "features_simulated", *after}
 
 
@@ -660,6 +675,7 @@ def test_a_run_killed_mid_simulation_and_mid_training_resumes_to_the_same_result
             "report_pages.log",
             "run_config.log",
             "track.log",
+            "track_plots.log",
         )
     ]
     for name in downstream:

@@ -25,8 +25,9 @@
   the run's packaged SignalModels (its model store, ``condmon.model_store``) as pyfunc models that
   take a signal table; one whose digest the experiment already has is linked, not logged again;
   the store's best model is registered (``register_best``: ``condmon-<run>``, aliases ``best`` and
-  ``config-<hash>``), the parent tagged ``best_model_id``, and the report's plots logged as its
-  artifacts.
+  ``config-<hash>``), the parent tagged ``best_model_id``;
+- the report's plots as artifacts of the parent, by the `track_plots` job once the report is
+  written (``log_run_artifacts``), so the `track` job runs beside the report.
 
 Older runs are never rewritten: a rerun logs a new parent, and queries keep the newest finished
 parent per config hash (``condmon.compare``). A remote server (http/https) is probed first and
@@ -876,3 +877,19 @@ def register_best(client, model_id: str, run_name: str, config_hash: str, entry:
 
 def write_run_info(info: dict, path) -> None:
     write_json(info, path)
+
+
+def log_run_artifacts(info: dict, artifacts: dict) -> list[str]:
+    """Log {artifact folder: local file or folder} into the finished parent run of `info` (a
+    `log_pipeline_run` result, report/mlflow_run.json); returns the artifact paths logged. Hidden
+    files (Snakemake's marks) are left out."""
+    uri = info["tracking_uri"]
+    check_tracking_server(uri)
+    client = tracking_client(uri)
+    logged = []
+    for folder, path in artifacts.items():
+        for file in sorted(Path(path).iterdir()) if Path(path).is_dir() else [Path(path)]:
+            if file.is_file() and not file.name.startswith("."):
+                client.log_artifact(info["parent_run_id"], str(file), folder)
+                logged.append(f"{folder}/{file.name}")
+    return logged

@@ -237,6 +237,7 @@ def final_outputs():
         f"{RESULTS}/report/accuracy.csv",
         f"{RESULTS}/report/summary.json",
         f"{RESULTS}/report/mlflow_run.json",
+        f"{RESULTS}/report/mlflow_plots.json",  # the report's plots in the MLflow run
         f"{RESULTS}/report/pages/tables",  # what `snakemake --report` shows
         # requested, so a config without its packaged models reruns track (Snakemake checks
         # only the requested outputs of a job for being missing)

@@ -17,7 +17,6 @@ rule track:
         features_measured=rules.features_measured.output.features,
         # each fit's measured training records (the speeds its packaged model was trained at)
         splits=expand(rules.hybrid.output.splits, protocol=PROTOCOLS),
-        plots=f"{RESULTS}/report/plots",  # the report rule's; logged as artifacts of the parent run
     output:
         run_info=f"{RESULTS}/report/mlflow_run.json",
         # every fit as a model from raw segments, in a folder of this config's own (model_store.py)
@@ -52,6 +51,24 @@ rule track:
         f"{LOGS}/track.log",
     script:
         "../scripts/track.py"
+
+
+# The report's plots into the run's MLflow parent: a job of its own, so `track` (packaging and
+# logging every model) runs beside the report instead of after it.
+rule track_plots:
+    input:
+        run_info=rules.track.output.run_info,
+        plots=f"{RESULTS}/report/plots",
+    output:
+        f"{RESULTS}/report/mlflow_plots.json",
+    conda:
+        "../envs/report.yaml"
+    benchmark:
+        f"{BENCHMARKS}/track_plots.tsv"
+    log:
+        f"{LOGS}/track_plots.log",
+    script:
+        "../scripts/track_plots.py"
 
 
 rule report:

@@ -81,7 +81,6 @@ try:
         },
         log_models=params.log_models,
         model_store=store,
-        artifacts={"plots": inputs.plots} if "plots" in inputs.keys() else None,
     )
 except TrackingError as error:  # a store that is down, inconsistent inputs: say so plainly
     log.error("%s", error)
