@@ -100,7 +100,8 @@ EDGE_CONTACT = (
 # How deep below a flank's proudest strip (in operating deflections) its strips still touch on
 # their own (the dynamic mesh force reaches a few times the static one); deeper ones are one contact
 CONTACT_DEPTH = 8.0
-MAX_CONTACTS = 256  # tooth contacts one call can hold (a helical pair: about 3; face strips: up to 17 a pair)
+# tooth contacts one call can hold (a helical pair: about 3; with face strips up to 17 a pair)
+MAX_CONTACTS = 256
 
 
 def whole_tooth_missing(p) -> bool:
