@@ -63,6 +63,31 @@ def in_time(
     return x[None, :], angle
 
 
+def test_a_pattern_read_at_any_angles_is_its_dft_interpolant():
+    """pattern_at reads the pattern's DFT interpolant at any angles, also below 0 and past a turn
+    (within 0.5 % of its scale for a pitch pattern's broad spectrum), and the angles' interpolation points found once give the same numbers
+    as the angles (what shaft_patterns reuses over its iterations), as np.interp would."""
+    rng = np.random.default_rng(4)
+    pattern = np.stack([pitch_pattern(PINION, rng), pitch_pattern(PINION, rng)])
+    angle = np.concatenate([[-1e-17, -0.3, 0.0, 1.0], rng.uniform(-2.0, 5.0, 500)])
+    spectrum = np.fft.rfft(pattern, axis=-1)
+    orders = np.arange(spectrum.shape[-1])
+    weights = np.where((orders == 0) | (orders == P // 2), 1.0, 2.0) / P
+    exact = np.real(
+        (spectrum * weights) @ np.exp(2j * np.pi * orders[:, None] * np.mod(angle, 1.0)[None, :])
+    )
+    read = rf.pattern_at(pattern, angle)
+    assert np.abs(read - exact).max() < 5e-3 * np.abs(pattern).max()
+    points = rf.interpolation_points(angle, P)
+    assert np.array_equal(rf.pattern_at(pattern, points=points), read)
+    fine = rf.PATTERN_UPSAMPLING
+    upsampled = np.fft.irfft(spectrum, n=P * fine, axis=-1) * fine
+    wrapped = np.concatenate([upsampled, upsampled[..., :1]], axis=-1)
+    grid = np.arange(P * fine + 1) / fine
+    position = np.mod(angle, 1.0) * P
+    assert np.array_equal(read, np.stack([np.interp(position, grid, c) for c in wrapped]))
+
+
 def test_a_record_against_itself_shifted_by_whole_teeth_leaves_no_residual():
     rng = np.random.default_rng(1)
     pattern = np.stack([pitch_pattern(PINION, rng), pitch_pattern(PINION, rng)])  # two channels

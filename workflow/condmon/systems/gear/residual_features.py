@@ -115,19 +115,38 @@ def synchronous_average(
     return fold(resampled[..., : revolutions * samples_per_revolution], samples_per_revolution)
 
 
-def pattern_at(pattern: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """A periodic pattern (n_channels, P samples over one revolution) at the shaft angles `angle`
-    (revolutions): band-limited interpolation (its DFT evaluated there), so a pattern put back
-    in time is the pattern, whatever the angles."""
-    p = pattern.shape[-1]
+# pattern_at's interpolation grid: the pattern upsampled this many times (its DFT's own
+# interpolant to 1e-4 when read linearly in between)
+PATTERN_UPSAMPLING = 8
+
+
+def interpolation_points(angle: np.ndarray, samples_per_revolution: int) -> tuple:
+    """(index, offset) of the shaft angles `angle` (revolutions) on `pattern_at`'s grid of a
+    pattern of `samples_per_revolution` samples: found once for angles at which many patterns
+    are read (`shaft_patterns` reads every iteration's patterns at the same angles)."""
+    p = samples_per_revolution
+    grid = np.arange(p * PATTERN_UPSAMPLING + 1) / PATTERN_UPSAMPLING
     position = np.mod(angle, 1.0) * p
-    # linear interpolation on a finely upsampled copy: the DFT's own interpolant to 1e-4
-    fine = 8
+    position = np.where(position >= p, position - p, position)  # mod of a tiny negative angle
+    index = np.clip(np.searchsorted(grid, position, side="right") - 1, 0, len(grid) - 2)
+    return index, position - grid[index]
+
+
+def pattern_at(pattern: np.ndarray, angle=None, points=None) -> np.ndarray:
+    """A periodic pattern (n_channels, P samples over one revolution) at the shaft angles `angle`
+    (revolutions), or at their `interpolation_points`: band-limited interpolation (its DFT
+    evaluated there), so a pattern put back in time is the pattern, whatever the angles."""
+    p = pattern.shape[-1]
+    index, offset = interpolation_points(angle, p) if points is None else points
+    # linear interpolation on a finely upsampled copy, as np.interp computes it (the same
+    # numbers), without its search for every angle of every channel
+    fine = PATTERN_UPSAMPLING
     spectrum = np.fft.rfft(pattern, axis=-1)
     upsampled = np.fft.irfft(spectrum, n=p * fine, axis=-1) * fine
     grid = np.arange(p * fine + 1) / fine
     wrapped = np.concatenate([upsampled, upsampled[..., :1]], axis=-1)
-    return np.stack([np.interp(position, grid, channel) for channel in wrapped])
+    slopes = (wrapped[..., 1:] - wrapped[..., :-1]) / (grid[1:] - grid[:-1])
+    return np.take(slopes, index, axis=-1) * offset + np.take(wrapped, index, axis=-1)
 
 
 def without_orders(pattern: np.ndarray, period_orders: int) -> np.ndarray:
@@ -165,11 +184,18 @@ def shaft_patterns(
         resampled.append(on_grid[..., :whole])
         grids.append(np.arange(whole) / P)  # this shaft's angle at its grid points, revolutions
     patterns = [np.zeros((x.shape[0], P)) for _ in shafts]
+    # where each other shaft's pattern is read on this shaft's grid: the same every iteration
+    points = {
+        (k, j): interpolation_points(grids[k] * float(shafts[j][1]) / float(shafts[k][1]), P)
+        for k in range(len(shafts))
+        for j in range(len(shafts))
+        if j != k
+    }
     for _ in range(iterations if len(shafts) > 1 else 1):
-        for k, (_, ratio, teeth) in enumerate(shafts):
+        for k, (_, _, teeth) in enumerate(shafts):
             others = sum(
                 (
-                    pattern_at(patterns[j], grids[k] * float(shafts[j][1]) / float(ratio))
+                    pattern_at(patterns[j], points=points[k, j])
                     for j in range(len(shafts))
                     if j != k
                 ),
