@@ -326,6 +326,73 @@ def flatten(value, prefix: str = "") -> list[tuple[str, object]]:
     return [(prefix.rstrip("."), value)]
 
 
+def minutes(seconds: float) -> str:
+    """Seconds as `6 min 13 s`."""
+    whole = int(round(seconds))
+    return f"{whole // 60} min {whole % 60} s"
+
+
+def run_times_section(records: list[dict]) -> list[str]:
+    """The newest run_times record per name: the run's time against its CPU work, and its rules."""
+    lines = ["## Run times", ""]
+    if not records:
+        return lines + [NO_RECORD.format(command="python3 benchmarks/run_times.py"), ""]
+    newest = {record["name"]: record for record in records}
+    lines += [
+        "Elapsed time of a run against its CPU work. Where `run_times.py` ran the workflow, the CPU "
+        "seconds are every process Snakemake waited for (its own included); a collected run has "
+        "only its jobs' benchmark files, whose CPU Snakemake samples now and then (worker processes "
+        "that end between samples are missed: a lower bound).",
+        "",
+    ]
+    rows = []
+    for name, record in newest.items():
+        f = record["figures"]
+        measured = not f.get("collected", True)
+        wall = f["wall_seconds"] if measured else f["jobs_window_seconds"]
+        cpu = f["cpu_seconds"] if measured else f["jobs_cpu_seconds"]
+        rows.append(
+            [
+                name,
+                f.get("snakemake", "(collected: the jobs' window)"),
+                record["commit"][:10],
+                minutes(wall),
+                f"{cpu:.0f}",
+                f"{wall / (cpu / f['cores']):.2f}",
+                f.get("load_average_at_start", ["-"])[0],
+            ]
+        )
+    lines += table(
+        [
+            "record",
+            "run",
+            "commit",
+            "elapsed",
+            "CPU s",
+            "elapsed / (CPU s / cores)",
+            "load at start",
+        ],
+        rows,
+    )
+    for name, record in newest.items():
+        lines += ["", f"### {name}", "", provenance(record), ""]
+        lines += table(
+            ["rule", "jobs", "wall s (sum)", "longest job s", "CPU s (sampled)", "peak RSS MB"],
+            [
+                [
+                    r["rule"],
+                    r["jobs"],
+                    f"{r['wall_seconds_total']:.1f}",
+                    f"{r['wall_seconds_max']:.1f}",
+                    f"{r['cpu_seconds_total']:.1f}",
+                    f"{r['peak_rss_mb_max']:.0f}",
+                ]
+                for r in record["figures"]["rules"]
+            ],
+        )
+    return lines + [""]
+
+
 def other_section(records: list[dict]) -> list[str]:
     """Every other benchmark's newest record per name, its figures as key-value rows."""
     lines = ["## Other benchmarks", ""]
@@ -389,7 +456,7 @@ def render_results(records: list[dict]) -> str:
     default = [r for r in seeds if bench_of(r) == "default"]
     cfrp = [r for r in seeds if bench_of(r).startswith("cfrp")]
     variants = [r for r in seeds if r not in default and r not in cfrp]
-    tables = {"bench_seeds", "throughput", "specimen_table"}
+    tables = {"bench_seeds", "throughput", "specimen_table", "run_times"}
     lines = [
         "# Results",
         "",
@@ -413,6 +480,7 @@ def render_results(records: list[dict]) -> str:
     lines += bearing_seed_section(bearing)
     lines += specimen_section([r for r in records if r["benchmark"] == "specimen_table"])
     lines += throughput_section([r for r in records if r["benchmark"] == "throughput"])
+    lines += run_times_section([r for r in records if r["benchmark"] == "run_times"])
     lines += other_section([r for r in records if r["benchmark"] not in tables])
     return "\n".join(lines).rstrip("\n") + "\n"
 
@@ -466,8 +534,30 @@ def render_readme_table(records: list[dict]) -> str:
             f"{classifier}, `record_split`, mean over bench seeds "
             f"{', '.join(map(str, seeds))}; from `{record['command']}` at commit "
             f"`{record['commit'][:10]}` (per seed and state: [docs/results.md](docs/results.md)).",
+            *run_time_sentence(records),
         ]
     )
+
+
+def run_time_sentence(records: list[dict]) -> list[str]:
+    """The README's sentence on the default run's time: the newest run_times record of a default
+    run that `run_times.py` ran itself (none: no sentence)."""
+    timed = [
+        r
+        for r in records
+        if r["benchmark"] == "run_times"
+        and r["figures"].get("run") == "default"
+        and not r["figures"].get("collected", True)
+    ]
+    if not timed:
+        return []
+    f = timed[-1]["figures"]
+    return [
+        "",
+        f"The run took {minutes(f['wall_seconds'])} alone on {f['cores']} cores, for "
+        f"{f['cpu_seconds'] / 60:.1f} CPU minutes (`run_times-{timed[-1]['name']}` in "
+        "[docs/results.md](docs/results.md#run-times)).",
+    ]
 
 
 def with_readme_table(readme: str, block: str) -> str:

@@ -177,3 +177,65 @@ def test_a_bearing_seed_record_renders_its_mean_and_spread_and_stays_out_of_the_
     )
     assert "No record yet of the default run" in render.render_readme_table([record])
     assert "### cwru" not in page[: page.index("## The CWRU bearing rig")]
+
+
+def run_times_record(name: str, collected: bool, wall: float, cpu: float) -> dict:
+    """A run_times record as benchmarks/run_times.py writes it (one rule)."""
+    figures = {
+        "run": "default",
+        "cores": 2,
+        "collected": collected,
+        "jobs_window_seconds": wall - 10.0,
+        "jobs_cpu_seconds": cpu - 200.0,
+        "parallel_efficiency": 0.68,
+        "window_over_cpu_per_core": 1.46,
+        "rules": [
+            {
+                "rule": "simulate",
+                "jobs": 18,
+                "wall_seconds_total": 213.7,
+                "wall_seconds_max": 20.0,
+                "cpu_seconds_total": 180.6,
+                "peak_rss_mb_max": 599.4,
+            }
+        ],
+    }
+    if not collected:
+        figures.update(
+            snakemake="snakemake --cores 2",
+            wall_seconds=wall,
+            cpu_seconds=cpu,
+            load_average_at_start=[0.5, 1.0, 1.5],
+        )
+    return {
+        "benchmark": "run_times",
+        "name": name,
+        "command": "python3 benchmarks/run_times.py",
+        "commit": "0123456789abcdef",
+        "configfiles": [],
+        "config_hash": None,
+        "date": "2026-12-06",
+        "machine": {"cpu_count": 2, "cpu": "test CPU", "python": "3.11.7"},
+        "figures": figures,
+    }
+
+
+def test_run_times_render_as_a_table_and_the_readme_names_the_timed_default_run():
+    """A run timed by run_times.py shows its whole CPU against its elapsed time; a collected
+    one its jobs' window and sampled CPU; the README's sentence takes the newest timed one."""
+    timed = run_times_record("default-alone", False, 352.4, 680.0)
+    collected = run_times_record("default-collected", True, 370.0, 670.0)
+    page = render.render_results([collected, timed]).split("## Run times")[1]
+    assert (
+        "| default-alone | snakemake --cores 2 | 0123456789 | 5 min 52 s | 680 | 1.04 | 0.500 |"
+        in page
+    )
+    assert (
+        "| default-collected | (collected: the jobs' window) | 0123456789 | 6 min 0 s | 470 |"
+        in page
+    )
+    assert "| simulate | 18 | 213.7 | 20.0 | 180.6 | 599 |" in page
+    assert "## Other benchmarks" not in page.split("### default-collected")[0]
+    sentence = render.run_time_sentence([timed, collected])
+    assert sentence[-1].startswith("The run took 5 min 52 s alone on 2 cores, for 11.3 CPU minutes")
+    assert render.run_time_sentence([collected]) == []

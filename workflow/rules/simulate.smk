@@ -17,6 +17,9 @@ rule simulate:
         system=SYSTEM.job_spec("simulate"),
         simulation=config["simulation"],
         samples=lambda wc: batch_samples(wc.batch),
+    # the healthy samples run longest (their twins' reference segments with
+    # features.healthy_reference): started first, the short jobs fill the cores at the end
+    priority: lambda wc: 1 if wc.health == SYSTEM.healthy_state else 0
     conda:
         "../envs/simulation.yaml"
     benchmark:

@@ -31,6 +31,9 @@ rule train:
         measured_only_baseline=config["hybrid"]["measured_only_baseline"],
     # the CNN's intra-op threads (classifiers.cnn.threads), so Snakemake reserves the cores
     threads: lambda wc: config["classifiers"][wc.classifier].get("threads", 1)
+    # the CNN ensemble's fits are the longest train jobs: started first, the others fill the
+    # other cores beside them instead of leaving them idle at the end
+    priority: lambda wc: 1 if wc.classifier == "cnn" else 0
     conda:
         "../envs/learning.yaml"
     benchmark:
