@@ -554,7 +554,7 @@ def run_time_sentence(records: list[dict]) -> list[str]:
     f = timed[-1]["figures"]
     return [
         "",
-        f"The run took {minutes(f['wall_seconds'])} alone on {f['cores']} cores, for "
+        f"The default run took {minutes(f['wall_seconds'])} alone on {f['cores']} cores, for "
         f"{f['cpu_seconds'] / 60:.1f} CPU minutes (`run_times-{timed[-1]['name']}` in "
         "[docs/results.md](docs/results.md#run-times)).",
     ]

@@ -237,5 +237,7 @@ def test_run_times_render_as_a_table_and_the_readme_names_the_timed_default_run(
     assert "| simulate | 18 | 213.7 | 20.0 | 180.6 | 599 |" in page
     assert "## Other benchmarks" not in page.split("### default-collected")[0]
     sentence = render.run_time_sentence([timed, collected])
-    assert sentence[-1].startswith("The run took 5 min 52 s alone on 2 cores, for 11.3 CPU minutes")
+    assert sentence[-1].startswith(
+        "The default run took 5 min 52 s alone on 2 cores, for 11.3 CPU minutes"
+    )
     assert render.run_time_sentence([collected]) == []
