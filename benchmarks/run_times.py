@@ -59,14 +59,31 @@ def job_figures(run: Path) -> dict:
     }
 
 
+def run_name(snakemake_arguments: list[str]) -> str:
+    """The run_name of the config the Snakemake arguments name (`--configfile A B ...`, else the
+    default config), as the workflow reads it."""
+    from condmon.config import DEFAULT_CONFIG, load_config
+
+    paths, reading = [], False
+    for argument in snakemake_arguments:
+        if argument.startswith("-"):
+            reading = argument in ("--configfile", "--configfiles")
+        elif reading:
+            paths.append(ROOT / argument)
+    return load_config(paths or [ROOT / DEFAULT_CONFIG], project=ROOT)["run_name"]
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cores", type=int, default=2)
-    parser.add_argument("--run", default="default", help="the run's name (results/<run>)")
+    parser.add_argument(
+        "--run", default=None, help="the run's name (results/<run>; default: its config's run_name)"
+    )
     parser.add_argument("--name", default=None, help="the record's name (default: the run's)")
     parser.add_argument("--collect-only", action="store_true", help="read a finished run only")
     args, extra = parser.parse_known_args(argv)
     extra = [a for a in extra if a != "--"]
+    args.run = args.run or run_name(extra)
     figures = {"run": args.run, "collected": args.collect_only}
     if not args.collect_only:
         load = [round(x, 2) for x in os.getloadavg()]

@@ -163,3 +163,8 @@ def test_the_run_times_benchmark_reads_a_runs_job_timings(tmp_path):
     assert figures["cores"] == 2 and figures["window_over_cpu_per_core"] == round(70 / 47, 3)
     assert [rule["rule"] for rule in figures["rules"]] == ["simulate", "train"]
     assert "parallel_efficiency" not in figures["rules"][0]
+    # the run a timed command makes is the one its config names
+    assert run_times.run_name([]) == "default"
+    assert (
+        run_times.run_name(["--configfile", ".test/config/smoke.yaml", "--cores", "2"]) == "smoke"
+    )
