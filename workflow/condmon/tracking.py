@@ -521,8 +521,8 @@ def parent_tags(run: TrackedRun, log_models, n_runs: int, workdir=".") -> dict:
     }
 
 
-def log_parent_contents(data: TrackInputs, params: dict, artifacts: dict | None) -> None:
-    """The active parent run's inputs, params, summary metrics, tables and artifacts."""
+def log_parent_contents(data: TrackInputs, params: dict) -> None:
+    """The active parent run's inputs, params, summary metrics and tables."""
     import mlflow
 
     log_inputs(data.datasets)
@@ -531,10 +531,6 @@ def log_parent_contents(data: TrackInputs, params: dict, artifacts: dict | None)
     mlflow.log_text(data.metrics.to_csv(index=False), "accuracy.csv")
     # counts per run (rows: true label, columns: predicted label)
     mlflow.log_text(data.confusion.reset_index().to_csv(index=False), "confusion_matrices.csv")
-    for folder, path in (artifacts or {}).items():  # hidden files (Snakemake's marks) left out
-        for file in sorted(Path(path).iterdir()) if Path(path).is_dir() else [Path(path)]:
-            if file.is_file() and not file.name.startswith("."):
-                mlflow.log_artifact(str(file), folder)
 
 
 def nested_run_model(
@@ -702,7 +698,6 @@ def log_pipeline_run(
     model_store,
     log_models="all",
     workdir=".",
-    artifacts: dict | None = None,
 ) -> dict:
     """Log one pipeline invocation (see module docstring); returns the run_info dict.
 
@@ -710,9 +705,9 @@ def log_pipeline_run(
     ``measured_features`` among them; ``model_store``: the run's packaged models
     (``condmon.model_store``), logged as those SignalModels (pyfunc, a signal table in), a model
     already logged in the experiment (same digest) linked rather than logged again, the store's
-    best model registered (``register_best``); ``log_models``: see wants_model; ``artifacts``:
-    {artifact folder: local file or folder} of the parent (the report's plots). Every input is
-    read and checked before the first MLflow call.
+    best model registered (``register_best``); ``log_models``: see wants_model. Every input is
+    read and checked before the first MLflow call (the report's plots follow by
+    ``log_run_artifacts``).
     """
     if not isinstance(log_models, dict) and log_models not in MODEL_POLICIES:
         raise ValueError(f"log_models={log_models!r}; expected one of {MODEL_POLICIES} or a filter")
@@ -731,7 +726,7 @@ def log_pipeline_run(
         parent_id = mlflow.start_run(
             experiment_id=experiment_id, tags=tags, run_name=name
         ).info.run_id
-        log_parent_contents(data, params, artifacts)
+        log_parent_contents(data, params)
         logged_digests = logged_model_digests(experiment_id)
         model_ids, n_reused = log_nested_runs(
             client, experiment_id, parent_id, data, run.config_hash, log_models, logged_digests

@@ -116,16 +116,21 @@ def synchronous_average(
 
 
 # pattern_at's interpolation grid: the pattern upsampled this many times (its DFT's own
-# interpolant to 1e-4 when read linearly in between)
+# interpolant, read linearly in between)
 PATTERN_UPSAMPLING = 8
 
 
+def pattern_grid(samples_per_revolution: int) -> np.ndarray:
+    """`pattern_at`'s grid over one revolution of a pattern of that many samples (in samples)."""
+    return np.arange(samples_per_revolution * PATTERN_UPSAMPLING + 1) / PATTERN_UPSAMPLING
+
+
 def interpolation_points(angle: np.ndarray, samples_per_revolution: int) -> tuple:
-    """(index, offset) of the shaft angles `angle` (revolutions) on `pattern_at`'s grid of a
-    pattern of `samples_per_revolution` samples: found once for angles at which many patterns
-    are read (`shaft_patterns` reads every iteration's patterns at the same angles)."""
+    """(index, offset) of the shaft angles `angle` (revolutions) on `pattern_grid`: found once
+    for angles at which many patterns are read (`shaft_patterns` reads every iteration's
+    patterns at the same angles)."""
     p = samples_per_revolution
-    grid = np.arange(p * PATTERN_UPSAMPLING + 1) / PATTERN_UPSAMPLING
+    grid = pattern_grid(p)
     position = np.mod(angle, 1.0) * p
     position = np.where(position >= p, position - p, position)  # mod of a tiny negative angle
     index = np.clip(np.searchsorted(grid, position, side="right") - 1, 0, len(grid) - 2)
@@ -143,7 +148,7 @@ def pattern_at(pattern: np.ndarray, angle=None, points=None) -> np.ndarray:
     fine = PATTERN_UPSAMPLING
     spectrum = np.fft.rfft(pattern, axis=-1)
     upsampled = np.fft.irfft(spectrum, n=p * fine, axis=-1) * fine
-    grid = np.arange(p * fine + 1) / fine
+    grid = pattern_grid(p)
     wrapped = np.concatenate([upsampled, upsampled[..., :1]], axis=-1)
     slopes = (wrapped[..., 1:] - wrapped[..., :-1]) / (grid[1:] - grid[:-1])
     return np.take(slopes, index, axis=-1) * offset + np.take(wrapped, index, axis=-1)
