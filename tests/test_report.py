@@ -1,6 +1,7 @@
 """The report stage on small fake train outputs: accuracy table, summary, plots."""
 
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -450,6 +451,33 @@ def test_test_set_figures_by_hand():
     assert figures["n_healthy"] == 3 and figures["false_alarm_rate"] == pytest.approx(2 / 3)
     assert figures["small_test_set"]
     assert figures["accuracy_ci_low"] < 0.5 < figures["accuracy_ci_high"]
+
+
+def test_the_closed_form_figures_are_scipys_and_sklearns_to_the_last_digit():
+    """wilson_interval and balanced_accuracy are computed by hand for speed (the report scores
+    thousands of test sets): the same numbers as the libraries' own."""
+    from scipy.stats import binomtest
+    from sklearn.metrics import balanced_accuracy_score
+
+    from condmon.evaluation import balanced_accuracy, wilson_interval
+
+    for n in (1, 2, 7, 30, 101, 977):
+        for k in sorted({0, 1, n // 3, n // 2, n - 1, n}):
+            ci = binomtest(k, n).proportion_ci(method="wilson")
+            assert wilson_interval(k, n) == (round(ci.low, 4), round(ci.high, 4)), (k, n)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        classes = np.array(["ok", "ball", "inner", "outer"])
+        test = pd.DataFrame(
+            {
+                "true_label": classes[rng.integers(0, 3, 50)],
+                "predicted_label": classes[rng.integers(0, 4, 50)],  # one only predicted
+            }
+        )
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            expected = balanced_accuracy_score(test["true_label"], test["predicted_label"])
+        assert balanced_accuracy(test) == expected
 
 
 def test_identical_repeats_count_as_one():

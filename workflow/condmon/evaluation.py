@@ -25,12 +25,11 @@ repeat, and said so).
 
 from __future__ import annotations
 
-import warnings
+import math
 
 import numpy as np
 import pandas as pd
-from scipy.stats import binomtest
-from sklearn.metrics import balanced_accuracy_score
+from scipy.special import ndtri
 
 from condmon.labels import LEAKY_PROTOCOLS, format_speed
 
@@ -68,42 +67,71 @@ EVALUATION_COLUMNS = KEYS + [
 
 
 def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
-    """The Wilson score interval of a proportion `successes / n` (NaN for n = 0)."""
+    """The Wilson score interval of a proportion `successes / n` (NaN for n = 0), rounded to 4
+    decimals: Newcombe's (1998) closed form as `scipy.stats.binomtest(...).proportion_ci(method=
+    "wilson")` computes it, without the binomial test's p-value that made the report's thousands
+    of test sets slow."""
     if n <= 0:
         return float("nan"), float("nan")
-    interval = binomtest(int(successes), int(n)).proportion_ci(
-        confidence_level=confidence, method="wilson"
-    )
-    return round(float(interval.low), 4), round(float(interval.high), 4)
+    k, n = int(successes), int(n)
+    p, z = k / n, float(ndtri(0.5 + 0.5 * confidence))
+    denom = 2 * (n + z**2)
+    center = (2 * n * p + z**2) / denom
+    delta = z / denom * math.sqrt(4 * n * p * (1 - p) + z**2)
+    low = 0.0 if k == 0 else center - delta
+    high = 1.0 if k == n else center + delta
+    return round(float(low), 4), round(float(high), 4)
+
+
+def _codes(values: pd.Series) -> tuple[np.ndarray, np.ndarray]:
+    """(each value's code, the distinct values in sorted order): code i is the i-th value."""
+    codes, uniques = pd.factorize(values, sort=True)
+    return codes, np.asarray(uniques)
 
 
 def record_votes(test: pd.DataFrame) -> pd.DataFrame:
-    """Per record: its true label and the majority vote of its predicted segments (ties: the
-    alphabetically first of the most voted labels, so the vote is deterministic)."""
-    counts = test.groupby(["record_id", "true_label", "predicted_label"]).size().rename("n")
-    counts = counts.reset_index().sort_values(
-        ["record_id", "n", "predicted_label"], ascending=[True, False, True]
+    """Per record (in the order of their ids): its true label and the majority vote of its
+    predicted segments (ties: the alphabetically first of the most voted labels, so the vote is
+    deterministic)."""
+    records, record_ids = _codes(test["record_id"])
+    predicted, labels = _codes(test["predicted_label"])
+    counts = np.zeros((len(record_ids), len(labels)), dtype=np.int64)
+    np.add.at(counts, (records, predicted), 1)
+    # argmax takes the first of equal counts: the alphabetically first label
+    vote = labels[counts.argmax(axis=1)]
+    first_row = np.unique(records, return_index=True)[1]
+    return pd.DataFrame(
+        {
+            "record_id": record_ids,
+            "true_label": test["true_label"].to_numpy()[first_row],
+            "predicted_label": vote,
+        }
     )
-    return counts.drop_duplicates("record_id")[["record_id", "true_label", "predicted_label"]]
 
 
 def balanced_accuracy(test: pd.DataFrame) -> float:
-    """Mean recall over the tested classes (predicted-only classes add no term)."""
-    with warnings.catch_warnings():  # "y_pred contains classes not in y_true": expected here
-        warnings.simplefilter("ignore", UserWarning)
-        return float(balanced_accuracy_score(test["true_label"], test["predicted_label"]))
+    """Mean recall over the tested classes (predicted-only classes add no term), in the sorted
+    order of the classes, as sklearn's balanced_accuracy_score sums them."""
+    true, classes = _codes(test["true_label"])
+    hit = test["true_label"].to_numpy() == test["predicted_label"].to_numpy()
+    recall = np.bincount(true, weights=hit, minlength=len(classes)) / np.bincount(
+        true, minlength=len(classes)
+    )
+    return float(np.mean(recall))
 
 
 def test_set_figures(test: pd.DataFrame, healthy_state: str | None) -> dict:
     """The figures of one test set (rows of the predictions table)."""
-    hits = int((test["true_label"] == test["predicted_label"]).sum())
+    true, predicted = test["true_label"].to_numpy(), test["predicted_label"].to_numpy()
+    hits = int((true == predicted).sum())
     votes = record_votes(test)
     record_hits = int((votes["true_label"] == votes["predicted_label"]).sum())
-    healthy = test[test["true_label"] == healthy_state]
-    alarms = int((healthy["predicted_label"] != healthy_state).sum())
+    is_healthy = true == healthy_state
+    n_healthy = int(is_healthy.sum())
+    alarms = int((predicted[is_healthy] != healthy_state).sum())
     low, high = wilson_interval(hits, len(test))
     record_low, record_high = wilson_interval(record_hits, len(votes))
-    alarm_low, alarm_high = wilson_interval(alarms, len(healthy))
+    alarm_low, alarm_high = wilson_interval(alarms, n_healthy)
     return {
         "n_test": len(test),
         "accuracy": hits / len(test),
@@ -114,8 +142,8 @@ def test_set_figures(test: pd.DataFrame, healthy_state: str | None) -> dict:
         "record_accuracy_ci_low": record_low,
         "record_accuracy_ci_high": record_high,
         "balanced_accuracy": balanced_accuracy(test),
-        "n_healthy": len(healthy),
-        "false_alarm_rate": alarms / len(healthy) if len(healthy) else np.nan,
+        "n_healthy": n_healthy,
+        "false_alarm_rate": alarms / n_healthy if n_healthy else np.nan,
         "false_alarm_ci_low": alarm_low,
         "false_alarm_ci_high": alarm_high,
         "small_test_set": len(test) < SMALL_TEST_SET,
@@ -326,20 +354,25 @@ def distinct_tested(
     segments, records and healthy segments the repeat tested over all its holdouts (a healthy
     record tested in every holdout counts once)."""
     design, apart = set(map(str, design_records)), set(map(str, apart_records))
-    predictions = with_conditions(predictions, conditions, condition)
+    predictions = with_conditions(predictions, conditions, condition).assign(
+        # each segment and each record numbered once, so that a test set's distinct ones are
+        # counted on integers
+        _segment=lambda p: p.groupby(["record_id", "segment"], sort=False).ngroup(),
+        _record=lambda p: pd.factorize(p["record_id"])[0],
+    )
     rows = []
     for key, test in predictions.groupby(KEYS[:4], sort=True):
         for condition_label, records, part in subsets(test, design, apart):
-            segments = part[["record_id", "segment"]].drop_duplicates()
-            healthy = part.loc[part["true_label"] == healthy_state, ["record_id", "segment"]]
+            segments = part["_segment"].to_numpy()
+            healthy = segments[part["true_label"].to_numpy() == healthy_state]
             rows.append(
                 dict(
                     zip(KEYS[:4], key),
                     condition=condition_label,
                     records=records,
-                    distinct_segments=len(segments),
-                    distinct_records=segments["record_id"].nunique(),
-                    distinct_healthy=len(healthy.drop_duplicates()),
+                    distinct_segments=len(np.unique(segments)),
+                    distinct_records=len(np.unique(part["_record"].to_numpy())),
+                    distinct_healthy=len(np.unique(healthy)),
                 )
             )
     return pd.DataFrame(rows)
