@@ -83,65 +83,72 @@ def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[f
     return round(float(low), 4), round(float(high), 4)
 
 
-def _codes(values: pd.Series) -> tuple[np.ndarray, np.ndarray]:
-    """(each value's code, the distinct values in sorted order): code i is the i-th value."""
-    codes, uniques = pd.factorize(values, sort=True)
-    return codes, np.asarray(uniques)
+CODES = ("_record", "_true", "_predicted")
 
 
-def record_votes(test: pd.DataFrame) -> pd.DataFrame:
-    """Per record (in the order of their ids): its true label and the majority vote of its
-    predicted segments (ties: the alphabetically first of the most voted labels, so the vote is
-    deterministic)."""
-    records, record_ids = _codes(test["record_id"])
-    predicted, labels = _codes(test["predicted_label"])
-    counts = np.zeros((len(record_ids), len(labels)), dtype=np.int64)
-    np.add.at(counts, (records, predicted), 1)
-    # argmax takes the first of equal counts: the alphabetically first label
-    vote = labels[counts.argmax(axis=1)]
-    first_row = np.unique(records, return_index=True)[1]
-    return pd.DataFrame(
-        {
-            "record_id": record_ids,
-            "true_label": test["true_label"].to_numpy()[first_row],
-            "predicted_label": vote,
-        }
+def coded(predictions: pd.DataFrame) -> pd.DataFrame:
+    """`predictions` with integer codes, so that its test sets are scored on arrays: `_record`
+    (each record id) and `_true`, `_predicted` (the labels of both columns, one code each in
+    sorted order: the smaller code is the alphabetically first label)."""
+    true = predictions["true_label"].to_numpy(dtype=str)
+    predicted = predictions["predicted_label"].to_numpy(dtype=str)
+    labels = np.unique(np.concatenate([true, predicted]))
+    return predictions.assign(
+        _record=pd.factorize(predictions["record_id"])[0],
+        _true=np.searchsorted(labels, true),
+        _predicted=np.searchsorted(labels, predicted),
     )
+
+
+def record_hits(records: np.ndarray, true: np.ndarray, predicted: np.ndarray) -> tuple[int, int]:
+    """(records, records whose majority vote is right) of a test set's segments, as integer codes
+    (`coded`). A record's vote is its most predicted label; of equal counts the alphabetically
+    first (the smallest code), so the vote is deterministic."""
+    ids, first, row_record = np.unique(records, return_index=True, return_inverse=True)
+    n_labels = int(max(true.max(), predicted.max())) + 1
+    counts = np.bincount(row_record * n_labels + predicted, minlength=len(ids) * n_labels)
+    votes = counts.reshape(len(ids), n_labels).argmax(axis=1)  # the first of equal counts
+    return len(ids), int((votes == true[first]).sum())
 
 
 def balanced_accuracy(test: pd.DataFrame) -> float:
     """Mean recall over the tested classes (predicted-only classes add no term), in the sorted
     order of the classes, as sklearn's balanced_accuracy_score sums them."""
-    true, classes = _codes(test["true_label"])
-    hit = test["true_label"].to_numpy() == test["predicted_label"].to_numpy()
-    recall = np.bincount(true, weights=hit, minlength=len(classes)) / np.bincount(
-        true, minlength=len(classes)
-    )
-    return float(np.mean(recall))
+    true = test["true_label"].to_numpy(dtype=str)
+    hit = true == test["predicted_label"].to_numpy(dtype=str)
+    return _balanced_accuracy(np.unique(true, return_inverse=True)[1], hit)
+
+
+def _balanced_accuracy(true: np.ndarray, hit: np.ndarray) -> float:
+    support = np.bincount(true)
+    tested = support > 0
+    return float(np.mean(np.bincount(true, weights=hit)[tested] / support[tested]))
 
 
 def test_set_figures(test: pd.DataFrame, healthy_state: str | None) -> dict:
-    """The figures of one test set (rows of the predictions table)."""
-    true, predicted = test["true_label"].to_numpy(), test["predicted_label"].to_numpy()
-    hits = int((true == predicted).sum())
-    votes = record_votes(test)
-    record_hits = int((votes["true_label"] == votes["predicted_label"]).sum())
-    is_healthy = true == healthy_state
+    """The figures of one test set (rows of the predictions table; `coded` once beforehand where
+    many test sets of one table are scored)."""
+    test = test if "_true" in test else coded(test)
+    records, true, predicted = (test[column].to_numpy() for column in CODES)
+    hit = true == predicted
+    hits = int(hit.sum())
+    n_records, right_records = record_hits(records, true, predicted)
+    is_healthy = test["true_label"].to_numpy() == healthy_state
     n_healthy = int(is_healthy.sum())
-    alarms = int((predicted[is_healthy] != healthy_state).sum())
+    alarms = int((test["predicted_label"].to_numpy()[is_healthy] != healthy_state).sum())
     low, high = wilson_interval(hits, len(test))
-    record_low, record_high = wilson_interval(record_hits, len(votes))
+    record_low, record_high = wilson_interval(right_records, n_records)
     alarm_low, alarm_high = wilson_interval(alarms, n_healthy)
     return {
         "n_test": len(test),
         "accuracy": hits / len(test),
         "accuracy_ci_low": low,
         "accuracy_ci_high": high,
-        "n_records": len(votes),
-        "record_accuracy": record_hits / len(votes),
+        "n_records": n_records,
+        "record_accuracy": right_records / n_records,
         "record_accuracy_ci_low": record_low,
         "record_accuracy_ci_high": record_high,
-        "balanced_accuracy": balanced_accuracy(test),
+        "balanced_accuracy": _balanced_accuracy(true, hit),
         "n_healthy": n_healthy,
         "false_alarm_rate": alarms / n_healthy if n_healthy else np.nan,
         "false_alarm_ci_low": alarm_low,
@@ -211,7 +218,7 @@ def evaluation_table(
     model does not describe (subset `unmodelled`, never `evaluation`).
     """
     design, apart = set(map(str, design_records)), set(map(str, apart_records))
-    predictions = with_conditions(predictions, conditions, condition)
+    predictions = coded(with_conditions(predictions, conditions, condition))
     best_alone = _best_measured_only(measured_only)
     by_rule = _physics_accuracy(physics, design, apart)
     # the best measured-only classifier per split and side: the same bookkeeping as the rules'
