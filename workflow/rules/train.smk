@@ -31,9 +31,15 @@ rule train:
         measured_only_baseline=config["hybrid"]["measured_only_baseline"],
     # the CNN's intra-op threads (classifiers.cnn.threads), so Snakemake reserves the cores
     threads: lambda wc: config["classifiers"][wc.classifier].get("threads", 1)
-    # the CNN ensemble's fits are the longest train jobs: started first, the others fill the
-    # other cores beside them instead of leaving them idle at the end
-    priority: lambda wc: 1 if wc.classifier == "cnn" else 0
+    # the longest train jobs first, so the others fill the other cores beside them instead of
+    # one long job standing alone at the end: the CNN ensemble's fits, then the protocols that
+    # fit once per held-out group (CWRU: specimen_holdout 90 s against record_split's 40)
+    priority:
+        lambda wc: (
+            2
+            if wc.classifier == "cnn"
+            else int(PROTOCOL_CLASSES[wc.protocol].holds_out_each_group)
+        )
     conda:
         "../envs/learning.yaml"
     benchmark:

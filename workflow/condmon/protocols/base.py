@@ -155,6 +155,9 @@ class Protocol:
     # what the measured data must carry for it beyond the signal table (MEASURED_NEEDS): the
     # config check refuses a protocol whose data lack it (System.measured_offers), before any job
     needs: ClassVar[frozenset[str]] = frozenset()
+    # its splits hold out each group (a condition, a specimen) in turn: a fit per group, share
+    # and repeat, so its train jobs are a run's longest and are started first (train.smk)
+    holds_out_each_group: ClassVar[bool] = False
 
     def __init__(
         self,

@@ -19,6 +19,7 @@ from condmon.protocols.base import Protocol
 
 class ConditionHoldout(Protocol):
     name = "condition_holdout"
+    holds_out_each_group = True
 
     def __init__(
         self,

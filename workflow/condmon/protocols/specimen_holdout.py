@@ -17,6 +17,7 @@ class SpecimenHoldout(Protocol):
     stage's records.csv)."""
 
     name = "specimen_holdout"
+    holds_out_each_group = True
     needs = frozenset({"specimens"})
 
     def __init__(
