@@ -33,7 +33,7 @@ rule train:
     threads: lambda wc: config["classifiers"][wc.classifier].get("threads", 1)
     # the longest train jobs first, so the others fill the other cores beside them instead of
     # one long job standing alone at the end: the CNN ensemble's fits, then the protocols that
-    # fit once per held-out group (CWRU: specimen_holdout 90 s against record_split's 40)
+    # fit once per held-out group (twice the time of a single split's, and more)
     priority:
         lambda wc: (
             2
