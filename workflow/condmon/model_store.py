@@ -87,7 +87,8 @@ def build_store(
             clf, protocol = info["classifier"], info["protocol"]
             if protocol not in splits:
                 raise ModelStoreError(f"no split table for protocol {protocol!r} ({train_dir})")
-            metrics = pd.read_csv(train_dir / "metrics.csv")
+            # holdout is text ("speed_rpm=450"), empty where the protocol holds nothing out
+            metrics = pd.read_csv(train_dir / "metrics.csv", dtype={"holdout": str})
             overall = metrics[metrics["speed_rpm"].isna()].fillna({"holdout": ""})
             for model in info["models"]:
                 key = {

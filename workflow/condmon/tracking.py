@@ -78,7 +78,9 @@ HTTP_ENV_DEFAULTS = {
     "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
     "MLFLOW_HTTP_REQUEST_TIMEOUT": "30",
 }
-PROBE_TIMEOUT_S = 5.0
+# A dead server refuses at once; a busy one (a team's, several track jobs logging to it) may take
+# seconds to answer its health check, so the probe waits as long as MLflow waits for a request.
+PROBE_TIMEOUT_S = float(HTTP_ENV_DEFAULTS["MLFLOW_HTTP_REQUEST_TIMEOUT"])
 
 
 class TrackingError(RuntimeError):
