@@ -455,3 +455,64 @@ def test_the_measured_only_baseline_is_never_forced_through_the_selection(tmp_pa
     written = pd.read_csv(tmp_path / "measured_only.csv")
     assert list(written.columns) == BASELINE_COLUMNS
     assert written.inner_cv_all_features.notna().all()
+
+
+# -- fits shared by splits of one training set -----------------------------------------------
+@pytest.mark.parametrize("name", ["svm", "knn"])
+def test_the_seed_free_classifiers_fit_the_same_model_whatever_the_seed(name):
+    from condmon.classifiers import CLASSIFIERS
+    from condmon.train import build_baseline_model, build_model, fit_with_metadata
+
+    assert CLASSIFIERS[name].seed_free
+    features = FEATURES[:5]  # a small selection: the same code, fewer candidate subsets
+    x = SIMULATED[features].to_numpy(np.float32)
+    y = SIMULATED.health_state.to_numpy()
+    groups = SIMULATED.record_id.to_numpy()
+    x_test = MEASURED[features].to_numpy(np.float32)
+    selection = {"n_features": 3, "cv": 3}
+    for build in (build_model, build_baseline_model):
+        fits = [build(name, {}, seed, selection) for seed in (1, 2)]
+        for model in fits:
+            fit_with_metadata(model, x, y, feature_names=features, groups=groups)
+        fitted = [getattr(m, "model_", m) for m in fits]  # the baseline's chosen estimator
+        decision = [
+            m.decision_function(x_test) if name == "svm" else m.predict_proba(x_test)
+            for m in fitted
+        ]
+        np.testing.assert_array_equal(decision[0], decision[1])
+
+
+@pytest.mark.parametrize(
+    "name, baseline", [("svm", False), ("knn", False), ("knn", True)]
+)  # the baseline: the other classifier's path, with its own choice of selection
+def test_a_training_set_several_splits_share_is_fitted_once(monkeypatch, name, baseline):
+    import dataclasses
+
+    import condmon.train as train
+    from condmon.classifiers import CLASSIFIERS
+
+    # at 0 % measured every repeat trains on the simulated records alone: one training set
+    splits = splits_for(MEASURED, percents=(0, 50), repeats=3)
+    simulated = None if baseline else SIMULATED
+    fits = []
+    fit = train.fit_with_metadata
+    monkeypatch.setattr(
+        train, "fit_with_metadata", lambda model, *a, **k: fits.append(model) or fit(model, *a, **k)
+    )
+    # the baseline's own choice of selection needs one; the selection's seed is held above
+    selection = {"n_features": 3, "cv": 3} if baseline else None
+    features = FEATURES[:5]
+    shared = run_protocol(name, {}, simulated, MEASURED, splits, features, 0, None, None, selection)
+    n_shared = len(fits)
+    fits.clear()
+    monkeypatch.setitem(CLASSIFIERS, name, dataclasses.replace(CLASSIFIERS[name], seed_free=False))
+    apart = run_protocol(name, {}, simulated, MEASURED, splits, features, 0, None, None, selection)
+    assert len(fits) == len(apart[2])  # one fit per split
+    pd.testing.assert_frame_equal(shared[0], apart[0])
+    pd.testing.assert_frame_equal(
+        shared[1].drop(columns="fit_seconds"), apart[1].drop(columns="fit_seconds")
+    )
+    assert set(shared[2]) == set(apart[2])
+    if not baseline:  # (the baseline trains nothing at 0 %: no split of its own there)
+        assert n_shared == len(shared[2]) - 2  # the 0 % repeats 1 and 2 reuse repeat 0's fit
+        assert shared[2][(0, 0, "")] is shared[2][(0, 1, "")] is shared[2][(0, 2, "")]

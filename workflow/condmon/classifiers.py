@@ -50,6 +50,9 @@ class ClassifierSpec:
     params_schema: dict  # {parameter: JSON schema with its default}
     enabled: bool = True  # classifiers.<name>.enabled's default
     subset: bool = False  # classifiers.<name> may name measured_percent / repeats
+    # its fit draws no random numbers: the same training data give the same model whatever the
+    # seed, so the train stage fits a training set that recurs across splits only once
+    seed_free: bool = False
 
     @property
     def defaults(self) -> dict:
@@ -158,8 +161,8 @@ CNN_PARAMS = {
 }
 
 CLASSIFIERS: dict[str, ClassifierSpec] = {
-    "svm": ClassifierSpec(_svm, SVM_PARAMS),
-    "knn": ClassifierSpec(_knn, KNN_PARAMS),
+    "svm": ClassifierSpec(_svm, SVM_PARAMS, seed_free=True),
+    "knn": ClassifierSpec(_knn, KNN_PARAMS, seed_free=True),
     "cnn": ClassifierSpec(_cnn, CNN_PARAMS, enabled=False, subset=True),
 }
 
@@ -170,16 +173,18 @@ def register_classifier(
     params_schema: dict,
     enabled: bool = False,
     subset: bool = False,
+    seed_free: bool = False,
 ) -> ClassifierSpec:
     """Add a classifier to the registry (an existing name is an error, not a silent override).
     ``params_schema``: {parameter: JSON schema with its default}; ``enabled``: whether a config
-    that does not mention it trains it."""
+    that does not mention it trains it; ``seed_free``: its fit draws no random numbers (the
+    train stage then reuses the model of a training set it has already fitted)."""
     if name in CLASSIFIERS:
         raise ValueError(f"classifier {name!r} is already registered")
     missing = sorted(key for key, schema in params_schema.items() if "default" not in schema)
     if missing:
         raise ValueError(f"classifier {name!r}: parameter(s) {missing} have no default")
-    CLASSIFIERS[name] = ClassifierSpec(build, dict(params_schema), enabled, subset)
+    CLASSIFIERS[name] = ClassifierSpec(build, dict(params_schema), enabled, subset, seed_free)
     return CLASSIFIERS[name]
 
 

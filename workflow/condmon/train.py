@@ -260,6 +260,34 @@ def baseline_choice(model, feature_names) -> dict:
     }
 
 
+def training_set_key(x_train, y_train, groups) -> str:
+    """A digest of one split's training data: its features, labels and record ids, in order."""
+    digest = hashlib.sha256(np.ascontiguousarray(x_train).tobytes())
+    digest.update(repr(x_train.shape).encode())
+    for column in (y_train, groups):
+        digest.update("\0".join(map(str, column)).encode() + b"\1")
+    return digest.hexdigest()
+
+
+def split_model(
+    classifier_name, classifier_params, seed, feature_selection, y_train, measured_only, where
+):
+    """The unfitted estimator of one split: the configured classifier (the measured-only
+    baseline's own choice of selection), or, for a baseline whose measured training records hold
+    one class, that class as its constant answer."""
+    if measured_only and len(set(y_train)) < 2:
+        # what a classifier trained on one class can say: that class
+        return DummyClassifier(strategy="constant", constant=y_train[0])
+    if len(set(y_train)) < 2:
+        raise ValueError(
+            f"{where}: training data has only class(es) {sorted(set(y_train))}; "
+            "a classifier needs at least two"
+        )
+    if measured_only:
+        return build_baseline_model(classifier_name, classifier_params, seed, feature_selection)
+    return build_model(classifier_name, classifier_params, seed, feature_selection)
+
+
 class ProtocolResult(NamedTuple):
     predictions: pd.DataFrame  # measured test predictions (PREDICTION_COLUMNS)
     metrics: pd.DataFrame  # on the measured test records (METRIC_COLUMNS)
@@ -382,6 +410,9 @@ def fit_and_evaluate(
 
     holdout_index = {h: i for i, h in enumerate(sorted_holdouts(splits["holdout"]))}
     predictions, metrics, validation, models = [], [], [], {}
+    # a classifier whose fit draws no random numbers fits each distinct training set once (the
+    # selection's folds follow the record ids, never a seed); {training_set_key: (model, seconds)}
+    seed_free, fitted = classifiers.CLASSIFIERS[classifier_name].seed_free, {}
     for percent, repeat, holdout in _split_keys(splits):
         split = splits[
             (splits["measured_percent"] == percent)
@@ -400,25 +431,28 @@ def fit_and_evaluate(
         y_train = np.concatenate([y_sim[~held_out], y_meas[train]])
         groups = np.concatenate([sim_records[~held_out], meas_records.to_numpy()[train]])
         fit_seed = derive_seed(seed, stable_int(protocol), percent, repeat, holdout_index[holdout])
-        if measured_only and len(set(y_train)) < 2:
-            if not len(y_train):
-                continue  # nothing measured trains: no baseline at this split
-            # what a classifier trained on one class can say: that class
-            model = DummyClassifier(strategy="constant", constant=y_train[0])
-        elif len(set(y_train)) < 2:
-            raise ValueError(
-                f"{where}: training data has only class(es) {sorted(set(y_train))}; "
-                "a classifier needs at least two"
-            )
-        elif measured_only:
-            model = build_baseline_model(
-                classifier_name, classifier_params, fit_seed, feature_selection
-            )
+        if measured_only and not len(y_train):
+            continue  # nothing measured trains: no baseline at this split
+        key = training_set_key(x_train, y_train, groups) if seed_free else None
+        if key in fitted:
+            # e.g. every repeat at 0 % measured, or measured records of classes that never train
+            model, fit_seconds = fitted[key]  # the model's own fit time
+            log.info("%s: the training set of an earlier split, its model reused", where)
         else:
-            model = build_model(classifier_name, classifier_params, fit_seed, feature_selection)
-        start = time.perf_counter()
-        fit_with_metadata(model, x_train, y_train, feature_names=feature_names, groups=groups)
-        fit_seconds = time.perf_counter() - start
+            model = split_model(
+                classifier_name,
+                classifier_params,
+                fit_seed,
+                feature_selection,
+                y_train,
+                measured_only,
+                where,
+            )
+            start = time.perf_counter()
+            fit_with_metadata(model, x_train, y_train, feature_names=feature_names, groups=groups)
+            fit_seconds = time.perf_counter() - start
+            if key is not None:
+                fitted[key] = model, fit_seconds
         y_pred, uncertainty = _predict(model, x_meas[test])
         y_true = y_meas[test]
         models[(percent, repeat, holdout)] = model
