@@ -98,7 +98,10 @@ class SequentialBackwardSelector(SelectorMixin, BaseEstimator):
             cv=self._splits(X, y, groups),
             n_jobs=self.n_jobs,
         )
-        selector.fit(X, y)
+        # X is checked above; the hundreds of inner fits and scores need not check it (nor the
+        # estimator's fixed parameters) again: a fifth of a selection's time on small sets
+        with sklearn.config_context(assume_finite=True, skip_parameter_validation=True):
+            selector.fit(X, y)
         self.selector_ = selector
         self.support_ = selector.get_support()
         return self
