@@ -2,6 +2,7 @@
 beside its figures, is written under a stable name and read back in date order."""
 
 import json
+import re
 import subprocess
 
 import pytest
@@ -52,6 +53,12 @@ def test_records_are_written_under_a_stable_name_and_read_oldest_first(tmp_path)
     assert records.write_record(newer, tmp_path).name == "throughput-default.json"
     assert records.write_record(older, tmp_path).name == "bench_seeds-cfrp_x_y.json"
     assert [r["figures"] for r in records.read_records(tmp_path)] == [{"a": 1}, {"b": 2}]
+    # on one day, by the time each was made, whatever the file names; one without a time first
+    records.write_record(dict(older, name="z", date="2026-12-06", time="10:00:00"), tmp_path)
+    records.write_record(dict(older, name="a", date="2026-12-06", time="11:00:00"), tmp_path)
+    assert [r["name"] for r in records.read_records(tmp_path)] == ["cfrp/x y", "default", "z", "a"]
+    made = records.make_record("bench", "n", {}, script=str(ROOT / "benchmarks" / "b.py"), argv=[])
+    assert re.fullmatch(r"\d\d:\d\d:\d\d", made["time"])
     # a rerun replaces the file, keys in a stable order
     records.write_record(dict(newer, figures={"b": 3}), tmp_path)
     text = (tmp_path / "throughput-default.json").read_text()

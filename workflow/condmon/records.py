@@ -98,6 +98,7 @@ def make_record(
 ) -> dict:
     """A record of `figures` (module docstring); `argv`: the script's arguments (default sys.argv's)."""
     configfiles = [str(p) for p in configfiles]
+    now = datetime.datetime.now(datetime.timezone.utc)
     return {
         "benchmark": benchmark,
         "name": name,
@@ -106,7 +107,9 @@ def make_record(
         "configfiles": configfiles,
         "config_hash": config_hash(configfiles, root),
         "machine": machine(),
-        "date": date or datetime.datetime.now(datetime.timezone.utc).date().isoformat(),
+        "date": date or now.date().isoformat(),
+        # UTC, so records of one day read in the order they were made (older ones have none)
+        "time": None if date else now.strftime("%H:%M:%S"),
         "figures": figures,
     }
 
@@ -144,7 +147,8 @@ def run_configfiles(run: Path) -> list[str]:
 
 
 def read_records(directory: Path | None = None) -> list[dict]:
-    """Every record in `directory` (default RECORDS_DIR), oldest first (by date, then file name)."""
+    """Every record in `directory` (default RECORDS_DIR), oldest first: by date and time (a
+    record without a time, made before records had one, first of its day), then file name."""
     paths = sorted(Path(directory or RECORDS_DIR).glob("*.json"))
     records = [json.loads(p.read_text()) for p in paths]
-    return sorted(records, key=lambda r: r["date"])
+    return sorted(records, key=lambda r: (r["date"], r.get("time") or ""))
