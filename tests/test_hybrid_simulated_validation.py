@@ -1,6 +1,7 @@
 """hybrid.simulated_validation_share: the held-out simulated records in the split table, training
 without them, their metrics apart from the measured ones, the config check and the scripts."""
 
+import dataclasses
 import json
 import math
 import runpy
@@ -210,6 +211,12 @@ class Recorder(BaseEstimator):
 
 def test_held_out_records_never_train_and_are_evaluated_apart(monkeypatch):
     monkeypatch.setattr(train.classifiers, "make_classifier", lambda *a, **k: Recorder())
+    # the Recorder stands in for a classifier that fits every split (no model shared between
+    # the splits of one training set, as a seed-free one's would be)
+    spec = train.classifiers.CLASSIFIERS["svm"]
+    monkeypatch.setitem(
+        train.classifiers.CLASSIFIERS, "svm", dataclasses.replace(spec, seed_free=False)
+    )
     Recorder.fitted_on = []
     table = splits("condition_holdout", percents=[0, 100], repeats=1)
     validation_ids = set(simulated_validation_records(SIMULATED[ID], 0.3, seed=11))
