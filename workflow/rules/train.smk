@@ -31,9 +31,10 @@ rule train:
         measured_only_baseline=config["hybrid"]["measured_only_baseline"],
     # the CNN's intra-op threads (classifiers.cnn.threads), so Snakemake reserves the cores
     threads: lambda wc: config["classifiers"][wc.classifier].get("threads", 1)
-    # the longest train jobs first, so the others fill the other cores beside them instead of
-    # one long job standing alone at the end: the CNN ensemble's fits, then the protocols that
-    # fit once per held-out group (twice the time of a single split's, and more)
+    # the likely longest train jobs first, so the others fill the other cores beside them
+    # instead of one long job standing alone at the end: the CNN ensemble's fits, then the
+    # protocols with a split per held-out group (the most splits; a seed-free classifier fits
+    # each distinct training set once, so the time follows the distinct sets, not the splits)
     priority:
         lambda wc: (
             2

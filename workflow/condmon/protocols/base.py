@@ -156,7 +156,7 @@ class Protocol:
     # config check refuses a protocol whose data lack it (System.measured_offers), before any job
     needs: ClassVar[frozenset[str]] = frozenset()
     # its splits hold out each group (a condition, a specimen) in turn: a fit per group, share
-    # and repeat, so its train jobs are a run's longest and are started first (train.smk)
+    # and repeat, the most splits of any protocol, so its train jobs are started first (train.smk)
     holds_out_each_group: ClassVar[bool] = False
 
     def __init__(
