@@ -32,6 +32,7 @@ from condmon.records import save_record
 from condmon.signals import to_arrays
 from condmon.systems import get_system
 from condmon.systems.gear import BENCH_NUMERICS
+from condmon.operating import OperatingPoint
 from condmon.systems.gear.bench import virtual_bench_rows
 from condmon.systems.gear.residual_features import (
     aligned,
@@ -56,7 +57,9 @@ def bench_records(system, bench: dict, speed: float, seconds: float, records: in
         record_seconds=pieces * seconds + 1.0 / system.output_rate_hz,
     )
     numerics = dict(system.numerics, **{k: bench[k] for k in BENCH_NUMERICS})
-    rows = virtual_bench_rows(system.parameters, bench, ["healthy"], [speed], numerics, seconds)
+    rows = virtual_bench_rows(
+        system.parameters, bench, ["healthy"], [OperatingPoint(speed)], numerics, seconds
+    )
     ids, arrays = to_arrays(pd.DataFrame(rows), list(system.config["features"]["channels"]))
     return ids.reset_index(drop=True), arrays, float(rows[0]["fs_hz"])
 

@@ -15,6 +15,7 @@ from condmon.calibrate import (
 )
 from condmon.models.gear.drivetrain import operating_mesh_stiffness
 from condmon.systems import get_system
+from condmon.operating import OperatingPoint
 from condmon.systems.gear.bench import virtual_bench_rows
 from condmon.systems.gear.parameters import build_parameters
 
@@ -128,7 +129,7 @@ def _bench_spectra(config, bench, speeds, channels):
             lambda **overrides: build_parameters(config["model"], **overrides),
             bench,
             ["healthy"],
-            speeds,
+            [OperatingPoint(speed) for speed in speeds],
             numerics,
             0.5,
         )

@@ -76,6 +76,16 @@ def test_no_clear_evidence_refuses_nothing():
     assert implied_rate(freqs, power, FS, TEETH * RPM / 60)["rate_hz"] is None
 
 
+def test_silent_healthy_records_are_named_not_divided_by(tmp_path):
+    """A table whose healthy records are all zeros (a dead sensor, an empty export) has no
+    spectrum to check: named as such, where the weighted line centre once divided by zero."""
+    rows = make_rows("h0", "measured", "healthy", RPM, 0.0, FS, {"a1": np.zeros(8192)}, 4096)
+    path = tmp_path / "silent.parquet"
+    write_signal_table(rows, path)
+    (problem,) = mesh_line_problems(path, "healthy", TEETH)
+    assert "healthy records at 450 rpm hold only zeros (the 2 segments read)" in problem
+
+
 def test_the_gear_config_check_names_the_rate(tmp_path):
     """The default rig (a 29-tooth pinion, 450 rpm among its speeds) over a table at a wrong rate:
     refused when the config is read, before any job."""

@@ -151,11 +151,15 @@ def _init_worker(system, variant, values, duration_s):
 
 
 def _model_run(task):
-    speed, seed = task
+    point, seed = task
     w = _WORKER
     try:
         return w["system"].simulate_healthy(
-            w["variant"], w["values"], speed, w["duration"], seed
+            w["variant"],
+            w["system"].at_load(w["values"], point.load),
+            point.speed_rpm,
+            w["duration"],
+            seed,
         ), ""
     except SimulationError as exc:
         return None, str(exc)
@@ -182,7 +186,9 @@ def estimate_background(
     `method` incoherent, measured and model are the parts no other channel explains). The model's
     PSD is the mean over `runs` healthy runs of the calibrated model (`calibrated`: model_variant,
     parameters), each `sim_seconds` long with its own seed (so the model's per-run variability is
-    in the mean), cut into whole segments. No healthy record at a simulated speed: an empty frame."""
+    in the mean), cut into whole segments. No healthy record at a simulated speed: an empty frame.
+    A rig run at several loads: each operating point's records against the model at its load,
+    the speed's PSDs the mean over its points (what the model lacks is the machine's at any load)."""
     fs, n = system.output_rate_hz, system.segment_length
     channels = list(channels)
     if method not in METHODS:
@@ -203,9 +209,8 @@ def estimate_background(
             return segment_psd(segments, fs)
 
     healthy = frame[frame["health_state"] == system.healthy_state]
-    simulated = [float(s) for s in system.speeds_rpm]
-    speeds = sorted(float(s) for s in healthy["speed_rpm"].unique() if float(s) in simulated)
-    if not speeds:
+    points = [point for point in system.operating_points if point.holds(healthy).any()]
+    if not points:
         return pd.DataFrame(
             {c: pd.Series(dtype=object if c == "channel" else float) for c in COLUMNS}
         )
@@ -214,7 +219,7 @@ def estimate_background(
             f"calibration.sim_seconds: {sim_seconds} s is shorter than one segment "
             f"({n} samples at {fs:g} Hz)"
         )
-    tasks = [(speed, s) for speed in speeds for s in run_seeds(seed, runs)]
+    tasks = [(point, s) for point in points for s in run_seeds(seed, runs)]
     pool = ProcessPoolExecutor(
         max(1, min(processes, len(tasks))),
         mp_context=multiprocessing.get_context("fork"),
@@ -230,32 +235,45 @@ def estimate_background(
         results = list(pool.map(_model_run, tasks))
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-    parts = []
-    for speed in speeds:
+    by_point = {}
+    for point in points:
         done = [
             signals
-            for (s, _), (signals, _) in zip(tasks, results)
-            if s == speed and signals is not None
+            for (p, _), (signals, _) in zip(tasks, results)
+            if p == point and signals is not None
         ]
-        for (s, run_seed), (signals, error) in zip(tasks, results):
-            if s == speed and signals is None:
+        for (p, run_seed), (signals, error) in zip(tasks, results):
+            if p == point and signals is None:
                 log.warning(
-                    "background: the model's healthy run at %g rpm (seed %d) failed: %s",
-                    speed,
+                    "background: the model's healthy run at %s (seed %d) failed: %s",
+                    point.describe(),
                     run_seed,
                     error,
                 )
         if not done:
             raise SimulationError(
-                f"background: every healthy run of the calibrated model at {speed:g} rpm failed"
+                f"background: every healthy run of the calibrated model at {point.describe()} failed"
             )
         model_segments = np.concatenate([_segments(signals, channels, n) for signals in done])
         freqs, model = spectrum(model_segments)
-        _, measured_segments = to_arrays(
-            healthy[healthy["speed_rpm"].astype(float) == speed], channels
-        )
+        _, measured_segments = to_arrays(healthy[point.holds(healthy)], channels)
         _, measured = spectrum(measured_segments)
-        background = background_psd(measured, model)
+        by_point[point] = (measured, model, background_psd(measured, model))
+        log.info(
+            "background (%s) at %s from %d measured and %d model segments",
+            method,
+            point.describe(),
+            len(measured_segments),
+            len(model_segments),
+        )
+    parts = []
+    for speed in sorted({point.speed_rpm for point in points}):
+        measured, model, background = (
+            np.mean(
+                [psds[k] for point, psds in by_point.items() if point.speed_rpm == speed], axis=0
+            )
+            for k in range(3)
+        )
         for j, channel in enumerate(channels):
             parts.append(
                 pd.DataFrame(
@@ -270,11 +288,9 @@ def estimate_background(
                 )
             )
         log.info(
-            "background (%s) at %g rpm from %d measured and %d model segments: rms %s m/s^2",
+            "background (%s) at %g rpm: rms %s m/s^2",
             method,
             speed,
-            len(measured_segments),
-            len(model_segments),
             {
                 c: round(float(np.sqrt(background[j].sum() * (freqs[1] - freqs[0]))), 6)
                 for j, c in enumerate(channels)

@@ -30,6 +30,7 @@ from cmaes import CMA, CatCMA
 from condmon.features import SpectrumFeatures
 from condmon.signals import to_arrays
 from condmon.models.numerics import SimulationError
+from condmon.operating import as_point
 
 log = logging.getLogger(__name__)
 FAILED_COST = 1.0e3  # a diverged candidate is a bad candidate, not a crash of the search
@@ -128,22 +129,25 @@ def calibration_spectrum(spectrum: dict, resolution_hz: float) -> dict:
 
 
 class SpectrumModel:
-    """Mean spectra of a system's healthy runs at the calibration speeds for one candidate, the
-    callable `Calibrator` evaluates: __call__(variant, values) -> (n_speeds, n_channels,
-    n_bands), RMS bands of `calibration_spectrum`. Every run is `sim_seconds` long and cut into
-    the system's segments; `seed` makes a model with randomness repeatable."""
+    """Mean spectra of a system's healthy runs at the calibration's operating points (speeds, or
+    `OperatingPoint`s with their loads) for one candidate, the callable `Calibrator` evaluates:
+    __call__(variant, values) -> (n_points, n_channels, n_bands), RMS bands of
+    `calibration_spectrum`. Every run is `sim_seconds` long and cut into the system's segments;
+    `seed` makes a model with randomness repeatable."""
 
     def __init__(
         self,
         system,
-        speeds,
+        points,
         channels,
         spectrum: dict,
         resolution_hz: float,
         sim_seconds: float,
         seed: int = 1,
     ):
-        self.system, self.speeds, self.channels = system, [float(s) for s in speeds], list(channels)
+        self.system, self.channels = system, list(channels)
+        self.points = [as_point(point) for point in points]
+        self.speeds = [point.speed_rpm for point in self.points]
         self.sim_seconds, self.seed = float(sim_seconds), int(seed)
         self.output_rate = system.output_rate_hz
         self.segment_length = system.segment_length
@@ -176,15 +180,21 @@ class SpectrumModel:
     def __call__(self, variant: str, values: dict) -> np.ndarray:
         return self.mean_spectra(
             [
-                self.system.simulate_healthy(variant, values, speed, self.sim_seconds, self.seed)
-                for speed in self.speeds
+                self.system.simulate_healthy(
+                    variant,
+                    self.system.at_load(values, point.load),
+                    point.speed_rpm,
+                    self.sim_seconds,
+                    self.seed,
+                )
+                for point in self.points
             ]
         )
 
 
 def measured_spectra(
     frame: pd.DataFrame,
-    speeds,
+    points,
     channels,
     spectrum: dict,
     resolution_hz: float,
@@ -192,19 +202,20 @@ def measured_spectra(
     label: str = "healthy",
     tolerance_rpm: float = 0.0,
 ) -> np.ndarray:
-    """Mean amplitude spectra of the measured `label` segments per speed (records within
-    `tolerance_rpm` of it): (speeds, channels, bands), the calibration target."""
+    """Mean amplitude spectra of the measured `label` segments per operating point (speeds, or
+    `OperatingPoint`s: records within `tolerance_rpm` of its speed, at its load where it has one):
+    (points, channels, bands), the calibration target."""
     transformer = SpectrumFeatures(
         channels=list(channels), **calibration_spectrum(spectrum, resolution_hz)
     )
     out = []
-    for speed in speeds:
-        rows = frame[
-            (frame["health_state"] == label)
-            & ((frame["speed_rpm"] - float(speed)).abs() <= tolerance_rpm)
-        ]
+    for point in map(as_point, points):
+        at = (frame["speed_rpm"] - point.speed_rpm).abs() <= tolerance_rpm
+        if point.load is not None:
+            at &= np.isclose(frame["load"].astype(float), point.load)
+        rows = frame[(frame["health_state"] == label) & at]
         if rows.empty:
-            raise ValueError(f"no measured {label!r} records at {speed:g} rpm to calibrate on")
+            raise ValueError(f"no measured {label!r} records at {point.describe()} to calibrate on")
         _, arrays = to_arrays(rows, list(channels))
         out.append(transformer.transform(arrays, fs_hz).mean(0).reshape(len(channels), -1))
     return np.stack(out)
@@ -226,16 +237,17 @@ def calibrate_on_spectra(
     `System.calibrate` does."""
     start = time.perf_counter()
     fs = system.output_rate_hz
-    healthy = frame.loc[frame["health_state"] == system.healthy_state, "speed_rpm"].unique()
-    speeds = sorted(float(s) for s in healthy if float(s) in [float(x) for x in system.speeds_rpm])
-    if not speeds:
+    healthy = frame[frame["health_state"] == system.healthy_state]
+    points = [point for point in system.operating_points if point.holds(healthy).any()]
+    if not points:
         raise ValueError(
-            f"no measured {system.healthy_state!r} records at the simulated speeds "
-            f"{system.speeds_rpm} rpm to calibrate on"
+            f"no measured {system.healthy_state!r} records at the simulated operating points "
+            f"{[point.describe() for point in system.operating_points]} to calibrate on"
         )
+    speeds = sorted({point.speed_rpm for point in points})
     target = measured_spectra(
         frame,
-        speeds,
+        points,
         channels,
         spectrum,
         calibration["resolution_hz"],
@@ -244,7 +256,7 @@ def calibrate_on_spectra(
     )
     spectrum_model = SpectrumModel(
         system,
-        speeds,
+        points,
         channels,
         spectrum,
         calibration["resolution_hz"],
@@ -268,11 +280,10 @@ def calibrate_on_spectra(
         initial={b.name: nominal[b.name] for b in bounds},
     )
     log.info(
-        "calibrating %s of the %s system on %d healthy speeds %s, %d processes",
+        "calibrating %s of the %s system on its healthy records at %s, %d processes",
         [b.name for b in bounds],
         system.name,
-        len(speeds),
-        speeds,
+        [point.describe() for point in points],
         processes,
     )
     best, history = calibrator.run(spectrum_model, target, cost)
@@ -288,7 +299,8 @@ def calibrate_on_spectra(
     rows = [
         pd.DataFrame(
             dict(
-                speed_rpm=speed,
+                speed_rpm=point.speed_rpm,
+                **({} if point.load is None else {"load": point.load}),
                 channel=channel,
                 freq_hz=freqs,
                 measured=target[i, j],
@@ -296,7 +308,7 @@ def calibrate_on_spectra(
                 model_only=calibrated[i, j],
             )
         )
-        for i, speed in enumerate(speeds)
+        for i, point in enumerate(points)
         for j, channel in enumerate(channels)
     ]
     result = dict(
@@ -306,6 +318,11 @@ def calibrate_on_spectra(
         strategy=calibration["strategy"],
         cost_function=calibration["cost"],
         speeds_rpm=speeds,
+        **(
+            {}
+            if all(point.load is None for point in points)
+            else {"operating_points": [point.label for point in points]}
+        ),
         seconds=round(time.perf_counter() - start, 1),
         seconds_per_evaluation=float(history["seconds"].mean()),
         failed_evaluations=int((history["error"] != "").sum()),
@@ -359,22 +376,22 @@ def change_fit(simulated_change: np.ndarray, measured_change: np.ndarray) -> dic
 
 class StateSpectrumModel(SpectrumModel):
     """For one fault `state` and a candidate (variant, severities): its mean spectra over those of
-    its healthy twin (the same seed: the same manufacturing scatter and fluctuations), per speed.
-    The model runs at the healthy calibration `calibrated` (params.json)."""
+    its healthy twin (the same seed: the same manufacturing scatter and fluctuations), per
+    operating point. The model runs at the healthy calibration `calibrated` (params.json)."""
 
     def __init__(
         self,
         system,
         state,
         calibrated,
-        speeds,
+        points,
         channels,
         spectrum,
         resolution_hz,
         sim_seconds,
         seed=1,
     ):
-        super().__init__(system, speeds, channels, spectrum, resolution_hz, sim_seconds, seed)
+        super().__init__(system, points, channels, spectrum, resolution_hz, sim_seconds, seed)
         self.state, self.calibrated = state, calibrated
         self.healthy = self._spectra(system.healthy_state, None)
 
@@ -383,9 +400,19 @@ class StateSpectrumModel(SpectrumModel):
             self.mean_spectra(
                 [
                     self.system.simulate_state(
-                        self.calibrated, state, state_model, speed, self.sim_seconds, self.seed
+                        dict(
+                            self.calibrated,
+                            parameters=self.system.at_load(
+                                self.calibrated["parameters"], point.load
+                            ),
+                        ),
+                        state,
+                        state_model,
+                        point.speed_rpm,
+                        self.sim_seconds,
+                        self.seed,
                     )
-                    for speed in self.speeds
+                    for point in self.points
                 ]
             )
             + SPECTRUM_FLOOR
@@ -414,23 +441,31 @@ def calibrate_state(
     settings = calibration["per_state"]
     fs = system.output_rate_hz
     at = {
-        label: {float(s) for s in frame.loc[frame["health_state"] == label, "speed_rpm"].unique()}
+        label: [
+            point.describe()
+            for point in system.operating_points
+            if point.holds(frame[frame["health_state"] == label]).any()
+        ]
         for label in (state, system.healthy_state)
     }
-    speeds = sorted(at[state] & at[system.healthy_state] & {float(s) for s in system.speeds_rpm})
-    if not speeds:
+    points = [
+        point
+        for point in system.operating_points
+        if point.describe() in at[state] and point.describe() in at[system.healthy_state]
+    ]
+    if not points:
         raise ValueError(
-            f"calibration.per_state: no speed of {system.speeds_rpm} rpm has both calibration "
-            f"records of {state!r} ({sorted(at[state])}) and healthy ones "
-            f"({sorted(at[system.healthy_state])})"
+            f"calibration.per_state: no operating point of "
+            f"{[point.describe() for point in system.operating_points]} has both calibration "
+            f"records of {state!r} ({at[state]}) and healthy ones ({at[system.healthy_state]})"
         )
     resolution = calibration["resolution_hz"]
     target = (
-        measured_spectra(frame, speeds, channels, spectrum, resolution, fs, label=state)
+        measured_spectra(frame, points, channels, spectrum, resolution, fs, label=state)
         + SPECTRUM_FLOOR
     ) / (
         measured_spectra(
-            frame, speeds, channels, spectrum, resolution, fs, label=system.healthy_state
+            frame, points, channels, spectrum, resolution, fs, label=system.healthy_state
         )
         + SPECTRUM_FLOOR
     )
@@ -439,7 +474,7 @@ def calibrate_state(
         system,
         state,
         calibrated,
-        speeds,
+        points,
         channels,
         spectrum,
         resolution,
@@ -457,12 +492,11 @@ def calibrate_state(
         processes=processes,
     )
     log.info(
-        "calibrating the %s model (%s; %s) on %d speeds %s, %d processes",
+        "calibrating the %s model (%s; %s) at %s, %d processes",
         state,
         variants,
         [b.name for b in bounds],
-        len(speeds),
-        speeds,
+        [point.describe() for point in points],
         processes,
     )
     best, history = calibrator.run(model, target, fault_change_cost)
@@ -483,7 +517,12 @@ def calibrate_state(
         cost=best["cost"],
         cost_function="fault_change_cost (decades^2)",
         spread=float(settings["spread"]),
-        speeds_rpm=speeds,
+        speeds_rpm=sorted({point.speed_rpm for point in points}),
+        **(
+            {}
+            if all(point.load is None for point in points)
+            else {"operating_points": [point.label for point in points]}
+        ),
         records=records,
         evaluations=best["evaluations"],
         bounds={b.name: [b.low, b.high] for b in bounds},

@@ -10,6 +10,7 @@ import time
 from condmon.models.numerics import SimulationError
 from condmon.seeds import job_rng
 from condmon.signals import make_rows
+from condmon.operating import OperatingPoint
 
 log = logging.getLogger(__name__)
 
@@ -35,17 +36,18 @@ def simulate_with_retry(
     return None, errors
 
 
-def machine_id(speed_rpm: float, batch: int, index: int) -> str:
+def machine_id(point: OperatingPoint, batch: int, index: int) -> str:
     """The simulated machine a sample is: the same in every health state (``reference_segments``)."""
-    return f"{speed_rpm:g}rpm-b{batch:03d}-s{index:03d}"
+    return f"{point.label}-b{batch:03d}-s{index:03d}"
 
 
 def machine_of(record_id: str) -> str:
     """The machine id of a simulated record id (``sim-<health state>-<machine id>``)."""
     parts = str(record_id).rsplit("-", 3)
-    if len(parts) != 4 or not parts[0].startswith("sim-") or not parts[1].endswith("rpm"):
+    if len(parts) != 4 or not parts[0].startswith("sim-") or "rpm" not in parts[1]:
         raise ValueError(
-            f"{record_id!r} is not a simulated record id (sim-<health state>-<speed>rpm-b<batch>-s<sample>)"
+            f"{record_id!r} is not a simulated record id (sim-<health state>-<operating "
+            "point>-b<batch>-s<sample>, the point 450rpm or 450rpm_20Nm)"
         )
     return "-".join(parts[1:])
 
@@ -60,13 +62,15 @@ def simulate_batch(
     simulation: dict,
     background=None,
     reference_segments: int = 0,
+    load: float | None = None,
 ):
     """Signal-table rows for `samples` runs of one (health state, speed, batch), and a report
-    (timings, failures with their parameters).
+    (timings, failures with their parameters); at `load` (an `OperatingPoint.load`, the rig's
+    unit; None: the model's one load).
 
     Every sample draws its parameters (`system.sample_parameters`) and then a run seed from the
-    job's stream, seeded by (simulation.seed, health state, speed, batch): reruns and any job order
-    give the same records. With a `background` (`condmon.background.Background`, the calibration's
+    job's stream, seeded by (simulation.seed, health state, speed, batch, and the load where
+    there is one): reruns and any job order give the same records. With a `background` (`condmon.background.Background`, the calibration's
     estimate of what healthy records carry and the model lacks) every sample gets a random-phase
     Gaussian realisation of it per channel, drawn from the sample's own stream; without one (or on a
     channel it does not cover), white noise of the calibrated `sensor_noise` RMS (when the
@@ -83,11 +87,14 @@ def simulate_batch(
     time with its damaged twins' samples.
     """
     paired = reference_segments > 0
+    point = OperatingPoint(float(speed_rpm), load)
     stream = (
         ("simulate", float(speed_rpm), batch)
         if paired
         else ("simulate", health_state, float(speed_rpm), batch)
     )
+    # a load draws a stream of its own; the speed alone keeps the one it had
+    stream += () if load is None else (float(load),)
     rng = job_rng(simulation["seed"], *stream)
     acquisition = (health_state,) if paired else ()  # paired twins: each state its own noise
     fs, segment_length = system.output_rate_hz, system.segment_length
@@ -113,11 +120,13 @@ def simulate_batch(
         )
     rows, failures, seconds = [], [], []
     for i in range(samples):
-        values = system.sample_parameters(calibrated, health_state, rng, simulation)
+        values = system.at_load(
+            system.sample_parameters(calibrated, health_state, rng, simulation), load
+        )
         sample_seed = int(
             rng.integers(2**32)
         )  # drawn for every sample, failed or not: streams stay aligned
-        record_id = f"sim-{health_state}-{machine_id(speed_rpm, batch, i)}"
+        record_id = f"sim-{health_state}-{machine_id(point, batch, i)}"
         start = time.perf_counter()
         signals, errors = simulate_with_retry(
             system, values, health_state, float(speed_rpm), duration, sample_seed
@@ -154,7 +163,7 @@ def simulate_batch(
             "simulated",
             health_state,
             speed_rpm,
-            system.sample_load(speed_rpm, values),
+            system.sample_load(speed_rpm, values) if load is None else float(load),
             fs,
             signals,
             segment_length=segment_length,
@@ -162,7 +171,7 @@ def simulate_batch(
         )
     report = batch_report(
         health_state,
-        speed_rpm,
+        point,
         batch,
         samples,
         failures,
@@ -176,7 +185,7 @@ def simulate_batch(
 
 def batch_report(
     health_state,
-    speed_rpm,
+    point,
     batch,
     samples,
     failures,
@@ -190,13 +199,14 @@ def batch_report(
     if len(failures) > max_failed_share * samples:
         first = failures[0]
         raise TooManyFailures(
-            f"{len(failures)} of {samples} {what} of {health_state} at {speed_rpm:g} rpm batch {batch} "
+            f"{len(failures)} of {samples} {what} of {health_state} at {point.describe()} batch {batch} "
             f"failed (tolerated share {max_failed_share:g}); first: {first['record_id']} "
             f"{first['errors'][-1]} with parameters {json.dumps(first['params'], default=str)}"
         )
     return {
         "health_state": health_state,
-        "speed_rpm": float(speed_rpm),
+        "speed_rpm": float(point.speed_rpm),
+        **({} if point.load is None else {"load": float(point.load)}),
         "batch": batch,
         "samples": samples,
         "succeeded": samples - len(failures),

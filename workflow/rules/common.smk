@@ -1,5 +1,6 @@
 # Helpers shared by the rules: output paths and the lists of jobs the config asks for.
 import json
+import re
 from pathlib import Path
 
 
@@ -20,17 +21,14 @@ LOGS = f"{RESULTS}/logs"
 BENCHMARKS = f"{RESULTS}/benchmarks"
 
 
-def speed_label(speed):
-    return f"{float(speed):g}"
-
-
 # The simulated system (condmon.systems): its health states, speeds, measured inputs, calibrations
 # and the config each job needs; no rule looks at the system's name.
 from condmon.systems import get_system
 
 SYSTEM = get_system(config)
 HEALTH_STATES = SYSTEM.health_states
-SPEEDS = [speed_label(s) for s in SYSTEM.speeds_rpm]
+# the simulation's operating points (OperatingPoint.label): 450rpm, or 450rpm_20Nm with rig.loads
+POINTS = [point.label for point in SYSTEM.operating_points]
 # What an operating condition is (condition_holdout, strata); the config's, or the system's own.
 CONDITION = config["hybrid"]["condition"]
 CLASSIFIERS = [name for name, c in config["classifiers"].items() if c["enabled"]]
@@ -53,7 +51,7 @@ RESERVE = dict(config["calibration"]["reserve"], fault_states=STATE_CALIBRATIONS
 
 wildcard_constraints:
     health="|".join(HEALTH_STATES),
-    speed="[0-9.]+",
+    point="|".join(re.escape(label) for label in POINTS),
     batch="[0-9]+",
     classifier="|".join(CLASSIFIERS),
     protocol="|".join(PROTOCOLS),
@@ -77,9 +75,9 @@ BATCHES = [f"{b:03d}" for b in range(N_BATCHES)]
 def simulated_batches(extension="parquet"):
     """Every simulation job's signal table (or its .json report)."""
     return expand(
-        f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.{extension}",
+        f"{RESULTS}/simulated/{{health}}/{{point}}/batch{{batch}}.{extension}",
         health=HEALTH_STATES,
-        speed=SPEEDS,
+        point=POINTS,
         batch=BATCHES,
     )
 
@@ -372,7 +370,7 @@ def upstream_benchmarks():
             else {}
         ),
         "simulate": expand(
-            rules.simulate.benchmark, health=HEALTH_STATES, speed=SPEEDS, batch=BATCHES
+            rules.simulate.benchmark, health=HEALTH_STATES, point=POINTS, batch=BATCHES
         ),
         "features_measured": [rules.features_measured.benchmark],
         "features_simulated": [rules.features_simulated.benchmark],

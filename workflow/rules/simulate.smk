@@ -1,4 +1,5 @@
-# Stage 3: the system's model runs per health state, speed and batch, each sample drawn anew.
+# Stage 3: the system's model runs per health state, operating point (speed, and load where the
+# rig runs several) and batch, each sample drawn anew.
 
 
 rule simulate:
@@ -9,8 +10,8 @@ rule simulate:
         calibration=calibration_outputs("params.json", SIM_CALIBRATION),
         # the background the simulation adds (calibration.background), so an edit of it reruns simulate
     output:
-        signals=f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.parquet",
-        report=f"{RESULTS}/simulated/{{health}}/{{speed}}rpm/batch{{batch}}.json",
+        signals=f"{RESULTS}/simulated/{{health}}/{{point}}/batch{{batch}}.parquet",
+        report=f"{RESULTS}/simulated/{{health}}/{{point}}/batch{{batch}}.json",
     params:
         # + features.healthy_reference: twins in every health state, healthy samples this much longer
         **({"reference_segments": REFERENCE_SEGMENTS} if REFERENCE_SEGMENTS else {}),
@@ -23,8 +24,8 @@ rule simulate:
     conda:
         "../envs/simulation.yaml"
     benchmark:
-        f"{BENCHMARKS}/simulate/{{health}}_{{speed}}rpm_batch{{batch}}.tsv"
+        f"{BENCHMARKS}/simulate/{{health}}_{{point}}_batch{{batch}}.tsv"
     log:
-        f"{LOGS}/simulate/{{health}}_{{speed}}rpm_batch{{batch}}.log",
+        f"{LOGS}/simulate/{{health}}_{{point}}_batch{{batch}}.log",
     script:
         "../scripts/simulate.py"

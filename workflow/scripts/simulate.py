@@ -1,4 +1,4 @@
-"""One simulation job: a batch of the system's runs for one health state and speed."""
+"""One simulation job: a batch of the system's runs for one health state and operating point."""
 
 import json
 
@@ -28,12 +28,15 @@ if "state_calibration" in snakemake.input.keys():
 background = (
     read_background(snakemake.input.background) if "background" in snakemake.input.keys() else None
 )
+system = load_system(p.system)
+point = system.operating_point(snakemake.wildcards.point)
 rows, report = simulate_batch(
-    load_system(p.system),
+    system,
     calibrated,
     snakemake.wildcards.health,
-    float(snakemake.wildcards.speed),
+    point.speed_rpm,
     int(snakemake.wildcards.batch),
+    load=point.load,
     samples=p.samples,
     simulation=p.simulation,
     background=background,

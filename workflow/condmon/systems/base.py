@@ -31,9 +31,10 @@ import pandas as pd
 import yaml
 
 from condmon.models.numerics import SimulationError
+from condmon.operating import OperatingPoint
 from condmon.signals import SPECIMEN_COLUMNS
 
-__all__ = ["System", "SimulationError"]
+__all__ = ["OperatingPoint", "System", "SimulationError"]
 
 # Stages whose jobs build a system object (job_config's `stage`).
 STAGES = ("bench", "measured", "calibrate", "simulate", "features", "baselines")
@@ -117,6 +118,27 @@ class System(ABC):
     @abstractmethod
     def speeds_rpm(self) -> list[float]:
         """Simulated speeds."""
+
+    @property
+    def operating_points(self) -> list[OperatingPoint]:
+        """The operating conditions the rig is calibrated and simulated at: every speed (a system
+        whose rig runs several loads per speed lists every (speed, load))."""
+        return [OperatingPoint(speed) for speed in self.speeds_rpm]
+
+    def operating_point(self, label: str) -> OperatingPoint:
+        """The operating point of a job's label (`OperatingPoint.label`)."""
+        points = {point.label: point for point in self.operating_points}
+        if label not in points:
+            raise ValueError(
+                f"operating point {label!r}: the {self.name} system runs {sorted(points)}"
+            )
+        return points[label]
+
+    def at_load(self, parameters: dict, load: float | None) -> dict:
+        """`parameters` of one run at `load` (an `OperatingPoint.load`; None: as they are)."""
+        if load is None:
+            return dict(parameters)
+        raise ValueError(f"the {self.name} system has no load as an operating condition")
 
     @property
     def settle_seconds(self) -> float:

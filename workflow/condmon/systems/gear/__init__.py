@@ -26,6 +26,7 @@ from condmon.models.gear.drivetrain import (
     simulate,
 )
 from condmon.models.gear.shaft_damage import SHAFT_HEALTH_STATES
+from condmon.operating import OperatingPoint
 from condmon.systems.base import System
 from condmon.systems.gear.mesh_lines import mesh_line_problems
 from condmon.systems.gear.parameters import (
@@ -54,35 +55,61 @@ BENCH_NUMERICS = (
 log = logging.getLogger(__name__)
 
 
-def speed_label(speed) -> str:
-    return f"{float(speed):g}"
-
-
 def unlisted_measured_speeds(measured_table, speeds_rpm) -> list[str]:
     """A problem naming the measured table's speeds that rig.speeds_rpm lacks: the rig is
     calibrated and simulated at its listed speeds only, so such records would be tested against
     a model never run at their speed (a table that cannot be read is the measured job's to name)."""
+    return unlisted_measured(measured_table, "speed_rpm", speeds_rpm, "rig.speeds_rpm", "rpm")
+
+
+def unlisted_measured_loads(measured_table, loads, unit) -> list[str]:
+    """As `unlisted_measured_speeds`, for the table's loads against rig.loads (in rig.load_unit)."""
+    return unlisted_measured(measured_table, "load", loads, "rig.loads", unit)
+
+
+def unlisted_measured(measured_table, column, listed, key, unit) -> list[str]:
+    """A problem naming the measured table's `column` values that the config's `key` (`listed`)
+    lacks, with a few of their records."""
     if not measured_table or not Path(measured_table).is_file():
         return []
     import pyarrow.parquet as pq
 
     try:
-        table = pq.read_table(measured_table, columns=["record_id", "speed_rpm"]).to_pandas()
+        table = pq.read_table(measured_table, columns=["record_id", column]).to_pandas()
     except Exception:  # pyarrow raises several types; the measured job names the file's problem
         return []
-    listed = np.asarray(speeds_rpm, float)
-    unlisted = table[
-        ~np.isclose(table["speed_rpm"].to_numpy(float)[:, None], listed[None, :]).any(axis=1)
-    ]
+    values = table[column].to_numpy(float)
+    unlisted = table[~np.isclose(values[:, None], np.asarray(listed, float)[None, :]).any(axis=1)]
     if unlisted.empty:
         return []
-    speeds = sorted(unlisted["speed_rpm"].unique())
+    found = sorted(unlisted[column].unique())
     records = sorted(unlisted["record_id"].unique())
     return [
-        f"measured_table: records at {[float(f'{s:g}') for s in speeds]} rpm ({records[:3]}"
-        f"{' ...' if len(records) > 3 else ''}) but rig.speeds_rpm is {list(speeds_rpm)}; add "
-        "those speeds to rig.speeds_rpm (calibrated and simulated there) or leave the records out"
+        f"measured_table: records at {[float(f'{v:g}') for v in found]} {unit} ({records[:3]}"
+        f"{' ...' if len(records) > 3 else ''}) but {key} is {list(listed)}; add "
+        f"those to {key} (calibrated and simulated there) or leave the records out"
     ]
+
+
+def condition_of_loads_problems(speeds_rpm, loads, condition) -> list[str]:
+    """A rig run at several loads needs `hybrid.condition` to be what varies: each condition's
+    healthy records are its machine's reference and its stratum, so a speed's reference pooled
+    over its loads would miss every load's own mesh level. A grid of several speeds and several
+    loads has no single such column (not supported yet)."""
+    if len(set(loads)) < 2:
+        return []
+    if len(set(speeds_rpm)) >= 2:
+        return [
+            f"rig.loads {list(loads)} at rig.speeds_rpm {list(speeds_rpm)}: a grid of several speeds "
+            "and several loads is not supported yet (hybrid.condition takes one of them); run "
+            "each speed as its own config with hybrid.condition: load"
+        ]
+    if condition != "load":
+        return [
+            f"rig.loads {list(loads)} at one speed: set hybrid.condition: load (it is "
+            f"{condition!r}), so each load's healthy records are its own reference and stratum"
+        ]
+    return []
 
 
 class GearSystem(System):
@@ -121,6 +148,28 @@ class GearSystem(System):
         return [float(s) for s in self.config["rig"]["speeds_rpm"]]
 
     @property
+    def operating_points(self) -> list[OperatingPoint]:
+        rig = self.config["rig"]
+        if rig["loads"] is None:
+            return super().operating_points
+        return [
+            OperatingPoint(float(speed), float(load), rig["load_unit"])
+            for speed in self.speeds_rpm
+            for load in rig["loads"]
+        ]
+
+    def load_torque(self, load: float) -> float:
+        """The output shaft's torque (N m, the model's `load_torque`) of a load in `rig.load_unit`."""
+        if self.config["rig"]["load_unit"] == "percent":
+            return float(self.config["model"]["load_torque"]) * float(load) / 100.0
+        return float(load)
+
+    def at_load(self, parameters, load):
+        if load is None:
+            return dict(parameters)
+        return dict(parameters, load_torque=self.load_torque(load))
+
+    @property
     def settle_seconds(self) -> float:
         return float(self.config["numerics"]["settle_time"])
 
@@ -142,13 +191,18 @@ class GearSystem(System):
         return {k: v for k, v in calibration.items() if k != "mesh_stiffness_models"}
 
     def measured_parts(self) -> list[str]:
+        return list(self._bench_parts())
+
+    def _bench_parts(self) -> dict:
+        """{part: (health state, operating point)}: the virtual bench's jobs, one per state and
+        point (none with a measured table)."""
         if self.measured_table:
-            return []
-        return [
-            f"{health}_{speed_label(speed)}rpm"
+            return {}
+        return {
+            f"{health}_{point.label}": (health, point)
             for health in self.health_states
-            for speed in self.speeds_rpm
-        ]
+            for point in self.operating_points
+        }
 
     def job_config(self, stage: str, variant: str | None = None) -> dict:
         config = super().job_config(stage, variant)
@@ -235,6 +289,13 @@ class GearSystem(System):
         if "condition_holdout" in config["hybrid"]["protocols"]:
             problems += self.condition_holdout_problems()
         problems += unlisted_measured_speeds(config["measured_table"], rig["speeds_rpm"])
+        if rig["loads"] is not None:
+            problems += unlisted_measured_loads(
+                config["measured_table"], rig["loads"], rig["load_unit"]
+            )
+            problems += condition_of_loads_problems(
+                rig["speeds_rpm"], rig["loads"], config["hybrid"]["condition"]
+            )
         # a rate the healthy records' mesh lines contradict (a guessed fs_hz), named with the rate they imply
         problems += mesh_line_problems(
             config["measured_table"],
@@ -273,15 +334,17 @@ class GearSystem(System):
     def measured_part_rows(self, part: str) -> list[dict]:
         from condmon.systems.gear.bench import virtual_bench_rows
 
-        health, speed = part.rsplit("_", 1)
+        health, point = self._bench_parts()[part]
         bench = self.config["virtual_bench"]
         return virtual_bench_rows(
             self.parameters,
             bench,
             [health],
-            [float(speed.removesuffix("rpm"))],
+            [point],
             dict(self.numerics, **{key: bench[key] for key in BENCH_NUMERICS}),
             self.config["rig"]["segment_seconds"],
+            load_torque=self.load_torque,
+            table_load=self.table_load,
         )
 
     def bench_differences(self) -> list[dict]:
@@ -445,8 +508,10 @@ class GearSystem(System):
                 )
             except Exception:  # an unreadable table: the measured job names it
                 return []
+        elif config["rig"]["loads"] is not None:  # the virtual bench runs every listed load
+            values = sorted(set(config["rig"]["loads"]))
         else:
-            values = [float(config["model"]["load_torque"])]
+            values = [self.table_load(config["model"]["load_torque"])]
         if len(values) >= 2:
             return []
         return [
@@ -460,7 +525,14 @@ class GearSystem(System):
         return dict(parameters, mesh_stiffness=float(stiffness) * 1e6)
 
     def sample_load(self, speed_rpm, parameters) -> float:
-        return float(self.config["model"]["load_torque"])
+        """The load in the table's unit (`rig.load_unit`) the run had (`at_load`'s, or the model's)."""
+        return self.table_load(parameters.get("load_torque", self.config["model"]["load_torque"]))
+
+    def table_load(self, torque: float) -> float:
+        """An output torque (N m) in `rig.load_unit`: `load_torque`'s inverse."""
+        if self.config["rig"]["load_unit"] == "percent":
+            return 100.0 * float(torque) / float(self.config["model"]["load_torque"])
+        return float(torque)
 
     # -- features ----------------------------------------------------------------------------
     # -- features: the order-domain gear diagnostics (order_features.py) and the residual

@@ -22,13 +22,22 @@ def bench_form(bench: dict) -> BenchForm:
 
 
 def virtual_bench_rows(
-    parameters, bench: dict, health_states, speeds_rpm, numerics: dict, segment_seconds: float
+    parameters,
+    bench: dict,
+    health_states,
+    points,
+    numerics: dict,
+    segment_seconds: float,
+    load_torque=float,
+    table_load=float,
 ) -> list[dict]:
-    """Records of the virtual bench: `records_per_state` acquisitions per health state and speed,
-    each `record_seconds` long, cut into segments. Source is always `virtual_bench`.
-    `parameters(**overrides)` builds the rig's GearDrivetrainParameters (the system's); the bench
-    overrides any of its fields (`model_overrides`, then `true_parameters`), has its own gears and
-    its own fault forms (`faults`)."""
+    """Records of the virtual bench: `records_per_state` acquisitions per health state and
+    operating point (`OperatingPoint`s), each `record_seconds` long, cut into segments. Source is
+    always `virtual_bench`. `parameters(**overrides)` builds the rig's GearDrivetrainParameters
+    (the system's); the bench overrides any of its fields (`model_overrides`, then
+    `true_parameters`), has its own gears and its own fault forms (`faults`); a point's load
+    (`load_torque(load)`: its output torque, N m) is the operator's, over the truth. The records'
+    `load` is the point's, or `table_load(torque)` of the bench's one torque."""
     form = bench_form(bench)
     settings = simulation_settings(numerics, duration=bench["record_seconds"])
     segment_length = int(round(segment_seconds * settings.output_rate))
@@ -44,16 +53,20 @@ def virtual_bench_rows(
             bench["faulty_tooth"],
             job_rng(bench["seed"], "bench fault", health_state),
         )
-        for speed in speeds_rpm:
-            rng = job_rng(bench["seed"], "virtual_bench", health_state, float(speed))
-            params = parameters(speed_rpm=float(speed), health_state=model_state, **truth)
+        for point in points:
+            speed = float(point.speed_rpm)
+            # a point with a load draws a stream of its own; the speed alone keeps the one it had
+            loaded = () if point.load is None else (float(point.load),)
+            rng = job_rng(bench["seed"], "virtual_bench", health_state, speed, *loaded)
+            at_load = {} if point.load is None else {"load_torque": load_torque(point.load)}
+            params = parameters(speed_rpm=speed, health_state=model_state, **dict(truth, **at_load))
             for k in range(bench["records_per_state"]):
                 start = time.perf_counter()
                 signals, mesh_phase = bench_record(params, form, settings, rng, gears, fault_maps)
                 log.info(
-                    "virtual bench %s %s rpm record %d of %d: %.1f s",
+                    "virtual bench %s %s record %d of %d: %.1f s",
                     health_state,
-                    speed,
+                    point.describe(),
                     k + 1,
                     bench["records_per_state"],
                     time.perf_counter() - start,
@@ -65,11 +78,11 @@ def virtual_bench_rows(
                     "damaged_teeth": [t for t, m in enumerate(fault_maps) if m is not None],
                 }
                 rows += make_rows(
-                    f"vb-{health_state}-{speed:g}rpm-r{k:02d}",
+                    f"vb-{health_state}-{point.label}-r{k:02d}",
                     "virtual_bench",
                     health_state,
                     speed,
-                    params.load_torque,
+                    table_load(params.load_torque) if point.load is None else point.load,
                     settings.output_rate,
                     signals,
                     segment_length=segment_length,

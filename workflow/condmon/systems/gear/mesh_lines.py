@@ -60,6 +60,8 @@ def strongest_line(freqs, power, low_hz: float, high_hz: float) -> tuple[float, 
     peak = inside[int(np.argmax(ratios))]
     # the line's frequency between bins: the power-weighted centre of its bin and the two beside
     near = slice(max(peak - 1, 0), peak + 2)
+    if not power[near].sum() > 0:  # a silent spectrum: no line, its flat bin as it is
+        return float(freqs[peak]), float(ratios.max())
     return float(np.average(freqs[near], weights=power[near])), float(ratios.max())
 
 
@@ -144,9 +146,17 @@ def mesh_line_problems(measured_table, healthy_state: str, teeth: int) -> list[s
     """The config check: per table rate, a problem where the healthy records' mesh lines say the
     rate is wrong (`rate_problem`)."""
     by_rate: dict = {}
+    silent = []
     for (speed, fs), signals in healthy_records(measured_table, healthy_state).items():
+        if not np.any(signals):
+            silent.append(
+                f"measured_table: the healthy records at {speed:g} rpm hold only zeros (the "
+                f"{len(signals)} segments read): a dead sensor or an empty export, no spectrum "
+                "to calibrate on or to check fs_hz against"
+            )
+            continue
         shaft_hz = speed / 60.0
         freqs, power = power_spectrum(signals, fs, resolution_hz=shaft_hz / 8)
         by_rate.setdefault(fs, {})[speed] = implied_rate(freqs, power, fs, teeth * shaft_hz)
     problems = [rate_problem(findings, fs, teeth) for fs, findings in by_rate.items()]
-    return [p for p in problems if p]
+    return silent + [p for p in problems if p]
