@@ -139,6 +139,71 @@ def test_a_study_table_reads_a_runs_report_beside_the_studys_figures(tmp_path, m
     assert figures["cpu_seconds"] == 5.0 and figures["simulated_validation_accuracy"] is None
 
 
+def test_a_condition_table_reads_a_runs_figures_per_condition(tmp_path, monkeypatch):
+    """benchmarks/condition_table.py: per condition, classifier and measured share the mean over
+    repeats of record_split's balanced accuracy and false alarms, and the ceiling per condition."""
+    import importlib.util
+
+    import pandas as pd
+
+    spec = importlib.util.spec_from_file_location(
+        "condition_table", ROOT / "benchmarks" / "condition_table.py"
+    )
+    condition_table = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(condition_table)
+    report = tmp_path / "results" / "run" / "report"
+    report.mkdir(parents=True)
+    keys = {"classifier": "svm", "protocol": "record_split", "records": "all"}
+    pd.DataFrame(
+        [
+            dict(
+                keys,
+                measured_percent=0,
+                repeat=r,
+                condition="load=5",
+                balanced_accuracy=b,
+                false_alarm_rate=f,
+            )
+            for r, b, f in [(0, 0.9, 0.25), (1, 0.8, 0.0)]
+        ]
+        + [
+            dict(
+                keys,
+                measured_percent=50,
+                repeat=0,
+                condition="load=5",
+                balanced_accuracy=0.1,
+                false_alarm_rate=0.0,
+            ),
+            dict(
+                keys,
+                measured_percent=0,
+                repeat=0,
+                condition="load=5",
+                balanced_accuracy=0.1,
+                false_alarm_rate=0.0,
+                protocol="condition_holdout",
+            ),
+        ]
+    ).to_csv(report / "evaluation.csv", index=False)
+    separability = {
+        "condition": "load",
+        "per_condition": {
+            "5": {"balanced_accuracy": 0.97, "chance": {"upper": 0.6}, "reads_above_chance": True},
+            "10": {"balanced_accuracy": None, "refused": "fewer than 3 records"},
+        },
+    }
+    (report / "summary.json").write_text(json.dumps({"measured_separability": separability}))
+    monkeypatch.setattr(condition_table, "ROOT", tmp_path)
+    figures = condition_table.condition_table("run")
+    assert figures["per_condition"] == {
+        "load=5, svm, 0 %": {"balanced_accuracy": 0.85, "false_alarm_rate": 0.125}
+    }
+    assert figures["ceiling"] == {
+        "load=5": {"balanced_accuracy": 0.97, "chance_upper": 0.6, "reads_above_chance": True}
+    }
+
+
 def test_the_run_times_benchmark_reads_a_runs_job_timings(tmp_path):
     """benchmarks/run_times.py records a run's jobs from its report/job_timings.csv: the window
     of its jobs against their CPU seconds over the cores, and each rule's row."""
