@@ -168,3 +168,31 @@ def test_the_config_check_names_an_unlisted_load_and_a_condition_that_is_not_the
         grid = {**LOADS, "rig": {**LOADS["rig"], "speeds_rpm": [450, 775]}}
         config_of(".test/config/smoke.yaml", grid)
     config_of(".test/config/smoke.yaml", LOADS)
+
+
+def test_the_calibration_and_its_background_run_each_load(gear):
+    """A bench of two loads calibrates on each load's healthy records with the model at that
+    load (one generation of four), and the background is one per speed."""
+    from condmon.background import estimate_background
+
+    frame = pd.DataFrame(
+        gear.measured_part_rows("healthy_775rpm_5Nm")
+        + gear.measured_part_rows("healthy_775rpm_20Nm")
+    )
+    config = gear.config
+    calibration = dict(
+        config["calibration"], population=4, generations=1, sim_seconds=0.2, contact_laws=["flores"]
+    )
+    channels = list(config["features"]["channels"])[:2]
+    result, _, spectra = gear.calibrate(
+        frame, "potential_energy", calibration, config["features"]["spectrum"], channels
+    )
+    assert result["operating_points"] == ["775rpm_5Nm", "775rpm_20Nm"]
+    assert result["speeds_rpm"] == [775.0]
+    model = spectra.groupby("load")["model_only"].sum()
+    assert sorted(model.index) == [5.0, 20.0] and model[5.0] != model[20.0]
+    background = estimate_background(
+        gear, frame, result, channels, runs=1, sim_seconds=0.2, seed=1, method="deficit"
+    )
+    assert sorted(background["speed_rpm"].unique()) == [775.0]
+    assert len(background) == len(channels) * background["freq_hz"].nunique()
