@@ -196,3 +196,76 @@ def test_the_calibration_and_its_background_run_each_load(gear):
     )
     assert sorted(background["speed_rpm"].unique()) == [775.0]
     assert len(background) == len(channels) * background["freq_hz"].nunique()
+
+
+def _rig_table(gear, path, fs_hz):
+    """The bench's records as a user's rig gives them: two single-axis sensors (v1, v2), one
+    record per state and load (the bench's records of each, one after another), no params,
+    declared at `fs_hz`."""
+    bench = pd.DataFrame(
+        [row for part in gear.measured_parts() for row in gear.measured_part_rows(part)]
+    )
+    bench = bench[bench["channel"].isin(["A1_y", "A2_y"])].drop(columns="params")
+    bench["channel"] = bench["channel"].map({"A1_y": "v1", "A2_y": "v2"})
+    bench["source"], bench["fs_hz"] = "measured", float(fs_hz)
+    bench = bench.sort_values(["health_state", "load", "record_id", "segment"])
+    bench["record_id"] = "rig-" + bench["health_state"] + "-" + bench["load"].map("{:g}Nm".format)
+    bench["segment"] = bench.groupby(["record_id", "channel"]).cumcount().astype("int32")
+    bench.to_parquet(path)  # as a rig writes it: without the optional params column
+    return path
+
+
+# the bench of the rig test: segments of 0.25 s, whose spectrum resolves the mesh line from one
+# a tenth off (the rate check refuses on clear evidence only)
+RIG = {**LOADS, "rig": {**LOADS["rig"], "segment_seconds": 0.25}, "features": {}}
+
+
+def _rig_config(table, fs_hz):
+    return {
+        **LOADS,
+        "rig": {**LOADS["rig"], "output_rate_hz": float(fs_hz), "segment_seconds": 1280 / fs_hz},
+        "run_name": "rig",
+        "measured_table": str(table),
+        "model": {
+            **LOADS["model"],
+            "sensors": {
+                "v1": {"housing": 0, "directions": ["y"]},
+                "v2": {"housing": 2, "directions": ["y"]},
+            },
+        },
+        "features": {"spectrum": {"resolution_hz": 5.0}, "channels": ["v1", "v2"]},
+        "calibration": {"reserve": {"each_condition": True, "calibration_segments": 2}},
+    }
+
+
+@pytest.mark.pipeline
+def test_a_single_axis_table_of_one_record_per_state_and_load(tmp_path):
+    """Issue 73's user: single-axis sensors, one record per state and load at one speed. At a
+    rate the spectrum contradicts the config check names the rate the mesh lines imply; at the
+    right one the table runs through the hybrid splits with no cutting by hand: each load's lone
+    healthy record split in time, condition_holdout holding out each load."""
+    import yaml
+
+    from condmon.hybrid import read_split_table
+    from conftest import copy_project, snakemake
+
+    gear = system_of(".test/config/smoke.yaml", RIG)
+    wrong = 1.1 * gear.output_rate_hz
+    table = _rig_table(gear, tmp_path / "wrong.parquet", wrong)
+    with pytest.raises(ConfigError, match=r"the lines imply a rate of 51(19|2\d) Hz"):
+        config_of(".test/config/smoke.yaml", _rig_config(table, wrong))
+
+    table = _rig_table(gear, tmp_path / "rig.parquet", gear.output_rate_hz)
+    workdir = copy_project(tmp_path / "project")
+    config = dict(_rig_config(table, gear.output_rate_hz), base=".test/config/smoke.yaml")
+    (tmp_path / "rig.yaml").write_text(yaml.safe_dump(config))
+    snakemake(
+        workdir, "--cores", "1", "--until", "hybrid", "--configfile", str(tmp_path / "rig.yaml")
+    )
+    splits = read_split_table(workdir / "results/rig/hybrid/record_split.parquet")
+    healthy = splits[splits["record_id"].str.startswith("rig-healthy")]
+    roles = healthy.groupby("record_id")["role"].agg(set)
+    assert sorted(roles.index) == ["rig-healthy-20Nm", "rig-healthy-5Nm"]
+    assert all({"calibration", "unused", "test"} <= r for r in roles)
+    held_out = read_split_table(workdir / "results/rig/hybrid/condition_holdout.parquet")
+    assert sorted(held_out["holdout"].unique()) == ["load=20", "load=5"]

@@ -69,10 +69,23 @@ def implied_rate(freqs, power, fs_hz: float, mesh_hz: float) -> dict:
     """What the spectrum says of the mesh line: its line-to-floor at `mesh_hz` (the larger of the
     first two harmonics, `at_mesh`), the strongest line within `SEARCH` of it (`found_hz`,
     `found`), and `rate_hz`, the rate that puts that line on the mesh frequency where the evidence
-    is clear (none at the mesh, a clear line off it), else None."""
-    at_mesh = max(line_to_floor(freqs, power, mesh_hz), line_to_floor(freqs, power, 2 * mesh_hz))
+    is clear, else None. Clear: a clear line off the mesh frequency, `ABOVE` times any there, and
+    either nothing at the mesh's first two harmonics or its own second harmonic clear where the
+    mesh's is absent (a wrong rate moves the harmonics together, so another machine line that a
+    wrong rate happens to put on the mesh frequency does not hide it)."""
+    first, second = (line_to_floor(freqs, power, k * mesh_hz) for k in (1, 2))
+    at_mesh = max(first, second)
     found_hz, found = strongest_line(freqs, power, mesh_hz / SEARCH, mesh_hz * SEARCH)
-    clear = at_mesh < PRESENT and found >= CLEAR and found >= ABOVE * max(at_mesh, 1.0)
+    harmonics_moved = (
+        second < PRESENT and line_to_floor(freqs, power, 2 * found_hz) >= CLEAR
+        if np.isfinite(found_hz)
+        else False
+    )
+    clear = (
+        (at_mesh < PRESENT or harmonics_moved)
+        and found >= CLEAR
+        and found >= ABOVE * max(at_mesh, 1.0)
+    )
     off = abs(found_hz - mesh_hz) > LINE_WIDTH * mesh_hz
     return {
         "mesh_hz": mesh_hz,
@@ -98,10 +111,11 @@ def rate_problem(findings: dict, fs_hz: float, teeth: int) -> str | None:
         else f"the speeds imply rates of {', '.join(f'{r:.0f}' for r in rates)} Hz"
     )
     return (
-        f"measured_table: the healthy records at {speed:g} rpm show no mesh line where fs_hz "
-        f"{fs_hz:g} Hz, the speed and model.geometry.teeth_pinion {teeth} put it ({first['mesh_hz']:.1f} Hz, "
-        f"line to floor {first['at_mesh']:.1f}) but a line at {first['found_hz']:.1f} Hz "
-        f"({first['found']:.0f}); {implied}: check the table's fs_hz (or speed_rpm and the tooth counts)"
+        f"measured_table: the healthy records at {speed:g} rpm show their mesh line elsewhere than "
+        f"fs_hz {fs_hz:g} Hz, the speed and model.geometry.teeth_pinion {teeth} put it "
+        f"({first['mesh_hz']:.1f} Hz, line to floor {first['at_mesh']:.1f}): a line at "
+        f"{first['found_hz']:.1f} Hz ({first['found']:.0f}); {implied}: check the table's fs_hz "
+        "(or speed_rpm and the tooth counts)"
     )
 
 
