@@ -94,18 +94,22 @@ def test_every_benchmark_writes_a_record(script):
     assert "save_record(" in (ROOT / "benchmarks" / script).read_text()
 
 
+def benchmark_module(name: str):
+    """benchmarks/<name>.py as a module (the benchmarks are scripts, not a package)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, ROOT / "benchmarks" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def test_a_study_table_reads_a_runs_report_beside_the_studys_figures(tmp_path, monkeypatch):
     """benchmarks/study_table.py: per speed the SVM's accuracy and balanced accuracy at 0 %
     measured (record_split), each class's recall and the study's figure beside it."""
-    import importlib.util
-
     import pandas as pd
 
-    spec = importlib.util.spec_from_file_location(
-        "study_table", ROOT / "benchmarks" / "study_table.py"
-    )
-    study_table = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(study_table)
+    study_table = benchmark_module("study_table")
     report = tmp_path / "results" / "run" / "report"
     report.mkdir(parents=True)
     keys = {"classifier": "svm", "protocol": "record_split", "measured_percent": 0}
@@ -142,15 +146,9 @@ def test_a_study_table_reads_a_runs_report_beside_the_studys_figures(tmp_path, m
 def test_a_condition_table_reads_a_runs_figures_per_condition(tmp_path, monkeypatch):
     """benchmarks/condition_table.py: per condition, classifier and measured share the mean over
     repeats of record_split's balanced accuracy and false alarms, and the ceiling per condition."""
-    import importlib.util
-
     import pandas as pd
 
-    spec = importlib.util.spec_from_file_location(
-        "condition_table", ROOT / "benchmarks" / "condition_table.py"
-    )
-    condition_table = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(condition_table)
+    condition_table = benchmark_module("condition_table")
     report = tmp_path / "results" / "run" / "report"
     report.mkdir(parents=True)
     keys = {"classifier": "svm", "protocol": "record_split", "records": "all"}
@@ -207,13 +205,9 @@ def test_a_condition_table_reads_a_runs_figures_per_condition(tmp_path, monkeypa
 def test_the_run_times_benchmark_reads_a_runs_job_timings(tmp_path):
     """benchmarks/run_times.py records a run's jobs from its report/job_timings.csv: the window
     of its jobs against their CPU seconds over the cores, and each rule's row."""
-    import importlib.util
-
     import pandas as pd
 
-    spec = importlib.util.spec_from_file_location("run_times", ROOT / "benchmarks" / "run_times.py")
-    run_times = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(run_times)
+    run_times = benchmark_module("run_times")
     (tmp_path / "report").mkdir()
     pd.DataFrame(
         [
