@@ -5,7 +5,7 @@
 `report/evaluation.csv`, and the measured-only ceiling with its permutation chance from
 `summary.json`. What `bench_seeds.py` gives per speed over seeds, for one run of any condition.
 
-The run must have finished (`snakemake --cores 2 --configfile config/benches/loads.yaml`).
+The run must have finished (`snakemake --cores 2 --configfile config/loads.yaml`).
 
     python3 benchmarks/condition_table.py --run bench-loads
 """

@@ -42,6 +42,7 @@ from condmon.systems.gear.residual_features import (
     input_angle,
     segment_patterns,
     top_band_order,
+    window_harmonics,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -114,6 +115,18 @@ def cycle_shares(system, bench: dict, speed: float, seconds: float, records: int
     return shares
 
 
+def mesh_harmonics(system, bench: dict, speed: float, configured) -> int:
+    """The mesh harmonics the residual bands reach: the config's count, or with `auto` the
+    features job's window rule (`window_harmonics`) on two healthy bench records of the segment
+    length at this speed, as the features job takes it from the calibration records."""
+    if configured != "auto":
+        return int(configured)
+    _, arrays, fs_hz = bench_records(
+        system, bench, speed, system.segment_length / system.output_rate_hz, 2
+    )
+    return window_harmonics({speed: arrays}, fs_hz, system.shafts())[0]
+
+
 def figures_of(shares) -> dict:
     """The median, range and count of residual shares (the record's figures of one case)."""
     return {
@@ -148,9 +161,8 @@ def main(argv=None) -> None:
     bench = dict(system.config["virtual_bench"])
     _, _, teeth = system.shafts()[0]
     residual = system.config["features"]["residual"]
-    top = top_band_order(
-        teeth / residual["bands_per_mesh"], residual["bands_per_mesh"] * residual["mesh_harmonics"]
-    )
+    harmonics = mesh_harmonics(system, bench, args.speed, residual["mesh_harmonics"])
+    top = top_band_order(teeth / residual["bands_per_mesh"], residual["bands_per_mesh"] * harmonics)
     hunting = np.lcm(*[t for _, _, t in system.shafts()]) / teeth / (args.speed / 60.0)
     print(f"bench seed {bench['seed']}, {args.speed:g} rpm: the hunting cycle is {hunting:.2f} s")
     figures = {
