@@ -45,8 +45,9 @@ def test_operating_points_are_every_speed_and_load_named_for_files():
 
     two = system_of(
         ".test/config/smoke.yaml",
-        {"rig": {"speeds_rpm": [1100], "loads": [5.0, 20.0]}, "hybrid": {"condition": "load"}},
+        {"rig": {"speeds_rpm": [1100], "loads": [20.0, 5.0]}, "hybrid": {"condition": "load"}},
     )
+    # by speed and load, as the calibration and the background take them, whatever the config's order
     assert [p.label for p in two.operating_points] == ["1100rpm_5Nm", "1100rpm_20Nm"]
     assert two.operating_point("1100rpm_5Nm") == OperatingPoint(1100.0, 5.0)
     with pytest.raises(ValueError, match="operating point '1100rpm'"):

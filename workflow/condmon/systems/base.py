@@ -121,9 +121,9 @@ class System(ABC):
 
     @property
     def operating_points(self) -> list[OperatingPoint]:
-        """The operating conditions the rig is calibrated and simulated at: every speed (a system
-        whose rig runs several loads per speed lists every (speed, load))."""
-        return [OperatingPoint(speed) for speed in self.speeds_rpm]
+        """The operating conditions the rig is calibrated and simulated at, by speed: every speed (a
+        system whose rig runs several loads per speed lists every (speed, load), by load)."""
+        return [OperatingPoint(speed) for speed in sorted(self.speeds_rpm)]
 
     def operating_point(self, label: str) -> OperatingPoint:
         """The operating point of a job's label (`OperatingPoint.label`)."""

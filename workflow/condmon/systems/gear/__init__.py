@@ -154,8 +154,8 @@ class GearSystem(System):
             return super().operating_points
         return [
             OperatingPoint(float(speed), float(load), rig["load_unit"])
-            for speed in self.speeds_rpm
-            for load in rig["loads"]
+            for speed in sorted(self.speeds_rpm)
+            for load in sorted(rig["loads"])
         ]
 
     def load_torque(self, load: float) -> float:
