@@ -85,15 +85,6 @@ def _batch(system, load, health="healthy", seed=1):
     )
 
 
-def _mesh_line(rows, system, speed_rpm=775.0):
-    """Amplitude of the mesh frequency line (first channel) of a run's rows."""
-    signal = np.concatenate([r["signal"] for r in rows if r["channel"] == rows[0]["channel"]])
-    spectrum = np.abs(np.fft.rfft(signal * np.hanning(len(signal))))
-    freqs = np.fft.rfftfreq(len(signal), 1.0 / system.output_rate_hz)
-    mesh = speed_rpm / 60.0 * system.config["model"]["geometry"]["teeth_pinion"]
-    return spectrum[np.abs(freqs - mesh) < 30.0].max()
-
-
 def test_the_simulation_runs_each_load_and_records_it(gear):
     light, report = _batch(gear, 5.0)
     heavy, _ = _batch(gear, 20.0)

@@ -209,7 +209,7 @@ def estimate_background(
             return segment_psd(segments, fs)
 
     healthy = frame[frame["health_state"] == system.healthy_state]
-    points = [point for point in system.operating_points if point.holds(healthy).any()]
+    points = system.measured_points(healthy, system.healthy_state)
     if not points:
         return pd.DataFrame(
             {c: pd.Series(dtype=object if c == "channel" else float) for c in COLUMNS}

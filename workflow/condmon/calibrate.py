@@ -237,8 +237,7 @@ def calibrate_on_spectra(
     `System.calibrate` does."""
     start = time.perf_counter()
     fs = system.output_rate_hz
-    healthy = frame[frame["health_state"] == system.healthy_state]
-    points = [point for point in system.operating_points if point.holds(healthy).any()]
+    points = system.measured_points(frame, system.healthy_state)
     if not points:
         raise ValueError(
             f"no measured {system.healthy_state!r} records at the simulated operating points "
@@ -440,24 +439,14 @@ def calibrate_state(
     start = time.perf_counter()
     settings = calibration["per_state"]
     fs = system.output_rate_hz
-    at = {
-        label: [
-            point.describe()
-            for point in system.operating_points
-            if point.holds(frame[frame["health_state"] == label]).any()
-        ]
-        for label in (state, system.healthy_state)
-    }
-    points = [
-        point
-        for point in system.operating_points
-        if point.describe() in at[state] and point.describe() in at[system.healthy_state]
-    ]
+    at = {label: system.measured_points(frame, label) for label in (state, system.healthy_state)}
+    points = [point for point in at[state] if point in at[system.healthy_state]]
     if not points:
         raise ValueError(
             f"calibration.per_state: no operating point of "
             f"{[point.describe() for point in system.operating_points]} has both calibration "
-            f"records of {state!r} ({at[state]}) and healthy ones ({at[system.healthy_state]})"
+            f"records of {state!r} ({[p.describe() for p in at[state]]}) and healthy ones "
+            f"({[p.describe() for p in at[system.healthy_state]]})"
         )
     resolution = calibration["resolution_hz"]
     target = (

@@ -134,6 +134,12 @@ class System(ABC):
             )
         return points[label]
 
+    def measured_points(self, frame: pd.DataFrame, health_state: str) -> list[OperatingPoint]:
+        """The operating points at which `frame` (a signal or feature table) holds records of
+        `health_state`: those a calibration can target."""
+        rows = frame[frame["health_state"] == health_state]
+        return [point for point in self.operating_points if point.holds(rows).any()]
+
     def at_load(self, parameters: dict, load: float | None) -> dict:
         """`parameters` of one run at `load` (an `OperatingPoint.load`; None: as they are)."""
         if load is None:

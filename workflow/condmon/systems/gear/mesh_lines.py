@@ -60,8 +60,6 @@ def strongest_line(freqs, power, low_hz: float, high_hz: float) -> tuple[float, 
     peak = inside[int(np.argmax(ratios))]
     # the line's frequency between bins: the power-weighted centre of its bin and the two beside
     near = slice(max(peak - 1, 0), peak + 2)
-    if not power[near].sum() > 0:  # a silent spectrum: no line, its flat bin as it is
-        return float(freqs[peak]), float(ratios.max())
     return float(np.average(freqs[near], weights=power[near])), float(ratios.max())
 
 
