@@ -4,24 +4,27 @@ Pure: parameters in, housing accelerations out. Knows nothing of Snakemake or ML
 
 The rig (`structure.py` building blocks, shafts along z, the gear shaft beside the pinion shaft at
 the centre distance along x):
-- two shafts, each a rigid body with 6 coordinates (`shaft_model: rigid`) or a Timoshenko beam
-  through nodes at its ends, bearings and gear (`flexible`); the gear bodies and the coupling and
-  brake hubs are masses with inertia on them;
+- two shafts (one pair; `stages` adds a pair and a shaft each, side by side along x, the
+  brake on the last shaft), each a rigid body with 6 coordinates (`shaft_model: rigid`) or a
+  Timoshenko beam through nodes at its ends, bearings and gear (`flexible`); the gear bodies and
+  the coupling and brake hubs are masses with inertia on them;
 - each shaft on two bearings at their axial positions: bushings with radial x, radial y and axial
   stiffness and damping to a bearing housing; each housing a point mass on the base with its own
   stiffness per axis (`housing_model: point`), or a rigid block on four feet with rocking modes
   (`block`, the virtual bench's);
 - the motor drives the pinion shaft through a torsional coupling at the nominal speed; the brake
   loads the gear shaft with a torque that may fluctuate slowly (a compiled exudyn load function);
-- the mesh acts at the pitch point along the helical pair's line of action
+- each mesh acts at its pitch point along the helical pair's line of action
   n = n_t + tan(beta_b) e_z (transverse line of action plus the axial component), so its axial
   force and the tilting moments of both components reach the shafts and bearings. Its deflection
-  is the transverse-equivalent mesh deflection, a linear function of the coordinates (`mesh_row`).
+  is the transverse-equivalent mesh deflection, a linear function of the coordinates (`mesh_rows`).
 
 exudyn holds the linear structure in one sparse ObjectGenericODE2 (why not one item per body:
 `structure.py`), with the mesh deflection in place of one of its coordinates so the whole nonlinear
 mesh (`mesh_force.py`: potential-energy TVMS, damping ratio, impact laws, damage, pitch errors,
-run-out, speed fluctuation) is one scalar ObjectConnectorCoordinateSpringDamper. Angles are
+run-out, speed fluctuation) is one scalar ObjectConnectorCoordinateSpringDamper per pair, each
+pair's mesh built as a one-pair drivetrain's from `stage_parameters` (its speed, torque, deviations
+and fault). Angles are
 deviations from the nominal rotation, so the mesh stiffness is a function of time. Sensors record
 all accelerations above the output rate; the housing channels (`sensors`: which housings carry an
 accelerometer) are low-pass filtered and decimated to the output rate (no aliasing) and checked
@@ -47,6 +50,7 @@ from scipy.signal import resample_poly
 from condmon.models.gear.mesh import GearGeometry
 from condmon.models.gear.mesh_force import (
     HEALTH_STATES,
+    MESH_HEALTH_STATES,
     MESH_STIFFNESS_MODELS,
     MeshForce,
     mesh_damping,
@@ -127,12 +131,15 @@ __all__ = [
     "HEALTH_STATES",
     "MESH_STIFFNESS_MODELS",
     "GearDrivetrainParameters",
+    "GearStage",
     "ShaftLayout",
     "SimulationSettings",
     "PeriodicLoad",
     "Drivetrain",
     "simulate",
     "operating_mesh_stiffness",
+    "shaft_speed_ratios",
+    "stage_parameters",
 ]
 
 
@@ -168,6 +175,31 @@ class ShaftLayout:
                 f"{name}.inner_diameter: {self.inner_diameter} m must lie in [0, diameter "
                 f"{self.diameter} m)"
             )
+
+
+@dataclass(frozen=True)
+class GearStage:
+    """A further gear pair of the train. Its pinion sits on the previous stage's gear shaft, at
+    that shaft's `hub` position; its gear on a shaft of its own (`shaft`, beside the previous one
+    along x at the pair's centre distance), whose `hub` carries the next stage's pinion or, on the
+    last shaft, the brake. The pair's own deviations (empty: none) and mesh; the contact law,
+    damping, backlash and slicing are the train's."""
+
+    geometry: GearGeometry
+    shaft: ShaftLayout
+    pinion_mass: float
+    pinion_inertia: float
+    gear_mass: float
+    gear_inertia: float
+    mesh_stiffness: float
+    pitch_errors_pinion: tuple = ()
+    pitch_errors_gear: tuple = ()
+    flank_maps_pinion: tuple = ()
+    runout_pinion: float = 0.0
+    runout_gear: float = 0.0
+    runout_phase_pinion: float = 0.0
+    runout_phase_gear: float = 0.0
+    start_mesh_phase: float = 0.0
 
 
 class DamageZone(NamedTuple):
@@ -275,8 +307,13 @@ class GearDrivetrainParameters:
     # Damage of every pinion tooth beyond its health state's own (`errors.FlankMap`, material
     # removed; empty: none): a bench's own damage. Its contact is split by depth (`GearMesh`).
     damage_maps_pinion: tuple = ()
+    # Further gear pairs (`GearStage`), the first pair's gear shaft driving the second's pinion
+    # and so on; the brake and `load_torque` then sit on the last shaft (empty: one pair).
+    stages: tuple = ()
     # Health.
     health_state: str = "healthy"
+    # the pair whose pinion carries a gear fault (0: the first; shaft faults: `damaged_shaft`)
+    faulty_stage: int = 0
     faulty_tooth: int = 0
     surface_fault_teeth: int = 3
     surface_fault_model: str = (
@@ -316,8 +353,62 @@ class GearDrivetrainParameters:
 
 
 def operating_mesh_stiffness(p: GearDrivetrainParameters) -> float:
-    """Linearised mean mesh stiffness (N/m) under the static load of `p`."""
-    return operating_stiffness(p)
+    """Linearised mean mesh stiffness (N/m) of the first pair under the static load of `p`."""
+    return operating_stiffness(stage_parameters(p)[0])
+
+
+def shaft_speed_ratios(p: GearDrivetrainParameters) -> list[float]:
+    """Each shaft's nominal speed over the input shaft's, shaft 0 (input) first: one shaft more
+    than the train has pairs."""
+    ratios = [1.0]
+    for g in [p.geometry] + [stage.geometry for stage in p.stages]:
+        ratios.append(ratios[-1] * g.teeth_pinion / g.teeth_gear)
+    return ratios
+
+
+def stage_parameters(p: GearDrivetrainParameters) -> list[GearDrivetrainParameters]:
+    """One parameter set per gear pair, as a one-pair drivetrain sees its mesh: the pair's
+    geometry, deviations and mesh stiffness, its pinion's speed, the torque on its gear shaft
+    (the output torque through the later pairs' ratios) and the gear fault only on the pair
+    `faulty_stage` names. One pair: `p` itself."""
+    if not p.stages:
+        if p.faulty_stage != 0:
+            raise ValueError(f"faulty_stage {p.faulty_stage}: the train has one pair (stage 0)")
+        return [p]
+    if not 0 <= p.faulty_stage <= len(p.stages):
+        raise ValueError(f"faulty_stage {p.faulty_stage}: the train has pairs 0..{len(p.stages)}")
+    ratios = shaft_speed_ratios(p)
+    geometries = [p.geometry] + [stage.geometry for stage in p.stages]
+    torques = [p.load_torque]  # on each pair's gear shaft, the last pair's first
+    for g in reversed(geometries[1:]):
+        torques.insert(0, torques[0] * g.base_radius(g.teeth_pinion) / g.base_radius(g.teeth_gear))
+    views = []
+    for k, g in enumerate(geometries):
+        fault_elsewhere = p.health_state in MESH_HEALTH_STATES and k != p.faulty_stage
+        changes = dict(
+            speed_rpm=p.speed_rpm * ratios[k],
+            load_torque=torques[k],
+            health_state="healthy" if fault_elsewhere else p.health_state,
+            damage_maps_pinion=() if k != p.faulty_stage else p.damage_maps_pinion,
+            stages=(),
+            faulty_stage=0,
+        )
+        if k:
+            stage = p.stages[k - 1]
+            changes.update(
+                geometry=g,
+                mesh_stiffness=stage.mesh_stiffness,
+                pitch_errors_pinion=stage.pitch_errors_pinion,
+                pitch_errors_gear=stage.pitch_errors_gear,
+                flank_maps_pinion=stage.flank_maps_pinion,
+                runout_pinion=stage.runout_pinion,
+                runout_gear=stage.runout_gear,
+                runout_phase_pinion=stage.runout_phase_pinion,
+                runout_phase_gear=stage.runout_phase_gear,
+                start_mesh_phase=stage.start_mesh_phase,
+            )
+        views.append(p.replace(**changes))
+    return views
 
 
 class Drivetrain:
@@ -334,33 +425,43 @@ class Drivetrain:
             )
         p.input_shaft.check("input_shaft")
         p.output_shaft.check("output_shaft")
+        for k, stage in enumerate(p.stages, start=1):
+            stage.shaft.check(f"stages[{k - 1}].shaft")
         self.p = p
-        g = p.geometry
-        self.center_distance = g.pitch_radius(g.teeth_pinion) + g.pitch_radius(g.teeth_gear)
+        self.stages = stage_parameters(p)
         s = self.structure = LinearStructure()
-        shafts = (
-            (
-                0.0,
-                p.input_shaft,
-                (p.pinion_mass, p.pinion_inertia),
-                (p.coupling_mass, p.coupling_inertia),
-            ),
-            (
-                self.center_distance,
-                p.output_shaft,
-                (p.gear_mass, p.gear_inertia),
-                (p.brake_mass, p.brake_inertia),
-            ),
+        # The shafts side by side along x, each pair's gear shaft at its centre distance beyond
+        # its pinion's; on each shaft its pinion or gear body and at its hub the coupling (input),
+        # the next pair's pinion or, on the last shaft, the brake.
+        layouts = self.layouts = [p.input_shaft, p.output_shaft] + [
+            stage.shaft for stage in p.stages
+        ]
+        wheels = [(p.pinion_mass, p.pinion_inertia), (p.gear_mass, p.gear_inertia)] + [
+            (stage.gear_mass, stage.gear_inertia) for stage in p.stages
+        ]
+        hubs = (
+            [(p.coupling_mass, p.coupling_inertia)]
+            + [(stage.pinion_mass, stage.pinion_inertia) for stage in p.stages]
+            + [(p.brake_mass, p.brake_inertia)]
         )
+        self.shaft_x = [0.0]
+        for view in self.stages:
+            g = view.geometry
+            self.shaft_x.append(
+                self.shaft_x[-1] + g.pitch_radius(g.teeth_pinion) + g.pitch_radius(g.teeth_gear)
+            )
+        self.center_distance = self.shaft_x[1]
         self.sections = self._shaft_sections()
         self.damage = self._damage_zone()
         self.damaged_elements = []  # (node a, node b, DamagedElement)
         self.shaft_nodes = [
-            self._add_shaft(shaft, x, layout, gear, hub)
-            for shaft, (x, layout, gear, hub) in enumerate(shafts)
+            self._add_shaft(shaft, x, layout, wheel, hub)
+            for shaft, (x, layout, wheel, hub) in enumerate(
+                zip(self.shaft_x, layouts, wheels, hubs)
+            )
         ]
         self.housings = []
-        for shaft, (x, layout, _, _) in enumerate(shafts):
+        for shaft, (x, layout) in enumerate(zip(self.shaft_x, layouts)):
             for z in layout.bearings:
                 housing = self._add_housing((x, 0.0, z))
                 self.housings.append(housing)
@@ -372,23 +473,40 @@ class Drivetrain:
                 )
         self.coupling_node = self.node_at(0, p.input_shaft.hub)
         s.add_coordinate_spring(self.coupling_node, 5, p.coupling_stiffness, p.coupling_damping)
-        self.load_dof = s.dof(self.node_at(1, p.output_shaft.hub), 5)
-        # The mesh at the pitch point: transverse line of action (radial x separating the gears,
-        # tangential y) plus the axial component of the helix.
-        alpha, beta_b = g.transverse_pressure_angle, g.base_helix_angle
-        direction = np.array([math.sin(alpha), math.cos(alpha), math.tan(beta_b)])
-        pitch_point = (g.pitch_radius(g.teeth_pinion), 0.0, p.input_shaft.gear)
-        if abs(p.input_shaft.gear - p.output_shaft.gear) > 1e-12:
-            raise ValueError(
-                "input_shaft.gear and output_shaft.gear: the gears must sit in one plane"
+        self.load_dof = s.dof(self.node_at(len(layouts) - 1, layouts[-1].hub), 5)
+        # A resisting torque opposes the last shaft's rotation, whose sense alternates pair by pair
+        self.load_sign = 1.0 if len(self.stages) % 2 else -1.0
+        # Each mesh at its pitch point: transverse line of action (radial x separating the gears,
+        # tangential y) plus the axial component of the helix; a pair driven by a shaft turning the
+        # other way presses the other flanks (y and z mirrored).
+        self.mesh_rows, self.mesh_dofs = [], []
+        pinion_positions = [p.input_shaft.gear] + [layout.hub for layout in layouts[1:-1]]
+        for k, view in enumerate(self.stages):
+            g = view.geometry
+            sense = 1.0 if k % 2 == 0 else -1.0
+            alpha, beta_b = g.transverse_pressure_angle, g.base_helix_angle
+            direction = np.array(
+                [math.sin(alpha), sense * math.cos(alpha), sense * math.tan(beta_b)]
             )
-        self.mesh_row = direction @ (
-            s.point_rows(self.node_at(0, p.input_shaft.gear), pitch_point)
-            - s.point_rows(self.node_at(1, p.output_shaft.gear), pitch_point)
-        )
-        # The model coordinate replaced by delta: the pinion's radial x, which carries no load (the
-        # motor and brake torques and the bench's bearing forces stay on plain coordinates).
-        self.mesh_dof = s.dof(self.node_at(0, p.input_shaft.gear), 0)
+            z = pinion_positions[k]
+            if abs(z - layouts[k + 1].gear) > 1e-12:
+                raise ValueError(
+                    "input_shaft.gear and output_shaft.gear: the gears must sit in one plane"
+                    if k == 0
+                    else f"stages[{k - 1}]: its pinion (the previous shaft's hub, {z} m) and "
+                    f"its shaft's gear ({layouts[k + 1].gear} m) must sit in one plane"
+                )
+            pitch_point = (self.shaft_x[k] + g.pitch_radius(g.teeth_pinion), 0.0, z)
+            self.mesh_rows.append(
+                direction
+                @ (
+                    s.point_rows(self.node_at(k, z), pitch_point)
+                    - s.point_rows(self.node_at(k + 1, z), pitch_point)
+                )
+            )
+            # The model coordinate replaced by delta: the pinion's radial x, which carries no load
+            # (the motor and brake torques and the bench's bearing forces stay on plain coordinates).
+            self.mesh_dofs.append(s.dof(self.node_at(k, z), 0))
         self.sensor_rows = {}
         for name, housing, *_ in p.sensors:
             if not 0 <= housing < len(self.housings):
@@ -404,10 +522,12 @@ class Drivetrain:
     # -- building --------------------------------------------------------------------------
     def _shaft_sections(self) -> list[Section]:
         p = self.p
+        layouts = self.layouts
         if p.shaft_sections:
-            if len(p.shaft_sections) != 2:
+            if len(p.shaft_sections) != len(layouts):
                 raise ValueError(
-                    f"shaft_sections: one Section per shaft (2), got {len(p.shaft_sections)}"
+                    f"shaft_sections: one Section per shaft ({len(layouts)}), got "
+                    f"{len(p.shaft_sections)}"
                 )
             return list(p.shaft_sections)
         return [
@@ -418,7 +538,7 @@ class Drivetrain:
                 p.shaft_poisson_ratio,
                 p.shaft_density,
             )
-            for layout in (p.input_shaft, p.output_shaft)
+            for layout in layouts
         ]
 
     def _damage_zone(self) -> DamageZone | None:
@@ -431,16 +551,14 @@ class Drivetrain:
             raise ValueError(
                 f"health state {p.health_state}: a damaged shaft needs shaft_model: flexible"
             )
-        if p.damaged_shaft not in (0, 1):
+        if not 0 <= p.damaged_shaft < len(self.layouts):
             raise ValueError(
-                f"damaged_shaft: 0 (pinion shaft) or 1 (gear shaft), got {p.damaged_shaft}"
+                f"damaged_shaft: 0 (input shaft) to {len(self.layouts) - 1} (output shaft), got "
+                f"{p.damaged_shaft}"
             )
-        layout = (p.input_shaft, p.output_shaft)[p.damaged_shaft]
+        layout = self.layouts[p.damaged_shaft]
         section = self.sections[p.damaged_shaft]
-        g = p.geometry
-        spin_hz = (
-            p.speed_rpm / 60 * (1.0 if p.damaged_shaft == 0 else g.teeth_pinion / g.teeth_gear)
-        )
+        spin_hz = p.speed_rpm / 60 * shaft_speed_ratios(p)[p.damaged_shaft]
         if p.health_state == "shaft_crack":
             start = p.shaft_crack_position - layout.diameter / 2
             end = p.shaft_crack_position + layout.diameter / 2
@@ -543,7 +661,7 @@ class Drivetrain:
         return nodes[min(nodes, key=lambda station: abs(station - z))]
 
     def node_at(self, shaft: int, z: float) -> int:
-        """The node of shaft 0 (pinion) or 1 (gear) that carries the point at axial position z."""
+        """The node of shaft `shaft` (0: input) that carries the point at axial position z."""
         return self._node(self.shaft_nodes[shaft], z)
 
     def _add_housing(self, bearing_centre) -> int:
@@ -569,12 +687,17 @@ class Drivetrain:
 
     # -- the linear system in model coordinates ---------------------------------------------
     def mesh_transform(self) -> np.ndarray:
-        """T with q_physical = T q_model: q_model has the mesh deflection in place of the pinion's
-        x (delta = mesh_row . q_physical)."""
-        n, i = self.structure.n, self.mesh_dof
+        """T with q_physical = T q_model: q_model has each mesh deflection in place of its pinion's
+        x (delta_k = mesh_rows[k] . q_physical)."""
+        n = self.structure.n
+        if len(self.mesh_dofs) > 1:
+            rows = np.eye(n)
+            rows[self.mesh_dofs] = self.mesh_rows
+            return np.linalg.inv(rows)
+        (i,), (row,) = self.mesh_dofs, self.mesh_rows
         transform = np.eye(n)
-        transform[i, :] = -self.mesh_row / self.mesh_row[i]
-        transform[i, i] = 1.0 / self.mesh_row[i]
+        transform[i, :] = -row / row[i]
+        transform[i, i] = 1.0 / row[i]
         return transform
 
     def damage_rows(self) -> np.ndarray:
@@ -591,20 +714,33 @@ class Drivetrain:
                 rows.append(RELATIVE_ROTATION @ plane_rows)
         return np.array(rows).reshape(-1, s.n)
 
-    def natural_frequencies(self, mesh_stiffness: float | None = None) -> np.ndarray:
-        """Undamped natural frequencies (Hz) with a linear mesh of `mesh_stiffness` (default: the
-        operating stiffness under the static load)."""
+    def natural_frequencies(self, mesh_stiffness=None) -> np.ndarray:
+        """Undamped natural frequencies (Hz) with linear meshes of `mesh_stiffness` (N/m: one for
+        every pair or one per pair; default: each pair's operating stiffness under the static
+        load)."""
         from scipy.linalg import eigh
 
-        k_mesh = operating_stiffness(self.p) if mesh_stiffness is None else mesh_stiffness
-        stiffness = self.structure.stiffness_matrix() + k_mesh * np.outer(
-            self.mesh_row, self.mesh_row
-        )
+        stiffness = self.structure.stiffness_matrix()
+        for k_mesh, row in zip(self.mesh_stiffnesses(mesh_stiffness), self.mesh_rows):
+            stiffness = stiffness + k_mesh * np.outer(row, row)
         values = eigh(stiffness, self.structure.mass_matrix(), eigvals_only=True)
         return np.sqrt(np.clip(values, 0.0, None)) / (2 * math.pi)
 
-    def polar_inertias(self) -> tuple[float, float]:
-        """Rotational inertia of the pinion and gear shaft assemblies about their axes."""
+    def mesh_stiffnesses(self, mesh_stiffness=None) -> list[float]:
+        """Each pair's linear mesh stiffness: `mesh_stiffness` (one for every pair, or one per
+        pair), or its operating stiffness."""
+        if mesh_stiffness is None:
+            return [operating_stiffness(view) for view in self.stages]
+        if np.ndim(mesh_stiffness) == 0:
+            return [mesh_stiffness] * len(self.stages)
+        if len(mesh_stiffness) != len(self.stages):
+            raise ValueError(
+                f"mesh_stiffness: one per pair ({len(self.stages)}), got {len(mesh_stiffness)}"
+            )
+        return list(mesh_stiffness)
+
+    def polar_inertias(self) -> tuple[float, ...]:
+        """Rotational inertia of each shaft assembly (input first) about its axis."""
         mass = self.structure.mass_matrix()
         return tuple(
             float(
@@ -651,7 +787,7 @@ MAX_STEPS_PER_SENSOR_SAMPLE = 16  # beyond this a parameter is out of any physic
 @dataclass
 class ModelMatrices:
     """The linear structure in the coordinates exudyn integrates: q_physical = transform q.
-    The mesh deflection is coordinate `mesh`; `plain` maps a physical coordinate that loads act on
+    The mesh deflections are the first coordinates, one per pair (`meshes`); `plain` maps a physical coordinate that loads act on
     to its model coordinate; the last `n_damage` coordinates are the damaged shaft elements'
     deformations (`shaft_damage.py`)."""
 
@@ -659,7 +795,7 @@ class ModelMatrices:
     mass: np.ndarray
     stiffness: np.ndarray
     damping: np.ndarray
-    mesh: int
+    meshes: tuple
     plain: dict
     n_damage: int
 
@@ -667,13 +803,14 @@ class ModelMatrices:
     def n(self) -> int:
         return self.transform.shape[1]
 
-    def highest_rate(self, mesh_stiffness: float) -> float:
-        """Largest |eigenvalue| (1/s) of the damped linear system with a linear mesh of
-        `mesh_stiffness`: what limits the explicit step. Undamped it is the highest circular
-        frequency; a light node on a damped bushing decays faster than any mode oscillates
-        (the CFRP rig's: c / m of the bearing nodes)."""
+    def highest_rate(self, mesh_stiffnesses) -> float:
+        """Largest |eigenvalue| (1/s) of the damped linear system with linear meshes of
+        `mesh_stiffnesses` (one per pair): what limits the explicit step. Undamped it is the
+        highest circular frequency; a light node on a damped bushing decays faster than any mode
+        oscillates (the CFRP rig's: c / m of the bearing nodes)."""
         stiffness = self.stiffness.copy()
-        stiffness[self.mesh, self.mesh] += mesh_stiffness
+        for mesh, mesh_stiffness in zip(self.meshes, mesh_stiffnesses):
+            stiffness[mesh, mesh] += mesh_stiffness
         n = self.n
         state = np.zeros((2 * n, 2 * n))
         state[:n, n:] = np.eye(n)
@@ -685,7 +822,7 @@ class ModelMatrices:
 def model_matrices(
     drivetrain: Drivetrain, load_dofs, modal_cutoff_hz: float | None = None
 ) -> ModelMatrices:
-    """The structure in model coordinates: the mesh deflection (mesh_row . q) in place of the
+    """The structure in model coordinates: each mesh deflection (mesh_rows[k] . q) in place of its
     pinion's x, the loaded coordinates, and each damaged element's relative rotations d_x, d_y
     (`damage_rows`) as coordinates of their own, last.
 
@@ -703,11 +840,13 @@ def model_matrices(
     damage_rows = drivetrain.damage_rows()
     if modal_cutoff_hz is None:
         rows = np.eye(n)
-        rows[drivetrain.mesh_dof] = drivetrain.mesh_row
+        rows[drivetrain.mesh_dofs] = drivetrain.mesh_rows
         damage_dofs = []
         for k, (node_a, node_b, _) in enumerate(drivetrain.damaged_elements):
             node = (
-                node_b if all(s.dof(node_b, c) != drivetrain.mesh_dof for c in range(6)) else node_a
+                node_b
+                if all(s.dof(node_b, c) not in drivetrain.mesh_dofs for c in range(6))
+                else node_a
             )
             # d_x (x-z plane) replaces the node's ry, d_y (y-z plane) its rx
             for row, coordinate in zip(damage_rows[2 * k : 2 * k + 2], (4, 3)):
@@ -719,9 +858,7 @@ def model_matrices(
                 "away from the gear"
             )
         to_physical = np.linalg.inv(rows)
-        first = [drivetrain.mesh_dof] + [
-            dof for dof in dict.fromkeys(load_dofs) if dof != drivetrain.mesh_dof
-        ]
+        first = boundary_dofs(drivetrain, load_dofs)
         order = (
             first + [i for i in range(n) if i not in set(first) | set(damage_dofs)] + damage_dofs
         )
@@ -737,10 +874,17 @@ def model_matrices(
         mass,
         stiffness,
         damping,
-        0,
+        tuple(range(len(drivetrain.mesh_dofs))),
         {dof: first.index(dof) for dof in load_dofs},
         len(damage_rows),
     )
+
+
+def boundary_dofs(drivetrain: Drivetrain, load_dofs) -> list[int]:
+    """The physical coordinates the model keeps first and plain: the mesh deflections' (in pair
+    order), then the loaded ones."""
+    meshes = list(drivetrain.mesh_dofs)
+    return meshes + [dof for dof in dict.fromkeys(load_dofs) if dof not in meshes]
 
 
 def _craig_bampton(drivetrain: Drivetrain, load_dofs, cutoff_hz: float, damage_rows: np.ndarray):
@@ -751,9 +895,7 @@ def _craig_bampton(drivetrain: Drivetrain, load_dofs, cutoff_hz: float, damage_r
     mesh_t = drivetrain.mesh_transform()
     mass, stiffness = mesh_t.T @ s.mass_matrix() @ mesh_t, mesh_t.T @ s.stiffness_matrix() @ mesh_t
     damage = damage_rows @ mesh_t
-    first = [drivetrain.mesh_dof] + [
-        dof for dof in dict.fromkeys(load_dofs) if dof != drivetrain.mesh_dof
-    ]
+    first = boundary_dofs(drivetrain, load_dofs)
     interior = [i for i in range(s.n) if i not in set(first)]
     ii, ib = np.ix_(interior, interior), np.ix_(interior, first)
     static_shapes = -np.linalg.solve(stiffness[ii], stiffness[ib])
@@ -800,11 +942,11 @@ def steps_per_sensor_sample(
     """Integrator steps per sensor sample: the setting, or more where the highest mode (with the
     mesh at twice its operating stiffness, the peaks of the TVMS; with `matrices`, the damped
     system's fastest eigenvalue) needs a smaller step; times `step_refinement`."""
-    mesh_stiffness = 2 * operating_stiffness(drivetrain.p)
+    peaks = [2 * k for k in drivetrain.mesh_stiffnesses()]
     omega_max = (
-        2 * math.pi * drivetrain.natural_frequencies(mesh_stiffness)[-1]
+        2 * math.pi * drivetrain.natural_frequencies(peaks)[-1]
         if matrices is None
-        else matrices.highest_rate(mesh_stiffness)
+        else matrices.highest_rate(peaks)
     )
     if settings.integrator not in STABLE_OMEGA_STEP:
         raise ValueError(
@@ -819,7 +961,7 @@ def steps_per_sensor_sample(
         raise SimulationError(
             f"the fastest mode ({omega_max / 2 / math.pi:.3g} Hz) needs {needed} {settings.integrator} steps per sensor sample "
             f"(at most {MAX_STEPS_PER_SENSOR_SAMPLE}): a stiffness is out of range "
-            f"(mesh_stiffness {drivetrain.p.mesh_stiffness:.3g} N/m)"
+            f"(mesh_stiffness {', '.join(f'{v.mesh_stiffness:.3g}' for v in drivetrain.stages)} N/m)"
         )
     return max(int(settings.steps_per_sensor_sample), needed) * int(settings.step_refinement)
 
@@ -843,11 +985,12 @@ def simulate(
     structure = drivetrain.structure
     # Loads: the brake torque (with its slow fluctuation) and any extra periodic loads; their
     # coordinates stay plain coordinates of the model.
+    brake = drivetrain.load_sign * params.load_torque
     loads = [
         (
             drivetrain.load_dof,
-            params.load_torque,
-            params.load_torque * params.load_fluctuation,
+            brake,
+            brake * params.load_fluctuation,
             params.load_fluctuation_hz,
             params.load_fluctuation_phase,
         )
@@ -860,32 +1003,33 @@ def simulate(
             else structure.dof(drivetrain.housings[index], 1)
         )
         loads.append((dof, 0.0, extra.amplitude, extra.frequency_hz, extra.phase))
-    if any(dof == drivetrain.mesh_dof for dof, *_ in loads):
+    if any(dof in drivetrain.mesh_dofs for dof, *_ in loads):
         raise ValueError(
-            "a load acts on the pinion's x, which the model replaces by the mesh deflection"
+            "a load acts on a pinion's x, which the model replaces by the mesh deflection"
         )
     matrices = model_matrices(drivetrain, [dof for dof, *_ in loads], settings.modal_cutoff_hz)
     steps = steps_per_sensor_sample(
         drivetrain, settings, matrices
     )  # fails fast on an out-of-range stiffness
-    n, mesh_dof, transform = matrices.n, matrices.mesh, matrices.transform
-    pinion_polar, gear_polar = drivetrain.polar_inertias()
-    mesh = MeshForce(params, mesh_damping(params, pinion_polar, gear_polar))
+    n, transform = matrices.n, matrices.transform
+    polar = drivetrain.polar_inertias()
+    meshes = [
+        MeshForce(view, mesh_damping(view, polar[k], polar[k + 1]))
+        for k, view in enumerate(drivetrain.stages)
+    ]
 
-    # Static equilibrium under the mean mesh force as initial condition (short transient).
-    rb2 = params.geometry.base_radius(params.geometry.teeth_gear)
-    delta0 = mesh.static_deflection(params.load_torque / rb2)
+    # Static equilibrium under the mean mesh forces as initial condition (short transient).
     load = np.zeros(n)
-    load[matrices.plain[drivetrain.load_dof]] = (
-        params.load_torque
-    )  # a resisting load presses the gear onto the pinion
-    free = [i for i in range(n) if i != mesh_dof]
+    load[matrices.plain[drivetrain.load_dof]] = brake  # a resisting load presses the gears together
+    free = [i for i in range(n) if i not in matrices.meshes]
     stiffness = matrices.stiffness
     q0 = np.zeros(n)
-    q0[mesh_dof] = delta0
-    q0[free] = np.linalg.solve(
-        stiffness[np.ix_(free, free)], load[free] - stiffness[free, mesh_dof] * delta0
-    )
+    rhs = load[free]
+    for mesh_dof, mesh, view in zip(matrices.meshes, meshes, drivetrain.stages):
+        rb2 = view.geometry.base_radius(view.geometry.teeth_gear)
+        q0[mesh_dof] = mesh.static_deflection(view.load_torque / rb2)
+        rhs = rhs - stiffness[free, mesh_dof] * q0[mesh_dof]
+    q0[free] = np.linalg.solve(stiffness[np.ix_(free, free)], rhs)
 
     with exudyn_system() as mbs:
         # The damaged shaft elements' deformation coordinates (the last ones) get a node of their own,
@@ -931,21 +1075,27 @@ def simulate(
             )
         ground = mbs.AddNode(eii.NodePointGround())
         ground_marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=ground, coordinate=0))
-        mesh_marker = mbs.AddMarker(eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=mesh_dof))
         calls = [0]
 
-        def counted_mesh_force(mbs_, t, item, displacement, velocity, k, d, offset):
-            calls[0] += 1
-            return mesh(t, displacement, velocity)
+        def counted(mesh):
+            def counted_mesh_force(mbs_, t, item, displacement, velocity, k, d, offset):
+                calls[0] += 1
+                return mesh(t, displacement, velocity)
 
-        mbs.AddObject(
-            eii.ObjectConnectorCoordinateSpringDamper(
-                markerNumbers=[ground_marker, mesh_marker],
-                springForceUserFunction=mesh.spring_force
-                if diagnostics is None
-                else counted_mesh_force,
+            return counted_mesh_force
+
+        for mesh_dof, mesh in zip(matrices.meshes, meshes):
+            mesh_marker = mbs.AddMarker(
+                eii.MarkerNodeCoordinate(nodeNumber=node, coordinate=mesh_dof)
             )
-        )
+            mbs.AddObject(
+                eii.ObjectConnectorCoordinateSpringDamper(
+                    markerNumbers=[ground_marker, mesh_marker],
+                    springForceUserFunction=mesh.spring_force
+                    if diagnostics is None
+                    else counted(mesh),
+                )
+            )
 
         keep = []  # the symbolic load functions live as long as the system
         for dof, mean, amplitude, frequency, phase in loads:  # compiled symbolic functions of time
@@ -1007,21 +1157,25 @@ def simulate(
             np.hstack([mbs.GetSensorStoredData(each)[:, 1:] for each in sensors]) @ transform.T
         )  # physical
         acc = np.diff(velocities, axis=0) * (settings.output_rate * settings.oversampling)
-        deflection = mbs.GetNodeOutput(node, exu.OutputVariableType.Coordinates)[mesh_dof]
+        deflections = mbs.GetNodeOutput(node, exu.OutputVariableType.Coordinates)[
+            list(matrices.meshes)
+        ]
         if diagnostics is not None:
             positions = mbs.GetSensorStoredData(position_sensor)
             diagnostics.update(
                 time=positions[:, 0],
-                deflection=positions[:, 1 + mesh_dof],
+                deflection=positions[:, 1],
+                deflections=positions[:, [1 + m for m in matrices.meshes]],
                 mesh_calls=calls[0],
                 steps_per_sensor_sample=steps,
                 accelerations=acc,
                 drivetrain=drivetrain,
             )
-        if not np.isfinite(acc).all() or abs(deflection) > settings.max_deflection:
+        worst = float(np.abs(deflections).max())
+        if not np.isfinite(acc).all() or not worst <= settings.max_deflection:
             raise SimulationError(
                 f"simulation diverged ({params.health_state}, {params.speed_rpm} rpm): "
-                f"non-finite accelerations or mesh deflection {deflection:.3g} m"
+                f"non-finite accelerations or mesh deflection {worst:.3g} m"
             )
     lowpass = decimation_filter(settings.oversampling)
     first = int(round(settings.settle_time * settings.output_rate))
