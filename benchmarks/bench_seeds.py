@@ -18,8 +18,8 @@ The config's own bench seed is the config's own run where it has finished.
 - the share of each localised fault's records whose damaged tooth is named right (summary.json
   `fault_location`), where the bench's records carry the truth.
 
-With `--benches` the shipped bench variants (config/benches/*.yaml: other gears, housings, grids,
-fault sizes and teeth, each with its own seed) run beside the seeds, layered over the config
+With `--benches` the shipped bench variants (config/benches/*.yaml but two-stage.yaml, a rig of its
+own: other gears, housings, grids, fault sizes and teeth, each with its own seed) run beside the seeds, layered over the config
 files, each under its own run name; with several `--classifier`s every classifier's rows. Then
 the mean over every bench per classifier, speed and class, to `results/benchmark/bench_seeds.json` (the
 default run; `bench_seeds_<name>.json` for another) and to its committed record

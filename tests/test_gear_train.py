@@ -2,7 +2,11 @@
 each pair carries the torque its ratio gives, a fault repeats with the shaft of the pinion it
 sits on, and a train the model cannot build is named."""
 
+import json
+import re
+
 import numpy as np
+import pandas as pd
 import pytest
 from scipy.signal import resample
 
@@ -155,3 +159,204 @@ def test_a_crack_in_the_intermediate_shaft_breathes_with_it():
     (_, _, element), *_ = drivetrain.damaged_elements
     assert element.spin_hz == pytest.approx(20.0 * 29 / 44)
     assert len(drivetrain.housings) == 6
+
+
+# -- the gear system's train: config, draws, bench ------------------------------------------------
+TWO_STAGE = "config/benches/two-stage.yaml"
+
+
+def test_a_train_from_its_config_names_every_gear_and_the_pinions_faults_sit_on():
+    from conftest import system_of
+
+    system = system_of(TWO_STAGE)
+    assert system.shafts() == [
+        ("pinion", 1.0, 29),
+        ("gear", pytest.approx(29 / 44), 44),
+        ("pinion_2", pytest.approx(29 / 44), 23),
+        ("gear_2", pytest.approx(29 / 44 * 23 / 47), 47),
+    ]
+    assert system.damaged_shafts() == ["pinion", "pinion_2"]
+    assert system.channels == ["a1", "a2", "a3"]
+    p = system.parameters()
+    (stage,) = p.stages
+    assert (stage.geometry.teeth_pinion, stage.geometry.face_width) == (23, 0.030)
+    # the material and angles the stage leaves out are the first pair's
+    assert stage.geometry.pressure_angle_deg == p.geometry.pressure_angle_deg
+    # a further pair's mesh stiffness follows the first pair's (calibration, a bench's truth)
+    doubled = system.parameters(mesh_stiffness=2 * p.mesh_stiffness)
+    assert doubled.stages[0].mesh_stiffness == pytest.approx(2 * stage.mesh_stiffness)
+    assert system.problems() == []
+
+
+@pytest.mark.parametrize(
+    "changes, named",
+    [
+        ({"model": {"faulty_stages": [0, 2]}}, "model.faulty_stages: pair 2 of a train of 2"),
+        ({"model": {"damaged_shaft": 3}}, "model.damaged_shaft: shaft 3 of a train of 3 shafts"),
+        (
+            {
+                "virtual_bench": {
+                    "faults": {
+                        "missing_tooth": {"form": "broken_tooth", "broken_height": 0.5, "stage": 2}
+                    }
+                }
+            },
+            "virtual_bench.faults.missing_tooth.stage: pair 2 of a train of 2",
+        ),
+        (
+            {"model": {"sensors": {"a1": {"housing": 6, "directions": ["y"]}}}},
+            "sensors: a1 on housing 6; the rig has housings 0..5",
+        ),
+    ],
+)
+def test_a_pair_shaft_or_housing_the_train_lacks_is_named_before_any_job(changes, named):
+    from conftest import system_of
+
+    from condmon.config import ConfigError
+
+    with pytest.raises(ConfigError, match=re.escape(named)):
+        system_of(TWO_STAGE, changes)
+
+
+def test_each_simulated_train_draws_its_own_pairs_and_the_pair_its_fault_sits_on():
+    """The first pair's draws stay a one-pair drivetrain's; each further pair gets gears of its
+    own; the faulty pair is drawn over `model.faulty_stages`."""
+    from conftest import system_of
+
+    from condmon.systems.gear.parameters import sample_effects
+
+    system = system_of(TWO_STAGE)
+    model, p = system.config["model"], system.parameters()
+    effects = [
+        sample_effects(model, p.geometry, np.random.default_rng(k), p.stages) for k in range(12)
+    ]
+    alone = sample_effects(model, p.geometry, np.random.default_rng(0))
+    assert effects[0]["pitch_errors_pinion"] == alone["pitch_errors_pinion"]
+    assert effects[0]["start_mesh_phase"] == alone["start_mesh_phase"]
+    (stage,) = effects[0]["stages"]
+    assert len(stage.pitch_errors_pinion) == 23 and len(stage.flank_maps_pinion) == 23
+    assert stage.pitch_errors_pinion != effects[1]["stages"][0].pitch_errors_pinion
+    assert {e["faulty_stage"] for e in effects} == {0, 1}
+
+
+def test_the_bench_damages_the_pair_its_fault_names_and_records_which():
+    """A broken tooth on the second pair's pinion repeats with the intermediate shaft; its
+    records carry the pair as truth."""
+    from conftest import system_of
+
+    from condmon.systems.gear import BENCH_NUMERICS
+    from condmon.systems.gear.bench import virtual_bench_rows
+
+    system = system_of(TWO_STAGE)
+    bench = dict(system.config["virtual_bench"], records_per_state=1, record_seconds=1.5)
+    numerics = dict(system.numerics, **{k: bench[k] for k in BENCH_NUMERICS})
+    point = [p for p in system.operating_points if p.load == 30.0]
+    rows = virtual_bench_rows(
+        system.parameters,
+        bench,
+        ["missing_tooth"],
+        point,
+        numerics,
+        1.5,
+        load_torque=system.load_torque,
+        table_load=system.table_load,
+    )
+    truth = json.loads(rows[0]["params"])
+    assert truth["damaged_stage"] == 1 and truth["damaged_teeth"] == [bench["faulty_tooth"]]
+    assert {row["load"] for row in rows} == {30.0}
+
+
+def test_the_part_holding_the_most_change_is_where_the_report_places_the_fault():
+    """Per record, the located part whose change is largest holds the fault; scored against the
+    bench's damaged part (a record of one part, or without truth, is not scored)."""
+    from condmon.report.fault_location import part_named_right, record_locations
+
+    def segment(record, part, level, true_part):
+        return {
+            "record_id": record,
+            "health_state": "missing_tooth",
+            "speed_rpm": 900.0,
+            "part": part,
+            "positions": 23,
+            "span": 1.6,
+            "position": 3,
+            "share": 0.5,
+            "true_positions": "[]",
+            "level": level,
+            "true_part": true_part,
+        }
+
+    located = pd.DataFrame(
+        [
+            segment("right", "pinion", 0.2, False),
+            segment("right", "pinion_2", 4.0, True),
+            segment("right", "pinion_2", 2.0, True),
+            segment("wrong", "pinion", 5.0, False),
+            segment("wrong", "pinion_2", 1.0, True),
+            segment("alone", "pinion", 5.0, True),
+            segment("unknown", "pinion", 1.0, None),
+            segment("unknown", "pinion_2", 3.0, None),
+        ]
+    )
+    table = record_locations(located).set_index(["record_id", "part"])
+    assert table.loc[("right", "pinion_2"), "holds_change"]
+    assert table.loc[("right", "pinion_2"), "level"] == pytest.approx(3.0)
+    assert not table.loc[("wrong", "pinion_2"), "holds_change"]
+    assert part_named_right(table.reset_index()) == pytest.approx(0.5)
+
+
+def test_the_damaged_part_a_bench_record_carries_is_its_pairs_pinion():
+    from condmon.systems.gear.residual_features import true_parts, true_positions
+
+    shafts = [("pinion", 1.0, 29), ("gear", 0.66, 44), ("pinion_2", 0.66, 23), ("gear_2", 0.3, 47)]
+    frame = pd.DataFrame(
+        {
+            "record_id": ["a", "b", "c"],
+            "params": [
+                json.dumps({"mesh_phase": 1.0, "damaged_teeth": [3]}),
+                json.dumps({"mesh_phase": 2.0, "damaged_teeth": [5], "damaged_stage": 1}),
+                "",
+            ],
+        }
+    )
+    assert true_parts(frame, shafts) == {"a": "pinion", "b": "pinion_2"}
+    # the tooth frame is the first pair's: a further pair's tooth is not scored against it
+    assert true_positions(frame, 0.0, 29) == {"a": [3.0]}
+
+
+def test_the_two_gears_of_the_intermediate_shaft_share_its_one_pattern():
+    """A train's shafts kept apart in a record far shorter than its hunting cycle: the input
+    shaft's pattern as for a pair, the intermediate shaft's one pattern given to both its gears
+    (two patterns of one shaft would split it between them at random)."""
+    from condmon.systems.gear import residual_features as rf
+
+    P, fs, speed = 256, 5120.0, 900.0
+    gears = [("pinion", 1.0, 29), ("gear", 29 / 44, 44), ("pinion_2", 29 / 44, 23)]
+    gears.append(("gear_2", 29 / 44 * 23 / 47, 47))
+    rng = np.random.default_rng(5)
+    grid = np.arange(P) / P
+
+    def pattern(teeth):
+        orders = [o for o in range(1, 40) if o % teeth]
+        return sum(
+            rng.normal(0, 1 / o) * np.cos(2 * np.pi * o * grid + rng.uniform(0, 6.3))
+            for o in orders
+        )
+
+    truth = {ratio: pattern(teeth) for _, ratio, teeth in gears[:2] + gears[3:]}
+    t = np.arange(int(3.0 * fs)) / fs
+    angle = speed / 60 * t
+    x = sum(
+        np.interp((angle * ratio) % 1.0, np.append(grid, 1.0), np.append(p, p[0]))
+        for ratio, p in truth.items()
+    )
+    x = (x + rng.normal(0, 0.05, len(t)))[None, :]
+    patterns = rf.shaft_patterns(x, angle, gears, P)
+    assert patterns[1] is patterns[2]
+
+    def error(estimate, ratio):
+        reference = truth[ratio] - truth[ratio].mean()
+        return np.sqrt(np.mean((estimate[0] - reference) ** 2)) / reference.std()
+
+    assert error(patterns[0], 1.0) < 0.1
+    assert error(patterns[1], 29 / 44) < 0.2

@@ -3,8 +3,10 @@ position its segments name (a system family's localisation, measured_fault_locat
 frame of the machine's own: the same position on every record of it; the system's docs say what a
 position is), how many of its segments agree and how sure they are (the share of the change at
 that position); where the records carry the truth (a virtual bench), whether it is named right:
-the position overlaps the `span` positions from where a damaged one begins. summary.json
-`fault_location`: the share of the scored records named right, per class."""
+the position overlaps the `span` positions from where a damaged one begins. With several parts (a
+gear train's pinions), the one whose change is largest holds the fault. summary.json
+`fault_location`: the share of the scored records named right, per class, and of the records
+whose part holding the change is the damaged one."""
 
 from __future__ import annotations
 
@@ -29,8 +31,12 @@ def named_right(position: int, true_positions, positions: int, span: float) -> b
 def record_locations(located: pd.DataFrame) -> pd.DataFrame:
     """Per record and part: the position most of its segments name, their agreement (share of its
     segments naming it), the mean share of the change there (how sure), and the truth's positions
-    and whether it is named right (None where there is no truth)."""
+    and whether it is named right (None where there is no truth); with several parts (a gear
+    train's pinions), the part whose mean `level` is highest holds the change (`holds_change`),
+    beside whether the bench damaged it (`true_part`, None without truth)."""
     rows = []
+    if "level" not in located:  # a family that gives no levels: every part alone
+        located = located.assign(level=float("nan"), true_part=None)
     for (record, part), segments in located.groupby(["record_id", "part"], sort=True):
         named = segments["position"].astype(int)
         position = int(named.mode().min())
@@ -55,9 +61,29 @@ def record_locations(located: pd.DataFrame) -> pd.DataFrame:
                     if truth
                     else None
                 ),
+                "level": float(segments["level"].mean()),
+                "true_part": _truth_of(segments["true_part"].iloc[0]),
             }
         )
-    return pd.DataFrame(rows)
+    table = pd.DataFrame(rows)
+    highest = table.groupby("record_id")["level"].transform("max")
+    return table.assign(holds_change=table["level"] >= highest)
+
+
+def _truth_of(value):
+    """A `true_part` cell (a bool, its text in a CSV, or nothing) as True, False or None."""
+    if value is None or (isinstance(value, float) and pd.isna(value)):
+        return None
+    return value if isinstance(value, bool) else str(value) == "True"
+
+
+def part_named_right(table: pd.DataFrame) -> float | None:
+    """The share of the records of several located parts with the truth whose part holding the
+    change is the damaged one (None: no such record)."""
+    scored = table.dropna(subset=["true_part"])
+    scored = scored[scored.groupby("record_id")["part"].transform("size") > 1]
+    held = scored[scored["holds_change"]]
+    return float(held["true_part"].astype(bool).mean()) if len(held) else None
 
 
 COLUMNS = [
@@ -70,6 +96,9 @@ COLUMNS = [
     "share",
     "true_positions",
     "named_right",
+    "level",
+    "holds_change",
+    "true_part",
 ]
 
 
@@ -91,6 +120,7 @@ def write(report) -> dict:
             state: float(part["named_right"].astype(bool).mean())
             for state, part in scored.groupby("health_state")
         },
+        "part_named_right": part_named_right(table),
     }
     return {"fault_location": table.assign(true_positions=table["true_positions"].map(json.dumps))}
 

@@ -335,3 +335,31 @@ def pitted_flank_map(
         )
         removed = np.maximum(removed, bowl)
     return FlankMap.of(removed)
+
+
+def pair_errors(rng, grade: float, share: float, geometry, misalignment) -> dict:
+    """One gear pair's manufacturing deviations (`draw_gear_errors`) as
+    GearDrivetrainParameters (or GearStage) fields: pitch deviations, run-out, and the pinion's
+    flank maps with the mesh misalignment (`misalignment()`, m, drawn for the pinion only)."""
+    fields = {}
+    for name, teeth in (("pinion", geometry.teeth_pinion), ("gear", geometry.teeth_gear)):
+        gear = draw_gear_errors(
+            rng,
+            grade,
+            teeth,
+            geometry.normal_module,
+            2 * geometry.pitch_radius(teeth),
+            geometry.face_width,
+            share,
+            misalignment=misalignment() if name == "pinion" else 0.0,
+        )
+        fields.update(
+            {
+                f"pitch_errors_{name}": gear.pitch_deviations,
+                f"runout_{name}": gear.eccentricity,
+                f"runout_phase_{name}": gear.eccentricity_phase,
+            }
+        )
+        if name == "pinion":
+            fields["flank_maps_pinion"] = gear.flank_maps
+    return fields

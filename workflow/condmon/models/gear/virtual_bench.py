@@ -21,6 +21,7 @@ Its records are always labelled `virtual_bench`, never `measured`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -31,9 +32,11 @@ from condmon.models.gear.drivetrain import (
     GearDrivetrainParameters,
     PeriodicLoad,
     SimulationSettings,
+    shaft_speed_ratios,
     simulate,
+    stage_parameters,
 )
-from condmon.models.gear.errors import FlankMap, draw_gear_errors
+from condmon.models.gear.errors import FlankMap, pair_errors
 from condmon.models.gear.mesh_force import mesh_phase_at
 
 
@@ -59,34 +62,25 @@ class BenchForm:
     motor_ripple: float = 0.1  # N m at 2 x line frequency
 
 
-def bench_gears(form: BenchForm, geometry, seed: int) -> dict:
-    """The bench's own gears: one pinion and one gear of ISO grade `form.gear_grade`, fixed by `seed`
-    (the same physical gears in every record), as GearDrivetrainParameters fields; perfect gears
-    (no fields) with `gear_deviation_share` 0."""
+def bench_gears(form: BenchForm, geometry, seed: int, stages: tuple = ()) -> dict:
+    """The bench's own gears: each pair's pinion and gear of ISO grade `form.gear_grade`, fixed by
+    `seed` (the same physical gears in every record), as GearDrivetrainParameters fields (a train's
+    further pairs, `stages`, with theirs in `stages`); perfect gears (no fields) with
+    `gear_deviation_share` 0."""
     if not form.gear_deviation_share and not form.misalignment:
         return {}
     rng = np.random.default_rng([seed, 0xBE7C4])
-    fields = {}
-    for name, teeth in (("pinion", geometry.teeth_pinion), ("gear", geometry.teeth_gear)):
-        gear = draw_gear_errors(
-            rng,
-            form.gear_grade,
-            teeth,
-            geometry.normal_module,
-            2 * geometry.pitch_radius(teeth),
-            geometry.face_width,
-            form.gear_deviation_share,
-            misalignment=form.misalignment if name == "pinion" else 0.0,
+
+    def pair(g):
+        return pair_errors(
+            rng, form.gear_grade, form.gear_deviation_share, g, lambda: form.misalignment
         )
-        fields.update(
-            {
-                f"pitch_errors_{name}": gear.pitch_deviations,
-                f"runout_{name}": gear.eccentricity,
-                f"runout_phase_{name}": gear.eccentricity_phase,
-            }
+
+    fields = pair(geometry)
+    if stages:
+        fields["stages"] = tuple(
+            dataclasses.replace(stage, **pair(stage.geometry)) for stage in stages
         )
-        if name == "pinion":
-            fields["flank_maps_pinion"] = gear.flank_maps
     return fields
 
 
@@ -178,16 +172,14 @@ def bench_record(
     """One acquisition of the bench at `true_params` (speed and health state the model runs
     included) with its own gears (`bench_gears`) and damage (`fault_maps`, `bench_fault`): random
     phases of the fluctuations and bearing tones, a random start angle of the shafts, then white
-    plus coloured sensor noise. (signals, the mesh phase at the record's first sample: which teeth
-    stand where, the truth a located tooth is scored against)."""
+    plus coloured sensor noise. (signals, the mesh phase of the pair `faulty_stage` names at the
+    record's first sample: which teeth stand where, the truth a located tooth is scored against)."""
     g = true_params.geometry
     shaft_hz = true_params.speed_rpm / 60.0
-    shaft_frequencies = (
-        shaft_hz,
-        shaft_hz,
-        shaft_hz * g.teeth_pinion / g.teeth_gear,
-        shaft_hz * g.teeth_pinion / g.teeth_gear,
-    )
+    # two housings a shaft
+    shaft_frequencies = [
+        shaft_hz * ratio for ratio in shaft_speed_ratios(true_params) for _ in range(2)
+    ]
     loads = (
         [
             PeriodicLoad(
@@ -226,10 +218,24 @@ def bench_record(
         start_mesh_phase=float(rng.uniform(0, math.lcm(g.teeth_pinion, g.teeth_gear))),
         **dict(gears, damage_maps_pinion=tuple(fault_maps)),
     )
+    if params.stages:  # each further pair at its own start angle too
+        params = params.replace(
+            stages=tuple(
+                dataclasses.replace(
+                    stage,
+                    start_mesh_phase=float(
+                        rng.uniform(
+                            0, math.lcm(stage.geometry.teeth_pinion, stage.geometry.teeth_gear)
+                        )
+                    ),
+                )
+                for stage in params.stages
+            )
+        )
     signals = simulate(params, settings, extra_loads=loads)
     return (
         {name: signal + sensor_noise(len(signal), form, rng) for name, signal in signals.items()},
-        mesh_phase_at(params, settings.settle_time),
+        mesh_phase_at(stage_parameters(params)[params.faulty_stage], settings.settle_time),
     )
 
 

@@ -260,12 +260,14 @@ class GearSystem(System):
                 f"features.spectrum.resolution_hz: {spectrum['resolution_hz']} Hz is finer than "
                 f"the {segment_resolution:g} Hz a {rig['segment_seconds']} s segment resolves"
             )
-        gmf = max(rig["speeds_rpm"]) / 60 * config["model"]["geometry"]["teeth_pinion"]
-        if gmf >= nyquist:
-            problems.append(
-                f"rig.output_rate_hz: the gear mesh frequency {gmf:.0f} Hz at the highest speed "
-                f"is above the Nyquist frequency {nyquist} Hz"
-            )
+        for name, ratio, teeth in self.shafts()[::2]:  # each pair's pinion
+            gmf = max(rig["speeds_rpm"]) / 60 * ratio * teeth
+            if gmf >= nyquist:
+                problems.append(
+                    f"rig.output_rate_hz: the gear mesh frequency {gmf:.0f} Hz (of {name}) at the "
+                    f"highest speed is above the Nyquist frequency {nyquist} Hz"
+                )
+        problems += self.stage_problems()
         if (
             config["measured_table"] is None
             and config["virtual_bench"]["record_seconds"] < rig["segment_seconds"]
@@ -328,6 +330,30 @@ class GearSystem(System):
         bound = config["calibration"]["parameters"].get("restitution")
         if bound is not None and not (0 < bound["low"] and bound["high"] <= 1):
             problems.append("calibration.parameters.restitution: bounds must lie in (0, 1]")
+        return problems
+
+    def stage_problems(self) -> list[str]:
+        """Pair and shaft numbers the train lacks (`model.faulty_stages`, `model.damaged_shaft`,
+        a bench fault's `stage`)."""
+        config = self.config
+        pairs = 1 + len(config["model"]["stages"])
+        problems = [
+            f"model.faulty_stages: pair {stage} of a train of {pairs} (0..{pairs - 1})"
+            for stage in config["model"]["faulty_stages"]
+            if stage >= pairs
+        ]
+        if config["model"]["damaged_shaft"] > pairs:
+            problems.append(
+                f"model.damaged_shaft: shaft {config['model']['damaged_shaft']} of a train of "
+                f"{pairs + 1} shafts (0..{pairs})"
+            )
+        if config["measured_table"] is None:
+            problems += [
+                f"virtual_bench.faults.{state}.stage: pair {spec['stage']} of a train of {pairs} "
+                f"(0..{pairs - 1})"
+                for state, spec in config["virtual_bench"]["faults"].items()
+                if spec.get("stage", 0) >= pairs
+            ]
         return problems
 
     # -- measured: the virtual bench ---------------------------------------------------------
@@ -473,7 +499,7 @@ class GearSystem(System):
         params = self.parameters(
             speed_rpm=float(speed_rpm), health_state=health_state, **parameters
         )
-        effects = sample_effects(model, params.geometry, np.random.default_rng(seed))
+        effects = sample_effects(model, params.geometry, np.random.default_rng(seed), params.stages)
         if state_model is not None:
             effects.update(state_model_fields(state_model, effects, seed))
         if measured_fluctuation:
@@ -561,16 +587,19 @@ class GearSystem(System):
         return shafts
 
     def damaged_shafts(self) -> list[str]:
-        """The shafts the health states damage: the pinion's (every tooth fault is on a pinion
-        tooth) and, with a shaft fault, `model.damaged_shaft`'s (0: the input shaft)."""
+        """The gears (`shafts`) the health states damage: the pinion of each pair the simulated
+        tooth faults sit on (`model.faulty_stages`) and, with a shaft fault, a gear on
+        `model.damaged_shaft` (0: the input shaft, k: the k-th pair's gear shaft)."""
+        model = self.config["model"]
         names = [name for name, _, _ in self.shafts()]
         damaged = (
-            {names[0]}
+            {names[2 * stage] for stage in model.get("faulty_stages", [0])}
             if set(self.health_states) - {self.healthy_state} - set(SHAFT_HEALTH_STATES)
             else set()
         )
         if set(self.health_states) & set(SHAFT_HEALTH_STATES):
-            damaged.add(names[int(self.config["model"].get("damaged_shaft", 0))])
+            shaft = int(model.get("damaged_shaft", 0))
+            damaged.add(names[max(2 * shaft - 1, 0)])
         return [name for name in names if name in damaged] or names[:1]
 
     def feature_family_problems(self, family: str, order: dict) -> list[str]:
@@ -658,8 +687,17 @@ class GearSystem(System):
         return problems
 
     def shafts(self) -> list[tuple[str, float, int]]:
-        """The pinion on the input shaft (ratio 1) and the gear on the output shaft (ratio
-        teeth_pinion / teeth_gear), with their teeth (`model.geometry`)."""
-        geometry = self.config["model"]["geometry"]
-        pinion, gear = int(geometry["teeth_pinion"]), int(geometry["teeth_gear"])
-        return [("pinion", 1.0, pinion), ("gear", pinion / gear, gear)]
+        """Each gear with its shaft's speed over the input shaft's and its teeth: the pinion on
+        the input shaft (ratio 1) and the gear on the output shaft (ratio teeth_pinion /
+        teeth_gear) of `model.geometry`; a train's further pairs (`model.stages`) add theirs,
+        `pinion_2` on the previous gear's shaft and `gear_2` on its own, and so on."""
+        model = self.config["model"]
+        pairs = [model["geometry"]] + [stage["geometry"] for stage in model.get("stages", [])]
+        ratio, gears = 1.0, []
+        for k, geometry in enumerate(pairs):
+            suffix = f"_{k + 1}" if k else ""
+            pinion, gear = int(geometry["teeth_pinion"]), int(geometry["teeth_gear"])
+            gears.append((f"pinion{suffix}", ratio, pinion))
+            ratio = ratio * pinion / gear
+            gears.append((f"gear{suffix}", ratio, gear))
+        return gears

@@ -42,24 +42,30 @@ def virtual_bench_rows(
     settings = simulation_settings(numerics, duration=bench["record_seconds"])
     segment_length = int(round(segment_seconds * settings.output_rate))
     truth = dict(bench.get("model_overrides", {}), **bench["true_parameters"])
-    geometry = parameters(**truth).geometry
-    gears = bench_gears(form, geometry, bench["seed"])
+    rig = parameters(**truth)
+    gears = bench_gears(form, rig.geometry, bench["seed"], rig.stages)
+    pairs = [rig.geometry] + [stage.geometry for stage in rig.stages]
     rows = []
     for health_state in health_states:
+        # the pair whose pinion the bench damaged (its fault's `stage`; the first pair's otherwise)
+        stage = int(bench.get("faults", {}).get(health_state, {}).get("stage", 0))
         model_state, fault_maps = bench_fault(
             health_state,
             bench.get("faults", {}),
-            geometry.teeth_pinion,
+            pairs[stage].teeth_pinion,
             bench["faulty_tooth"],
             job_rng(bench["seed"], "bench fault", health_state),
         )
+        on_stage = {"faulty_stage": stage} if rig.stages else {}
         for point in points:
             speed = float(point.speed_rpm)
             # a point with a load draws a stream of its own; the speed alone keeps the one it had
             loaded = () if point.load is None else (float(point.load),)
             rng = job_rng(bench["seed"], "virtual_bench", health_state, speed, *loaded)
             at_load = {} if point.load is None else {"load_torque": load_torque(point.load)}
-            params = parameters(speed_rpm=speed, health_state=model_state, **dict(truth, **at_load))
+            params = parameters(
+                speed_rpm=speed, health_state=model_state, **dict(truth, **at_load, **on_stage)
+            )
             for k in range(bench["records_per_state"]):
                 start = time.perf_counter()
                 signals, mesh_phase = bench_record(params, form, settings, rng, gears, fault_maps)
@@ -72,10 +78,11 @@ def virtual_bench_rows(
                     time.perf_counter() - start,
                 )
                 # the truth a located tooth is scored against: where the teeth stood at the first
-                # sample, and which pinion teeth the bench damaged
+                # sample, and which pinion teeth the bench damaged (of which pair in a train)
                 truth_of_record = {
                     "mesh_phase": mesh_phase,
                     "damaged_teeth": [t for t, m in enumerate(fault_maps) if m is not None],
+                    **({"damaged_stage": stage} if rig.stages else {}),
                 }
                 rows += make_rows(
                     f"vb-{health_state}-{point.label}-r{k:02d}",

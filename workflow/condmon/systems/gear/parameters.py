@@ -10,10 +10,11 @@ import numpy as np
 from condmon.models.gear.drivetrain import (
     GearDrivetrainParameters,
     GearGeometry,
+    GearStage,
     ShaftLayout,
     SimulationSettings,
 )
-from condmon.models.gear.errors import draw_gear_errors
+from condmon.models.gear.errors import pair_errors
 from condmon.models.gear.mesh_force import stiffness_for_deflection
 
 # Parameters that calibration may tune (the contact law is the categorical one).
@@ -34,14 +35,18 @@ _SECTIONS = (
     "gear_errors",
     "fault_severity",
     "mesh_compliance",
-)  # drawn per sample, not parameters
+    "stages",
+    "faulty_stages",
+)  # drawn per sample or built apart, not parameters
 
 
 def build_parameters(model: dict, **overrides) -> GearDrivetrainParameters:
     """GearDrivetrainParameters from the `model` config section plus overrides.
 
     `model` holds `geometry` (dict), the shaft layouts (dicts), `variability` (drawn per sample,
-    `sample_effects`) and any scalar or list field of GearDrivetrainParameters."""
+    `sample_effects`), the further pairs of a train (`stages`) and any scalar or list field of
+    GearDrivetrainParameters. A further pair's mesh stiffness scales with the first pair's (what
+    calibration or a bench's truth set: the material and contact the pairs share)."""
     values = {k: v for k, v in model.items() if k not in _SECTIONS}
     geometry = dict(model.get("geometry", {}), **overrides.pop("geometry", {}))
     values.update(overrides)
@@ -50,13 +55,34 @@ def build_parameters(model: dict, **overrides) -> GearDrivetrainParameters:
         raise ValueError(f"unknown gear model parameters {unknown}")
     for key in ("input_shaft", "output_shaft"):
         if isinstance(values.get(key), dict):
-            values[key] = ShaftLayout(
-                **{k: tuple(v) if isinstance(v, list) else v for k, v in values[key].items()}
-            )
+            values[key] = _layout(values[key])
     if isinstance(values.get("sensors"), dict):
         values["sensors"] = tuple(_sensor(name, spec) for name, spec in values["sensors"].items())
+    if model.get("stages") and "stages" not in values:
+        scale = float(values.get("mesh_stiffness", model["mesh_stiffness"])) / float(
+            model["mesh_stiffness"]
+        )
+        values["stages"] = tuple(_stage(spec, geometry, scale) for spec in model["stages"])
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
     return GearDrivetrainParameters(geometry=GearGeometry(**geometry), **values)
+
+
+def _layout(spec: dict) -> ShaftLayout:
+    return ShaftLayout(**{k: tuple(v) if isinstance(v, list) else v for k, v in spec.items()})
+
+
+def _stage(spec: dict, first_geometry: dict, stiffness_scale: float) -> GearStage:
+    """One `model.stages` entry: its geometry over the first pair's (material, angles and any key
+    it does not give), its shaft, masses and mesh stiffness (times `stiffness_scale`)."""
+    return GearStage(
+        geometry=GearGeometry(**dict(first_geometry, **spec["geometry"])),
+        shaft=_layout(spec["shaft"]),
+        pinion_mass=float(spec["pinion_mass"]),
+        pinion_inertia=float(spec["pinion_inertia"]),
+        gear_mass=float(spec["gear_mass"]),
+        gear_inertia=float(spec["gear_inertia"]),
+        mesh_stiffness=float(spec["mesh_stiffness"]) * stiffness_scale,
+    )
 
 
 def _sensor(name: str, spec) -> tuple:
@@ -111,7 +137,9 @@ def draw_mesh_compliance(
     }
 
 
-def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator) -> dict:
+def sample_effects(
+    model: dict, geometry: GearGeometry, rng: np.random.Generator, stages: tuple = ()
+) -> dict:
     """One drivetrain's manufacturing and operating scatter, drawn per sample:
     - its gears (`model.gear_errors`): an ISO 1328-1 grade uniform in `grade`, deviations a share
       of its tolerances uniform in `deviation_share`, a misalignment uniform in `misalignment`
@@ -124,7 +152,11 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
       a broken tooth's profile that is gone, each uniform in its range) and the damaged surfaces'
       seed;
     - the mesh phase the run starts at, uniform over the gear pair's full cycle (a measurement
-      starts at any shaft angle: where the damaged tooth passes within a segment varies)."""
+      starts at any shaft angle: where the damaged tooth passes within a segment varies);
+    - a train's further pairs (`stages`, GearStage): each its own gears of the same grade and
+      share and its own start phase, and the pair a gear fault sits on, uniform over
+      `model.faulty_stages` (drawn after the first pair's, whose draws stay as a one-pair
+      drivetrain's)."""
 
     def uniform(low, high):
         return float(rng.uniform(low, high))
@@ -135,28 +167,12 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
         model["fault_severity"],
     )
     grade, share = uniform(*errors["grade"]), uniform(*errors["deviation_share"])
-    fields = {}
-    for name, teeth in (("pinion", geometry.teeth_pinion), ("gear", geometry.teeth_gear)):
-        gear = draw_gear_errors(
-            rng,
-            grade,
-            teeth,
-            geometry.normal_module,
-            2 * geometry.pitch_radius(teeth),
-            geometry.face_width,
-            share,
-            misalignment=uniform(*errors["misalignment"]) if name == "pinion" else 0.0,
-        )
-        fields.update(
-            {
-                f"pitch_errors_{name}": gear.pitch_deviations,
-                f"runout_{name}": gear.eccentricity,
-                f"runout_phase_{name}": gear.eccentricity_phase,
-            }
-        )
-        if name == "pinion":
-            fields["flank_maps_pinion"] = gear.flank_maps
-    return dict(
+
+    def misalignment():
+        return uniform(*errors["misalignment"])
+
+    fields = pair_errors(rng, grade, share, geometry, misalignment)
+    effects = dict(
         fields,
         speed_fluctuation=uniform(0.0, variability["speed_fluctuation"]),
         speed_fluctuation_hz=uniform(*variability["speed_fluctuation_hz"]),
@@ -181,6 +197,19 @@ def sample_effects(model: dict, geometry: GearGeometry, rng: np.random.Generator
         ),
         pitting_growth=uniform(*severity["pitting_growth"]),
     )
+    if stages:
+        effects["stages"] = tuple(
+            dataclasses.replace(
+                stage,
+                **pair_errors(rng, grade, share, stage.geometry, misalignment),
+                start_mesh_phase=uniform(
+                    0.0, math.lcm(stage.geometry.teeth_pinion, stage.geometry.teeth_gear)
+                ),
+            )
+            for stage in stages
+        )
+        effects["faulty_stage"] = int(rng.choice(model["faulty_stages"]))
+    return effects
 
 
 def measured_fluctuation_fields(measured: dict, speed_rpm: float, seed: int) -> dict:

@@ -176,7 +176,18 @@ def shaft_patterns(
 
     The segment is resampled once per shaft; another shaft's pattern is then evaluated at the
     angles it has on this shaft's grid (its speed ratio times the grid's angles), so an
-    iteration costs no resampling."""
+    iteration costs no resampling. Two gears on one shaft (a train's intermediate shaft: the same
+    ratio) are one pattern, the first's (its mesh's orders taken out as above), given to both."""
+    owners = [
+        next(j for j, other in enumerate(shafts) if float(other[1]) == float(ratio))
+        for _, ratio, _ in shafts
+    ]
+    if owners != list(range(len(shafts))):
+        distinct = sorted(set(owners))
+        patterns = shaft_patterns(
+            segment, angle, [shafts[k] for k in distinct], samples_per_revolution, iterations
+        )
+        return [patterns[distinct.index(owner)] for owner in owners]
     x = np.asarray(segment, dtype=np.float64)
     x = x - x.mean(axis=-1, keepdims=True)
     P = samples_per_revolution
@@ -919,6 +930,20 @@ def true_positions(signal_frame: pd.DataFrame, origin_phase: float | None, teeth
     return {
         record: [float((tooth - origin_phase) % teeth) for tooth in truth["damaged_teeth"]]
         for record, truth in truths.items()
+        # a train's further pair has a tooth frame of its own, which the records do not give
+        if truth.get("damaged_teeth") and not truth.get("damaged_stage", 0)
+    }
+
+
+def true_parts(signal_frame: pd.DataFrame, shafts) -> dict:
+    """{record: the gear (`shafts` name) its damaged teeth are on} of a bench's records that
+    carry the truth: the pinion of the pair `damaged_stage` names (the first without one)."""
+    truths = {
+        record: record_truth(signal_frame, record) for record in signal_frame["record_id"].unique()
+    }
+    return {
+        record: shafts[2 * int(truth.get("damaged_stage", 0))][0]
+        for record, truth in truths.items()
         if truth.get("damaged_teeth")
     }
 
@@ -1390,9 +1415,15 @@ def segment_residual_features(
     return np.concatenate([block.transpose(2, 0, 1).ravel(), teeth_block]), spread
 
 
-def segment_locations(i: int, ids, spread: list, s: ResidualSettings, truths: dict) -> list[dict]:
-    """Where one segment's change sits on each damaged shaft (`located_tooth`), beside the truth."""
-    truth = truths.get(ids.at[i, "record_id"], [])
+def segment_locations(
+    i: int, ids, spread: list, s: ResidualSettings, truths: dict, parts: dict
+) -> list[dict]:
+    """Where one segment's change sits on each damaged shaft (`located_tooth`) and how much of it
+    concentrates on its teeth there (`level`: the excess over the floor, summed over its pitches;
+    a fault repeats with its own gear's shaft and averages out on the others'), beside the truth
+    (`true_positions`; `true_part`: whether the bench damaged this gear, None without truth)."""
+    record = ids.at[i, "record_id"]
+    truth = truths.get(record, [])
     chosen = [(k, shaft) for k, shaft in enumerate(s.shafts) if shaft[0] in s.damaged]
     return [
         {
@@ -1403,6 +1434,8 @@ def segment_locations(i: int, ids, spread: list, s: ResidualSettings, truths: di
             "position": tooth,
             "share": share,
             "true_positions": truth if k == 0 else [],
+            "level": float(np.sum(excess)),
+            "true_part": (parts[record] == name) if record in parts else None,
         }
         for excess, (k, (name, _, teeth)) in zip(spread, chosen)
         for tooth, share in [located_tooth(excess)]
@@ -1493,6 +1526,7 @@ def residual_frame(
     measured = against is not None and against["source"] == "measured"
     tops = [top_band_order(teeth / s.bands_per_mesh, n_bands) for _, _, teeth in s.shafts]
     frames, truths = tooth_frames(signal_frame, ids, machine, fs_hz, s, tops, measured, packaged)
+    parts = true_parts(signal_frame, s.shafts) if measured and not packaged else {}
     # features of the shafts whose gears the modelled faults damage; every shaft's pattern is
     # still estimated, to keep the others out of theirs
     names = feature_names(
@@ -1507,7 +1541,7 @@ def residual_frame(
         values[i], spread = segment_residual_features(
             i, patterns, origins, machine, s, frames, n_bands, tops
         )
-        locations += segment_locations(i, ids, spread, s, truths)
+        locations += segment_locations(i, ids, spread, s, truths, parts)
     frame = pd.concat([ids, pd.DataFrame(values.astype(np.float32), columns=names)], axis=1)
     frame.attrs["referenced_columns"] = names
     frame.attrs["fault_locations"] = fault_locations(ids, locations)
@@ -1566,10 +1600,22 @@ def fault_locations(ids: pd.DataFrame, locations: list[dict]) -> pd.DataFrame:
     `located_tooth`: a pitch of the machine's tooth frame, the same tooth on every record of the
     machine) of the shaft's `positions` teeth, its share of the change (how sure), how many
     pitches a tooth meshes over (`span`, the pair's total contact ratio) and, on a bench, where
-    its damaged teeth enter mesh (`true_positions`), beside the segment's ids."""
+    its damaged teeth enter mesh (`true_positions`); how much change concentrates on the shaft's
+    teeth (`level`: the part holding the most is where the fault is) and, on a bench, whether it
+    damaged this part (`true_part`), beside the segment's ids."""
     table = pd.DataFrame(
         locations,
-        columns=["row", "part", "positions", "span", "position", "share", "true_positions"],
+        columns=[
+            "row",
+            "part",
+            "positions",
+            "span",
+            "position",
+            "share",
+            "true_positions",
+            "level",
+            "true_part",
+        ],
     )
     located = ids.iloc[table["row"].to_numpy()].reset_index(drop=True)
     return pd.concat([located, table.drop(columns="row").reset_index(drop=True)], axis=1)
