@@ -17,6 +17,7 @@ from condmon.models.gear.drivetrain import (
     ShaftLayout,
     SimulationSettings,
     shaft_speed_ratios,
+    shaft_speeds,
     simulate,
     stage_parameters,
 )
@@ -67,6 +68,9 @@ def test_each_pair_carries_the_torque_its_ratio_gives():
     )
     assert second.speed_rpm == pytest.approx(300.0 * 29 / 44)
     assert shaft_speed_ratios(p) == pytest.approx([1.0, 29 / 44, 29 / 44 * 23 / 47])
+    # the bench's bearing tones: a one-pair rig's shaft speed as it always was, to the bit
+    one_pair = GearDrivetrainParameters()
+    assert shaft_speeds(one_pair, 775 / 60) == [775 / 60, 775 / 60 * 29 / 44]
     in_train = settled_deflections(p)
     alone = [
         settled_deflections(

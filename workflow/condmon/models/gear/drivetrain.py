@@ -139,6 +139,7 @@ __all__ = [
     "simulate",
     "operating_mesh_stiffness",
     "shaft_speed_ratios",
+    "shaft_speeds",
     "stage_parameters",
 ]
 
@@ -364,6 +365,16 @@ def shaft_speed_ratios(p: GearDrivetrainParameters) -> list[float]:
     for g in [p.geometry] + [stage.geometry for stage in p.stages]:
         ratios.append(ratios[-1] * g.teeth_pinion / g.teeth_gear)
     return ratios
+
+
+def shaft_speeds(p: GearDrivetrainParameters, input_speed: float) -> list[float]:
+    """Each shaft's speed (input shaft first) when the input shaft turns at `input_speed` (any
+    unit): `input_speed` times the pinions' teeth over the gears' teeth up to that shaft."""
+    speeds, pinions, gears = [input_speed], 1, 1
+    for g in [p.geometry] + [stage.geometry for stage in p.stages]:
+        pinions, gears = pinions * g.teeth_pinion, gears * g.teeth_gear
+        speeds.append(input_speed * pinions / gears)
+    return speeds
 
 
 def stage_parameters(p: GearDrivetrainParameters) -> list[GearDrivetrainParameters]:

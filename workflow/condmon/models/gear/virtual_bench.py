@@ -32,7 +32,7 @@ from condmon.models.gear.drivetrain import (
     GearDrivetrainParameters,
     PeriodicLoad,
     SimulationSettings,
-    shaft_speed_ratios,
+    shaft_speeds,
     simulate,
     stage_parameters,
 )
@@ -177,9 +177,7 @@ def bench_record(
     g = true_params.geometry
     shaft_hz = true_params.speed_rpm / 60.0
     # two housings a shaft
-    shaft_frequencies = [
-        shaft_hz * ratio for ratio in shaft_speed_ratios(true_params) for _ in range(2)
-    ]
+    shaft_frequencies = [speed for speed in shaft_speeds(true_params, shaft_hz) for _ in range(2)]
     loads = (
         [
             PeriodicLoad(
