@@ -596,13 +596,16 @@ def test_a_users_measured_table_replaces_the_virtual_bench(smoke, tmp_path):
 
 
 def run_until(workdir, marker: Path, sig, timeout=600):
-    """Start the smoke run and send `sig` to it and all its jobs (its process group, as a
-    cluster scheduler's cancel or time limit does) once `marker` exists."""
+    """Start the smoke run up to the training (`--until train`, as the resume runs: the stages
+    after it read only its files, and the smoke run tests them) and send `sig` to it and all its
+    jobs (its process group, as a cluster scheduler's cancel or time limit does) once `marker`
+    exists. Without --until, the physics baselines (which no train job reads) ran before the
+    training began, on the cores the training waited for."""
     import os
     import time
 
     process = subprocess.Popen(
-        SNAKEMAKE + ["--cores", "2", "--configfile", ".test/config/smoke.yaml"],
+        SNAKEMAKE + ["--cores", "2", "--until", "train", "--configfile", ".test/config/smoke.yaml"],
         cwd=workdir,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,

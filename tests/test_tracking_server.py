@@ -26,6 +26,12 @@ N_RUNS = (
 )  # classifiers x ... x (record split + 2 held-out speeds)
 
 
+# MLflow's job execution (a huey job runner and its consumers: the server's GenAI jobs, which no
+# track job calls) off: it started nine more Pythons with every server start (about 8 CPU-s
+# each time, on a 2-core CI machine) and polled beside the logging. Tracking is the same server.
+SERVER_ENV = {**os.environ, "MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}
+
+
 def free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
@@ -60,6 +66,7 @@ class Server:
                 "2",
             ],
             cwd=self.root,
+            env=SERVER_ENV,
             stdout=log,
             stderr=subprocess.STDOUT,
             start_new_session=True,
