@@ -3,10 +3,10 @@ position its segments name (a system family's localisation, measured_fault_locat
 frame of the machine's own: the same position on every record of it; the system's docs say what a
 position is), how many of its segments agree and how sure they are (the share of the change at
 that position); where the records carry the truth (a virtual bench), whether it is named right:
-the position overlaps the `span` positions from where a damaged one begins. With several parts (a
-gear train's pinions), the one whose change is largest holds the fault. summary.json
-`fault_location`: the share of the scored records named right, per class, and of the records
-whose part holding the change is the damaged one."""
+the position overlaps the `span` positions from where a damaged one begins. With several located
+parts (the system says what a part is), the one whose change is largest holds the fault.
+summary.json `fault_location`: the share of the scored records named right, per class, and of the
+records whose part holding the change is the damaged one."""
 
 from __future__ import annotations
 
@@ -31,8 +31,8 @@ def named_right(position: int, true_positions, positions: int, span: float) -> b
 def record_locations(located: pd.DataFrame) -> pd.DataFrame:
     """Per record and part: the position most of its segments name, their agreement (share of its
     segments naming it), the mean share of the change there (how sure), and the truth's positions
-    and whether it is named right (None where there is no truth); with several parts (a gear
-    train's pinions), the part whose mean `level` is highest holds the change (`holds_change`),
+    and whether it is named right (None where there is no truth); with several located parts,
+    the part whose mean `level` is highest holds the change (`holds_change`),
     beside whether the bench damaged it (`true_part`, None without truth)."""
     rows = []
     if "level" not in located:  # a family that gives no levels: every part alone
