@@ -364,3 +364,16 @@ def test_the_two_gears_of_the_intermediate_shaft_share_its_one_pattern():
 
     assert error(patterns[0], 1.0) < 0.1
     assert error(patterns[1], 29 / 44) < 0.2
+
+
+def test_a_trains_drawn_mesh_compliance_is_its_first_pairs_deflection_under_its_own_torque():
+    from conftest import system_of
+
+    from condmon.models.gear.mesh_force import operating_deflection
+    from condmon.systems.gear.parameters import draw_mesh_compliance
+
+    system = system_of(TWO_STAGE)
+    compliance = {"deflection": [8.0e-7, 8.0e-7], "contact_exponent": [1.5, 1.5]}
+    drawn = draw_mesh_compliance(compliance, system.parameters(), np.random.default_rng(0))
+    first = stage_parameters(system.parameters(**drawn))[0]
+    assert operating_deflection(first) == pytest.approx(8.0e-7)

@@ -13,6 +13,7 @@ from condmon.models.gear.drivetrain import (
     GearStage,
     ShaftLayout,
     SimulationSettings,
+    stage_parameters,
 )
 from condmon.models.gear.errors import pair_errors
 from condmon.models.gear.mesh_force import stiffness_for_deflection
@@ -117,8 +118,9 @@ def draw_mesh_compliance(
     compliance: dict, params: GearDrivetrainParameters, rng: np.random.Generator
 ) -> dict:
     """One drivetrain's mesh compliance (`model.mesh_compliance`): its contact exponent uniform in
-    `contact_exponent`, its static deflection under the rig's load log-uniform in `deflection`
-    (m), and the `mesh_stiffness` that gives that deflection (`stiffness_for_deflection`).
+    `contact_exponent`, its first pair's static deflection under the rig's load log-uniform in
+    `deflection` (m), and the `mesh_stiffness` that gives that deflection
+    (`stiffness_for_deflection`; a train's further pairs scale with it, `build_parameters`).
 
     Why drawn, not calibrated: a fault's change of the transmission error scales with the mesh's
     static deflection (a pit deeper than the deflection leaves the contact, the load moves to the
@@ -131,9 +133,11 @@ def draw_mesh_compliance(
     exponent = float(rng.uniform(*compliance["contact_exponent"]))
     low, high = np.log(compliance["deflection"][0]), np.log(compliance["deflection"][1])
     deflection = float(np.exp(rng.uniform(low, high)))
+    # the first pair under its own torque (a train's output torque through the later ratios)
+    first_pair = stage_parameters(params)[0]
     return {
         "contact_exponent": exponent,
-        "mesh_stiffness": stiffness_for_deflection(params, deflection, exponent),
+        "mesh_stiffness": stiffness_for_deflection(first_pair, deflection, exponent),
     }
 
 
