@@ -16,7 +16,6 @@ from condmon.models.gear.drivetrain import (
     GearStage,
     ShaftLayout,
     SimulationSettings,
-    shaft_speed_ratios,
     shaft_speeds,
     simulate,
     stage_parameters,
@@ -67,7 +66,7 @@ def test_each_pair_carries_the_torque_its_ratio_gives():
         40.0 * SECOND_PAIR.base_radius(23) / SECOND_PAIR.base_radius(47)
     )
     assert second.speed_rpm == pytest.approx(300.0 * 29 / 44)
-    assert shaft_speed_ratios(p) == pytest.approx([1.0, 29 / 44, 29 / 44 * 23 / 47])
+    assert shaft_speeds(p, 1.0) == pytest.approx([1.0, 29 / 44, 29 / 44 * 23 / 47])
     # the bench's bearing tones: a one-pair rig's shaft speed as it always was, to the bit
     one_pair = GearDrivetrainParameters()
     assert shaft_speeds(one_pair, 775 / 60) == [775 / 60, 775 / 60 * 29 / 44]
@@ -103,7 +102,7 @@ def test_a_spall_repeats_with_the_shaft_of_the_pinion_it_sits_on():
     pinion with the intermediate shaft, and the latter shows most at the output shaft's housing."""
     settings = SimulationSettings(duration=0.5)
     healthy = simulate(two_stage(), settings)
-    shafts_hz = [20.0 * ratio for ratio in shaft_speed_ratios(two_stage())[:2]]
+    shafts_hz = [20.0 * ratio for ratio in shaft_speeds(two_stage(), 1.0)[:2]]
     change = {}
     for stage in (0, 1):
         spalled = simulate(two_stage(health_state="spall", faulty_stage=stage), settings)

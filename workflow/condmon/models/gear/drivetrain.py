@@ -138,7 +138,6 @@ __all__ = [
     "Drivetrain",
     "simulate",
     "operating_mesh_stiffness",
-    "shaft_speed_ratios",
     "shaft_speeds",
     "stage_parameters",
 ]
@@ -358,15 +357,6 @@ def operating_mesh_stiffness(p: GearDrivetrainParameters) -> float:
     return operating_stiffness(stage_parameters(p)[0])
 
 
-def shaft_speed_ratios(p: GearDrivetrainParameters) -> list[float]:
-    """Each shaft's nominal speed over the input shaft's, shaft 0 (input) first: one shaft more
-    than the train has pairs."""
-    ratios = [1.0]
-    for g in [p.geometry] + [stage.geometry for stage in p.stages]:
-        ratios.append(ratios[-1] * g.teeth_pinion / g.teeth_gear)
-    return ratios
-
-
 def shaft_speeds(p: GearDrivetrainParameters, input_speed: float) -> list[float]:
     """Each shaft's speed (input shaft first) when the input shaft turns at `input_speed` (any
     unit): `input_speed` times the pinions' teeth over the gears' teeth up to that shaft."""
@@ -388,7 +378,7 @@ def stage_parameters(p: GearDrivetrainParameters) -> list[GearDrivetrainParamete
         return [p]
     if not 0 <= p.faulty_stage <= len(p.stages):
         raise ValueError(f"faulty_stage {p.faulty_stage}: the train has pairs 0..{len(p.stages)}")
-    ratios = shaft_speed_ratios(p)
+    ratios = shaft_speeds(p, 1.0)
     geometries = [p.geometry] + [stage.geometry for stage in p.stages]
     torques = [p.load_torque]  # on each pair's gear shaft, the last pair's first
     for g in reversed(geometries[1:]):
@@ -404,19 +394,14 @@ def stage_parameters(p: GearDrivetrainParameters) -> list[GearDrivetrainParamete
             stages=(),
             faulty_stage=0,
         )
-        if k:
+        if k:  # a further pair's own fields (its shaft aside) are parameters of the same names
             stage = p.stages[k - 1]
             changes.update(
-                geometry=g,
-                mesh_stiffness=stage.mesh_stiffness,
-                pitch_errors_pinion=stage.pitch_errors_pinion,
-                pitch_errors_gear=stage.pitch_errors_gear,
-                flank_maps_pinion=stage.flank_maps_pinion,
-                runout_pinion=stage.runout_pinion,
-                runout_gear=stage.runout_gear,
-                runout_phase_pinion=stage.runout_phase_pinion,
-                runout_phase_gear=stage.runout_phase_gear,
-                start_mesh_phase=stage.start_mesh_phase,
+                {
+                    f.name: getattr(stage, f.name)
+                    for f in dataclasses.fields(stage)
+                    if f.name != "shaft"
+                }
             )
         views.append(p.replace(**changes))
     return views
@@ -461,7 +446,6 @@ class Drivetrain:
             self.shaft_x.append(
                 self.shaft_x[-1] + g.pitch_radius(g.teeth_pinion) + g.pitch_radius(g.teeth_gear)
             )
-        self.center_distance = self.shaft_x[1]
         self.sections = self._shaft_sections()
         self.damage = self._damage_zone()
         self.damaged_elements = []  # (node a, node b, DamagedElement)
@@ -569,7 +553,7 @@ class Drivetrain:
             )
         layout = self.layouts[p.damaged_shaft]
         section = self.sections[p.damaged_shaft]
-        spin_hz = p.speed_rpm / 60 * shaft_speed_ratios(p)[p.damaged_shaft]
+        spin_hz = p.speed_rpm / 60 * shaft_speeds(p, 1.0)[p.damaged_shaft]
         if p.health_state == "shaft_crack":
             start = p.shaft_crack_position - layout.diameter / 2
             end = p.shaft_crack_position + layout.diameter / 2

@@ -22,6 +22,7 @@ from condmon.models.gear.drivetrain import (
     Drivetrain,
     SimulationSettings,
     operating_mesh_stiffness,
+    shaft_speeds,
     sensor_channels,
     simulate,
 )
@@ -691,13 +692,11 @@ class GearSystem(System):
         the input shaft (ratio 1) and the gear on the output shaft (ratio teeth_pinion /
         teeth_gear) of `model.geometry`; a train's further pairs (`model.stages`) add theirs,
         `pinion_2` on the previous gear's shaft and `gear_2` on its own, and so on."""
-        model = self.config["model"]
-        pairs = [model["geometry"]] + [stage["geometry"] for stage in model.get("stages", [])]
-        ratio, gears = 1.0, []
-        for k, geometry in enumerate(pairs):
+        p = self.parameters()
+        ratios = shaft_speeds(p, 1.0)
+        gears = []
+        for k, g in enumerate([p.geometry] + [stage.geometry for stage in p.stages]):
             suffix = f"_{k + 1}" if k else ""
-            pinion, gear = int(geometry["teeth_pinion"]), int(geometry["teeth_gear"])
-            gears.append((f"pinion{suffix}", ratio, pinion))
-            ratio = ratio * pinion / gear
-            gears.append((f"gear{suffix}", ratio, gear))
+            gears.append((f"pinion{suffix}", ratios[k], g.teeth_pinion))
+            gears.append((f"gear{suffix}", ratios[k + 1], g.teeth_gear))
         return gears
