@@ -253,7 +253,7 @@ def test_the_bench_damages_the_pair_its_fault_names_and_records_which():
     system = system_of(TWO_STAGE)
     bench = dict(system.config["virtual_bench"], records_per_state=1, record_seconds=1.5)
     numerics = dict(system.numerics, **{k: bench[k] for k in BENCH_NUMERICS})
-    point = [p for p in system.operating_points if p.load == 30.0]
+    point = [p for p in system.operating_points if p.load == 300.0]
     rows = virtual_bench_rows(
         system.parameters,
         bench,
@@ -266,7 +266,7 @@ def test_the_bench_damages_the_pair_its_fault_names_and_records_which():
     )
     truth = json.loads(rows[0]["params"])
     assert truth["damaged_stage"] == 1 and truth["damaged_teeth"] == [bench["faulty_tooth"]]
-    assert {row["load"] for row in rows} == {30.0}
+    assert {row["load"] for row in rows} == {300.0}
 
 
 def test_the_part_holding_the_most_change_is_where_the_report_places_the_fault():
