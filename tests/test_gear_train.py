@@ -376,3 +376,54 @@ def test_a_trains_drawn_mesh_compliance_is_its_first_pairs_deflection_under_its_
     drawn = draw_mesh_compliance(compliance, system.parameters(), np.random.default_rng(0))
     first = stage_parameters(system.parameters(**drawn))[0]
     assert operating_deflection(first) == pytest.approx(8.0e-7)
+
+
+def test_an_auto_deflection_range_follows_iso_6336_at_the_rigs_load():
+    """`mesh_compliance.deflection: auto` holds the standard's estimate at any load (with its
+    light-load reduction below 100 N/mm only), as the default run's hand-set range does at its
+    10 N m; a train takes its first pair under that pair's own torque."""
+    from conftest import system_of
+
+    from condmon.models.gear.mesh_force import iso6336_deflections
+    from condmon.systems.gear.parameters import deflection_range
+
+    auto = {"deflection": "auto", "contact_exponent": [1.0, 1.5]}
+    light = system_of("config/config.yaml")  # 10 N m: 9 N/mm of face width
+    low, high = deflection_range(auto, light.parameters())
+    linear, reduced = iso6336_deflections(light.parameters())
+    assert reduced > 1.5 * linear  # the standard's light-load reduction applies
+    assert low < linear < reduced < high
+    assert (low, high) == pytest.approx(
+        light.config["model"]["mesh_compliance"]["deflection"], rel=0.05
+    )
+    train = system_of(TWO_STAGE)  # 300 N m on the output: 133 N/mm on both pairs
+    first = stage_parameters(train.parameters())[0]
+    linear, reduced = iso6336_deflections(first)
+    assert reduced == linear  # above 100 N/mm: no reduction
+    low, high = deflection_range(auto, train.parameters())
+    assert low < linear < high and 2.5 < high / low < 4.0
+    # the same range whatever the output torque's way through the later pair: the first pair's own
+    assert deflection_range(auto, train.parameters()) == deflection_range(auto, first)
+
+
+def test_a_deflection_range_kept_from_another_load_is_refused_naming_the_standards():
+    from conftest import system_of
+
+    from condmon.config import ConfigError
+
+    light_range = {"mesh_compliance": {"deflection": [3.7e-7, 1.33e-6]}}
+    with pytest.raises(ConfigError, match=r"ISO 6336-1 puts the first pair at 3.18-10.6 um"):
+        system_of(TWO_STAGE, {"model": light_range})
+
+
+def test_a_trains_bench_mesh_is_compared_with_the_drawn_range_at_its_first_pairs_torque():
+    from conftest import system_of
+
+    (mesh,) = [
+        row
+        for row in system_of(TWO_STAGE).bench_differences()
+        if "mesh_stiffness" in row["difference"]
+    ]
+    # the bench's first pair under 146.8 N m (not the output's 300 N m): 3.57 um
+    assert mesh["difference"].endswith("a static deflection of 3.57 um")
+    assert "deflection [3.18, 10.6] um" in mesh["how"] and mesh["within_range"]

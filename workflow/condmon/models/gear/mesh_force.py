@@ -52,7 +52,12 @@ from condmon.models.gear.errors import (
     pitted_flank_map,
     wear_flank_map,
 )
-from condmon.models.gear.mesh import GearMesh, ProfileDeviation, ToothDamage
+from condmon.models.gear.mesh import (
+    GearMesh,
+    ProfileDeviation,
+    ToothDamage,
+    iso6336_mesh_stiffness,
+)
 
 # DEFLECTION_REF: K = mesh stiffness at this deflection keeps K's unit N/m for any n
 from condmon.models.gear.mesh_kernel import (
@@ -627,8 +632,28 @@ def static_mesh_force(p) -> float:
 
 def operating_deflection(p) -> float:
     """Deflection (m) of the mean mesh that carries the static load of `p` (> 0)."""
-    force_ref = p.mesh_stiffness * DEFLECTION_REF
-    return DEFLECTION_REF * (static_mesh_force(p) / force_ref) ** (1.0 / p.contact_exponent)
+    return deflection_of(static_mesh_force(p), p.mesh_stiffness, p.contact_exponent)
+
+
+# ISO 6336-1: below this line load (N/mm of face width) the mesh stiffness is reduced
+LIGHT_LINE_LOAD = 100.0
+
+
+def iso6336_deflections(p) -> tuple[float, float]:
+    """The static deflection (m) of the pair of `p` under its load by ISO 6336-1's mesh stiffness
+    (`mesh.iso6336_mesh_stiffness`): (the linear-elastic one, the one with the standard's
+    reduction (F_t / b / 100 N/mm)^0.25 below 100 N/mm of face width, where the flanks' roughness
+    and deviations leave less of them in contact)."""
+    g = p.geometry
+    linear = static_mesh_force(p) / iso6336_mesh_stiffness(g)
+    line_load = p.load_torque / g.pitch_radius(g.teeth_gear) / (g.face_width * 1.0e3)
+    return linear, linear / min(1.0, line_load / LIGHT_LINE_LOAD) ** 0.25
+
+
+def deflection_of(force: float, stiffness: float, exponent: float) -> float:
+    """The deflection (m) at which a mesh of `mesh_stiffness` `stiffness` (N/m at 1 um) and contact
+    exponent `exponent` carries `force` (N)."""
+    return DEFLECTION_REF * (force / (stiffness * DEFLECTION_REF)) ** (1.0 / exponent)
 
 
 def stiffness_for_deflection(p, deflection: float, exponent: float) -> float:

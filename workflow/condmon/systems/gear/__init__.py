@@ -35,6 +35,7 @@ from condmon.systems.gear.parameters import (
     COMPLIANCE_PARAMETERS,
     STATE_SEVERITY,
     build_parameters,
+    deflection_range,
     draw_mesh_compliance,
     measured_fluctuation_fields,
     perturb,
@@ -281,8 +282,9 @@ class GearSystem(System):
             problems += [
                 f"model.mesh_compliance.{key}: [low, high] with low above high: {value}"
                 for key, value in compliance.items()
-                if value[0] > value[1]
+                if value != "auto" and value[0] > value[1]
             ]
+            problems += self.compliance_problems(compliance)
             both = sorted(set(COMPLIANCE_PARAMETERS) & set(config["calibration"]["parameters"]))
             if both:
                 problems.append(
@@ -332,6 +334,23 @@ class GearSystem(System):
         if bound is not None and not (0 < bound["low"] and bound["high"] <= 1):
             problems.append("calibration.parameters.restitution: bounds must lie in (0, 1]")
         return problems
+
+    def compliance_problems(self, compliance: dict) -> list[str]:
+        """A configured deflection range that misses ISO 6336-1's estimate at the rig's load by more
+        than a factor 2 (a range kept from another load: the simulated faults would be sized
+        for that load)."""
+        low, high = compliance["deflection"] if compliance["deflection"] != "auto" else (0, 0)
+        if not low or low > high:
+            return []
+        iso_low, iso_high = deflection_range(dict(compliance, deflection="auto"), self.parameters())
+        if high >= iso_low / 2 and low <= 2 * iso_high:
+            return []
+        return [
+            f"model.mesh_compliance.deflection: [{low * 1e6:.3g}, {high * 1e6:.3g}] um, where ISO "
+            f"6336-1 puts the first pair at {iso_low * 1e6:.3g}-{iso_high * 1e6:.3g} um under "
+            f"load_torque {self.config['model']['load_torque']:g} N m; set the range for this "
+            "load, or `auto`"
+        ]
 
     def stage_problems(self) -> list[str]:
         """Pair and shaft numbers the train lacks (`model.faulty_stages`, `model.damaged_shaft`,

@@ -20,10 +20,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from condmon.models.gear.drivetrain import stage_parameters
 from condmon.models.gear.mesh_force import operating_deflection
 from condmon.models.gear.virtual_bench import BenchForm
 from condmon.systems.gear.bench import bench_form
-from condmon.systems.gear.parameters import COMPLIANCE_PARAMETERS, build_parameters
+from condmon.systems.gear.parameters import (
+    COMPLIANCE_PARAMETERS,
+    build_parameters,
+    deflection_range,
+)
 
 CALIBRATED, RANDOMISED, NEITHER, SAME = "calibrated", "randomised", "neither", "same"
 
@@ -98,15 +103,17 @@ def _parameter_rows(model: dict, bench: dict, calibration: dict) -> list[dict]:
 def _compliance_row(model: dict, truth: dict, compliance: dict) -> dict:
     """The bench's mesh against the drawn mesh compliance: its static deflection under the load."""
     mesh = {name: truth.get(name, model[name]) for name in COMPLIANCE_PARAMETERS}
-    deflection = operating_deflection(build_parameters(model, **mesh))
-    low, high = compliance["deflection"]
+    rig = build_parameters(model, **mesh)
+    # the first pair under its own torque, as the drawn deflection is (a train: the later ratios)
+    deflection = operating_deflection(stage_parameters(rig)[0])
+    low, high = deflection_range(compliance, rig)
     exponents = compliance["contact_exponent"]
     inside = low <= deflection <= high and exponents[0] <= mesh["contact_exponent"] <= exponents[1]
     return row(
         f"mesh_stiffness {mesh['mesh_stiffness']:g} at contact_exponent {mesh['contact_exponent']:g}: a static "
         f"deflection of {deflection * 1e6:.2f} um",
         RANDOMISED,
-        f"model.mesh_compliance, drawn per sample: deflection [{low * 1e6:g}, {high * 1e6:g}] um, "
+        f"model.mesh_compliance, drawn per sample: deflection [{low * 1e6:.3g}, {high * 1e6:.3g}] um, "
         f"contact_exponent {_number_or_range(exponents)}",
         bool(inside),
     )

@@ -16,7 +16,12 @@ from condmon.models.gear.drivetrain import (
     stage_parameters,
 )
 from condmon.models.gear.errors import pair_errors
-from condmon.models.gear.mesh_force import stiffness_for_deflection
+from condmon.models.gear.mesh_force import (
+    deflection_of,
+    iso6336_deflections,
+    static_mesh_force,
+    stiffness_for_deflection,
+)
 
 # Parameters that calibration may tune (the contact law is the categorical one).
 CALIBRATABLE = (
@@ -114,12 +119,39 @@ def perturb(values: dict, names, sigma: float, rng: np.random.Generator) -> dict
 COMPLIANCE_PARAMETERS = ("mesh_stiffness", "contact_exponent")
 
 
+# `model.mesh_compliance.deflection: auto`: real meshes about ISO 6336-1's estimate, from this
+# many times its stiffness at 1 um to this many times softer than its light-load value
+ISO_STIFFER, ISO_SOFTER = 1.5, 1.25
+
+
+def deflection_range(compliance: dict, params: GearDrivetrainParameters) -> tuple[float, float]:
+    """The static deflections (m) a drawn mesh compliance spans for the first pair of `params` under
+    its own torque: `compliance["deflection"]`, or with `auto` those ISO 6336-1 allows
+    (`mesh_force.iso6336_deflections`): every mesh from `ISO_STIFFER` x the standard's stiffness
+    at 1 um to `ISO_SOFTER` x softer than its light-load value, at every drawn contact exponent.
+    The default rig's 10 N m: 0.39-1.32 um; a gearbox at 133 N/mm: 0.37-1.25 x the standard's."""
+    if compliance["deflection"] != "auto":
+        low, high = compliance["deflection"]
+        return float(low), float(high)
+    first_pair = stage_parameters(params)[0]
+    linear, light = iso6336_deflections(first_pair)
+    force = static_mesh_force(first_pair)
+    stiffest = ISO_STIFFER * force / linear  # N/m, a linear mesh's stiffness
+    softest = force / (ISO_SOFTER * light)
+    deflections = [
+        deflection_of(force, stiffness, exponent)
+        for stiffness in (stiffest, softest)
+        for exponent in compliance["contact_exponent"]
+    ]
+    return min(deflections), max(deflections)
+
+
 def draw_mesh_compliance(
     compliance: dict, params: GearDrivetrainParameters, rng: np.random.Generator
 ) -> dict:
     """One drivetrain's mesh compliance (`model.mesh_compliance`): its contact exponent uniform in
     `contact_exponent`, its first pair's static deflection under the rig's load log-uniform in
-    `deflection` (m), and the `mesh_stiffness` that gives that deflection
+    `deflection` (m, `deflection_range`), and the `mesh_stiffness` that gives that deflection
     (`stiffness_for_deflection`; a train's further pairs scale with it, `build_parameters`).
 
     Why drawn, not calibrated: a fault's change of the transmission error scales with the mesh's
@@ -131,7 +163,7 @@ def draw_mesh_compliance(
     bounds the deflection better than the healthy records do, so every deflection it allows is
     simulated."""
     exponent = float(rng.uniform(*compliance["contact_exponent"]))
-    low, high = np.log(compliance["deflection"][0]), np.log(compliance["deflection"][1])
+    low, high = (np.log(value) for value in deflection_range(compliance, params))
     deflection = float(np.exp(rng.uniform(low, high)))
     # the first pair under its own torque (a train's output torque through the later ratios)
     first_pair = stage_parameters(params)[0]
