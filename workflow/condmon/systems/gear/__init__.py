@@ -339,8 +339,10 @@ class GearSystem(System):
         """A configured deflection range that misses ISO 6336-1's estimate at the rig's load by more
         than a factor 2 (a range kept from another load: the simulated faults would be sized
         for that load)."""
-        low, high = compliance["deflection"] if compliance["deflection"] != "auto" else (0, 0)
-        if not low or low > high:
+        if compliance["deflection"] == "auto":
+            return []
+        low, high = compliance["deflection"]
+        if low > high:  # named on its own
             return []
         iso_low, iso_high = deflection_range(dict(compliance, deflection="auto"), self.parameters())
         if high >= iso_low / 2 and low <= 2 * iso_high:
