@@ -881,3 +881,70 @@ def test_a_packaged_models_families_carry_their_references_and_give_them_back_as
         inputs.packaged_references == references.to_dict("list")
         and inputs.healthy_reference is None
     )
+
+
+def test_a_strong_fault_does_not_pull_the_alignment_off_its_teeth():
+    """Pitting on four neighbouring teeth far stronger than the healthy pitch pattern (a gearbox at
+    its load): aligned on the whole pattern, the fault's correlation with the reference picks a
+    wrong whole-tooth shift in about half the draws, so its teeth would be named wrong; with the
+    fault's pitches left out of the alignment (`fault_masked_shift`), the right one in nearly
+    all. A healthy segment has no such pitch: its shift is the plain alignment's, to the bit."""
+    top = rf.top_band_order(PINION / 4, 12)
+    true_shift = P - (7 * P // PINION + 3)
+
+    def whole_tooth_off(shift):
+        return abs((shift - true_shift + P / 2) % P - P / 2) > P / PINION / 2
+
+    plain_wrong = masked_wrong = 0
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        healthy = pitch_pattern(PINION, rng, pitch_rms=0.05)[None, :]
+        pitting = sum(tooth_bump(PINION, t, d) for t, d in zip(range(3, 7), rng.uniform(0.5, 2, 4)))
+        record = np.roll(healthy + pitting, true_shift, axis=-1) + rng.normal(0, 0.01, (1, P))
+        plain_wrong += whole_tooth_off(rf.alignment_shift(record, healthy, PINION, top))
+        masked = rf.fault_masked_shift(record, healthy, PINION, top)
+        masked_wrong += whole_tooth_off(masked)
+        # the damaged teeth named where they are
+        if not whole_tooth_off(masked):
+            residual = rf.shifted(record, masked) - healthy
+            excess = rf.damaged_pitches(rf.residual_signal(residual, PINION, 2, 3), PINION)
+            assert rf.located_tooth(excess)[0] in range(3, 7), seed
+    assert plain_wrong >= 6 and masked_wrong <= 1, (plain_wrong, masked_wrong)
+    for seed in range(10):
+        rng = np.random.default_rng(100 + seed)
+        healthy = pitch_pattern(PINION, rng, pitch_rms=0.05)[None, :]
+        record = np.roll(healthy, 123, axis=-1) + rng.normal(0, 0.05, (1, P))
+        assert rf.fault_masked_shift(record, healthy, PINION, top) == rf.alignment_shift(
+            record, healthy, PINION, top
+        )
+
+
+def test_a_condition_far_from_the_first_takes_its_tooth_from_the_steps_between():
+    """Three conditions of one machine whose pitch patterns change with the load: the first and
+    the last share the tooth-bound part H, and each has a load-bound part (W, V) of its own that
+    correlates with the other's at a wrong whole tooth more than H does at the right one. The
+    middle condition holds half of both. Aligned to the first directly, the last lands 7 teeth
+    off; step by step through the middle, on its own tooth."""
+    rng = np.random.default_rng(4)
+    top = rf.top_band_order(PINION / 4, 12)
+    healthy = pitch_pattern(PINION, rng, pitch_rms=0.2)[None, :]
+    h = rf.pitch_fingerprint(healthy, PINION, top)
+    w = noise_above(2, 1.0, rng)[None, :]
+    w = (
+        rf.pitch_fingerprint(w, PINION, top)
+        * 1.5
+        * h.std()
+        / rf.pitch_fingerprint(w, PINION, top).std()
+    )
+    v = 1.3 * np.roll(w, 7 * P // PINION, axis=-1)
+    starts = {150.0: 0, 300.0: 311, 450.0: 617}  # where each calibration record began
+    in_frame = {150.0: healthy + w, 300.0: healthy + 0.5 * (w + v), 450.0: healthy + v}
+    references = {c: [np.roll(x, -starts[c], axis=-1)] for c, x in in_frame.items()}
+    frames = rf.reference_frames(references, [("pinion", 1.0, PINION)], [top])
+
+    def teeth_off(condition, turns):
+        return abs((turns * P - starts[condition] + P / 2) % P - P / 2) / (P / PINION)
+
+    direct = -rf.alignment_shift(references[450.0][0], references[150.0][0], PINION, top) / P
+    assert teeth_off(450.0, direct) > 6
+    assert teeth_off(300.0, frames[300.0][0]) < 0.5 and teeth_off(450.0, frames[450.0][0]) < 0.5
