@@ -426,4 +426,52 @@ def test_a_trains_bench_mesh_is_compared_with_the_drawn_range_at_its_first_pairs
     ]
     # the bench's first pair under 146.8 N m (not the output's 300 N m): 3.57 um
     assert mesh["difference"].endswith("a static deflection of 3.57 um")
-    assert "deflection [3.18, 10.6] um" in mesh["how"] and mesh["within_range"]
+    assert "[3.18, 10.6] um" in mesh["how"] and mesh["within_range"]
+
+
+def test_a_calibrated_deflection_range_is_where_the_cost_profile_is_lowest():
+    """`mesh_compliance.deflection: calibrated`: the profile of a cost lowest at a known deflection
+    (its mesh as `deflection_profile` sets it) keeps the grid points about it, a grid step either
+    side; the simulation then draws only there, and without the calibration's profile it stops
+    naming the key."""
+    from conftest import system_of
+
+    from condmon.models.gear.mesh_force import operating_deflection
+    from condmon.systems.gear.parameters import (
+        deflection_profile,
+        deflection_range,
+        draw_mesh_compliance,
+        profile_range,
+    )
+
+    assert profile_range([1, 2, 3, 4, 5], [0.5, 0.3, 0.2, 0.21, 0.4]) == (2.0, 5.0)
+    assert profile_range([1, 2, 3], [0.1, 0.5, 0.6]) == (1.0, 2.0)  # within the grid
+    train = system_of(TWO_STAGE)
+    compliance = {"deflection": "calibrated", "contact_exponent": [1.0, 1.5]}
+    params = train.parameters()
+    truth = 4.0e-6
+
+    def cost(values):  # lowest where the first pair deflects `truth` under its torque
+        first = stage_parameters(train.parameters(**values))[0]
+        return abs(np.log(operating_deflection(first) / truth))
+
+    profile = deflection_profile(cost, compliance, params)
+    grid = np.array(profile["deflection"])
+    assert (grid[0], grid[-1]) == pytest.approx(deflection_range(compliance, params))
+    low, high = profile["range"]
+    assert low < truth < high and high / low < 1.7  # two grid steps of a 9-point grid
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        drawn = draw_mesh_compliance(compliance, params, rng, profile["range"])
+        first = stage_parameters(train.parameters(**drawn))[0]
+        assert low * 0.999 <= operating_deflection(first) <= high * 1.001
+    with pytest.raises(ValueError, match="deflection: calibrated, but the calibration"):
+        draw_mesh_compliance(compliance, params, rng)
+    # the bench's mesh is compared with the range the calibration searched
+    calibrated = system_of(TWO_STAGE, {"model": {"mesh_compliance": {"deflection": "calibrated"}}})
+    (mesh,) = [r for r in calibrated.bench_differences() if "mesh_stiffness" in r["difference"]]
+    assert "calibrated within [3.18, 10.6] um" in mesh["how"]
+    # its calibration job takes the profile, so it sees the compliance; an `auto` one's does not
+    assert "mesh_compliance" in calibrated.job_config("calibrate")["model"]
+    auto = system_of(TWO_STAGE, {"model": {"mesh_compliance": {"deflection": "auto"}}})
+    assert "mesh_compliance" not in auto.job_config("calibrate")["model"]

@@ -22,6 +22,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 import pandas as pd
@@ -221,21 +222,26 @@ def measured_spectra(
     return np.stack(out)
 
 
-def calibrate_on_spectra(
-    system,
-    frame: pd.DataFrame,
-    calibration: dict,
-    spectrum: dict,
-    channels,
-    nominal: dict,
-    processes: int = 1,
-):
-    """The spectral calibration of a system on its healthy measured records at its simulated
-    speeds: CMA-ES over `calibration.parameters` (and the system's `model_variants()`) from the
-    `nominal` values and its `nominal_variant`, by the system's cost `calibration.cost`, then the
-    white sensor noise the model lacks. Returns (result, history, spectra frame) as
-    `System.calibrate` does."""
-    start = time.perf_counter()
+@dataclass(frozen=True)
+class SpectralProblem:
+    """What a spectral calibration compares: the operating points, the measured healthy mean
+    spectra there (`target`), the model's (`spectrum_model`) and the `cost` between them."""
+
+    points: list
+    target: np.ndarray
+    spectrum_model: SpectrumModel
+    cost: Callable
+
+    def __call__(self, variant: str, values: dict) -> float:
+        """The cost of one candidate (a model variant and its parameter values)."""
+        return float(self.cost(self.spectrum_model(variant, values), self.target))
+
+
+def spectral_problem(
+    system, frame: pd.DataFrame, calibration: dict, spectrum: dict, channels
+) -> SpectralProblem:
+    """The spectral calibration's problem on a system's healthy measured records at its
+    simulated operating points (every point without records left out; none at all refused)."""
     fs = system.output_rate_hz
     points = system.measured_points(frame, system.healthy_state)
     if not points:
@@ -243,7 +249,6 @@ def calibrate_on_spectra(
             f"no measured {system.healthy_state!r} records at the simulated operating points "
             f"{[point.describe() for point in system.operating_points]} to calibrate on"
         )
-    speeds = sorted({point.speed_rpm for point in points})
     target = measured_spectra(
         frame,
         points,
@@ -262,11 +267,35 @@ def calibrate_on_spectra(
         calibration["sim_seconds"],
         seed=calibration["seed"],
     )
+    cost = cost_function(calibration["cost"], system.calibration_costs())
+    return SpectralProblem(points, target, spectrum_model, cost)
+
+
+def calibrate_on_spectra(
+    system,
+    frame: pd.DataFrame,
+    calibration: dict,
+    spectrum: dict,
+    channels,
+    nominal: dict,
+    processes: int = 1,
+    problem: SpectralProblem | None = None,
+):
+    """The spectral calibration of a system on its healthy measured records at its simulated
+    speeds: CMA-ES over `calibration.parameters` (and the system's `model_variants()`) from the
+    `nominal` values and its `nominal_variant`, by the system's cost `calibration.cost`, then the
+    white sensor noise the model lacks. Returns (result, history, spectra frame) as
+    `System.calibrate` does; `problem`: the `spectral_problem`, if the caller has it."""
+    start = time.perf_counter()
+    if problem is None:
+        problem = spectral_problem(system, frame, calibration, spectrum, channels)
+    points, target = problem.points, problem.target
+    spectrum_model, cost = problem.spectrum_model, problem.cost
+    speeds = sorted({point.speed_rpm for point in points})
     bounds = [
         Bound(name, b["low"], b["high"], b.get("log", False))
         for name, b in calibration["parameters"].items()
     ]
-    cost = cost_function(calibration["cost"], system.calibration_costs())
     calibrator = Calibrator(
         bounds,
         system.model_variants(calibration),

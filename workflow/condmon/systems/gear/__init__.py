@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from condmon.calibrate import Bound, calibrate_on_spectra
+from condmon.calibrate import Bound, calibrate_on_spectra, spectral_problem
 from condmon.models.gear.drivetrain import (
     Drivetrain,
     SimulationSettings,
@@ -36,6 +36,7 @@ from condmon.systems.gear.parameters import (
     STATE_SEVERITY,
     build_parameters,
     deflection_range,
+    deflection_profile,
     draw_mesh_compliance,
     measured_fluctuation_fields,
     perturb,
@@ -210,16 +211,19 @@ class GearSystem(System):
         config = super().job_config(stage, variant)
         if stage != "simulate" and "model" in config:
             # the per-sample perturbation of the calibrated values concerns the simulation only
-            # and so does the drawn mesh compliance (the calibration runs the nominal mesh)
+            # and so does the drawn mesh compliance (the calibration runs the nominal mesh), but
+            # for a calibrated deflection, whose profile the calibration takes
             variability = {
                 k: v
                 for k, v in config["model"].get("variability", {}).items()
                 if k != "perturbation_sigma"
             }
+            compliance = config["model"].get("mesh_compliance")
+            profiled = stage == "calibrate" and (compliance or {}).get("deflection") == "calibrated"
             config["model"] = {
                 k: v
                 for k, v in dict(config["model"], variability=variability).items()
-                if k != "mesh_compliance"
+                if k != "mesh_compliance" or profiled
             }
         if stage != "bench":
             config.pop("virtual_bench", None)  # the hidden truth reaches the bench jobs only
@@ -282,7 +286,7 @@ class GearSystem(System):
             problems += [
                 f"model.mesh_compliance.{key}: [low, high] with low above high: {value}"
                 for key, value in compliance.items()
-                if value != "auto" and value[0] > value[1]
+                if value not in ("auto", "calibrated") and value[0] > value[1]
             ]
             problems += self.compliance_problems(compliance)
             both = sorted(set(COMPLIANCE_PARAMETERS) & set(config["calibration"]["parameters"]))
@@ -339,7 +343,7 @@ class GearSystem(System):
         """A configured deflection range that misses ISO 6336-1's estimate at the rig's load by more
         than a factor 2 (a range kept from another load: the simulated faults would be sized
         for that load)."""
-        if compliance["deflection"] == "auto":
+        if compliance["deflection"] in ("auto", "calibrated"):
             return []
         low, high = compliance["deflection"]
         if low > high:  # named on its own
@@ -407,9 +411,34 @@ class GearSystem(System):
     # -- calibration -------------------------------------------------------------------------
     def calibrate(self, frame, variant, calibration, spectrum, channels, processes=1):
         model = self.config["model"]
+        compliance = model.get("mesh_compliance") or {}
+        problem = spectral_problem(self, frame, calibration, spectrum, channels)
         result, history, spectra = calibrate_on_spectra(
-            self, frame, calibration, spectrum, channels, nominal=model, processes=processes
+            self,
+            frame,
+            calibration,
+            spectrum,
+            channels,
+            nominal=model,
+            processes=processes,
+            problem=problem,
         )
+        if compliance.get("deflection") == "calibrated":
+            variant, values = result["model_variant"], result["parameters"]
+            profile = deflection_profile(
+                lambda changed: problem(variant, {**values, **changed}),
+                compliance,
+                self.parameters(contact_law=variant, **values),
+            )
+            result["mesh_deflection"] = profile
+            log.info(
+                "mesh deflection profile (um: cost) %s; the simulation draws %.3g-%.3g um",
+                {
+                    f"{d * 1e6:.3g}": round(c, 4)
+                    for d, c in zip(profile["deflection"], profile["cost"])
+                },
+                *(d * 1e6 for d in profile["range"]),
+            )
         # K and n trade off at one load; the stiffness the vibration sees is what the data pin down.
         best = self.parameters(contact_law=result["model_variant"], **result["parameters"])
         result = dict(
@@ -497,7 +526,12 @@ class GearSystem(System):
         )
         compliance = self.config["model"].get("mesh_compliance")
         if compliance:  # drawn from the job's stream, so twins share it (healthy reference)
-            values.update(draw_mesh_compliance(compliance, self.parameters(**values), rng))
+            profile = calibrated.get("mesh_deflection") or {}
+            values.update(
+                draw_mesh_compliance(
+                    compliance, self.parameters(**values), rng, profile.get("range")
+                )
+            )
         # per-state calibration: the state's tuned severities (drawn in simulate_sample, no draw here)
         state_model = (calibrated.get("state_models") or {}).get(health_state)
         measured = calibrated.get("speed_fluctuation")

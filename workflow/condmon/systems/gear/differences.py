@@ -109,12 +109,14 @@ def _compliance_row(model: dict, truth: dict, compliance: dict) -> dict:
     low, high = deflection_range(compliance, rig)
     exponents = compliance["contact_exponent"]
     inside = low <= deflection <= high and exponents[0] <= mesh["contact_exponent"] <= exponents[1]
+    calibrated = compliance["deflection"] == "calibrated"
     return row(
         f"mesh_stiffness {mesh['mesh_stiffness']:g} at contact_exponent {mesh['contact_exponent']:g}: a static "
         f"deflection of {deflection * 1e6:.2f} um",
-        RANDOMISED,
-        f"model.mesh_compliance, drawn per sample: deflection [{low * 1e6:.3g}, {high * 1e6:.3g}] um, "
-        f"contact_exponent {_number_or_range(exponents)}",
+        CALIBRATED if calibrated else RANDOMISED,
+        "model.mesh_compliance, drawn per sample: deflection "
+        + ("calibrated within " if calibrated else "")
+        + f"[{low * 1e6:.3g}, {high * 1e6:.3g}] um, contact_exponent {_number_or_range(exponents)}",
         bool(inside),
     )
 

@@ -130,7 +130,7 @@ def deflection_range(compliance: dict, params: GearDrivetrainParameters) -> tupl
     (`mesh_force.iso6336_deflections`): every mesh from `ISO_STIFFER` x the standard's stiffness
     at 1 um to `ISO_SOFTER` x softer than its light-load value, at every drawn contact exponent.
     The default rig's 10 N m: 0.39-1.32 um; a gearbox at 133 N/mm: 0.37-1.25 x the standard's."""
-    if compliance["deflection"] != "auto":
+    if compliance["deflection"] not in ("auto", "calibrated"):
         low, high = compliance["deflection"]
         return float(low), float(high)
     first_pair = stage_parameters(params)[0]
@@ -146,8 +146,62 @@ def deflection_range(compliance: dict, params: GearDrivetrainParameters) -> tupl
     return min(deflections), max(deflections)
 
 
+# `model.mesh_compliance.deflection: calibrated`: the calibration's cost over the first pair's
+# static deflection on a log grid of the standard's range, at the drawn contact exponents (each
+# grid point the lowest cost over them); the deflections within PROFILE_TOLERANCE above the lowest
+# cost are kept, with a grid step either side. The cost of one candidate varies 30-70 % with the
+# simulation's seed, its profile far less (the same seed at every point): on the two-stage bench
+# 3.2 um against 4.5 um cost 21-53 % more at 4.5 on each of three seeds
+# (docs/experiments/2026-12-07-mesh-deflection-profile.md).
+PROFILE_DEFLECTIONS, PROFILE_EXPONENTS, PROFILE_TOLERANCE = 9, 3, 0.1
+
+
+def deflection_profile(cost, compliance: dict, params: GearDrivetrainParameters) -> dict:
+    """The calibration's cost over the first pair's static deflection under its torque, for
+    `model.mesh_compliance.deflection: calibrated`: on a log grid of the range ISO 6336-1 allows
+    (`deflection_range` with `auto`), the lowest cost over the drawn contact exponents, each with
+    the `mesh_stiffness` that gives the deflection; `cost(values)`: the cost of the calibrated
+    parameters with these `values` changed. Returns {"deflection": grid (m), "cost": profile,
+    "range": the deflections kept, `profile_range`}."""
+    low, high = deflection_range(dict(compliance, deflection="auto"), params)
+    grid = np.geomspace(low, high, PROFILE_DEFLECTIONS)
+    exponents = np.linspace(*compliance["contact_exponent"], PROFILE_EXPONENTS)
+    first_pair = stage_parameters(params)[0]
+    profile = np.array(
+        [
+            min(
+                cost(
+                    {
+                        "mesh_stiffness": stiffness_for_deflection(first_pair, d, n),
+                        "contact_exponent": float(n),
+                    }
+                )
+                for n in exponents
+            )
+            for d in grid
+        ]
+    )
+    return {
+        "deflection": grid.tolist(),
+        "cost": profile.tolist(),
+        "range": list(profile_range(grid, profile)),
+    }
+
+
+def profile_range(grid, profile, tolerance: float = PROFILE_TOLERANCE) -> tuple[float, float]:
+    """(low, high): the grid points whose cost lies within `tolerance` (a share) above the lowest,
+    widened by one grid step on either side (the grid's resolution), within the grid."""
+    profile = np.asarray(profile, dtype=float)
+    kept = np.flatnonzero(profile <= (1.0 + tolerance) * profile.min())
+    first, last = max(int(kept[0]) - 1, 0), min(int(kept[-1]) + 1, len(grid) - 1)
+    return float(grid[first]), float(grid[last])
+
+
 def draw_mesh_compliance(
-    compliance: dict, params: GearDrivetrainParameters, rng: np.random.Generator
+    compliance: dict,
+    params: GearDrivetrainParameters,
+    rng: np.random.Generator,
+    calibrated_range=None,
 ) -> dict:
     """One drivetrain's mesh compliance (`model.mesh_compliance`): its contact exponent uniform in
     `contact_exponent`, its first pair's static deflection under the rig's load log-uniform in
@@ -161,9 +215,19 @@ def draw_mesh_compliance(
     and 0.23 um at costs within 0.22-0.26, and the simulated faults grew or shrank with it. The
     standard's estimate (ISO 6336-1's mesh stiffness, with and without its light-load reduction)
     bounds the deflection better than the healthy records do, so every deflection it allows is
-    simulated."""
+    simulated. At a gearbox's load they do: `calibrated` draws within the range the calibration's
+    profile keeps (`calibrated_range`, `deflection_profile`)."""
     exponent = float(rng.uniform(*compliance["contact_exponent"]))
-    low, high = (np.log(value) for value in deflection_range(compliance, params))
+    if compliance["deflection"] == "calibrated":
+        if calibrated_range is None:
+            raise ValueError(
+                "model.mesh_compliance.deflection: calibrated, but the calibration holds no "
+                "mesh_deflection (run the calibration with this config)"
+            )
+        deflections = calibrated_range
+    else:
+        deflections = deflection_range(compliance, params)
+    low, high = (np.log(value) for value in deflections)
     deflection = float(np.exp(rng.uniform(low, high)))
     # the first pair under its own torque (a train's output torque through the later ratios)
     first_pair = stage_parameters(params)[0]
