@@ -928,13 +928,13 @@ def test_a_condition_far_from_the_first_takes_its_tooth_from_the_steps_between()
     rng = np.random.default_rng(4)
     top = rf.top_band_order(PINION / 4, 12)
     healthy = pitch_pattern(PINION, rng, pitch_rms=0.2)[None, :]
-    h = rf.pitch_fingerprint(healthy, PINION, top)
+    h = rf.band_limited(healthy, 1, top, PINION, lowest_order=3)
     w = noise_above(2, 1.0, rng)[None, :]
     w = (
-        rf.pitch_fingerprint(w, PINION, top)
+        rf.band_limited(w, 1, top, PINION, lowest_order=3)
         * 1.5
         * h.std()
-        / rf.pitch_fingerprint(w, PINION, top).std()
+        / rf.band_limited(w, 1, top, PINION, lowest_order=3).std()
     )
     v = 1.3 * np.roll(w, 7 * P // PINION, axis=-1)
     starts = {150.0: 0, 300.0: 311, 450.0: 617}  # where each calibration record began

@@ -31,6 +31,8 @@ from condmon.operating import OperatingPoint
 from condmon.systems.base import System
 from condmon.systems.gear.mesh_lines import mesh_line_problems
 from condmon.systems.gear.parameters import (
+    PROFILE_DEFLECTIONS,
+    PROFILE_EXPONENTS,
     CALIBRATABLE,
     COMPLIANCE_PARAMETERS,
     STATE_SEVERITY,
@@ -425,6 +427,10 @@ class GearSystem(System):
         )
         if compliance.get("deflection") == "calibrated":
             variant, values = result["model_variant"], result["parameters"]
+            log.info(
+                "mesh deflection profile: %d evaluations of the calibration's cost",
+                PROFILE_DEFLECTIONS * PROFILE_EXPONENTS,
+            )
             profile = deflection_profile(
                 lambda changed: problem(variant, {**values, **changed}),
                 compliance,

@@ -278,16 +278,6 @@ def alignment_shift(
 FAULT_PITCH_EXCESS = 5.0
 
 
-def pitch_fingerprint(x: np.ndarray, teeth: int, top_order: int, shaft_orders: int = 2):
-    """What of one revolution's pattern (n_channels, P) tells its teeth apart under a mask: the
-    orders above `shaft_orders` up to `top_order`, less the mesh harmonics. The shaft orders and
-    mesh harmonics are strong and smooth; cut by a mask, they would leak into every order."""
-    spectrum = np.fft.rfft(np.atleast_2d(x), axis=-1)
-    orders = np.arange(spectrum.shape[-1])
-    spectrum[..., (orders <= shaft_orders) | (orders > top_order) | (orders % teeth == 0)] = 0.0
-    return np.fft.irfft(spectrum, n=np.atleast_2d(x).shape[-1], axis=-1)
-
-
 def fault_masked_shift(
     tsa: np.ndarray,
     reference: np.ndarray,
@@ -301,22 +291,26 @@ def fault_masked_shift(
     picks the same wrong whole-tooth shift on every record: the damaged teeth named where they
     are not. So: align, find the pitches of the residual above FAULT_PITCH_EXCESS (and their
     neighbours, which the contact ratio shares the change with), take the peak of the rest's
-    `pitch_fingerprint` correlated with the reference's, up to `rounds` times; then refine on the
-    whole pattern from there (the mask's edges would pull the fraction). Without such a pitch the
-    shift is `alignment_shift`'s."""
+    correlation with the reference, up to `rounds` times, on the orders that tell the teeth apart
+    under a mask (above the shaft orders 1-2, up to `top_order`, less the mesh harmonics: strong
+    and smooth, those would leak into every order when cut); then refine on the whole pattern
+    from there (the mask's edges would pull the fraction). Without such a pitch the shift is
+    `alignment_shift`'s."""
     shift = alignment_shift(tsa, reference, teeth, top_order)
     p = np.atleast_2d(tsa).shape[-1]
     top = p // 2 if top_order is None else int(top_order)
     pitch = p / teeth
-    fingerprint = pitch_fingerprint(tsa, teeth, top)
-    reference_print = np.conj(np.fft.rfft(pitch_fingerprint(reference, teeth, top), axis=-1))
+    fingerprint = band_limited(np.atleast_2d(tsa), 1, top, teeth, lowest_order=3)
+    reference_print = np.conj(
+        np.fft.rfft(band_limited(np.atleast_2d(reference), 1, top, teeth, lowest_order=3), axis=-1)
+    )
     # the samples of `tsa` (its own frame: the fault stays put while the shift moves) left out
     kept = np.ones(p)
     for _ in range(rounds):
         residual = band_limited(np.atleast_2d(shifted(tsa, shift) - reference), 1, top)
-        excess = np.median(pitch_energies(residual_signal(residual, teeth), teeth), axis=0)
+        excess = damaged_pitches(residual_signal(residual, teeth), teeth)  # over the median, less 1
         found = np.zeros(p, dtype=bool)
-        for k in np.flatnonzero(excess > FAULT_PITCH_EXCESS):
+        for k in np.flatnonzero(excess > FAULT_PITCH_EXCESS - 1.0):
             # pitch k of the residual and its neighbours, where they lie in `tsa`
             first = int(np.floor((k - 1) * pitch + shift))
             found[np.arange(first, first + int(np.ceil(3 * pitch))) % p] = True
@@ -441,14 +435,18 @@ def cycle_shaft_patterns(
 
 
 def band_limited(
-    x: np.ndarray, turns: int, top_order: int, without_multiples_of: int = 0
+    x: np.ndarray,
+    turns: int,
+    top_order: int,
+    without_multiples_of: int = 0,
+    lowest_order: int = 0,
 ) -> np.ndarray:
     """`x` (n_channels, n: `turns` revolutions of the input shaft on its grid) without its orders
-    above `top_order` and, with `without_multiples_of` (a tooth count), without the mesh
-    harmonics."""
+    above `top_order` (and below `lowest_order`) and, with `without_multiples_of` (a tooth
+    count), without the mesh harmonics."""
     spectrum = np.fft.rfft(x, axis=-1)
     bins = np.arange(spectrum.shape[-1])
-    spectrum[..., bins > top_order * turns] = 0.0
+    spectrum[..., (bins > top_order * turns) | (bins < lowest_order * turns)] = 0.0
     if without_multiples_of:
         spectrum[..., bins % (int(without_multiples_of) * turns) == 0] = 0.0
     return np.fft.irfft(spectrum, n=x.shape[-1], axis=-1)
