@@ -41,6 +41,21 @@ def pytest_configure(config):
 
     if python_version_error():
         pytest.exit(python_version_error(), returncode=4)
+    if not hasattr(config, "workerinput"):  # once, before pytest-xdist starts its workers
+        compile_mesh_kernel()
+
+
+def compile_mesh_kernel():
+    """The gear mesh's compiled kernel written into this checkout's numba cache. Every process
+    that loads it (each worker, each pipeline job, each dry run's config check) then reads the
+    cache instead of compiling it again (about 8 CPU-s each), and `copy_project` carries the cache
+    into its copies: numba keys it on the source's content, not its path. In a process of its own
+    with this checkout's workflow/ first, whichever checkout the installed package points at."""
+    subprocess.run(
+        [sys.executable, "-c", "import condmon.models.gear.mesh_kernel"],  # compiles on import
+        env={**os.environ, "PYTHONPATH": str(ROOT / "workflow")},
+        check=True,
+    )
 
 
 PIPELINE_FIXTURES = {"smoke", "cwru_run"}
@@ -216,7 +231,9 @@ def copy_project(target: Path) -> Path:
     for name in ("Snakefile", "workflow", "config", ".test", "profiles"):
         source = ROOT / name
         if source.is_dir():
-            shutil.copytree(source, target / name, ignore=shutil.ignore_patterns("__pycache__"))
+            # __pycache__ comes along: the bytecode (valid while the sources keep their times,
+            # which copytree keeps) and numba's cache (compile_mesh_kernel)
+            shutil.copytree(source, target / name)
         else:
             shutil.copy(source, target / name)
     return target
