@@ -10,7 +10,9 @@ from condmon.calibrate import (
     SpectrumModel,
     estimate_sensor_noise,
     measured_spectra,
+    cfrp_eq4,
     spectrum_cost,
+    variant_check,
     with_sensor_noise,
 )
 from condmon.models.gear.drivetrain import operating_mesh_stiffness
@@ -30,6 +32,43 @@ def test_costs_are_zero_for_identical_spectra_and_grow_with_the_error():
     assert spectrum_cost(1.2 * measured, measured) > spectrum_cost(1.1 * measured, measured)
     with pytest.raises(ValueError, match="unknown calibration cost 'l1'"):
         spectrum_cost(measured, measured, "l1")
+
+
+def test_a_model_variant_the_records_cannot_see_is_reported_as_the_searchs_draw(caplog):
+    """Two variants that give the same spectra at the picked parameters (a gear's contact laws on
+    a healthy mesh that never opens) are said to be unseen, naming both; variants that change the
+    spectra are seen; a system of one variant has nothing to compare."""
+    target = np.ones((2, 3, 8))
+
+    def blind(variant, values):
+        return np.full((2, 3, 8), values["gain"])
+
+    def seeing(variant, values):
+        return np.full((2, 3, 8), values["gain"] * (1.5 if variant == "flores" else 1.0))
+
+    best = {"model_variant": "gonthier", "parameters": {"gain": 1.2}}
+    best["cost"] = cfrp_eq4(blind("gonthier", best["parameters"]), target)
+    variants = ["flores", "hunt_crossley", "gonthier"]
+
+    with caplog.at_level("WARNING", logger="condmon.calibrate"):
+        unseen = variant_check(blind, target, cfrp_eq4, best, variants, "flores")
+    assert unseen == {
+        "model_variant_seen": False,
+        "model_variant_compared": {"flores": best["cost"]},
+    }
+    assert "flores" in caplog.text and "gonthier is the search's draw" in caplog.text
+
+    seen = variant_check(seeing, target, cfrp_eq4, best, variants, "flores")
+    assert seen["model_variant_seen"] is True
+    assert seen["model_variant_compared"]["flores"] > best["cost"]
+    # the nominal variant picked itself: the first other one is compared
+    nominal = dict(best, model_variant="flores")
+    assert list(
+        variant_check(seeing, target, cfrp_eq4, nominal, variants, "flores")[
+            "model_variant_compared"
+        ]
+    ) == ["hunt_crossley"]
+    assert variant_check(blind, target, cfrp_eq4, best, ["gonthier"], "gonthier") == {}
 
 
 def test_log_bounds_round_trip_and_clip():

@@ -271,6 +271,31 @@ def spectral_problem(
     return SpectralProblem(points, target, spectrum_model, cost)
 
 
+def variant_check(spectrum_model, target, cost, best: dict, variants, nominal_variant) -> dict:
+    """Whether the records see the model variant the search picked: another variant's cost at the
+    picked parameters (the nominal variant, else the first other one). {} with one variant.
+
+    `model_variant_seen` is False when both costs agree to 1e-9: the records never reach what
+    the variants change (the gear system's contact laws act on impacts only, which healthy runs
+    may not have), so the picked variant is the search's draw, not a finding; a warning says so."""
+    others = [variant for variant in variants if variant != best["model_variant"]]
+    if not others:
+        return {}
+    other = nominal_variant if nominal_variant in others else others[0]
+    other_cost = float(cost(spectrum_model(other, best["parameters"]), target))
+    seen = not np.isclose(other_cost, best["cost"], rtol=1e-9, atol=0.0)
+    if not seen:
+        log.warning(
+            "the healthy records do not tell the model variants apart: %s costs %.6g at the "
+            "calibrated parameters, as %s does; %s is the search's draw, not a finding",
+            other,
+            other_cost,
+            best["model_variant"],
+            best["model_variant"],
+        )
+    return {"model_variant_seen": seen, "model_variant_compared": {other: other_cost}}
+
+
 def calibrate_on_spectra(
     system,
     frame: pd.DataFrame,
@@ -315,6 +340,14 @@ def calibrate_on_spectra(
         processes,
     )
     best, history = calibrator.run(spectrum_model, target, cost)
+    variants = variant_check(
+        spectrum_model,
+        target,
+        cost,
+        best,
+        system.model_variants(calibration),
+        system.nominal_variant,
+    )
     nominal_values = {b.name: nominal[b.name] for b in bounds}
     nominal_cost = cost(spectrum_model(system.nominal_variant, nominal_values), target)
     calibrated = spectrum_model(best["model_variant"], best["parameters"])
@@ -341,6 +374,7 @@ def calibrate_on_spectra(
     ]
     result = dict(
         best,
+        **variants,
         nominal_cost=nominal_cost,
         sensor_noise=sensor_noise,
         strategy=calibration["strategy"],
