@@ -275,9 +275,9 @@ def variant_check(spectrum_model, target, cost, best: dict, variants, nominal_va
     """Whether the records see the model variant the search picked: another variant's cost at the
     picked parameters (the nominal variant, else the first other one). {} with one variant.
 
-    `model_variant_seen` is False when both costs agree to 1e-9: the records never reach what
-    the variants change (the gear system's contact laws act on impacts only, which healthy runs
-    may not have), so the picked variant is the search's draw, not a finding; a warning says so."""
+    `model_variant_seen` is False when both costs agree to 1e-9: the healthy runs never reach
+    what the variants change (a variant that acts on rare events only), so the picked variant is
+    the search's draw, not a finding; a warning says so."""
     others = [variant for variant in variants if variant != best["model_variant"]]
     if not others:
         return {}
