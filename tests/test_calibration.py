@@ -16,6 +16,7 @@ from condmon.calibrate import (
     with_sensor_noise,
 )
 from condmon.models.gear.drivetrain import operating_mesh_stiffness
+from condmon.models.numerics import SimulationError
 from condmon.systems import get_system
 from condmon.operating import OperatingPoint
 from condmon.systems.gear.bench import virtual_bench_rows
@@ -69,6 +70,14 @@ def test_a_model_variant_the_records_cannot_see_is_reported_as_the_searchs_draw(
         ]
     ) == ["hunt_crossley"]
     assert variant_check(blind, target, cfrp_eq4, best, ["gonthier"], "gonthier") == {}
+
+    def diverging(variant, values):
+        if variant == "flores":
+            raise SimulationError("mesh deflection 0.004 m: the simulation diverged")
+        return blind(variant, values)
+
+    failed = variant_check(diverging, target, cfrp_eq4, best, variants, "flores")
+    assert failed == {"model_variant_seen": None, "model_variant_compared": {"flores": None}}
 
 
 def test_log_bounds_round_trip_and_clip():

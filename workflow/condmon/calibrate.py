@@ -277,12 +277,19 @@ def variant_check(spectrum_model, target, cost, best: dict, variants, nominal_va
 
     `model_variant_seen` is False when both costs agree to 1e-9: the healthy runs never reach
     what the variants change (a variant that acts on rare events only), so the picked variant is
-    the search's draw, not a finding; a warning says so."""
+    the search's draw, not a finding; a warning says so. None when the other variant's run
+    fails."""
     others = [variant for variant in variants if variant != best["model_variant"]]
     if not others:
         return {}
     other = nominal_variant if nominal_variant in others else others[0]
-    other_cost = float(cost(spectrum_model(other, best["parameters"]), target))
+    try:
+        other_cost = float(cost(spectrum_model(other, best["parameters"]), target))
+    except SimulationError as exc:  # a diagnostic: the calibration stands without it
+        log.warning(
+            "the calibrated parameters with %s failed (%s): variant not compared", other, exc
+        )
+        return {"model_variant_seen": None, "model_variant_compared": {other: None}}
     seen = not np.isclose(other_cost, best["cost"], rtol=1e-9, atol=0.0)
     if not seen:
         log.warning(
