@@ -7,6 +7,7 @@ import pytest
 from condmon.calibrate import (
     Bound,
     Calibrator,
+    SpectralProblem,
     SpectrumModel,
     estimate_sensor_noise,
     measured_spectra,
@@ -47,36 +48,37 @@ def test_a_model_variant_the_records_cannot_see_is_reported_as_the_searchs_draw(
     def seeing(variant, values):
         return np.full((2, 3, 8), values["gain"] * (1.5 if variant == "flores" else 1.0))
 
+    def problem(spectrum_model):
+        return SpectralProblem([], target, spectrum_model, cfrp_eq4)
+
     best = {"model_variant": "gonthier", "parameters": {"gain": 1.2}}
     best["cost"] = cfrp_eq4(blind("gonthier", best["parameters"]), target)
     variants = ["flores", "hunt_crossley", "gonthier"]
 
     with caplog.at_level("WARNING", logger="condmon.calibrate"):
-        unseen = variant_check(blind, target, cfrp_eq4, best, variants, "flores")
+        unseen = variant_check(problem(blind), best, variants, "flores")
     assert unseen == {
         "model_variant_seen": False,
         "model_variant_compared": {"flores": best["cost"]},
     }
     assert "flores" in caplog.text and "gonthier is the search's draw" in caplog.text
 
-    seen = variant_check(seeing, target, cfrp_eq4, best, variants, "flores")
+    seen = variant_check(problem(seeing), best, variants, "flores")
     assert seen["model_variant_seen"] is True
     assert seen["model_variant_compared"]["flores"] > best["cost"]
     # the nominal variant picked itself: the first other one is compared
     nominal = dict(best, model_variant="flores")
     assert list(
-        variant_check(seeing, target, cfrp_eq4, nominal, variants, "flores")[
-            "model_variant_compared"
-        ]
+        variant_check(problem(seeing), nominal, variants, "flores")["model_variant_compared"]
     ) == ["hunt_crossley"]
-    assert variant_check(blind, target, cfrp_eq4, best, ["gonthier"], "gonthier") == {}
+    assert variant_check(problem(blind), best, ["gonthier"], "gonthier") == {}
 
     def diverging(variant, values):
         if variant == "flores":
             raise SimulationError("mesh deflection 0.004 m: the simulation diverged")
         return blind(variant, values)
 
-    failed = variant_check(diverging, target, cfrp_eq4, best, variants, "flores")
+    failed = variant_check(problem(diverging), best, variants, "flores")
     assert failed == {"model_variant_seen": None, "model_variant_compared": {"flores": None}}
 
 

@@ -271,20 +271,22 @@ def spectral_problem(
     return SpectralProblem(points, target, spectrum_model, cost)
 
 
-def variant_check(spectrum_model, target, cost, best: dict, variants, nominal_variant) -> dict:
-    """Whether the records see the model variant the search picked: another variant's cost at the
-    picked parameters (the nominal variant, else the first other one). {} with one variant.
+def variant_check(problem: SpectralProblem, best: dict, variants, nominal_variant) -> dict:
+    """Whether the records see the model variant the search picked: the `problem`'s cost of
+    another variant at the picked parameters (the nominal variant, else the first other one).
+    {} with one variant.
 
     `model_variant_seen` is False when both costs agree to 1e-9: the healthy runs never reach
     what the variants change (a variant that acts on rare events only), so the picked variant is
     the search's draw, not a finding; a warning says so. None when the other variant's run
     fails."""
-    others = [variant for variant in variants if variant != best["model_variant"]]
+    picked = best["model_variant"]
+    others = [variant for variant in variants if variant != picked]
     if not others:
         return {}
     other = nominal_variant if nominal_variant in others else others[0]
     try:
-        other_cost = float(cost(spectrum_model(other, best["parameters"]), target))
+        other_cost = problem(other, best["parameters"])
     except SimulationError as exc:  # a diagnostic: the calibration stands without it
         log.warning(
             "the calibrated parameters with %s failed (%s): variant not compared", other, exc
@@ -295,10 +297,7 @@ def variant_check(spectrum_model, target, cost, best: dict, variants, nominal_va
         log.warning(
             "the healthy records do not tell the model variants apart: %s costs %.6g at the "
             "calibrated parameters, as %s does; %s is the search's draw, not a finding",
-            other,
-            other_cost,
-            best["model_variant"],
-            best["model_variant"],
+            *(other, other_cost, picked, picked),
         )
     return {"model_variant_seen": seen, "model_variant_compared": {other: other_cost}}
 
@@ -348,12 +347,7 @@ def calibrate_on_spectra(
     )
     best, history = calibrator.run(spectrum_model, target, cost)
     variants = variant_check(
-        spectrum_model,
-        target,
-        cost,
-        best,
-        system.model_variants(calibration),
-        system.nominal_variant,
+        problem, best, system.model_variants(calibration), system.nominal_variant
     )
     nominal_values = {b.name: nominal[b.name] for b in bounds}
     nominal_cost = cost(spectrum_model(system.nominal_variant, nominal_values), target)
