@@ -4,7 +4,14 @@ each record left out in turn, per operating condition."""
 import numpy as np
 import pandas as pd
 
-from condmon.separability import held_out_accuracy, measured_separability
+from condmon.report.simulated_ceiling import separability_table
+from condmon.separability import (
+    held_out_accuracy,
+    machine_folds,
+    measured_separability,
+    simulated_separability,
+)
+from condmon.simulate import machine_of
 
 
 def records(rng, classes, per_class=3, segments=4, spread=0.1, speeds=(450.0, 775.0)):
@@ -104,3 +111,60 @@ def test_pure_noise_scores_within_the_permutation_band_of_chance_not_zero():
     assert abs(out["chance"]["mean"] - 1 / 6) < 0.05
     assert 0.05 < out["balanced_accuracy"] <= out["chance"]["upper"]
     assert out["reads_above_chance"] is False and out["not_shown"] == []
+
+
+def machines(rng, classes, count=8, effect=1.0, hidden=(), scatter=0.1, speed=450.0):
+    """Simulated twins: `count` machines at `speed`, each with a record of every class
+    (sim-<state>-<speed>rpm-b000-s<k>, two segments); f0 is the machine's own offset (`scatter`)
+    plus `effect` x the class's index, except for a class in `hidden` (its fault moves nothing)."""
+    rows = []
+    for k in range(count):
+        offset = rng.normal(0, scatter)
+        for c, state in enumerate(classes):
+            for s in range(2):
+                rows.append(
+                    {
+                        "record_id": f"sim-{state}-{speed:g}rpm-b000-s{k:03d}",
+                        "segment": s,
+                        "health_state": state,
+                        "speed_rpm": speed,
+                        "f0": offset + (0.0 if state in hidden else effect * c),
+                        "f1": rng.normal(),
+                    }
+                )
+    return pd.DataFrame(rows)
+
+
+def test_a_simulated_machine_is_held_out_with_all_its_twins():
+    rng = np.random.default_rng(4)
+    frame = machines(rng, ["healthy", "missing_tooth", "surface_fault"], count=5)
+    machine = frame["record_id"].map(machine_of).to_numpy()
+    folds = machine_folds(machine)
+    assert len(folds) == 5
+    for train, test in folds:
+        assert len(set(machine[test])) == 1 and not set(machine[test]) & set(machine[train])
+        # every class of the held-out machine is tested, none of its records trains
+        assert set(frame["health_state"].to_numpy()[test]) == {
+            "healthy",
+            "missing_tooth",
+            "surface_fault",
+        }
+
+
+def test_the_simulation_confusing_a_class_on_unseen_machines_names_it_and_what_it_is_taken_for():
+    rng = np.random.default_rng(5)
+    classes = ["healthy", "missing_tooth", "surface_fault"]
+    apart = simulated_separability(machines(rng, classes), ["f0", "f1"], "speed_rpm")
+    assert apart["per_condition"]["450"]["balanced_accuracy"] == 1.0
+    assert apart["per_condition"]["450"]["machines"] == 8
+    # a surface fault that moves nothing, in machines scattered as much as the faults apart: found
+    # on an unseen machine at about chance, taken for healthy
+    frame = machines(rng, classes, hidden=("surface_fault",), scatter=0.6)
+    out = simulated_separability(frame, ["f0", "f1"], "speed_rpm")["per_condition"]["450"]
+    assert out["recall_per_class"]["surface_fault"] < 0.8
+    assert out["confusion"]["surface_fault"].get("healthy", 0) > 0
+    table = separability_table({"per_condition": {"450": out}})
+    row = table.set_index("health_state").loc["surface_fault"]
+    assert row["recall"] < 0.8 and "healthy" in row["confused_with"]
+    one = simulated_separability(machines(rng, classes, count=1), ["f0", "f1"], "speed_rpm")
+    assert one["per_condition"]["450"]["refused"] == "one simulated machine only"
