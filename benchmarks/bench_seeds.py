@@ -15,6 +15,9 @@ The config's own bench seed is the config's own run where it has finished.
   `not_shown` (its recall below `EXEMPT_BELOW` while the ceiling reads above chance: the bench
   cannot show it, so no method trained on simulation can be asked to);
 - the fault-signature correlation per class (summary.json `fault_signatures`);
+- the simulation's own ceiling: the same classifier on the simulated records alone, one simulated
+  machine held out at a time (summary.json `simulated_separability`), its balanced accuracy
+  (`simulation_alone`; None in a report from before it);
 - the share of each localised fault's records whose damaged tooth is named right (summary.json
   `fault_location`), where the bench's records carry the truth.
 
@@ -80,6 +83,7 @@ COLUMNS = (
     "bench_only_chance",
     "exempt",
     "signature_correlation",
+    "simulation_alone",
     "located",
 )
 
@@ -144,6 +148,7 @@ def seed_rows(report: Path, seed: int, classifier: str, bench: str | None = None
     shares = pd.read_csv(report / "prediction_shares.csv")
     separability = summary.get("measured_separability", {}).get("per_condition", {})
     signatures = summary.get("fault_signatures", {}).get("per_condition", {})
+    simulated = (summary.get("simulated_separability") or {}).get("per_condition", {})
     rows = []
     for percent in (0, 100):
         chosen = evaluation[
@@ -185,6 +190,9 @@ def seed_rows(report: Path, seed: int, classifier: str, bench: str | None = None
                     "signature_correlation": {
                         c: v.get("direction_correlation") for c, v in classes.items()
                     },
+                    "simulation_alone": (simulated.get(f"{speed:g}") or {}).get(
+                        "balanced_accuracy"
+                    ),
                     "located": located,
                 }
             )
@@ -194,7 +202,8 @@ def seed_rows(report: Path, seed: int, classifier: str, bench: str | None = None
 def means(rows: list[dict]) -> list[dict]:
     """Per speed and measured percentage: the mean over seeds of the balanced accuracy, the
     false-alarm rate and each class's recall (a class's mean over the seeds where it is not
-    exempt), the lowest seed's balanced accuracy and the highest false-alarm rate."""
+    exempt), the lowest seed's balanced accuracy and the highest false-alarm rate, and the
+    simulation's own ceiling over the seeds that have one."""
     out = []
     frame = pd.DataFrame(rows)
     if "classifier" not in frame:  # rows of one classifier from before several were collected
@@ -229,6 +238,9 @@ def means(rows: list[dict]) -> list[dict]:
             for c in classes
             if any(c in s for s in part["signature_correlation"])
         }
+        alone = [  # None (NaN in the frame): a report from before the simulation's own ceiling
+            v for v in part.get("simulation_alone", pd.Series(dtype=float)) if pd.notna(v)
+        ]
         out.append(
             {
                 "classifier": classifier,
@@ -240,6 +252,7 @@ def means(rows: list[dict]) -> list[dict]:
                 "false_alarm_rate": float(part["false_alarm_rate"].mean()),
                 "highest_false_alarm_rate": float(part["false_alarm_rate"].max()),
                 "recall": recall,
+                "simulation_alone": float(np.mean(alone)) if alone else None,
                 "signature_correlation": correlation,
                 "exempt": {
                     str(getattr(r, "bench", r.seed)): r.exempt

@@ -15,7 +15,9 @@ spec.loader.exec_module(bench_seeds)
 CLASSES = ("healthy", "surface_fault", "missing_tooth")
 
 
-def fake_report(folder, recall: dict, ceiling: dict, correlation: dict, classifiers=("svm",)):
+def fake_report(
+    folder, recall: dict, ceiling: dict, correlation: dict, classifiers=("svm",), alone=None
+):
     """The three report files the benchmark reads, as the report writes them, for one speed (450)."""
     folder.mkdir(parents=True)
     rows = [
@@ -71,6 +73,8 @@ def fake_report(folder, recall: dict, ceiling: dict, correlation: dict, classifi
             }
         },
     }
+    if alone is not None:  # reports from before the simulation's own ceiling have none
+        summary["simulated_separability"] = {"per_condition": {"450": {"balanced_accuracy": alone}}}
     (folder / "summary.json").write_text(json.dumps(summary))
 
 
@@ -80,6 +84,7 @@ def test_the_seed_table_has_every_column_and_exempts_what_the_bench_cannot_show(
         {"healthy": 1.0, "surface_fault": 0.9, "missing_tooth": 1.0},
         {"healthy": 1.0, "surface_fault": 1.0, "missing_tooth": 1.0},
         {"surface_fault": 0.8, "missing_tooth": 0.9},
+        alone=0.7,
     )
     fake_report(
         tmp_path / "b",
@@ -103,6 +108,10 @@ def test_the_seed_table_has_every_column_and_exempts_what_the_bench_cannot_show(
     assert mean["recall"]["surface_fault"] == pytest.approx(0.9)
     assert mean["exempt"] == {"seed8": ["surface_fault"]}
     assert mean["signature_correlation"]["surface_fault"] == pytest.approx(0.5)
+    # the simulation's own ceiling: seed 7's report has one, seed 8's predates it
+    assert zero["simulation_alone"] is None
+    assert next(r for r in rows if r["seed"] == 7)["simulation_alone"] == pytest.approx(0.7)
+    assert mean["simulation_alone"] == pytest.approx(0.7)
 
 
 def test_a_seed_runs_under_its_own_name_unless_it_is_the_configs_finished_run(
