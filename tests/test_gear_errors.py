@@ -487,3 +487,23 @@ def test_a_tooth_broken_short_of_its_root_is_a_damage_map_and_a_whole_one_is_mis
     )
     whole = broken.replace(missing_share=1.0)
     assert tooth_damage(whole).kind == "missing" and damage_maps(whole) == ()
+
+
+def test_the_run_starts_at_the_deflection_its_engaged_teeth_carry_the_load_at():
+    """Pitch errors of tens of micrometres against a deflection under one: at the mean mesh's
+    static deflection the teeth in contact at t = 0 carry the load several times over or not at
+    all; `starting_deflection` finds where they carry it, and leaves no impact behind."""
+    from condmon.models.gear.mesh_force import MeshForce, static_mesh_force
+
+    rng = np.random.default_rng(0)
+    base = GearDrivetrainParameters(speed_rpm=600.0, start_mesh_phase=3.3)
+    for share in (0.0, 10e-6, 30e-6):
+        p = base.replace(
+            pitch_errors_pinion=tuple(rng.uniform(-share, share, GEOMETRY.teeth_pinion))
+        )
+        mesh, force = MeshForce(p), static_mesh_force(p)
+        start = mesh.starting_deflection(force)
+        assert mesh(0.0, start, 0.0) == pytest.approx(force, rel=1e-6)
+        assert not mesh.separated and not mesh.impacts
+        if share:  # the mean mesh misses by more than the load itself
+            assert abs(mesh(0.0, mesh.static_deflection(force), 0.0) - force) > 0.5 * force

@@ -1,7 +1,7 @@
-"""Can the measured records show their classes at all?
+"""Can the measured records show their classes at all, and can the simulation?
 
 A measured-only classifier, every measured record held out once: the ceiling a classifier
-trained on simulation can approach on these records. No simulation takes part. A class the
+trained on simulation can approach on these records; no simulation takes part in it. A class the
 measured records cannot show (on a real rig: a fault no engineer could see in its own data) is
 no failure of the simulation; the report gives this figure beside every run (summary.json
 `measured_separability`).
@@ -18,6 +18,11 @@ The ceiling must be right before it can excuse anything:
   simulation-trained classifier is asked) only where the ceiling and the other classes' mean
   recall stand above the permutation band (its `CHANCE_QUANTILE`), so that the ceiling
   measurably reads.
+
+Its twin on the other side (`simulated_separability`): the same classifier on the simulated
+records alone, one simulated machine held out at a time with its records of every health state.
+What training on the simulation can teach at most; a class it misses there is the model's limit,
+not the transfer's (summary.json `simulated_separability`).
 """
 
 from __future__ import annotations

@@ -1013,7 +1013,8 @@ def simulate(
         for k, view in enumerate(drivetrain.stages)
     ]
 
-    # Static equilibrium under the mean mesh forces as initial condition (short transient).
+    # Static equilibrium as initial condition (short transient): each mesh at the deflection its
+    # teeth in contact at t = 0 carry the load at (their pitch errors and deviations included).
     load = np.zeros(n)
     load[matrices.plain[drivetrain.load_dof]] = brake  # a resisting load presses the gears together
     free = [i for i in range(n) if i not in matrices.meshes]
@@ -1022,7 +1023,7 @@ def simulate(
     rhs = load[free]
     for mesh_dof, mesh, view in zip(matrices.meshes, meshes, drivetrain.stages):
         rb2 = view.geometry.base_radius(view.geometry.teeth_gear)
-        q0[mesh_dof] = mesh.static_deflection(view.load_torque / rb2)
+        q0[mesh_dof] = mesh.starting_deflection(view.load_torque / rb2)
         rhs = rhs - stiffness[free, mesh_dof] * q0[mesh_dof]
     q0[free] = np.linalg.solve(stiffness[np.ix_(free, free)], rhs)
 

@@ -487,6 +487,46 @@ class MeshForce:
         """Deflection that carries `force` with the mean mesh stiffness (for initial conditions)."""
         return DEFLECTION_REF * (force / self.mean_force_ref) ** (1.0 / self.exponent)
 
+    def starting_deflection(self, force: float, t: float = 0.0) -> float:
+        """The deflection at which the pairs in contact at time `t` carry `force` (N): where the
+        run starts. The mean mesh's `static_deflection` misses it by how far the engaged teeth's
+        pitch errors and flank deviations at `t` lie from the mean, tens of micrometres on coarse
+        gears at a light load against a deflection well under one: the first step then meets an
+        impact the step cannot resolve. Found on the mesh's own steady-contact force (monotone
+        in the deflection), searching out from the mean mesh's value; that value itself where
+        none within half of MAX_DEFLECTION carries the force (the run then says it diverged)."""
+        from scipy.optimize import brentq
+
+        guess = self.static_deflection(force)
+        if not abs(guess) < MAX_DEFLECTION / 2:  # a mesh too soft to carry it: the run says so
+            return guess
+
+        def excess(deflection):
+            # the steady contact's force: no impact remembered from the search's last call
+            self.impacts.clear()
+            self._finish(None, True)
+            return self(t, deflection, 0.0) - force
+
+        try:
+            low = high = guess
+            step = DEFLECTION_REF
+            while excess(low) > 0.0:
+                low -= step
+                step *= 2.0
+                if low < -MAX_DEFLECTION / 2:
+                    return guess
+            step = DEFLECTION_REF
+            while excess(high) < 0.0:
+                high += step
+                step *= 2.0
+                if high > MAX_DEFLECTION / 2:
+                    return guess
+            return guess if low == high else float(brentq(excess, low, high, xtol=1e-12))
+        finally:
+            # the search touched the impact state: the run starts in steady contact
+            self.impacts.clear()
+            self._finish(None, True)
+
 
 def damping_onset(x: float) -> float:
     """The smooth step 3 x^2 - 2 x^3 from 0 at x = 0 to 1 at x >= 1 (continuous, with its slope)."""
