@@ -79,7 +79,9 @@ def test_a_seed_record_renders_per_seed_and_state_and_the_readme_takes_the_newes
     ]
     page = render.render_results(records)
     default = page.split("## The default bench over seeds")[1].split("## The CFRP rig")[0]
-    assert "| seed 8 | 450 | 0 % | svm | 0.937 | 0.125 | 1.000 | 0.750 | - | - | healthy |" in default
+    assert (
+        "| seed 8 | 450 | 0 % | svm | 0.937 | 0.125 | 1.000 | 0.750 | - | - | healthy |" in default
+    )
     assert "| **mean of 2** | 450 | 0 % | svm | 0.937 | 0.062 |" in default
     assert default.index("### new") < default.index("### old")  # newest first
     assert "at commit `0123456789`" in default and "test CPU" in default
