@@ -88,11 +88,8 @@ def record_folds(labels: np.ndarray, groups: np.ndarray) -> list[tuple[np.ndarra
     ]
 
 
-def _predict(
-    features: np.ndarray, labels: np.ndarray, groups: np.ndarray, folds=None
-) -> np.ndarray:
+def _predict(features: np.ndarray, labels: np.ndarray, folds) -> np.ndarray:
     model = make_pipeline(StandardScaler(), SVC(C=1.2, gamma="scale", class_weight="balanced"))
-    folds = record_folds(labels, groups) if folds is None else folds
     return cross_val_predict(model, features, labels, cv=folds)
 
 
@@ -102,10 +99,11 @@ def left_out_predictions(frame: pd.DataFrame, names) -> np.ndarray | None:
     (`too_few_records`)."""
     if too_few_records(frame) is not None:
         return None
+    labels = frame["health_state"].to_numpy()
     return _predict(
         frame[list(names)].to_numpy(float),
-        frame["health_state"].to_numpy(),
-        frame["record_id"].to_numpy(),
+        labels,
+        record_folds(labels, frame["record_id"].to_numpy()),
     )
 
 
@@ -138,7 +136,11 @@ def chance_level(
     scores = []
     for _ in range(permutations):
         labels = permuted_labels(frame, rng)
-        scores.append(balanced_accuracy_score(labels, _predict(features, labels, groups)))
+        scores.append(
+            balanced_accuracy_score(
+                labels, _predict(features, labels, record_folds(labels, groups))
+            )
+        )
     return {
         "mean": float(np.mean(scores)),
         "upper": float(np.quantile(scores, CHANCE_QUANTILE)),
@@ -250,9 +252,7 @@ def simulated_entry(part: pd.DataFrame, names) -> dict:
         entry["refused"] = "one simulated machine only"
     if entry["refused"] is not None:
         return entry
-    predicted = _predict(
-        part[list(names)].to_numpy(float), truth, machines, folds=machine_folds(machines)
-    )
+    predicted = _predict(part[list(names)].to_numpy(float), truth, machine_folds(machines))
     recall = recall_score(truth, predicted, labels=classes, average=None)
     confusion = pd.crosstab(pd.Series(truth, name="true"), pd.Series(predicted, name="predicted"))
     entry.update(
