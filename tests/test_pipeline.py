@@ -18,7 +18,7 @@ from scipy.signal import find_peaks
 
 from condmon.hybrid import read_split_table
 from condmon.signals import read_signal_table, to_arrays
-from conftest import SNAKEMAKE, config_file, copy_project, snakemake
+from conftest import ROOT, SNAKEMAKE, config_file, copy_project, snakemake
 
 pytestmark = pytest.mark.pipeline
 
@@ -419,6 +419,18 @@ def test_editing_the_background_reruns_calibration_and_simulation_not_the_bench(
         jobs = planned_jobs(workdir, config)
         assert {"calibrate", "simulate", "features_simulated", "train", "report"} <= set(jobs), edit
         assert not {"measured", "measured_part", "features_measured"} & set(jobs), edit
+
+
+def test_the_calibrations_wait_for_the_benchs_healthy_records_alone():
+    """They read the bench's healthy parts (merged by `measured_healthy`), so they run while the
+    bench still makes its fault records, which the healthy parts go before."""
+    out = snakemake(
+        ROOT, "-n", "--forceall", "--until", "calibrate", "--configfile", ".test/config/smoke.yaml"
+    ).stdout
+    config = smoke_config()
+    speeds = len(config["rig"]["speeds_rpm"])
+    assert job_counts(out) == {"measured_part": speeds, "measured_healthy": 1, "calibrate": 2}
+    assert out.count("priority: 1") == speeds  # the healthy parts, first
 
 
 def test_switching_the_mesh_stiffness_model_reruns_simulation_not_the_bench_or_calibration(smoke):

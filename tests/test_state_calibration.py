@@ -73,6 +73,31 @@ def test_a_calibrated_states_first_record_per_condition_calibrates_and_never_joi
     }  # the healthy reference and calibration: healthy only
 
 
+@pytest.mark.parametrize(
+    "per_stratum, reserve",
+    [
+        (3, RESERVE),  # the first healthy record per condition
+        (3, dict(RESERVE, healthy_records=2)),
+        (3, dict(RESERVE, records=["healthy-1100-r2"])),
+        (3, dict(RESERVE, each_condition=True)),
+        # one healthy record per condition: split in time
+        (1, dict(RESERVE, calibration_segments=1, guard_segments=0, blocks=1)),
+    ],
+)
+def test_the_healthy_records_alone_give_the_calibration_set_of_the_whole_table(
+    per_stratum, reserve
+):
+    """The calibrate jobs read a bench's healthy parts only (they start before its fault records
+    are made): the healthy rows alone must give the set the whole table gives the splits."""
+    records = bench_records(per_stratum)
+    healthy = records[records.health_state == "healthy"]
+    whole = calibration_frame(records, "healthy", "speed_rpm", reserve)
+    assert len(whole)
+    pd.testing.assert_frame_equal(
+        calibration_frame(healthy, "healthy", "speed_rpm", reserve), whole
+    )
+
+
 def test_a_state_with_one_record_at_a_condition_or_the_healthy_state_is_refused():
     records = bench_records()
     lonely = records[~records.record_id.isin(["surface_fault-1100-r1", "surface_fault-1100-r2"])]

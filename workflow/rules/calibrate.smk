@@ -2,9 +2,23 @@
 # calibration variant (System.calibration_variants; a system without a choice has one, "rig").
 
 
+# The run's cores shared by the calibrations, which run side by side (one alone would leave the
+# others waiting for every core), less one where a bench still makes its fault records: the
+# calibration then runs beside them rather than waiting for two cores the bench never frees at
+# once. None are given to `snakemake --report` or `--lint`.
+CALIBRATION_THREADS = max(
+    1,
+    (
+        (workflow.resource_settings.cores or 1)
+        - (1 if set(MEASURED_PARTS) - set(HEALTHY_PARTS) else 0)
+    )
+    // len(CALIBRATIONS),
+)
+
+
 rule calibrate:
     input:
-        measured=rules.measured.output[0],
+        measured=calibration_measured(),
     output:
         **calibration_background_outputs("{variant}"),
         params=f"{RESULTS}/calibration/{{variant}}/params.json",  # a table in report_pages
@@ -21,9 +35,7 @@ rule calibrate:
         spectrum=config["features"]["spectrum"],
         data_source=data_source(),
         condition=CONDITION,  # calibration.reserve: a lone healthy record per condition
-    # the run's cores shared by the calibrations, which run side by side (one alone would leave
-    # the others waiting for every core); none are given to `snakemake --report` or `--lint`
-    threads: max(1, (workflow.resource_settings.cores or 1) // len(CALIBRATIONS))
+    threads: CALIBRATION_THREADS
     conda:
         "../envs/simulation.yaml"
     benchmark:

@@ -43,6 +43,7 @@ N_BATCHES = -(
 CALIBRATIONS = SYSTEM.calibration_variants()
 SIM_CALIBRATION = CALIBRATIONS[0]
 MEASURED_PARTS = SYSTEM.measured_parts()  # a synthetic bench's jobs, or none
+HEALTHY_PARTS = SYSTEM.healthy_parts()  # those the calibrations read
 # Per-state calibration (calibration.per_state): the fault states whose own model is tuned; their
 # first record per condition joins the calibration set (the reserve every split keeps out).
 STATE_CALIBRATIONS = config["calibration"]["per_state"]["states"]
@@ -170,6 +171,14 @@ def classifier_selection(name):
 
 for _name in CLASSIFIERS:
     classifier_selection(_name)
+
+
+def calibration_measured():
+    """What the calibrations read: a bench's healthy records (`measured_healthy`), so they start
+    while the bench still makes its fault records, or the measured table."""
+    if HEALTHY_PARTS and not SYSTEM.measured_files():
+        return f"{RESULTS}/measured/healthy.parquet"
+    return f"{RESULTS}/measured/signals.parquet"
 
 
 def measured_inputs(wildcards):

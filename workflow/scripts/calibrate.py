@@ -16,7 +16,7 @@ from condmon.systems import load_system
 log = setup_logging(snakemake)
 p = snakemake.params
 system = load_system(p.system)
-frame = read_signal_table(snakemake.input.measured)
+frame = read_signal_table(snakemake.input.measured)  # or a bench's healthy records alone
 # only the calibration set (calibration.reserve): segments no split ever tests or trains on
 frame = calibration_frame(frame, system.healthy_state, p.condition, p.calibration["reserve"])
 result, history, spectra = system.calibrate(

@@ -175,6 +175,11 @@ class System(ABC):
         """Parts of a synthetic bench (one job each) when there is no measured data; none here."""
         return []
 
+    def healthy_parts(self) -> list[str]:
+        """The bench parts holding the healthy records: all the calibration reads, so it can start
+        before the fault records are made. Every part unless the system says which."""
+        return self.measured_parts()
+
     def measured_files(self) -> list[str]:
         """The measured input files (a signal table by default)."""
         return [self.measured_table] if self.measured_table else []

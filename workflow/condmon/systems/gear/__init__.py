@@ -198,6 +198,13 @@ class GearSystem(System):
     def measured_parts(self) -> list[str]:
         return list(self._bench_parts())
 
+    def healthy_parts(self) -> list[str]:
+        return [
+            part
+            for part, (health, _) in self._bench_parts().items()
+            if health == self.healthy_state
+        ]
+
     def _bench_parts(self) -> dict:
         """{part: (health state, operating point)}: the virtual bench's jobs, one per state and
         point (none with a measured table)."""
