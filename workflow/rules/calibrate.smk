@@ -8,11 +8,7 @@
 # once. None are given to `snakemake --report` or `--lint`.
 CALIBRATION_THREADS = max(
     1,
-    (
-        (workflow.resource_settings.cores or 1)
-        - (1 if set(MEASURED_PARTS) - set(HEALTHY_PARTS) else 0)
-    )
-    // len(CALIBRATIONS),
+    ((workflow.resource_settings.cores or 1) - EARLY_CALIBRATION) // len(CALIBRATIONS),
 )
 
 

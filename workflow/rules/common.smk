@@ -44,6 +44,10 @@ CALIBRATIONS = SYSTEM.calibration_variants()
 SIM_CALIBRATION = CALIBRATIONS[0]
 MEASURED_PARTS = SYSTEM.measured_parts()  # a synthetic bench's jobs, or none
 HEALTHY_PARTS = SYSTEM.healthy_parts()  # those the calibrations read
+# the calibrations read the bench's healthy parts alone and run while it makes the others
+EARLY_CALIBRATION = (
+    bool(set(MEASURED_PARTS) - set(HEALTHY_PARTS)) and not SYSTEM.measured_files()
+)
 # Per-state calibration (calibration.per_state): the fault states whose own model is tuned; their
 # first record per condition joins the calibration set (the reserve every split keeps out).
 STATE_CALIBRATIONS = config["calibration"]["per_state"]["states"]
@@ -176,7 +180,7 @@ for _name in CLASSIFIERS:
 def calibration_measured():
     """What the calibrations read: a bench's healthy records (`measured_healthy`), so they start
     while the bench still makes its fault records, or the measured table."""
-    if HEALTHY_PARTS and not SYSTEM.measured_files():
+    if EARLY_CALIBRATION:
         return f"{RESULTS}/measured/healthy.parquet"
     return f"{RESULTS}/measured/signals.parquet"
 

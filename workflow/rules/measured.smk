@@ -8,7 +8,7 @@ rule measured_part:
     params:
         system=SYSTEM.job_spec("bench"),
     # the healthy parts first: the calibrations wait for them alone
-    priority: lambda wc: 1 if wc.part in HEALTHY_PARTS else 0
+    priority: lambda wc: 1 if EARLY_CALIBRATION and wc.part in HEALTHY_PARTS else 0
     conda:
         "../envs/simulation.yaml"
     benchmark:
