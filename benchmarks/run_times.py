@@ -61,16 +61,18 @@ def job_figures(run: Path) -> dict:
 
 def run_name(snakemake_arguments: list[str]) -> str:
     """The run_name of the config the Snakemake arguments name (`--configfile A B ...`, else the
-    default config), as the workflow reads it."""
+    default config; `--config run_name=X` over it), as the workflow reads it."""
     from condmon.config import DEFAULT_CONFIG, load_config
 
-    paths, reading = [], False
+    paths, reading, override = [], None, None
     for argument in snakemake_arguments:
         if argument.startswith("-"):
-            reading = argument in ("--configfile", "--configfiles")
-        elif reading:
+            reading = argument
+        elif reading in ("--configfile", "--configfiles"):
             paths.append(ROOT / argument)
-    return load_config(paths or [ROOT / DEFAULT_CONFIG], project=ROOT)["run_name"]
+        elif reading == "--config" and argument.startswith("run_name="):
+            override = argument.split("=", 1)[1]
+    return override or load_config(paths or [ROOT / DEFAULT_CONFIG], project=ROOT)["run_name"]
 
 
 def main(argv=None) -> int:

@@ -234,3 +234,4 @@ def test_the_run_times_benchmark_reads_a_runs_job_timings(tmp_path):
     assert (
         run_times.run_name(["--configfile", ".test/config/smoke.yaml", "--cores", "2"]) == "smoke"
     )
+    assert run_times.run_name(["--config", "hybrid={}", "run_name=mine", "--cores", "2"]) == "mine"
