@@ -48,6 +48,7 @@ def test_every_design_output_is_written(smoke):
     _, results = smoke
     for name in (
         "measured/signals.parquet",
+        "measured/healthy.parquet",
         *(
             f"calibration/{model}/{file}"
             for model in ("potential_energy", "simple")
@@ -105,6 +106,7 @@ def test_every_design_output_is_written(smoke):
     assert set(timings.index) == {
         "measured_part",
         "measured",
+        "measured_healthy",  # the bench's healthy records the calibrations read
         "calibrate",
         "simulate",
         "features_measured",

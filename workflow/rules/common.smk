@@ -372,6 +372,11 @@ def upstream_benchmarks():
     return {
         "measured_part": expand(rules.measured_part.benchmark, part=MEASURED_PARTS),
         "measured": [rules.measured.benchmark],
+        **(
+            {"measured_healthy": [rules.measured_healthy.benchmark]}
+            if EARLY_CALIBRATION
+            else {}
+        ),
         "calibrate": expand(rules.calibrate.benchmark, variant=CALIBRATIONS),
         **(
             {
